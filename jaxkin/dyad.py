@@ -1,0 +1,283 @@
+"""The planar RRR dyad (Assur group) of seed 000, section 2.
+
+Known: points A and B (position, velocity, acceleration) and the link lengths ``l_ac`` and
+``l_bc``. Unknown: the middle joint C and the angle ``phi`` of link AC with the +X axis.
+
+Position (eqs. 1, 6, 9, 10). With ``theta`` the angle of A->B and ``l = |AB|``::
+
+    A = l_ac^2 + l^2 - l_bc^2,   B = 2 l_ac l,   u = A / B = cos(beta)          (eqs. 1, 4, 5)
+    phi = theta + mode * beta                                                   (eq. 9 / 10)
+    C = A_point + l_ac (cos phi, sin phi)                                       (eq. 6)
+
+The kernel builds ``cos phi`` and ``sin phi`` algebraically from ``(dx, dy) / l``, ``u`` and
+``sin(beta) = sqrt(1 - u^2)``: the only transcendental call is one ``atan2`` for the output
+``phi`` (XLA on CPU is bound by transcendental functions, see DESIGN.md).
+
+Angle convention: ``theta`` is in (-pi, pi] (Fig. 2), ``beta`` in [0, pi], and ``phi`` is the
+paper's *unwrapped* sum ``theta + mode * beta``, so ``phi`` lies in (-2 pi, 2 pi): mode +1 gives
+phi in (-pi, 2 pi), mode -1 gives phi in (-2 pi, pi]. ``mode = +1`` puts C to the left of
+A->B (counter-clockwise from AB by beta), ``mode = -1`` to the right.
+
+Statuses (``jaxkin.Status``), with ``tol = sqrt(eps(dtype)) * (l_ac + l_bc)`` a length
+tolerance (1.5e-8 relative in float64, 3.5e-4 in float32):
+
+* ``INVALID_INPUT``: a NaN or inf anywhere in this element's A, B (p, v, a) or lengths.
+* ``SINGULAR_COINCIDENT``: ``l <= tol`` and ``|l_ac - l_bc| <= tol``: C undefined.
+* ``UNREACHABLE``: ``l > l_ac + l_bc + tol`` or ``l < |l_ac - l_bc| - tol`` (``|A/B| > 1``).
+* ``SINGULAR_EXTENDED``: beta = 0, i.e. ``|l - (l_ac + l_bc)| <= tol`` (C between A and B), or
+  ``|l - (l_ac - l_bc)| <= tol`` with ``l_ac > l_bc`` (B between A and C).
+* ``SINGULAR_FOLDED``: beta = pi, i.e. ``|l - (l_bc - l_ac)| <= tol`` with ``l_bc > l_ac``.
+* ``OK`` otherwise.
+
+Placeholders (finite, documented): velocities and accelerations of C and phi are 0 wherever
+the status is not OK. At a singular configuration the position is valid (beta = 0 or pi). Where
+the dyad cannot be assembled, C is the nearest aligned configuration (``u`` clamped to [-1, 1]);
+for coincident joints or non-finite input, C is computed from a placeholder direction.
+
+``margin`` is ``1 - (A/B)^2 = sin(beta)^2``: 1 at beta = pi/2, 0 at the singularities,
+negative where the dyad cannot be assembled (clipped to [-1, 1]); 0 for coincident joints and
+-1 for invalid input. It is continuous in the inputs, so planners can use it as a barrier.
+
+Float32: the rates lose relative accuracy like ``eps / sin(beta)^2``; measured on random
+non-singular dyads (sin(beta) > 0.05) position is good to ~1e-6 relative, velocity to ~1e-5 and
+acceleration to ~1e-4 (tests/test_dyad.py::test_float32_accuracy states the measured bounds).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax import Array
+from jax.typing import ArrayLike
+
+from . import _validate
+from ._numerics import all_finite, safe_div, safe_sqrt, singular_rtol
+from .jet import Jet, lift
+from .planar import angle, distance
+from .result import SolverResult
+from .status import STATUS_DTYPE, Status
+
+MODES = (1, -1)
+METHODS = ("analytic", "autodiff")
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class DyadResult(SolverResult):
+    """Solution of a batch of RRR dyads.
+
+    Attributes:
+        c: Jet of point C, shape ``(..., 2)``.
+        phi: Jet of the angle of AC with +X (unwrapped, see module docstring), shape ``(...)``.
+        status: ``int8`` codes of ``jaxkin.Status``, shape ``(...)``.
+        margin: ``1 - (A/B)^2``, shape ``(...)``: distance from singularity (see module doc).
+    """
+
+    c: Jet
+    phi: Jet
+    status: Array
+    margin: Array
+
+
+class _Position(NamedTuple):
+    """Position-level quantities shared by the analytic and autodiff paths."""
+
+    c: Array  # (..., 2) point C
+    phi: Array  # (...) angle of AC
+    cos_phi: Array
+    sin_phi: Array
+    u: Array  # cos(beta) = A/B, clamped to [-1, 1]
+    sin_beta: Array
+    status: Array
+    margin: Array
+
+
+def _position(a_p: Array, b_p: Array, l_ac: Array, l_bc: Array, valid: Array, mode: int):
+    """Position of C for finite inputs; ``valid`` marks elements whose raw input was finite."""
+    d = b_p - a_p
+    dx, dy = d[..., 0], d[..., 1]
+    l = safe_sqrt(dx * dx + dy * dy)
+    has_direction = l > 0
+    cos_theta = jnp.where(has_direction, safe_div(dx, l), 1.0)
+    sin_theta = safe_div(dy, l)
+
+    reach_out = l_ac + l_bc
+    reach_in = jnp.abs(l_ac - l_bc)
+    tol = singular_rtol(l.dtype) * reach_out
+    coincident = (l <= tol) & (reach_in <= tol)
+    unreachable = (l > reach_out + tol) | (l < reach_in - tol)
+    on_inner = jnp.abs(l - reach_in) <= tol
+    extended = (jnp.abs(l - reach_out) <= tol) | (on_inner & (l_ac > l_bc))
+    folded = on_inner & (l_bc > l_ac)
+
+    # Eqs. 1, 4, 5: u = cos(beta) = A / B.
+    a_term = l_ac * l_ac + l * l - l_bc * l_bc
+    b_term = 2.0 * l_ac * l
+    u_raw = safe_div(a_term, b_term, fill=2.0)
+    u = jnp.where(extended, 1.0, jnp.where(folded, -1.0, jnp.clip(u_raw, -1.0, 1.0)))
+    sin_beta = safe_sqrt(1.0 - u * u)
+
+    # cos/sin of phi = theta + mode * beta, without evaluating theta or beta.
+    cos_phi = cos_theta * u - mode * sin_theta * sin_beta
+    sin_phi = sin_theta * u + mode * cos_theta * sin_beta
+    c = a_p + l_ac[..., None] * jnp.stack([cos_phi, sin_phi], axis=-1)
+
+    # atan2 wraps to (-pi, pi]; restore the paper's unwrapped theta + mode * beta.
+    phi_wrapped = jnp.arctan2(sin_phi, cos_phi)
+    if mode == 1:
+        theta_on_side = (dy > 0) | ((dy == 0) & (dx < 0))  # theta > 0 (theta = pi for y = 0)
+    else:
+        theta_on_side = dy < 0  # theta < 0
+    wrapped = theta_on_side & (mode * phi_wrapped < 0)
+    phi = phi_wrapped + jnp.where(wrapped, mode * 2.0 * jnp.pi, 0.0)
+
+    status = jnp.where(
+        ~valid,
+        Status.INVALID_INPUT,
+        jnp.where(
+            coincident,
+            Status.SINGULAR_COINCIDENT,
+            jnp.where(
+                unreachable,
+                Status.UNREACHABLE,
+                jnp.where(
+                    extended,
+                    Status.SINGULAR_EXTENDED,
+                    jnp.where(folded, Status.SINGULAR_FOLDED, Status.OK),
+                ),
+            ),
+        ),
+    ).astype(STATUS_DTYPE)
+    singular = extended | folded | coincident
+    margin = jnp.where(singular, 0.0, jnp.clip(1.0 - u_raw * u_raw, -1.0, 1.0))
+    margin = jnp.where(valid, margin, -1.0)
+    return _Position(c, phi, cos_phi, sin_phi, u, sin_beta, status, margin)
+
+
+def _analytic_rates(a: Jet, b: Jet, l_ac: Array, l_bc: Array, pos: _Position, mode: int):
+    """Velocity and acceleration of phi and C by the paper's closed forms (eqs. 2-10)."""
+    ok = pos.status == Status.OK
+    theta, _ = angle(Jet(b.p - a.p, b.v - a.v, b.a - a.a))  # Fig. 2 (corrected, ERRATA 1-3)
+    l, _ = distance(a, b)  # Fig. 3
+    # Eq. 4 (A_ddot corrected, ERRATA seed 000 item 4) and eq. 5. B is replaced by 1 where
+    # the status is not OK so that no division below can produce inf (double-where).
+    a_term = l_ac * l_ac + l.p * l.p - l_bc * l_bc
+    a_dot = 2.0 * l.p * l.v
+    a_ddot = 2.0 * (l.v * l.v + l.p * l.a)
+    b_term = jnp.where(ok, 2.0 * l_ac * l.p, 1.0)
+    b_dot = 2.0 * l_ac * l.v
+    b_ddot = 2.0 * l_ac * l.a
+    # The quotient rule inside eqs. 2 and 3: u_dot and u_ddot with u = A/B.
+    quotient_num = a_dot * b_term - a_term * b_dot
+    u_dot = quotient_num / (b_term * b_term)
+    u_ddot = (
+        (a_ddot * b_term - a_term * b_ddot) * b_term * b_term - 2.0 * quotient_num * b_term * b_dot
+    ) / b_term**4
+    sin_beta = jnp.where(ok, pos.sin_beta, 1.0)
+    beta_dot = -u_dot / sin_beta  # eq. 2
+    beta_ddot = -(pos.u * u_dot * u_dot / (sin_beta * sin_beta) + u_ddot) / sin_beta  # eq. 3
+    phi_dot = jnp.where(ok, theta.v + mode * beta_dot, 0.0)  # eq. 9 / 10
+    phi_ddot = jnp.where(ok, theta.a + mode * beta_ddot, 0.0)
+
+    cos_phi, sin_phi = pos.cos_phi, pos.sin_phi
+    rot = jnp.stack([-sin_phi, cos_phi], axis=-1)  # d(cos phi, sin phi)/dphi
+    radial = jnp.stack([cos_phi, sin_phi], axis=-1)
+    lever = l_ac[..., None]
+    okc = ok[..., None]
+    c_dot = jnp.where(okc, a.v + lever * rot * phi_dot[..., None], 0.0)  # eq. 7
+    c_ddot = jnp.where(  # eq. 8
+        okc,
+        a.a + lever * (rot * phi_ddot[..., None] - radial * (phi_dot * phi_dot)[..., None]),
+        0.0,
+    )
+    return Jet(pos.c, c_dot, c_ddot), Jet(pos.phi, phi_dot, phi_ddot)
+
+
+def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
+    batch = jnp.broadcast_shapes(a.p.shape[:-1], b.p.shape[:-1], l_ac.shape, l_bc.shape)
+    a = a.map(lambda x: jnp.broadcast_to(x, (*batch, 2)))
+    b = b.map(lambda x: jnp.broadcast_to(x, (*batch, 2)))
+    l_ac = jnp.broadcast_to(l_ac, batch)
+    l_bc = jnp.broadcast_to(l_bc, batch)
+
+    # Double-where, step 1: replace non-finite elements by a harmless dyad before any math.
+    valid = (
+        all_finite(jnp.concatenate([a.p, a.v, a.a, b.p, b.v, b.a], axis=-1))
+        & jnp.isfinite(l_ac)
+        & jnp.isfinite(l_bc)
+    )
+    vc = valid[..., None]
+    a = a.map(lambda x: jnp.where(vc, x, 0.0))
+    b = Jet(
+        jnp.where(vc, b.p, jnp.array([1.0, 0.0], b.p.dtype)),
+        jnp.where(vc, b.v, 0.0),
+        jnp.where(vc, b.a, 0.0),
+    )
+    l_ac = jnp.where(valid, l_ac, 1.0)
+    l_bc = jnp.where(valid, l_bc, 1.0)
+
+    if method == "analytic":
+        pos = _position(a.p, b.p, l_ac, l_bc, valid, mode)
+        c, phi = _analytic_rates(a, b, l_ac, l_bc, pos, mode)
+        return DyadResult(c, phi, pos.status, pos.margin)
+
+    def position(a_p, b_p):
+        pos = _position(a_p, b_p, l_ac, l_bc, valid, mode)
+        return pos.c, pos.phi, pos.status, pos.margin
+
+    c, phi, status, margin = lift(position)(a, b)
+    ok = status == Status.OK
+    c = Jet(c.p, jnp.where(ok[..., None], c.v, 0.0), jnp.where(ok[..., None], c.a, 0.0))
+    phi = Jet(phi.p, jnp.where(ok, phi.v, 0.0), jnp.where(ok, phi.a, 0.0))
+    return DyadResult(c, phi, status, margin.p)
+
+
+_solve_jit = jax.jit(_solve_impl, static_argnames=("mode", "method"))
+
+
+def solve(
+    a: Jet | ArrayLike,
+    b: Jet | ArrayLike,
+    l_ac: ArrayLike,
+    l_bc: ArrayLike,
+    mode: int = 1,
+    method: str = "analytic",
+) -> DyadResult:
+    """Solve a batch of RRR dyads: position, velocity and acceleration of C and phi.
+
+    Args:
+        a: Jet (or plain array, taken at rest) of the known joint A, shape ``(..., 2)``.
+        b: Jet (or plain array) of the known joint B, shape ``(..., 2)``.
+        l_ac: length of link AC; scalar or array broadcastable to the batch shape.
+        l_bc: length of link BC; scalar or array broadcastable to the batch shape.
+        mode: assembly mode, ``+1`` for phi = theta + beta (eq. 9), ``-1`` for
+            phi = theta - beta (eq. 10).
+        method: ``"analytic"`` (the paper's closed forms, eqs. 2-10, errata corrected) or
+            ``"autodiff"`` (forward-mode differentiation of the position solution through
+            ``jaxkin.lift``). Both give the same values.
+
+    Returns:
+        A ``DyadResult`` with ``c``, ``phi``, ``status`` and ``margin``; batch shape is the
+        broadcast of the inputs' batch shapes. Output dtype follows the inputs.
+
+    Raises:
+        ValueError: non-positive or non-finite lengths (when concrete), shapes whose last axis
+            is not 2, batch shapes that do not broadcast, or an unknown ``mode``/``method``.
+    """
+    mode = _validate.choice(mode, "mode", MODES)
+    method = _validate.choice(method, "method", METHODS)
+    a = _validate.as_jet(a, "a", coords=2)
+    b = _validate.as_jet(b, "b", coords=2)
+    # Lengths may be per-element batch data: NaN/inf there becomes INVALID_INPUT, not an error.
+    l_ac = _validate.positive_length(l_ac, "l_ac", allow_nonfinite=True)
+    l_bc = _validate.positive_length(l_bc, "l_bc", allow_nonfinite=True)
+    _validate.batch_shape(
+        {"a": a.shape[:-1], "b": b.shape[:-1], "l_ac": l_ac.shape, "l_bc": l_bc.shape}
+    )
+    dtype = jnp.result_type(a.p, b.p, l_ac, l_bc)
+    return _solve_jit(
+        a.astype(dtype), b.astype(dtype), l_ac.astype(dtype), l_bc.astype(dtype), mode, method
+    )

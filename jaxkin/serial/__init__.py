@@ -1,0 +1,1 @@
+"""Serial arms: DH and product-of-exponentials kinematics, analytic and numerical IK."""

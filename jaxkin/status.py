@@ -1,0 +1,72 @@
+"""Per-element status codes shared by every solver.
+
+Failure is data: a solver never raises inside ``jit``; each element of a batch carries one of
+these codes (stored as ``int8``) beside finite placeholder values. When several conditions hold,
+the most basic one wins: ``INVALID_INPUT`` before ``UNREACHABLE`` before the singular cases.
+"""
+
+from __future__ import annotations
+
+import enum
+
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
+
+STATUS_DTYPE = jnp.int8
+
+
+class Status(enum.IntEnum):
+    """What happened to one element of a batch (see ``describe`` for each code's meaning)."""
+
+    OK = 0
+    UNREACHABLE = 1
+    SINGULAR_EXTENDED = 2
+    SINGULAR_FOLDED = 3
+    SINGULAR_COINCIDENT = 4
+    SINGULAR = 5
+    NOT_CONVERGED = 6
+    OUT_OF_LIMITS = 7
+    INVALID_INPUT = 8
+
+
+_DESCRIPTIONS = {
+    Status.OK: "solved; position, velocity and acceleration are valid",
+    Status.UNREACHABLE: "the target cannot be reached (the mechanism cannot be assembled)",
+    Status.SINGULAR_EXTENDED: (
+        "dyad with beta = 0 (C on the ray A->B): position valid, rates undefined"
+    ),
+    Status.SINGULAR_FOLDED: (
+        "dyad with beta = pi (C on the ray opposite A->B): position valid, rates undefined"
+    ),
+    Status.SINGULAR_COINCIDENT: (
+        "dyad with coincident known joints and equal links: C is undefined"
+    ),
+    Status.SINGULAR: "a Jacobian of the mechanism is singular: position valid, rates not",
+    Status.NOT_CONVERGED: "an iterative solver stopped before reaching its tolerance",
+    Status.OUT_OF_LIMITS: "solved, but a joint limit is violated",
+    Status.INVALID_INPUT: "NaN or inf in this element's input",
+}
+
+
+def describe(code: int | Status) -> str:
+    """One-line, human-readable description of a status code."""
+    status = Status(int(code))
+    return f"{status.name}: {_DESCRIPTIONS[status]}"
+
+
+def first_failure(*statuses: ArrayLike) -> Array:
+    """Combine status arrays: the first non-OK code, in argument order, wins per element."""
+    result = jnp.asarray(statuses[-1], STATUS_DTYPE)
+    for status in reversed(statuses[:-1]):
+        status = jnp.asarray(status, STATUS_DTYPE)
+        result = jnp.where(status != Status.OK, status, result)
+    return result
+
+
+def status_names(status: ArrayLike) -> np.ndarray:
+    """Host-side: the names of an array of codes, same shape (for printing and CSV files)."""
+    codes = np.asarray(status)
+    names = np.array([s.name for s in Status], dtype=object)
+    return names[codes]
