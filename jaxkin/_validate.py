@@ -42,14 +42,14 @@ def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> j
     With ``allow_nonfinite`` NaN/inf entries pass (a batched kernel reports them per element
     as ``INVALID_INPUT``); zero and negative values always raise.
     """
-    arr = jnp.asarray(x)
-    if not jnp.issubdtype(arr.dtype, jnp.inexact):
-        arr = arr.astype(jnp.result_type(float))
     if is_concrete(x):
-        values = np.asarray(arr)
+        values = np.asarray(x, dtype=float)
         finite = np.isfinite(values)
         if np.any(values[finite] <= 0) or not (allow_nonfinite or np.all(finite)):
             raise ValueError(f"{name} must be positive and finite, got {values}")
+    arr = jnp.asarray(x)
+    if not jnp.issubdtype(arr.dtype, jnp.inexact):
+        arr = arr.astype(jnp.result_type(float))
     return arr
 
 

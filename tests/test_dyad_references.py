@@ -1,0 +1,34 @@
+"""The benchmark references compute what jaxkin computes (so benchmark ratios compare like
+with like). The references live in benchmarks/ and are not part of the library."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from reference_dyad import dyad_numpy, make_numba_dyad, random_dyads  # noqa: E402
+
+from jaxkin import Jet, dyad  # noqa: E402
+
+
+@pytest.mark.parametrize("mode", [1, -1])
+def test_numpy_and_numba_references_equal_jaxkin(mode):
+    arrays, l_ac, l_bc = random_dyads(2000, seed=7)
+    res = dyad.solve(Jet.of(*arrays[:3]), Jet.of(*arrays[3:]), l_ac, l_bc, mode)
+    ok = np.asarray(res.status == 0) & (np.asarray(res.margin) > 1e-4)
+    implementations = [dyad_numpy]
+    numba_run = make_numba_dyad()
+    if numba_run is not None:
+        implementations.append(numba_run)
+    for impl in implementations:
+        c_p, c_v, c_a, phi, phi_dot, phi_ddot = impl(*arrays, l_ac, l_bc, mode)[:6]
+        for mine, theirs in ((res.c.p, c_p), (res.c.v, c_v), (res.c.a, c_a)):
+            theirs = np.asarray(theirs)[ok]
+            scale = np.abs(theirs).max()
+            np.testing.assert_allclose(np.asarray(mine)[ok], theirs, atol=1e-9 * scale)
+        np.testing.assert_allclose(np.asarray(res.phi.p)[ok], np.asarray(phi)[ok], atol=1e-12)
+        np.testing.assert_allclose(
+            np.asarray(res.phi.a)[ok], np.asarray(phi_ddot)[ok], rtol=1e-8, atol=1e-8
+        )
