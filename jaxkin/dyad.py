@@ -58,7 +58,7 @@ from jax.typing import ArrayLike
 from . import _validate
 from ._numerics import all_finite, safe_div, safe_sqrt, singular_rtol
 from .jet import Jet, lift
-from .planar import angle, distance
+from .planar import angle_rates, length_rates
 from .result import SolverResult
 from .status import STATUS_DTYPE, Status
 
@@ -85,10 +85,11 @@ class DyadResult(SolverResult):
 
 
 class _Position(NamedTuple):
-    """Position-level quantities shared by the analytic and autodiff paths."""
+    """Position-level quantities shared by the analytic and autodiff paths (batch shape)."""
 
-    c: Array  # (..., 2) point C
-    phi: Array  # (...) angle of AC
+    c_x: Array
+    c_y: Array
+    phi: Array  # unwrapped angle of AC
     cos_phi: Array
     sin_phi: Array
     u: Array  # cos(beta) = A/B, clamped to [-1, 1]
@@ -97,14 +98,13 @@ class _Position(NamedTuple):
     margin: Array
 
 
-def _position(a_p: Array, b_p: Array, l_ac: Array, l_bc: Array, valid: Array, mode: int):
-    """Position of C for finite inputs; ``valid`` marks elements whose raw input was finite."""
-    d = b_p - a_p
-    dx, dy = d[..., 0], d[..., 1]
+def _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode: int) -> _Position:
+    """Position of C from components; ``valid`` marks elements whose raw input was finite."""
+    dx, dy = b_x - a_x, b_y - a_y
     l = safe_sqrt(dx * dx + dy * dy)
-    has_direction = l > 0
-    cos_theta = jnp.where(has_direction, safe_div(dx, l), 1.0)
-    sin_theta = safe_div(dy, l)
+    inv_l = safe_div(1.0, l)
+    cos_theta = jnp.where(l > 0, dx * inv_l, 1.0)
+    sin_theta = dy * inv_l
 
     reach_out = l_ac + l_bc
     reach_in = jnp.abs(l_ac - l_bc)
@@ -116,16 +116,14 @@ def _position(a_p: Array, b_p: Array, l_ac: Array, l_bc: Array, valid: Array, mo
     folded = on_inner & (l_bc > l_ac)
 
     # Eqs. 1, 4, 5: u = cos(beta) = A / B.
-    a_term = l_ac * l_ac + l * l - l_bc * l_bc
-    b_term = 2.0 * l_ac * l
-    u_raw = safe_div(a_term, b_term, fill=2.0)
+    # l = 0 cannot assemble unless coincident: u_raw = 2 there makes the margin negative.
+    u_raw = jnp.where(l > 0, (l_ac * l_ac + l * l - l_bc * l_bc) * (0.5 * inv_l / l_ac), 2.0)
     u = jnp.where(extended, 1.0, jnp.where(folded, -1.0, jnp.clip(u_raw, -1.0, 1.0)))
     sin_beta = safe_sqrt(1.0 - u * u)
 
     # cos/sin of phi = theta + mode * beta, without evaluating theta or beta.
     cos_phi = cos_theta * u - mode * sin_theta * sin_beta
     sin_phi = sin_theta * u + mode * cos_theta * sin_beta
-    c = a_p + l_ac[..., None] * jnp.stack([cos_phi, sin_phi], axis=-1)
 
     # atan2 wraps to (-pi, pi]; restore the paper's unwrapped theta + mode * beta.
     phi_wrapped = jnp.arctan2(sin_phi, cos_phi)
@@ -136,66 +134,70 @@ def _position(a_p: Array, b_p: Array, l_ac: Array, l_bc: Array, valid: Array, mo
     wrapped = theta_on_side & (mode * phi_wrapped < 0)
     phi = phi_wrapped + jnp.where(wrapped, mode * 2.0 * jnp.pi, 0.0)
 
-    status = jnp.where(
-        ~valid,
-        Status.INVALID_INPUT,
-        jnp.where(
-            coincident,
-            Status.SINGULAR_COINCIDENT,
-            jnp.where(
-                unreachable,
-                Status.UNREACHABLE,
-                jnp.where(
-                    extended,
-                    Status.SINGULAR_EXTENDED,
-                    jnp.where(folded, Status.SINGULAR_FOLDED, Status.OK),
-                ),
-            ),
-        ),
-    ).astype(STATUS_DTYPE)
+    # Nested where, most basic condition outermost (jnp.select lowers to a slow reduction).
+    status = jnp.full(l.shape, Status.OK, STATUS_DTYPE)
+    for condition, code in (
+        (folded, Status.SINGULAR_FOLDED),
+        (extended, Status.SINGULAR_EXTENDED),
+        (unreachable, Status.UNREACHABLE),
+        (coincident, Status.SINGULAR_COINCIDENT),
+        (~valid, Status.INVALID_INPUT),
+    ):
+        status = jnp.where(condition, jnp.int8(code), status)
     singular = extended | folded | coincident
     margin = jnp.where(singular, 0.0, jnp.clip(1.0 - u_raw * u_raw, -1.0, 1.0))
     margin = jnp.where(valid, margin, -1.0)
-    return _Position(c, phi, cos_phi, sin_phi, u, sin_beta, status, margin)
+    return _Position(
+        a_x + l_ac * cos_phi,
+        a_y + l_ac * sin_phi,
+        phi,
+        cos_phi,
+        sin_phi,
+        u,
+        sin_beta,
+        status,
+        margin,
+    )
 
 
-def _analytic_rates(a: Jet, b: Jet, l_ac: Array, l_bc: Array, pos: _Position, mode: int):
-    """Velocity and acceleration of phi and C by the paper's closed forms (eqs. 2-10)."""
+def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
+    """Rates of phi and C by the paper's closed forms (eqs. 2-10), from components.
+
+    ``a`` and ``b`` are ``(x, y, x_dot, y_dot, x_ddot, y_ddot)`` component tuples.
+    Returns ``(phi_dot, phi_ddot, c_dot_x, c_dot_y, c_ddot_x, c_ddot_y)``, 0 where not OK.
+    """
     ok = pos.status == Status.OK
-    theta, _ = angle(Jet(b.p - a.p, b.v - a.v, b.a - a.a))  # Fig. 2 (corrected, ERRATA 1-3)
-    l, _ = distance(a, b)  # Fig. 3
-    # Eq. 4 (A_ddot corrected, ERRATA seed 000 item 4) and eq. 5. B is replaced by 1 where
-    # the status is not OK so that no division below can produce inf (double-where).
-    a_term = l_ac * l_ac + l.p * l.p - l_bc * l_bc
-    a_dot = 2.0 * l.p * l.v
-    a_ddot = 2.0 * (l.v * l.v + l.p * l.a)
-    b_term = jnp.where(ok, 2.0 * l_ac * l.p, 1.0)
-    b_dot = 2.0 * l_ac * l.v
-    b_ddot = 2.0 * l_ac * l.a
+    rel = [bk - ak for ak, bk in zip(a, b, strict=True)]  # the vector A->B and its rates
+    theta_dot, theta_ddot = angle_rates(*rel)  # Fig. 2 (corrected, ERRATA items 1-3)
+    l, l_dot, l_ddot = length_rates(*rel)  # Fig. 3
+    # Eq. 4 (A_ddot corrected, ERRATA seed 000 item 4) and eq. 5. B and sin(beta) are replaced
+    # by 1 where the status is not OK so no division below can make an inf (double-where).
+    a_term = l_ac * l_ac + l * l - l_bc * l_bc
+    a_dot = 2.0 * l * l_dot
+    a_ddot = 2.0 * (l_dot * l_dot + l * l_ddot)
+    inv_b = 1.0 / jnp.where(ok, 2.0 * l_ac * l, 1.0)
+    b_term = 2.0 * l_ac * l
+    b_dot = 2.0 * l_ac * l_dot
+    b_ddot = 2.0 * l_ac * l_ddot
     # The quotient rule inside eqs. 2 and 3: u_dot and u_ddot with u = A/B.
     quotient_num = a_dot * b_term - a_term * b_dot
-    u_dot = quotient_num / (b_term * b_term)
-    u_ddot = (
-        (a_ddot * b_term - a_term * b_ddot) * b_term * b_term - 2.0 * quotient_num * b_term * b_dot
-    ) / b_term**4
-    sin_beta = jnp.where(ok, pos.sin_beta, 1.0)
-    beta_dot = -u_dot / sin_beta  # eq. 2
-    beta_ddot = -(pos.u * u_dot * u_dot / (sin_beta * sin_beta) + u_ddot) / sin_beta  # eq. 3
-    phi_dot = jnp.where(ok, theta.v + mode * beta_dot, 0.0)  # eq. 9 / 10
-    phi_ddot = jnp.where(ok, theta.a + mode * beta_ddot, 0.0)
+    u_dot = quotient_num * inv_b * inv_b
+    u_ddot = ((a_ddot * b_term - a_term * b_ddot) - 2.0 * quotient_num * b_dot * inv_b) * (
+        inv_b * inv_b
+    )
+    inv_sin_beta = 1.0 / jnp.where(ok, pos.sin_beta, 1.0)
+    beta_dot = -u_dot * inv_sin_beta  # eq. 2
+    beta_ddot = -(pos.u * u_dot * u_dot * inv_sin_beta * inv_sin_beta + u_ddot) * inv_sin_beta
+    phi_dot = jnp.where(ok, theta_dot + mode * beta_dot, 0.0)  # eq. 9 / 10
+    phi_ddot = jnp.where(ok, theta_ddot + mode * beta_ddot, 0.0)  # eq. 3 above, then 9 / 10
 
     cos_phi, sin_phi = pos.cos_phi, pos.sin_phi
-    rot = jnp.stack([-sin_phi, cos_phi], axis=-1)  # d(cos phi, sin phi)/dphi
-    radial = jnp.stack([cos_phi, sin_phi], axis=-1)
-    lever = l_ac[..., None]
-    okc = ok[..., None]
-    c_dot = jnp.where(okc, a.v + lever * rot * phi_dot[..., None], 0.0)  # eq. 7
-    c_ddot = jnp.where(  # eq. 8
-        okc,
-        a.a + lever * (rot * phi_ddot[..., None] - radial * (phi_dot * phi_dot)[..., None]),
-        0.0,
-    )
-    return Jet(pos.c, c_dot, c_ddot), Jet(pos.phi, phi_dot, phi_ddot)
+    c_dot_x = a[2] - l_ac * sin_phi * phi_dot  # eq. 7
+    c_dot_y = a[3] + l_ac * cos_phi * phi_dot
+    c_ddot_x = a[4] - l_ac * (cos_phi * phi_dot * phi_dot + sin_phi * phi_ddot)  # eq. 8
+    c_ddot_y = a[5] + l_ac * (cos_phi * phi_ddot - sin_phi * phi_dot * phi_dot)
+    rates = (c_dot_x, c_dot_y, c_ddot_x, c_ddot_y)
+    return (phi_dot, phi_ddot) + tuple(jnp.where(ok, r, 0.0) for r in rates)
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
@@ -205,33 +207,42 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     l_ac = jnp.broadcast_to(l_ac, batch)
     l_bc = jnp.broadcast_to(l_bc, batch)
 
-    # Double-where, step 1: replace non-finite elements by a harmless dyad before any math.
-    valid = (
-        all_finite(jnp.concatenate([a.p, a.v, a.a, b.p, b.v, b.a], axis=-1))
-        & jnp.isfinite(l_ac)
-        & jnp.isfinite(l_bc)
-    )
-    vc = valid[..., None]
-    a = a.map(lambda x: jnp.where(vc, x, 0.0))
-    b = Jet(
-        jnp.where(vc, b.p, jnp.array([1.0, 0.0], b.p.dtype)),
-        jnp.where(vc, b.v, 0.0),
-        jnp.where(vc, b.a, 0.0),
+    # Double-where, step 1: replace non-finite elements by a harmless dyad (A = 0, B = (1, 0),
+    # unit links) before any math, so neither values nor gradients can become NaN. The mask is
+    # a reduction on purpose: XLA keeps it as one loop that the others read, whereas an
+    # elementwise mask would be recomputed from all 14 inputs in each of the ~20 loops XLA
+    # splits this kernel into (measured 4x slower at batch 1e6).
+    scalars = jnp.stack([l_ac, l_bc], axis=-1)
+    valid = all_finite(jnp.concatenate([a.p, a.v, a.a, b.p, b.v, b.a, scalars], axis=-1))
+    a_comps = tuple(jnp.where(valid, arr[..., k], 0.0) for arr in (a.p, a.v, a.a) for k in (0, 1))
+    b_comps = tuple(
+        jnp.where(valid, arr[..., k], 1.0 if (i, k) == (0, 0) else 0.0)
+        for i, arr in enumerate((b.p, b.v, b.a))
+        for k in (0, 1)
     )
     l_ac = jnp.where(valid, l_ac, 1.0)
     l_bc = jnp.where(valid, l_bc, 1.0)
 
     if method == "analytic":
-        pos = _position(a.p, b.p, l_ac, l_bc, valid, mode)
-        c, phi = _analytic_rates(a, b, l_ac, l_bc, pos, mode)
-        return DyadResult(c, phi, pos.status, pos.margin)
+        pos = _position(a_comps[0], a_comps[1], b_comps[0], b_comps[1], l_ac, l_bc, valid, mode)
+        phi_dot, phi_ddot, *c_rates = _analytic_rates(a_comps, b_comps, l_ac, l_bc, pos, mode)
+        c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = pos.c_x, pos.c_y, *c_rates
+        c = Jet(
+            jnp.stack([c_x, c_y], axis=-1),
+            jnp.stack([c_v_x, c_v_y], axis=-1),
+            jnp.stack([c_a_x, c_a_y], axis=-1),
+        )
+        return DyadResult(c, Jet(pos.phi, phi_dot, phi_ddot), pos.status, pos.margin)
 
-    def position(a_p, b_p):
-        pos = _position(a_p, b_p, l_ac, l_bc, valid, mode)
-        return pos.c, pos.phi, pos.status, pos.margin
+    def position(a_x, a_y, b_x, b_y):
+        pos = _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode)
+        return pos.c_x, pos.c_y, pos.phi, pos.status, pos.margin
 
-    c, phi, status, margin = lift(position)(a, b)
+    c_x, c_y, phi, status, margin = lift(position)(
+        *(Jet(*comps[k::2]) for comps in (a_comps, b_comps) for k in (0, 1))
+    )
     ok = status == Status.OK
+    c = Jet.stack([c_x, c_y])
     c = Jet(c.p, jnp.where(ok[..., None], c.v, 0.0), jnp.where(ok[..., None], c.a, 0.0))
     phi = Jet(phi.p, jnp.where(ok, phi.v, 0.0), jnp.where(ok, phi.a, 0.0))
     return DyadResult(c, phi, status, margin.p)
