@@ -1,0 +1,386 @@
+"""Planner backend: evaluate N candidate end-effector trajectories in one call, and rank them.
+
+A planner hands ``evaluate`` a ``Jet`` of end-effector paths, shape ``(N, T, 3)`` (N candidates,
+T samples at a fixed time step ``dt``) and gets back, per candidate, the joint trajectories,
+feasibility, the first failing sample, the smallest singularity margin and costs.
+
+Costs, per candidate (joint units: rad for revolute joints, the length unit for prismatic ones;
+sums run over joints and samples, ``dt`` is the sample spacing)::
+
+    path_length             sum_t |q[t+1] - q[t]|                  (Euclidean norm over joints)
+    peak_speed              max_t max_j |q_dot|
+    integrated_speed        sum_t |q_dot|^2 dt
+    peak_acceleration       max_t max_j |q_ddot|
+    integrated_acceleration sum_t |q_ddot|^2 dt
+    peak_jerk               max_t max_j |jerk|,   jerk[t] = (q_ddot[t+1] - q_ddot[t]) / dt
+    integrated_jerk         sum_t |jerk|^2 dt
+    limit_violation         sum_t sum_j of how far q, |q_dot|, |q_ddot| exceed their limits
+    total                   integrated_acceleration where feasible, +inf otherwise
+
+``total`` is the documented ranking cost used by ``best`` and by ``mode="best"``: the smoothest
+feasible joint motion wins. Jerk is the only finite difference here (of the exact
+accelerations); positions, velocities and accelerations come from the kernels.
+
+Feasible means every sample's status is ``OK``: the IK solved it (reachable, not singular, not
+invalid) and no position, velocity or acceleration limit is violated (``OUT_OF_LIMITS``
+otherwise). A candidate keeps one assembly mode/branch from start to end: a path that would
+need a switch passes through a singularity, which the kernel reports, so it is infeasible.
+
+Scale: when JAX sees more than one device the candidate axis is sharded across all of them
+(``jax.sharding.NamedSharding``); huge N is processed in chunks of ``chunk_size`` candidates
+(default: ``DEFAULT_CHUNK_SAMPLES // T``, i.e. about 2**18 samples per call, a few hundred MB
+of intermediates in float64), so memory stays bounded besides the returned arrays.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from jax.typing import ArrayLike
+
+from . import _validate, delta, scara
+from ._numerics import safe_norm
+from .jet import Jet
+from .result import SolverResult
+from .status import STATUS_DTYPE, Status
+
+DEFAULT_CHUNK_SAMPLES = 2**18
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Limits:
+    """Joint limits for the planner; ``inf`` where a joint is unbounded.
+
+    Attributes:
+        q_min, q_max: position range per joint, shape ``(n,)``.
+        v_max: speed bound ``|q_dot| <= v_max`` per joint, shape ``(n,)``.
+        a_max: acceleration bound ``|q_ddot| <= a_max`` per joint, shape ``(n,)``.
+    """
+
+    q_min: Array
+    q_max: Array
+    v_max: Array
+    a_max: Array
+
+    @classmethod
+    def create(
+        cls,
+        n_joints: int,
+        q_min: ArrayLike | None = None,
+        q_max: ArrayLike | None = None,
+        v_max: ArrayLike | None = None,
+        a_max: ArrayLike | None = None,
+    ) -> Limits:
+        """Validated constructor; ``None`` leaves that kind of limit off.
+
+        Raises:
+            ValueError: a bound that does not broadcast to ``(n_joints,)``, is NaN, a negative
+                speed or acceleration bound, or ``q_min > q_max``.
+        """
+
+        def bound(x, name, fill):
+            arr = np.full(n_joints, fill) if x is None else np.asarray(x, dtype=float)
+            try:
+                arr = np.broadcast_to(arr, (n_joints,)).astype(float)
+            except ValueError:
+                raise ValueError(
+                    f"{name} must broadcast to shape ({n_joints},), got {arr.shape}"
+                ) from None
+            if np.any(np.isnan(arr)):
+                raise ValueError(f"{name} must not be NaN, got {arr}")
+            return arr
+
+        q_lo = bound(q_min, "q_min", -np.inf)
+        q_hi = bound(q_max, "q_max", np.inf)
+        v = bound(v_max, "v_max", np.inf)
+        a = bound(a_max, "a_max", np.inf)
+        if np.any(q_lo > q_hi):
+            raise ValueError(f"q_min must be <= q_max, got {q_lo} and {q_hi}")
+        for name, arr in (("v_max", v), ("a_max", a)):
+            if np.any(arr < 0):
+                raise ValueError(f"{name} must be >= 0, got {arr}")
+        return cls(*(jnp.asarray(x) for x in (q_lo, q_hi, v, a)))
+
+    def tightened(self, q_min: ArrayLike, q_max: ArrayLike) -> Limits:
+        """These limits intersected with a position range (e.g. the robot's own)."""
+        return dataclasses.replace(
+            self, q_min=jnp.maximum(self.q_min, q_min), q_max=jnp.minimum(self.q_max, q_max)
+        )
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Costs:
+    """Per-candidate costs, each of shape ``(N,)`` (definitions in the module docstring)."""
+
+    path_length: Array
+    peak_speed: Array
+    integrated_speed: Array
+    peak_acceleration: Array
+    integrated_acceleration: Array
+    peak_jerk: Array
+    integrated_jerk: Array
+    limit_violation: Array
+    total: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Evaluation(SolverResult):
+    """Evaluation of N candidate trajectories of T samples each.
+
+    Attributes:
+        q: Jet of joint coordinates, shape ``(N, T, n)``.
+        status: per-sample ``int8`` status, shape ``(N, T)``.
+        feasible: every sample OK, shape ``(N,)``.
+        first_failure: index of the first non-OK sample, -1 when feasible, shape ``(N,)``.
+        min_margin: smallest singularity margin along the candidate, shape ``(N,)``.
+        branch: index into ``branches`` of the assembly mode/branch used, shape ``(N,)``.
+        costs: ``Costs``, each ``(N,)``.
+        branches: the robot's branch labels (static), e.g. ``(1, -1)`` for a SCARA.
+    """
+
+    q: Jet
+    status: Array
+    feasible: Array
+    first_failure: Array
+    min_margin: Array
+    branch: Array
+    costs: Costs
+    branches: tuple = dataclasses.field(metadata=dict(static=True), default=())
+
+
+# ------------------------------------------------------------------ robot adapters
+def _branches(robot: Any) -> tuple:
+    if isinstance(robot, scara.Scara):
+        return scara.MODES
+    if isinstance(robot, delta.Delta):
+        return delta.BRANCHES
+    raise ValueError(
+        f"robot must be a jaxkin.scara.Scara or jaxkin.delta.Delta, got {type(robot).__name__}"
+    )
+
+
+def _solve(robot: Any, path: Jet, branch: Any) -> tuple[Jet, Array, Array]:
+    """Joint Jet, status and margin of one branch (inside jit: tracers skip host checks)."""
+    if isinstance(robot, scara.Scara):
+        res = scara.ik(robot, path, mode=branch)
+        return res.q, res.status, res.margin
+    res = delta.ik(robot, path, branch=branch)
+    return res.theta, res.status, res.margin
+
+
+def _robot_position_limits(robot: Any, n: int) -> tuple[Any, Any]:
+    if isinstance(robot, scara.Scara) and robot.limits is not None:
+        return robot.limits.lower, robot.limits.upper
+    if isinstance(robot, delta.Delta):
+        return jnp.full(n, robot.theta_min, float), jnp.full(n, robot.theta_max, float)
+    return jnp.full(n, -jnp.inf), jnp.full(n, jnp.inf)
+
+
+# ------------------------------------------------------------------ costs (reused by optimize)
+def limit_excess(q: Jet, limits: Limits) -> Array:
+    """How far each sample exceeds its limits, summed over joints: shape ``q.shape[:-1]``."""
+    dtype = q.p.dtype
+    excess = (
+        jax.nn.relu(q.p - limits.q_max.astype(dtype))
+        + jax.nn.relu(limits.q_min.astype(dtype) - q.p)
+        + jax.nn.relu(jnp.abs(q.v) - limits.v_max.astype(dtype))
+        + jax.nn.relu(jnp.abs(q.a) - limits.a_max.astype(dtype))
+    )
+    return jnp.sum(excess, axis=-1)
+
+
+def jerk(q: Jet, dt: float) -> Array:
+    """Jerk by a forward difference of the exact accelerations, shape ``(..., T - 1, n)``."""
+    return (q.a[..., 1:, :] - q.a[..., :-1, :]) / dt
+
+
+def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Costs:
+    """All per-candidate costs of joint trajectories ``q`` of shape ``(..., T, n)``."""
+    step = q.p[..., 1:, :] - q.p[..., :-1, :]
+    path_length = jnp.sum(safe_norm(step), axis=-1)  # safe: zero steps keep finite gradients
+    j = jerk(q, dt)
+
+    def peak(x):
+        return jnp.max(jnp.abs(x), axis=(-2, -1))
+
+    def integral(x):
+        return jnp.sum(x * x, axis=(-2, -1)) * dt
+
+    integrated_acceleration = integral(q.a)
+    return Costs(
+        path_length=path_length,
+        peak_speed=peak(q.v),
+        integrated_speed=integral(q.v),
+        peak_acceleration=peak(q.a),
+        integrated_acceleration=integrated_acceleration,
+        peak_jerk=peak(j),
+        integrated_jerk=integral(j),
+        limit_violation=jnp.sum(limit_excess(q, limits), axis=-1),
+        total=jnp.where(feasible, integrated_acceleration, jnp.inf),
+    )
+
+
+# ------------------------------------------------------------------ the kernel
+def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: int) -> Evaluation:
+    branches = _branches(robot)
+    q, status, margin = _solve(robot, path, branches[branch_index])
+    violated = limit_excess(q, limits) > 0
+    status = jnp.where(
+        (status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status
+    ).astype(STATUS_DTYPE)
+    bad = status != Status.OK
+    feasible = ~jnp.any(bad, axis=-1)
+    first_failure = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
+    return Evaluation(
+        q=q,
+        status=status,
+        feasible=feasible,
+        first_failure=first_failure,
+        min_margin=jnp.min(margin, axis=-1),
+        branch=jnp.full(feasible.shape, branch_index, jnp.int8),
+        costs=trajectory_costs(q, dt, limits, feasible),
+        branches=branches,
+    )
+
+
+def _pick(better: Array, a: Evaluation, b: Evaluation) -> Evaluation:
+    """Per candidate: ``a`` where ``better`` else ``b`` (leaves with leading axis N)."""
+
+    def choose(x, y):
+        mask = better.reshape(better.shape + (1,) * (jnp.ndim(x) - better.ndim))
+        return jnp.where(mask, x, y)
+
+    return jax.tree.map(choose, a, b)
+
+
+def _evaluate_impl(robot, path: Jet, limits: Limits, dt, mode: Any) -> Evaluation:
+    branches = _branches(robot)
+    if mode != "best":
+        return _evaluate_branch(robot, path, limits, dt, branches.index(mode))
+    best = _evaluate_branch(robot, path, limits, dt, 0)
+    for index in range(1, len(branches)):
+        other = _evaluate_branch(robot, path, limits, dt, index)
+        # Lower total wins (infeasible = inf); when neither is feasible, the one that fails
+        # later is reported (it got further along the path).
+        later = (other.first_failure > best.first_failure) & ~best.feasible & ~other.feasible
+        best = _pick((other.costs.total < best.costs.total) | later, other, best)
+    return best
+
+
+_evaluate_jit = jax.jit(_evaluate_impl, static_argnames=("mode",))
+
+
+# ------------------------------------------------------------------ sharding and chunking
+def _candidate_sharding(n_devices: int) -> NamedSharding | None:
+    if n_devices == 1:
+        return None
+    mesh = Mesh(np.asarray(jax.devices()), ("candidates",))
+    return NamedSharding(mesh, PartitionSpec("candidates"))
+
+
+def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int) -> Any:
+    """Apply ``fn`` to a pytree whose leaves share a leading candidate axis N, in chunks.
+
+    Each chunk has exactly ``chunk_size`` candidates (the last one padded by repeating the
+    final candidate, so one compilation serves all chunks), sharded across all devices when
+    there are several. Results are concatenated and trimmed back to N.
+    """
+    n = jax.tree.leaves(tree)[0].shape[0]
+    n_devices = jax.device_count()
+    chunk_size = max(1, min(chunk_size, n))
+    chunk_size = math.ceil(chunk_size / n_devices) * n_devices
+    n_chunks = math.ceil(n / chunk_size)
+    padded = n_chunks * chunk_size
+    if padded != n:
+        index = jnp.minimum(jnp.arange(padded), n - 1)
+        tree = jax.tree.map(lambda x: x[index], tree)
+    sharding = _candidate_sharding(n_devices)
+    outputs = []
+    for k in range(n_chunks):
+        chunk = jax.tree.map(lambda x, k=k: x[k * chunk_size : (k + 1) * chunk_size], tree)
+        if sharding is not None:
+            chunk = jax.device_put(chunk, sharding)
+        outputs.append(fn(chunk))
+    if n_chunks == 1:
+        result = outputs[0]
+    else:
+        result = jax.tree.map(lambda *xs: jnp.concatenate(xs, axis=0), *outputs)
+    return jax.tree.map(lambda x: x[:n], result) if padded != n else result
+
+
+# ------------------------------------------------------------------ public API
+def evaluate(
+    robot: Any,
+    path: Jet | ArrayLike,
+    limits: Limits | None = None,
+    mode: Any = 1,
+    dt: float = 1.0,
+    chunk_size: int | None = None,
+) -> Evaluation:
+    """Evaluate N candidate end-effector trajectories (see the module docstring).
+
+    Args:
+        robot: a ``jaxkin.scara.Scara`` or ``jaxkin.delta.Delta``.
+        path: Jet (or plain positions, at rest) of shape ``(N, T, 3)``; build one from
+            sampled positions with ``path_from_samples``.
+        limits: joint ``Limits``; the robot's own position limits always apply too.
+        mode: the assembly mode/branch held along every candidate (``+1``/``-1`` for a SCARA,
+            ``"out"``/``"in"`` for a Delta), or ``"best"``: every branch is evaluated and, per
+            candidate, the feasible one with the lowest ``costs.total`` is kept.
+        dt: sample spacing in time (for the integrated costs and jerk).
+        chunk_size: candidates per call (default ``DEFAULT_CHUNK_SAMPLES // T``).
+
+    Returns:
+        An ``Evaluation``; ``branch`` tells which branch each candidate used.
+
+    Raises:
+        ValueError: unsupported robot, path not of shape ``(N, T, 3)`` with T >= 2, unknown
+            mode, non-positive dt, or limits of the wrong size.
+    """
+    branches = _branches(robot)
+    if mode != "best":
+        _validate.choice(mode, "mode", branches)
+    path = _validate.as_jet(path, "path", coords=3)
+    if path.p.ndim != 3 or path.p.shape[1] < 2:
+        raise ValueError(f"path: expected shape (N, T, 3) with T >= 2, got {path.shape}")
+    if not (isinstance(dt, int | float) and dt > 0 and math.isfinite(dt)):
+        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+    n_joints = 3
+    if limits is None:
+        limits = Limits.create(n_joints)
+    elif not isinstance(limits, Limits) or limits.q_min.shape != (n_joints,):
+        raise ValueError(f"limits must be a Limits for {n_joints} joints (Limits.create)")
+    limits = limits.tightened(*_robot_position_limits(robot, n_joints))
+    if chunk_size is None:
+        chunk_size = max(1, DEFAULT_CHUNK_SAMPLES // path.shape[1])
+    elif not (isinstance(chunk_size, int) and chunk_size >= 1):
+        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    return map_candidates(
+        lambda chunk: _evaluate_jit(robot, chunk, limits, float(dt), mode), path, chunk_size
+    )
+
+
+def best(evaluation: Evaluation, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` best feasible candidates by ``costs.total`` (host side).
+
+    Returns:
+        ``(indices, totals)``: candidate indices sorted by increasing ``costs.total`` and
+        their costs; fewer than ``k`` when fewer candidates are feasible.
+    """
+    if not (isinstance(k, int) and k >= 1):
+        raise ValueError(f"k must be a positive integer, got {k!r}")
+    total = np.asarray(evaluation.costs.total)
+    feasible = np.flatnonzero(np.asarray(evaluation.feasible))
+    order = feasible[np.argsort(total[feasible], kind="stable")][:k]
+    return order, total[order]
