@@ -46,7 +46,7 @@ from jax import Array
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jax.typing import ArrayLike
 
-from . import _validate, delta, scara
+from . import _validate, delta, scara, splines
 from ._numerics import safe_norm
 from .jet import Jet
 from .result import SolverResult
@@ -369,6 +369,31 @@ def evaluate(
     return map_candidates(
         lambda chunk: _evaluate_jit(robot, chunk, limits, float(dt), mode), path, chunk_size
     )
+
+
+def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") -> Jet:
+    """Jet of paths sampled at a fixed time step, rates from a cubic spline (host side).
+
+    Each coordinate of each candidate is interpolated by a cubic spline through its samples
+    (``jaxkin.splines.derivatives``; ``"not-a-knot"`` ends reproduce any cubic exactly) and
+    the spline's exact first and second derivatives at the samples are the velocity and
+    acceleration: no finite differences.
+
+    Args:
+        positions: shape ``(N, T, 3)`` (any leading dims), samples ``dt`` apart.
+        dt: the time step (positive).
+        end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
+    """
+    positions = np.asarray(positions, dtype=float)
+    if positions.ndim < 2 or positions.shape[-2] < 2:
+        raise ValueError(
+            f"positions: expected shape (..., T, 3) with T >= 2, got {positions.shape}"
+        )
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+    t = np.broadcast_to(np.arange(positions.shape[-2]) * float(dt), positions.shape[:-1])
+    velocity, acceleration = splines.derivatives(t, positions, end=end)
+    return Jet.of(positions, velocity, acceleration)
 
 
 def best(evaluation: Evaluation, k: int) -> tuple[np.ndarray, np.ndarray]:

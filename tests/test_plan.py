@@ -228,3 +228,16 @@ def test_limits_validation():
         plan.Limits.create(3, v_max=[-1, 1, 1])
     with pytest.raises(ValueError, match="broadcast"):
         plan.Limits.create(3, a_max=[1, 2])
+
+
+def test_path_from_samples_reproduces_a_cubic_motion_exactly():
+    t = np.arange(12) * 0.1
+    coeffs = np.array([[1.0, -2.0, 0.5], [0.3, 0.0, 2.0], [-1.0, 0.7, 0.0], [0.2, 0.1, -0.4]])
+    p = sum(coeffs[k] * t[:, None] ** k for k in range(4))
+    v = sum(k * coeffs[k] * t[:, None] ** (k - 1) for k in range(1, 4))
+    a = sum(k * (k - 1) * coeffs[k] * t[:, None] ** (k - 2) for k in range(2, 4))
+    jet = plan.path_from_samples(p[None], 0.1)
+    np.testing.assert_allclose(jet.v[0], v, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(jet.a[0], a, rtol=1e-9, atol=1e-9)
+    with pytest.raises(ValueError, match="dt"):
+        plan.path_from_samples(p[None], 0.0)
