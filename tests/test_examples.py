@@ -9,14 +9,21 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.mark.parametrize("script", ["dyad_demo.py"])
-def test_example_runs(script):
+@pytest.mark.parametrize(
+    "script, args, expected",
+    [
+        ("dyad_demo.py", [], "statuses"),
+        ("planner_scara.py", ["400"], "feasible:"),
+        ("optimise_scara.py", [], "cost after"),
+    ],
+)
+def test_example_runs(script, args, expected):
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "examples" / script)],
+        [sys.executable, str(ROOT / "examples" / script), *args],
         capture_output=True,
         text=True,
         timeout=300,
         cwd=ROOT,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "statuses" in proc.stdout
+    assert expected in proc.stdout
