@@ -1,0 +1,366 @@
+"""Shared pieces of the analytic arm solvers (``jaxkin.serial.arms``): result type, geometry base
+class with host-side validation, the planar two-link sub-problem, the ZYZ spherical wrist and
+the generic jitted ``fk`` / ``ik`` drivers.
+
+Conventions shared by every arm:
+
+* ``ik`` returns *every* solution branch: ``q`` ``(..., n_branches, n_joints)``, ``valid`` and
+  ``status`` ``(..., n_branches)``; the static ``branches`` tuple names them.
+* ``status`` per branch: ``OK``; ``SINGULAR`` (the branch reproduces the target, but a joint is
+  free or two branches coincide: the documented choice is returned); ``UNREACHABLE`` (``q``
+  is the nearest aligned placeholder configuration); ``INVALID_INPUT`` (NaN/inf in the target,
+  ``q`` = 0). ``valid = status in (OK, SINGULAR)``.
+* Singular tests use ``tol = sqrt(eps(dtype)) * L``, ``L`` a length scale of the arm (the sum
+  of its link lengths), so a target within ``tol`` outside the workspace is clamped onto its
+  boundary (``SINGULAR``, position error <= tol) rather than flagged unreachable.
+* Revolute outputs are wrapped to ``[-pi, pi]``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
+
+from .. import _validate
+from .._numerics import safe_sqrt, singular_rtol
+from ..result import SolverResult
+from ..status import STATUS_DTYPE, Status
+from .dh import DHTable, fk_dh
+
+PI = float(np.pi)
+TWO_PI = 2.0 * PI
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class ArmIKResult(SolverResult):
+    """Every analytic inverse-kinematics branch of an arm.
+
+    Attributes:
+        q: joint values, shape ``(..., n_branches, n_joints)`` (radians for revolute joints,
+            wrapped to ``[-pi, pi]``; length units for prismatic ones).
+        valid: ``(..., n_branches)``, True where ``fk(robot, q)`` reproduces the target
+            (status ``OK`` or ``SINGULAR``).
+        status: ``(..., n_branches)`` ``int8`` codes of ``jaxkin.Status``.
+        branches: static tuple naming the branches (length ``n_branches``).
+    """
+
+    q: Array
+    valid: Array
+    status: Array
+    branches: tuple[str, ...] = dataclasses.field(metadata=dict(static=True))
+
+    def branch(self, name: str) -> ArmIKResult:
+        """The single named branch: ``q`` ``(..., n_joints)``, ``valid``/``status`` ``(...)``."""
+        i = self.branches.index(_validate.choice(name, "name", self.branches))
+        return ArmIKResult(self.q[..., i, :], self.valid[..., i], self.status[..., i], (name,))
+
+
+def register_arm(cls: type) -> type:
+    """Register an arm dataclass as a pytree (every field a leaf) whose unflatten skips
+    ``__init__``: validation runs when a user builds an arm, never when JAX rebuilds one from
+    tracers, abstract values or cotangents (a gradient w.r.t. a length may be negative).
+    """
+    names = tuple(f.name for f in dataclasses.fields(cls))
+
+    def flatten_with_keys(arm):
+        return [(jax.tree_util.GetAttrKey(n), getattr(arm, n)) for n in names], None
+
+    def flatten(arm):
+        return [getattr(arm, n) for n in names], None
+
+    def unflatten(_aux, children):
+        arm = object.__new__(cls)
+        for name, value in zip(names, children, strict=True):
+            object.__setattr__(arm, name, value)
+        return arm
+
+    jax.tree_util.register_pytree_with_keys(cls, flatten_with_keys, unflatten, flatten)
+    return cls
+
+
+def _is_number(value: Any) -> bool:
+    """A value to validate: anything but a tracer (an arm built inside ``jit``) or ``None``."""
+    return value is not None and _validate.is_concrete(value)
+
+
+class Arm:
+    """Base class of the arm geometries: validation of concrete fields and the common API.
+
+    Subclasses are frozen dataclasses registered with ``register_arm`` (pytrees whose fields
+    are scalar lengths).
+    Field metadata ``kind`` is ``"positive"`` (default: > 0), ``"nonnegative"`` (>= 0) or
+    ``"real"`` (any finite value). Validation runs in ``__post_init__`` only when the values
+    are concrete numbers (never on tracers); JAX's unflattening bypasses it.
+    """
+
+    N_JOINTS: ClassVar[int]
+    JOINT_TYPES: ClassVar[str]
+    BRANCHES: ClassVar[tuple[str, ...]]
+    TARGET_SHAPE: ClassVar[tuple[int, ...]]
+
+    def __post_init__(self) -> None:
+        for field in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, field.name)
+            if not _is_number(value):
+                continue
+            try:
+                arr = jnp.asarray(value)
+            except TypeError:
+                raise ValueError(
+                    f"{type(self).__name__}.{field.name}: expected a scalar length, got {value!r}"
+                ) from None
+            if not jnp.issubdtype(arr.dtype, jnp.inexact):
+                arr = arr.astype(jnp.result_type(float))
+            if arr.ndim != 0:
+                raise ValueError(
+                    f"{field.name}: expected a scalar length (vmap over arms for a batch of "
+                    f"geometries), got shape {tuple(arr.shape)}"
+                )
+            v = float(arr)
+            kind = field.metadata.get("kind", "positive")
+            bad = (
+                not np.isfinite(v)
+                or (kind == "positive" and v <= 0)
+                or (kind == "nonnegative" and v < 0)
+            )
+            if bad:
+                expected = {"positive": "positive and finite", "nonnegative": ">= 0 and finite"}
+                raise ValueError(
+                    f"{type(self).__name__}.{field.name} must be "
+                    f"{expected.get(kind, 'finite')}, got {v}"
+                )
+            object.__setattr__(self, field.name, arr)
+
+    def lengths(self, dtype) -> tuple[Array, ...]:
+        """Every field cast to ``dtype`` (in field order)."""
+        return tuple(
+            jnp.asarray(getattr(self, f.name)).astype(dtype)
+            for f in dataclasses.fields(self)  # type: ignore[arg-type]
+        )
+
+    def dh_table(self, dtype=None) -> DHTable:  # pragma: no cover - overridden
+        raise NotImplementedError
+
+    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:  # pragma: no cover
+        """``(q (..., n_branches, n_joints), status (..., n_branches))`` for finite targets."""
+        raise NotImplementedError
+
+    def _placeholder_target(self, dtype) -> Array:
+        """A finite target substituted for non-finite input before any math."""
+        if self.TARGET_SHAPE == (4, 4):
+            return jnp.eye(4, dtype=dtype)
+        return jnp.zeros(self.TARGET_SHAPE, dtype)
+
+
+# --------------------------------------------------------------------------- small math
+
+
+def wrap_angle(x: Array) -> Array:
+    """Wrap angles to ``[-pi, pi]`` (gradient 1 everywhere)."""
+    return x - TWO_PI * jnp.round(x / TWO_PI)
+
+
+def status_from(unreachable: Array, singular: Array) -> Array:
+    """``UNREACHABLE`` before ``SINGULAR`` before ``OK``, as int8 codes."""
+    return jnp.where(
+        unreachable, Status.UNREACHABLE, jnp.where(singular, Status.SINGULAR, Status.OK)
+    ).astype(STATUS_DTYPE)
+
+
+def guarded_atan2(y: Array, x: Array, free: Array, fill: float | Array = 0.0) -> Array:
+    """``atan2(y, x)``, or ``fill`` where ``free`` (the angle is undetermined: y = x = 0).
+
+    Double-where: the arguments are replaced by ``(sin fill, cos fill)`` before ``atan2`` so
+    the gradient stays finite at ``y = x = 0``.
+    """
+    fill = jnp.asarray(fill, y.dtype)
+    return jnp.arctan2(jnp.where(free, jnp.sin(fill), y), jnp.where(free, jnp.cos(fill), x))
+
+
+@dataclasses.dataclass(frozen=True)
+class TwoLinkSolution:
+    """Planar 2R sub-problem solution (see ``two_link``); every field has the broadcast shape."""
+
+    q1: Array
+    q2: Array
+    c2: Array
+    s2: Array
+    unreachable: Array
+    singular: Array
+
+
+def two_link(x: Array, y: Array, l1: Array, l2: Array, elbow: ArrayLike) -> TwoLinkSolution:
+    """Planar two-link inverse kinematics (seed 003, 2R; seed 001 eqs. 11-14 corrected).
+
+    Solves ``x = l1 cos q1 + l2 cos(q1 + q2)``, ``y = l1 sin q1 + l2 sin(q1 + q2)``::
+
+        c2 = (x^2 + y^2 - l1^2 - l2^2) / (2 l1 l2),  s2 = elbow * sqrt(1 - c2^2)
+        q2 = atan2(s2, c2)
+        q1 = atan2(y, x) - atan2(l2 s2, l1 + l2 c2)
+           = atan2(y k1 - x k2, x k1 + y k2),  k1 = l1 + l2 c2, k2 = l2 s2   (one atan2)
+
+    ``elbow = -1`` puts the elbow to the left of the ray origin->target (``q2 <= 0``: "elbow
+    up" when the target lies along +x), ``+1`` to the right. The reach test is on
+    ``r = sqrt(x^2 + y^2)`` (ERRATA seed 003): unreachable when ``r > l1 + l2 + tol`` or
+    ``r < |l1 - l2| - tol``; singular (both elbows coincide, ``c2 = +-1`` exactly) when ``r``
+    is within ``tol = sqrt(eps) (l1 + l2)`` of either bound; at ``r <= tol`` (only reachable
+    when ``l1 = l2``) ``q1`` is free and set to 0. Unreachable targets get the clamped, aligned
+    configuration pointing at the target. All arrays broadcast together.
+    """
+    dtype = x.dtype
+    tol = singular_rtol(dtype) * (l1 + l2)
+    r2 = x * x + y * y
+    r = safe_sqrt(r2)
+    reach_out = l1 + l2
+    reach_in = jnp.abs(l1 - l2)
+    unreachable = (r > reach_out + tol) | (r < reach_in - tol)
+    extended = jnp.abs(r - reach_out) <= tol
+    folded = (jnp.abs(r - reach_in) <= tol) & ~extended
+    coincident = r <= tol
+    c2 = jnp.clip((r2 - l1 * l1 - l2 * l2) / (2.0 * l1 * l2), -1.0, 1.0)
+    c2 = jnp.where(extended, 1.0, jnp.where(folded, -1.0, c2))
+    elbow = jnp.asarray(elbow, dtype)
+    s2_abs = safe_sqrt(1.0 - c2 * c2)
+    s2 = elbow * s2_abs
+    k1 = l1 + l2 * c2
+    k2 = l2 * s2
+    q1 = guarded_atan2(y * k1 - x * k2, x * k1 + y * k2, coincident)
+    q2 = elbow * jnp.arctan2(s2_abs, c2)  # one atan2 for both elbows
+    singular = (extended | folded | coincident) & ~unreachable
+    shape = q1.shape
+    c2 = jnp.broadcast_to(c2, shape)
+    unreachable = jnp.broadcast_to(unreachable, shape)
+    singular = jnp.broadcast_to(singular, shape)
+    return TwoLinkSolution(q1, q2, c2, s2, unreachable, singular)
+
+
+# --------------------------------------------------------------------------- rotations
+
+
+def rot_z(c: Array, s: Array) -> Array:
+    """Rotation about z from its cosine and sine: ``(...) -> (..., 3, 3)``."""
+    zero, one = jnp.zeros_like(c), jnp.ones_like(c)
+    return jnp.stack(
+        [
+            jnp.stack([c, -s, zero], axis=-1),
+            jnp.stack([s, c, zero], axis=-1),
+            jnp.stack([zero, zero, one], axis=-1),
+        ],
+        axis=-2,
+    )
+
+
+def zyz_wrist(rot: Array, sign: float, branch: ArrayLike) -> tuple[Array, Array, Array, Array]:
+    """Spherical wrist: solve ``rot = Rz(t4) Ry(sign * t5) Rz(t6)`` for ``(t4, t5, t6)``.
+
+    With ``beta = sign * t5``: ``rot[2, 2] = cos beta``, ``(rot[0, 2], rot[1, 2]) =
+    sin beta (cos t4, sin t4)``, ``(rot[2, 0], rot[2, 1]) = sin beta (-cos t6, sin t6)``.
+    ``branch = +1`` returns ``t5 >= 0`` and ``-1`` returns ``t5 <= 0`` (the "wrist flip"),
+    with ``sin beta = sign * branch * sqrt(rot02^2 + rot12^2)``.
+
+    Singular (``sqrt(rot02^2 + rot12^2) <= sqrt(eps)``: axes 4 and 6 aligned, only
+    ``t4 +- t6`` is determined): ``t4 = 0``, ``t5 in {0, pi}`` and ``t6`` from
+    ``Ry(-beta) rot = Rz(t6)``, i.e. ``t6 = atan2(rot10, cos(beta) rot00)``.
+
+    Args:
+        rot: ``(..., 3, 3)`` rotation matrices (assumed orthonormal).
+        sign: the static ``+1`` / ``-1`` of the arm's DH wrist (Spong's ZYZ: +1; PUMA: -1).
+        branch: ``+1`` / ``-1``, broadcastable against ``rot.shape[:-2]``.
+
+    Returns:
+        ``(t4, t5, t6, singular)`` with the broadcast batch shape.
+    """
+    r00, r02 = rot[..., 0, 0], rot[..., 0, 2]
+    r10, r12 = rot[..., 1, 0], rot[..., 1, 2]
+    r20, r21, r22 = rot[..., 2, 0], rot[..., 2, 1], rot[..., 2, 2]
+    w = jnp.asarray(branch, rot.dtype) * sign  # sign of sin(beta)
+    sin_abs = safe_sqrt(r02 * r02 + r12 * r12)
+    singular = sin_abs <= singular_rtol(rot.dtype)
+    sin_beta = jnp.where(singular, 0.0, w * sin_abs)
+    beta = jnp.arctan2(sin_beta, r22)
+    t4 = guarded_atan2(w * r12, w * r02, singular)
+    cos_beta_sign = jnp.where(r22 >= 0.0, 1.0, -1.0)
+    # One atan2 for both regimes; neither argument pair can vanish in its own regime
+    # (regular: |(r21, r20)| = |sin beta| > tol; singular: |(r10, r00)| = 1), so the
+    # gradient is finite without a further guard.
+    t6 = jnp.arctan2(
+        jnp.where(singular, r10, w * r21), jnp.where(singular, cos_beta_sign * r00, -w * r20)
+    )
+    return t4, sign * beta, t6, singular
+
+
+# --------------------------------------------------------------------------- drivers
+
+
+def _ik_impl(robot: Arm, target: Array) -> ArmIKResult:
+    dtype = target.dtype
+    n_target = len(robot.TARGET_SHAPE)
+    axes = tuple(range(-n_target, 0))
+    lengths = jnp.stack([jnp.asarray(x, dtype) for x in robot.lengths(dtype)])
+    valid_in = jnp.all(jnp.isfinite(target), axis=axes) & jnp.all(jnp.isfinite(lengths))
+    mask = valid_in.reshape(valid_in.shape + (1,) * n_target)
+    safe_target = jnp.where(mask, target, robot._placeholder_target(dtype))
+    q, status = robot._ik_kernel(safe_target)
+    status = jnp.broadcast_to(status, q.shape[:-1])
+    status = jnp.where(valid_in[..., None], status, Status.INVALID_INPUT).astype(STATUS_DTYPE)
+    q = jnp.where(valid_in[..., None, None], q, 0.0)
+    valid = (status == Status.OK) | (status == Status.SINGULAR)
+    return ArmIKResult(q, valid, status, robot.BRANCHES)
+
+
+_ik_jit = jax.jit(_ik_impl)
+
+
+def check_robot(robot: Any, kinds: tuple[type, ...]) -> None:
+    if not isinstance(robot, kinds):
+        names = ", ".join(k.__name__ for k in kinds)
+        raise ValueError(f"robot: expected one of {names}, got {type(robot).__name__}")
+
+
+def _as_float(x: ArrayLike) -> Array:
+    arr = jnp.asarray(x)
+    if not jnp.issubdtype(arr.dtype, jnp.inexact):
+        arr = arr.astype(jnp.result_type(float))
+    return arr
+
+
+def ik_arm(robot: Arm, target: ArrayLike) -> ArmIKResult:
+    """Validate ``target``'s shape and run the jitted analytic IK of ``robot``."""
+    target = _as_float(target)
+    shape = robot.TARGET_SHAPE
+    n = len(shape)
+    if target.ndim < n or tuple(target.shape[-n:]) != shape:
+        raise ValueError(
+            f"target: {type(robot).__name__} expects shape (..., {', '.join(map(str, shape))}), "
+            f"got {tuple(target.shape)}"
+        )
+    return _ik_jit(robot, target)
+
+
+def fk_arm(robot: Arm, q: ArrayLike) -> Array:
+    """``fk_dh(robot.dh_table(), q)`` after checking ``q``'s last axis."""
+    q = _as_float(q)
+    if q.ndim == 0 or q.shape[-1] != robot.N_JOINTS:
+        raise ValueError(
+            f"q: {type(robot).__name__} expects shape (..., {robot.N_JOINTS}), got {tuple(q.shape)}"
+        )
+    return fk_dh(robot.dh_table(q.dtype), q)
+
+
+def dh(dtype, a: list, alpha: list, d: list, theta: list, joint_types: str) -> DHTable:
+    """A ``DHTable`` from lists mixing Python floats and scalar arrays (works on tracers)."""
+
+    def col(values: list) -> Array:
+        return jnp.stack([jnp.asarray(v, dtype) for v in values])
+
+    return DHTable(col(a), col(alpha), col(d), col(theta), tuple(joint_types))
+
+
+HALF_PI = 0.5 * PI
