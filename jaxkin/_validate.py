@@ -36,8 +36,8 @@ def as_jet(x: Jet | ArrayLike, name: str, coords: int | None) -> Jet:
     return jet.astype(dtype)
 
 
-def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> jax.Array:
-    """A link length: an array of positive values (checked when concrete).
+def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> jax.Array | float:
+    """A link length: positive values (checked when concrete); Python floats pass unchanged.
 
     With ``allow_nonfinite`` NaN/inf entries pass (a batched kernel reports them per element
     as ``INVALID_INPUT``); zero and negative values always raise.
@@ -47,7 +47,9 @@ def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> j
         finite = np.isfinite(values)
         if np.any(values[finite] <= 0) or not (allow_nonfinite or np.all(finite)):
             raise ValueError(f"{name} must be positive and finite, got {values}")
-    arr = jnp.asarray(x)
+    if isinstance(x, float):
+        return x  # weakly typed: kernels cast it to their inputs' dtype, no dispatch here
+    arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
     if not jnp.issubdtype(arr.dtype, jnp.inexact):
         arr = arr.astype(jnp.result_type(float))
     return arr

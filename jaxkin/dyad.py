@@ -52,6 +52,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
@@ -201,6 +202,10 @@ def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
+    # Casting here rather than in ``solve`` keeps the per-call host overhead small.
+    dtype = jnp.result_type(a.p, b.p, l_ac, l_bc)
+    a, b = a.astype(dtype), b.astype(dtype)
+    l_ac, l_bc = jnp.asarray(l_ac, dtype), jnp.asarray(l_bc, dtype)
     batch = jnp.broadcast_shapes(a.p.shape[:-1], b.p.shape[:-1], l_ac.shape, l_bc.shape)
     a = a.map(lambda x: jnp.broadcast_to(x, (*batch, 2)))
     b = b.map(lambda x: jnp.broadcast_to(x, (*batch, 2)))
@@ -288,9 +293,6 @@ def solve(
     l_ac = _validate.positive_length(l_ac, "l_ac", allow_nonfinite=True)
     l_bc = _validate.positive_length(l_bc, "l_bc", allow_nonfinite=True)
     _validate.batch_shape(
-        {"a": a.shape[:-1], "b": b.shape[:-1], "l_ac": l_ac.shape, "l_bc": l_bc.shape}
+        {"a": a.shape[:-1], "b": b.shape[:-1], "l_ac": np.shape(l_ac), "l_bc": np.shape(l_bc)}
     )
-    dtype = jnp.result_type(a.p, b.p, l_ac, l_bc)
-    return _solve_jit(
-        a.astype(dtype), b.astype(dtype), l_ac.astype(dtype), l_bc.astype(dtype), mode, method
-    )
+    return _solve_jit(a, b, l_ac, l_bc, mode, method)

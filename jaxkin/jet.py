@@ -74,6 +74,9 @@ class Jet:
         return Jet(self.p[index], self.v[index], self.a[index])
 
     def astype(self, dtype: Any) -> Jet:
+        """The same Jet in ``dtype`` (no copy, and no dispatch, when it already is)."""
+        if all(x.dtype == dtype for x in (self.p, self.v, self.a)):
+            return self
         return Jet(self.p.astype(dtype), self.v.astype(dtype), self.a.astype(dtype))
 
     def map(self, fn: Callable[[Array], Array]) -> Jet:
