@@ -211,22 +211,6 @@ def _arm_build(values: dict[str, Any]) -> Any:
     return arms.Anthropomorphic(float(values["l1"]), float(values["l2"]), float(values["l3"]))
 
 
-def _arm_ik_core(robot: Any, p: Any, branch: str) -> tuple[Any, Any]:
-    import jax.numpy as jnp
-
-    from .jet import Jet, lift
-    from .serial import arms
-    from .status import Status
-
-    def position(x):
-        res = arms.ik(robot, x).branch(branch)
-        return res.q, res.status
-
-    q, status = lift(position)(p)
-    ok = (status == Status.OK)[..., None]
-    return Jet(q.p, jnp.where(ok, q.v, 0.0), jnp.where(ok, q.a, 0.0)), status
-
-
 def _arm_fk_core(robot: Any, q: Any) -> tuple[Any, Any]:
     import jax.numpy as jnp
 
@@ -239,14 +223,15 @@ def _arm_fk_core(robot: Any, q: Any) -> tuple[Any, Any]:
     return p, jnp.where(finite, Status.OK, Status.INVALID_INPUT)
 
 
-_arm_ik_jit = jax.jit(_arm_ik_core, static_argnames="branch")
 _arm_fk_jit = jax.jit(_arm_fk_core)
 
 
 def _arm_ik(robot: Any, p: Any, branch: str) -> tuple[Any, Any, Any]:
     """Analytic IK of one branch; rates by ``jaxkin.lift`` (zero where the status is not OK),
     the whole nested jvp compiled once."""
-    q, status = _arm_ik_jit(robot, p, branch=branch)
+    from .serial import arms
+
+    q, status = arms.ik_jet(robot, p, branch)
     return q, status, None
 
 

@@ -47,9 +47,10 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jax.typing import ArrayLike
 
 from . import _validate, delta, scara, splines
-from ._numerics import safe_norm
+from ._numerics import safe_div, safe_norm, safe_sqrt
 from .jet import Jet
 from .result import SolverResult
+from .serial import arms
 from .status import STATUS_DTYPE, Status
 
 DEFAULT_CHUNK_SAMPLES = 2**18
@@ -160,14 +161,38 @@ class Evaluation(SolverResult):
 
 
 # ------------------------------------------------------------------ robot adapters
+def _is_point_arm(robot: Any) -> bool:
+    return isinstance(robot, arms.ARMS) and robot.TARGET_SHAPE == (3,)
+
+
 def _branches(robot: Any) -> tuple:
     if isinstance(robot, scara.Scara):
         return scara.MODES
     if isinstance(robot, delta.Delta):
         return delta.BRANCHES
+    if _is_point_arm(robot):
+        return robot.BRANCHES
     raise ValueError(
-        f"robot must be a jaxkin.scara.Scara or jaxkin.delta.Delta, got {type(robot).__name__}"
+        "robot must be a jaxkin.scara.Scara, a jaxkin.delta.Delta or a serial arm with a 3-D "
+        f"point target (Anthropomorphic, Cylindrical, Spherical), got {type(robot).__name__}"
     )
+
+
+def _n_joints(robot: Any) -> int:
+    return 3  # every supported robot has three joints
+
+
+def _arm_margin(robot: Any, q: Array) -> Array:
+    """Normalised Jacobian determinant ``|det J| / (|J|_F / sqrt(3))^3`` of the wrist position,
+    in [0, 1]: 1 for a scaled rotation, 0 at a singularity (dimensionless for 3R arms)."""
+
+    def position(joints):
+        return arms.fk(robot, joints)[..., :3, 3]
+
+    jac = jnp.vectorize(jax.jacfwd(position), signature="(n)->(m,n)")(q)
+    det = jnp.linalg.det(jac)
+    scale = jnp.sum(jac * jac, axis=(-2, -1)) / 3.0
+    return jnp.abs(det) * safe_div(1.0, scale * safe_sqrt(scale))
 
 
 def _solve(robot: Any, path: Jet, branch: Any) -> tuple[Jet, Array, Array]:
@@ -175,8 +200,11 @@ def _solve(robot: Any, path: Jet, branch: Any) -> tuple[Jet, Array, Array]:
     if isinstance(robot, scara.Scara):
         res = scara.ik(robot, path, mode=branch)
         return res.q, res.status, res.margin
-    res = delta.ik(robot, path, branch=branch)
-    return res.theta, res.status, res.margin
+    if isinstance(robot, delta.Delta):
+        res = delta.ik(robot, path, branch=branch)
+        return res.theta, res.status, res.margin
+    q, status = arms.ik_jet(robot, path, branch)
+    return q, status, _arm_margin(robot, q.p)
 
 
 def _robot_position_limits(robot: Any, n: int) -> tuple[Any, Any]:
@@ -331,12 +359,15 @@ def evaluate(
     """Evaluate N candidate end-effector trajectories (see the module docstring).
 
     Args:
-        robot: a ``jaxkin.scara.Scara`` or ``jaxkin.delta.Delta``.
+        robot: a ``jaxkin.scara.Scara``, a ``jaxkin.delta.Delta``, or a serial arm whose IK
+            target is a 3-D point (``Anthropomorphic``, ``Cylindrical``, ``Spherical``; their
+            margin is the normalised Jacobian determinant, see ``_arm_margin``).
         path: Jet (or plain positions, at rest) of shape ``(N, T, 3)``; build one from
             sampled positions with ``path_from_samples``.
         limits: joint ``Limits``; the robot's own position limits always apply too.
         mode: the assembly mode/branch held along every candidate (``+1``/``-1`` for a SCARA,
-            ``"out"``/``"in"`` for a Delta), or ``"best"``: every branch is evaluated and, per
+            ``"out"``/``"in"`` for a Delta, a branch name such as ``"front_up"`` for an arm),
+            or ``"best"``: every branch is evaluated and, per
             candidate, the feasible one with the lowest ``costs.total`` is kept.
         dt: sample spacing in time (for the integrated costs and jerk).
         chunk_size: candidates per call (default ``DEFAULT_CHUNK_SAMPLES // T``).
@@ -356,7 +387,7 @@ def evaluate(
         raise ValueError(f"path: expected shape (N, T, 3) with T >= 2, got {path.shape}")
     if not (isinstance(dt, int | float) and dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be a positive finite number, got {dt!r}")
-    n_joints = 3
+    n_joints = _n_joints(robot)
     if limits is None:
         limits = Limits.create(n_joints)
     elif not isinstance(limits, Limits) or limits.q_min.shape != (n_joints,):

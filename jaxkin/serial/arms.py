@@ -44,9 +44,14 @@ round trip, not the angles.
 
 from __future__ import annotations
 
+import jax
+import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
+from .. import _validate
+from ..jet import Jet, lift
+from ..status import Status
 from ._arms_common import Arm, ArmIKResult, check_robot, fk_arm, ik_arm
 from .arms_3dof import Anthropomorphic, Cylindrical, Spherical
 from .arms_6dof import Puma560, Stanford
@@ -64,6 +69,7 @@ __all__ = [
     "Stanford",
     "fk",
     "ik",
+    "ik_jet",
 ]
 
 ARMS: tuple[type[Arm], ...] = (
@@ -104,3 +110,37 @@ def ik(robot: Arm, target: ArrayLike) -> ArmIKResult:
     """
     check_robot(robot, ARMS)
     return ik_arm(robot, target)
+
+
+def _ik_jet_core(robot: Arm, target: Jet, branch: str) -> tuple[Jet, Array]:
+    def position(x):
+        res = ik_arm(robot, x).branch(branch)
+        return res.q, res.status
+
+    q, status = lift(position)(target)
+    ok = (status == Status.OK)[..., None]
+    return Jet(q.p, jnp.where(ok, q.v, 0.0), jnp.where(ok, q.a, 0.0)), status
+
+
+_ik_jet_jit = jax.jit(_ik_jet_core, static_argnames="branch")
+
+
+def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str) -> tuple[Jet, Array]:
+    """One branch of the analytic IK with joint velocity and acceleration.
+
+    The rates come from ``jaxkin.lift`` (nested forward-mode jvp) of the position-level IK,
+    compiled once; they are 0 where the branch's status is not ``OK``.
+
+    Args:
+        robot: an arm whose target is a point or vector (not the 4x4 targets of the 6R arms).
+        target: Jet (or array, at rest) of shape ``(..., *robot.TARGET_SHAPE)``.
+        branch: one of the robot's branch names (e.g. ``"front_up"``).
+
+    Returns:
+        ``(q, status)``: Jet ``(..., n_joints)`` and ``int8`` statuses ``(...)``.
+    """
+    check_robot(robot, ARMS)
+    if len(robot.TARGET_SHAPE) != 1:
+        raise ValueError(f"ik_jet needs a vector target, {type(robot).__name__} takes 4x4 poses")
+    target = _validate.as_jet(target, "target", coords=robot.TARGET_SHAPE[0])
+    return _ik_jet_jit(robot, target, branch=branch)
