@@ -37,6 +37,9 @@ from jax.typing import ArrayLike
 
 from . import _validate, plan
 from .jet import Jet
+from .progress import bar, is_active
+
+PROGRESS_BLOCK = 50  # optimiser steps per compiled block when a progress bar is shown
 
 
 @jax.tree_util.register_dataclass
@@ -198,6 +201,7 @@ def optimize(
     mode: Any = 1,
     limits: plan.Limits | None = None,
     rest_to_rest: bool = False,
+    progress: bool | None = None,
 ) -> OptimizationResult:
     """Optimise B trajectories from ``start`` to ``goal`` at once.
 
@@ -213,6 +217,8 @@ def optimize(
         mode: the fixed assembly mode/branch (as in ``plan.evaluate``, not ``"best"``).
         limits: ``plan.Limits`` for limit penalties and the final evaluation.
         rest_to_rest: also fix the second and second-to-last control points.
+        progress: show a progress bar (default: only when stderr is a terminal; False never,
+            and then all steps run in a single compiled scan).
 
     Returns:
         ``OptimizationResult``.
@@ -239,21 +245,22 @@ def optimize(
     limits = limits.tightened(*plan._robot_position_limits(robot, 3))
     if optimizer is None:
         optimizer = optax.adam(1e-2 * float(jnp.linalg.norm(goal - start)))
-    ctrl, history = _run(
-        robot,
-        interior,
-        start,
-        goal,
-        basis,
-        duration,
-        dt,
-        limits,
-        optimizer,
-        steps,
-        cost,
-        mode,
-        rest_to_rest,
-    )
+    # The steps run as jitted lax.scan blocks; between blocks a progress bar is updated
+    # (drawn only on a terminal). Blocks of one size share one compilation.
+    args = (robot, start, goal, basis, duration, dt, limits, optimizer, cost, mode, rest_to_rest)
+    ctrl, opt_state = interior, optimizer.init(interior)
+    histories = []
+    block = min(steps, PROGRESS_BLOCK) if is_active(progress) else steps
+    with bar(steps, "optimize", enabled=progress) as meter:
+        done = 0
+        while done < steps:
+            n = min(block, steps - done)
+            ctrl, opt_state, values = _run(ctrl, opt_state, *args, steps=n)
+            histories.append(values)
+            done += n
+            meter.update(n)
+    final = _final_cost(ctrl, *args)
+    history = jnp.concatenate([*histories, final[None]], axis=0)
     controls = _full_controls(ctrl, start, goal, rest_to_rest)
     path = bezier_path(controls, basis, duration)
     evaluation = plan.evaluate(robot, path, limits=limits, mode=mode, dt=dt)
@@ -265,10 +272,19 @@ def _sample(robot, controls, basis, duration, dt, limits, mode) -> TrajectorySam
     return TrajectorySample(q, status, margin, jnp.asarray(dt, controls.dtype), limits)
 
 
-@functools.partial(jax.jit, static_argnames=("optimizer", "steps", "cost", "mode", "rest_to_rest"))
+def _per_candidate(params, robot, start, goal, basis, duration, dt, limits, cost, mode, rest):
+    controls = _full_controls(params, start, goal, rest)
+    return cost(_sample(robot, controls, basis, duration, dt, limits, mode))
+
+
+_STATIC = ("optimizer", "cost", "mode", "rest_to_rest")
+
+
+@functools.partial(jax.jit, static_argnames=(*_STATIC, "steps"))
 def _run(
+    params,
+    opt_state,
     robot,
-    interior,
     start,
     goal,
     basis,
@@ -276,29 +292,36 @@ def _run(
     dt,
     limits,
     optimizer,
-    steps,
     cost,
     mode,
     rest_to_rest,
+    steps,
 ):
-    def per_candidate(params):
-        controls = _full_controls(params, start, goal, rest_to_rest)
-        return cost(_sample(robot, controls, basis, duration, dt, limits, mode))
+    """``steps`` optimiser steps in one ``lax.scan``; returns the costs before each step."""
 
-    def total(params):
-        values = per_candidate(params)
+    def total(p):
+        values = _per_candidate(
+            p, robot, start, goal, basis, duration, dt, limits, cost, mode, rest_to_rest
+        )
         return jnp.sum(values), values
 
     grad_fn = jax.value_and_grad(total, has_aux=True)
 
     def step(carry, _):
-        params, opt_state = carry
-        (_, values), grads = grad_fn(params)
-        updates, opt_state = optimizer.update(grads, opt_state, params)
-        return (optax.apply_updates(params, updates), opt_state), values
+        p, state = carry
+        (_, values), grads = grad_fn(p)
+        updates, state = optimizer.update(grads, state, p)
+        return (optax.apply_updates(p, updates), state), values
 
-    (params, _), history = jax.lax.scan(
-        step, (interior, optimizer.init(interior)), None, length=steps
+    (params, opt_state), history = jax.lax.scan(step, (params, opt_state), None, length=steps)
+    return params, opt_state, history
+
+
+@functools.partial(jax.jit, static_argnames=_STATIC)
+def _final_cost(
+    params, robot, start, goal, basis, duration, dt, limits, optimizer, cost, mode, rest_to_rest
+):
+    del optimizer
+    return _per_candidate(
+        params, robot, start, goal, basis, duration, dt, limits, cost, mode, rest_to_rest
     )
-    history = jnp.concatenate([history, per_candidate(params)[None]], axis=0)
-    return params, history
