@@ -133,7 +133,7 @@ def _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode: int) -> _Position:
     else:
         theta_on_side = dy < 0  # theta < 0
     wrapped = theta_on_side & (mode * phi_wrapped < 0)
-    phi = phi_wrapped + jnp.where(wrapped, mode * 2.0 * jnp.pi, 0.0)
+    phi = jnp.where(wrapped, phi_wrapped + mode * 2.0 * jnp.pi, phi_wrapped)
 
     # Nested where, most basic condition outermost (jnp.select lowers to a slow reduction).
     status = jnp.full(l.shape, Status.OK, STATUS_DTYPE)
