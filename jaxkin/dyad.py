@@ -247,10 +247,10 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
         *(Jet(*comps[k::2]) for comps in (a_comps, b_comps) for k in (0, 1))
     )
     ok = status == Status.OK
-    c = Jet.stack([c_x, c_y])
-    c = Jet(c.p, jnp.where(ok[..., None], c.v, 0.0), jnp.where(ok[..., None], c.a, 0.0))
-    phi = Jet(phi.p, jnp.where(ok, phi.v, 0.0), jnp.where(ok, phi.a, 0.0))
-    return DyadResult(c, phi, status, margin.p)
+    c_x, c_y, phi = (
+        Jet(j.p, jnp.where(ok, j.v, 0.0), jnp.where(ok, j.a, 0.0)) for j in (c_x, c_y, phi)
+    )
+    return DyadResult(Jet.stack([c_x, c_y]), phi, status, margin.p)
 
 
 _solve_jit = jax.jit(_solve_impl, static_argnames=("mode", "method"))
