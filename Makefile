@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/python examples/dyad_demo.py
+	$(BIN)/jaxkin demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q tests

@@ -7,6 +7,7 @@ Timing rules (DESIGN.md): compile and warm up outside the timer; time
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 
 import jax
@@ -31,3 +32,41 @@ def measure(benchmark) -> Callable:
         return result
 
     return run
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Write benchmarks/results.md: one row per benchmark, from this run's measurements."""
+    bench_session = getattr(session.config, "_benchmarksession", None)
+    if bench_session is None or not bench_session.benchmarks:
+        return
+    import platform
+    from pathlib import Path
+
+    rows = []
+    for bench in bench_session.benchmarks:
+        if not getattr(bench, "stats", None):
+            continue
+        info = dict(bench.extra_info)
+        best = bench.stats.min
+        rate = info.pop("cases_per_second", None)
+        n = info.pop("n_cases", "")
+        kernel = info.pop("kernel", bench.group or "")
+        dtype = info.pop("dtype", "")
+        extra = ", ".join(
+            f"{k}={v:.3g}" if isinstance(v, float) else f"{k}={v}" for k, v in info.items()
+        )
+        rows.append(
+            f"| {bench.fullname.split('::')[-1]} | {kernel} | {dtype} | {n} | "
+            f"{best * 1e3:.3f} | {'' if rate is None else f'{rate:,.0f}'} | {extra} |"
+        )
+    header = [
+        "# Benchmark results",
+        "",
+        f"One `make bench` run: {platform.machine()}, {platform.processor() or 'cpu'}, "
+        f"{os.cpu_count()} logical CPUs, Python {platform.python_version()}, "
+        f"JAX {jax.__version__}. Times are the minimum over rounds, after compilation.",
+        "",
+        "| benchmark | kernel | dtype | cases | best time (ms) | cases/s | notes |",
+        "| --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    Path(__file__).with_name("results.md").write_text("\n".join(header + rows) + "\n")
