@@ -1,1 +1,63 @@
-"""Serial arms: DH and product-of-exponentials kinematics, analytic and numerical IK."""
+"""Serial arms: DH and product-of-exponentials kinematics, analytic and numerical IK.
+
+* ``DHTable``, ``fk_dh``: standard Denavit-Hartenberg forward kinematics (seed 001 eq. 2).
+* ``PoEChain``, ``fk_poe``, ``chain_fk``, ``space_jacobian``, ``body_jacobian``,
+  ``poe_from_dh``, ``change_frame``: product of exponentials (seed 003); ``lie``: SO(3)/SE(3).
+* ``ik_newton``: Newton-Raphson IK with body/space twists (seed 003), per-element convergence.
+* ``fk``, ``ik``, ``ik_jet`` and the arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``,
+  ``Cylindrical``, ``Spherical``, ``Puma560``, ``Stanford``: analytic IK, every branch.
+"""
+
+from . import lie as lie
+from .arms import ARMS as ARMS
+from .arms import Anthropomorphic as Anthropomorphic
+from .arms import ArmIKResult as ArmIKResult
+from .arms import Cylindrical as Cylindrical
+from .arms import Planar2R as Planar2R
+from .arms import Planar3R as Planar3R
+from .arms import Puma560 as Puma560
+from .arms import Spherical as Spherical
+from .arms import Stanford as Stanford
+from .arms import fk as fk
+from .arms import ik as ik
+from .arms import ik_jet as ik_jet
+from .dh import DHTable as DHTable
+from .dh import dh_transform as dh_transform
+from .dh import fk_dh as fk_dh
+from .ik_newton import NewtonIKResult as NewtonIKResult
+from .ik_newton import ik_newton as ik_newton
+from .poe import PoEChain as PoEChain
+from .poe import body_jacobian as body_jacobian
+from .poe import chain_fk as chain_fk
+from .poe import change_frame as change_frame
+from .poe import fk_poe as fk_poe
+from .poe import poe_from_dh as poe_from_dh
+from .poe import space_jacobian as space_jacobian
+
+__all__ = [
+    "ARMS",
+    "Anthropomorphic",
+    "ArmIKResult",
+    "Cylindrical",
+    "DHTable",
+    "NewtonIKResult",
+    "Planar2R",
+    "Planar3R",
+    "PoEChain",
+    "Puma560",
+    "Spherical",
+    "Stanford",
+    "body_jacobian",
+    "chain_fk",
+    "change_frame",
+    "dh_transform",
+    "fk",
+    "fk_dh",
+    "fk_poe",
+    "ik",
+    "ik_jet",
+    "ik_newton",
+    "lie",
+    "poe_from_dh",
+    "space_jacobian",
+]

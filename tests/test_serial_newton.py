@@ -1,0 +1,267 @@
+"""Newton-Raphson IK (seed 003): step math, convergence, failure as data, validation."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import compile_count, tree_allfinite
+
+from jaxkin import Status
+from jaxkin.serial import dh, ik_newton, poe
+
+RNG = np.random.default_rng(11)
+
+PUMA = dh.DHTable.create(
+    a=[0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0],
+    alpha=[np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0],
+    d=[0.0, 0.0, 0.15005, 0.4318, 0.0, 0.0],
+    joint_types="RRRRRR",
+)
+ANTHRO = dh.DHTable.create(a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0.0, 0.0])
+
+
+def _planar_2r_body() -> poe.PoEChain:
+    """Seed 003's 2R arm: M = Trans(2, 0, 0), B1 = (0,0,1, 0,2,0), B2 = (0,0,1, 0,1,0)."""
+    home = np.eye(4)
+    home[0, 3] = 2.0
+    screws = np.array([[0, 0, 1, 0, 2, 0], [0, 0, 1, 0, 1, 0]], dtype=float)
+    return poe.PoEChain.create(screws, home, frame="body")
+
+
+def _planar_target(x, y, phi):
+    """Planar pose as a 4x4 transform (rotation phi about z), batched over the inputs."""
+    x, y, phi = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (x, y, phi)))
+    t = np.broadcast_to(np.eye(4), (*x.shape, 4, 4)).copy()
+    t[..., 0, 0], t[..., 0, 1] = np.cos(phi), -np.sin(phi)
+    t[..., 1, 0], t[..., 1, 1] = np.sin(phi), np.cos(phi)
+    t[..., 0, 3], t[..., 1, 3] = x, y
+    return t
+
+
+def _planar_2r_pose(q):
+    """Pose of seed 003's 2R arm (links 1 m) at joint angles q (..., 2), by hand."""
+    q = np.asarray(q, dtype=float)
+    q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
+    return _planar_target(np.cos(q1) + np.cos(q12), np.sin(q1) + np.sin(q12), q12)
+
+
+def _pose_errors(t, t_d):
+    """Independent residuals (NumPy): rotation angle of R^T R_d and position distance."""
+    t, t_d = np.asarray(t), np.asarray(t_d)
+    # |R - R_d|_F = 2 sqrt(2) sin(angle / 2): well conditioned at small angles (arccos is not).
+    chord = np.linalg.norm(t[..., :3, :3] - t_d[..., :3, :3], axis=(-2, -1))
+    angle = 2.0 * np.arcsin(np.clip(chord / (2.0 * np.sqrt(2.0)), 0.0, 1.0))
+    return angle, np.linalg.norm(t[..., :3, 3] - t_d[..., :3, 3], axis=-1)
+
+
+def _well_conditioned(n, batch=5):
+    """Random 6 x n Jacobians with singular values in [0.5, 2] (SVD construction)."""
+    k = min(n, 6)
+    u = np.linalg.qr(RNG.normal(size=(batch, 6, 6)))[0][..., :k]
+    v = np.linalg.qr(RNG.normal(size=(batch, n, n)))[0][..., :k]
+    s = RNG.uniform(0.5, 2.0, size=(batch, k))
+    return np.einsum("bik,bk,bjk->bij", u, s, v)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 6, 7])
+@pytest.mark.parametrize("damping", [0.0, 0.3])
+def test_step_matches_pinv_and_damped_formula(n, damping):
+    jac = _well_conditioned(n)
+    twist = RNG.normal(size=(5, 6))
+    step = np.asarray(ik_newton._newton_step(jnp.asarray(jac), jnp.asarray(twist), damping))
+    if damping == 0.0:
+        # Soft cut-off mu = sqrt(eps) trace(J^T J): relative deviation from pinv <= mu / s^2,
+        # here <= 1.5e-8 * 24 / 0.25 ~ 1.5e-6 (module docstring).
+        expected = np.einsum("...ij,...j->...i", np.linalg.pinv(jac), twist)
+        np.testing.assert_allclose(step, expected, rtol=2e-6, atol=2e-6 * np.abs(expected).max())
+    else:
+        # Damped least squares, closed form J^T (J J^T + mu I)^-1 V with the documented
+        # mu = damping^2 + sqrt(eps) trace(J^T J).
+        mu = damping**2 + np.sqrt(np.finfo(np.float64).eps) * np.einsum("bij,bij->b", jac, jac)
+        gram = jac @ np.swapaxes(jac, -1, -2) + mu[:, None, None] * np.eye(6)
+        y = np.linalg.solve(gram, twist[..., None])[..., 0]
+        expected = np.einsum("...ji,...j->...i", jac, y)
+        np.testing.assert_allclose(step, expected, rtol=1e-10, atol=1e-12)
+
+
+def test_step_at_singular_jacobian_is_finite_and_is_pinv():
+    # Rank-deficient J (two equal columns): pinv splits the step equally; ours must too.
+    col = RNG.normal(size=6)
+    jac = np.stack([col, col, RNG.normal(size=6)], axis=-1)
+    twist = RNG.normal(size=6)
+    step = np.asarray(ik_newton._newton_step(jnp.asarray(jac), jnp.asarray(twist), 0.0))
+    np.testing.assert_allclose(step, np.linalg.pinv(jac) @ twist, rtol=1e-6, atol=1e-7)
+    zero = ik_newton._newton_step(jnp.zeros((6, 2)), jnp.asarray(twist), 0.0)
+    np.testing.assert_array_equal(zero, 0.0)
+
+
+def test_planar_2r_quadratic_convergence():
+    # Error of iterate k+1 is O(error_k^2) once close: check e_{k+1} <= 2 e_k^2.
+    chain = _planar_2r_body()
+    q_true = np.array([0.4, 1.1])
+    target = poe.chain_fk(chain, q_true)
+    res = ik_newton.ik_newton(
+        chain, target, q_true + np.array([0.3, -0.25]), eps_omega=1e-13, eps_v=1e-13
+    )
+    assert bool(res.converged)
+    errs = np.linalg.norm(np.asarray(res.history) - q_true, axis=-1)[: int(res.iterations) + 1]
+    assert errs[-1] < 1e-12
+    for e_now, e_next in zip(errs[:-1], errs[1:], strict=True):
+        if 1e-7 < e_now < 0.1:
+            assert e_next <= 2.0 * e_now**2, errs
+
+
+@pytest.mark.parametrize(
+    "name, table, noise, min_success",
+    [("anthropomorphic", ANTHRO, 1.0, 1.0), ("PUMA", PUMA, 0.3, 0.9)],
+)
+def test_random_reachable_targets(name, table, noise, min_success):
+    """Targets = FK of random configurations; seeds perturbed by U(-noise, noise) rad."""
+    n = table.n_joints
+    q_true = RNG.uniform(-np.pi, np.pi, size=(200, n))
+    targets = np.asarray(dh.fk_dh(table, q_true))
+    q0 = q_true + RNG.uniform(-noise, noise, size=q_true.shape)
+    res = ik_newton.ik_newton(table, targets, q0, eps_omega=1e-10, eps_v=1e-10, max_iter=20)
+    ok = np.asarray(res.converged)
+    its = np.asarray(res.iterations)[ok]
+    print(
+        f"\n{name}: success {ok.mean():.3f} of {ok.size}, iterations median "
+        f"{np.median(its):.0f}, 90th pct {np.percentile(its, 90):.0f}, max {its.max()}"
+    )
+    assert ok.mean() >= min_success
+    assert np.all(np.asarray(res.status)[ok] == Status.OK)
+    assert np.all(np.asarray(res.status)[~ok] == Status.NOT_CONVERGED)
+    ang, lin = _pose_errors(dh.fk_dh(table, res.q), targets)
+    assert np.all(ang[ok] <= 1e-9) and np.all(lin[ok] <= 1e-9)
+    assert tree_allfinite(res)
+
+
+@pytest.mark.parametrize("frame", ["space", "body"])
+def test_frames_and_error_field(frame):
+    chain = poe.poe_from_dh(ANTHRO)
+    q_true = RNG.uniform(-2.0, 2.0, size=(20, 3))
+    targets = np.asarray(poe.chain_fk(chain, q_true))
+    res = ik_newton.ik_newton(chain, targets, q_true + 0.2, frame=frame)
+    assert np.all(np.asarray(res.converged))
+    err = np.asarray(res.error)
+    assert err.shape == (20, 2)
+    assert np.all(err[:, 0] <= 1e-3) and np.all(err[:, 1] <= 1e-4)
+    # |omega| of the twist is the rotation angle in either frame (independent NumPy residual).
+    ang, _ = _pose_errors(poe.chain_fk(chain, res.q), targets)
+    np.testing.assert_allclose(err[:, 0], ang, atol=1e-7)
+
+
+def test_history_held_after_convergence_and_elements_independent():
+    chain = _planar_2r_body()
+    targets = _planar_target(
+        [0.366, 1.2, 1.9, 0.5], [1.366, 0.4, 0.0, -1.0], [2.0944, 0.2, 0.1, -1]
+    )
+    q0 = np.array([[0.0, 0.5236], [0.3, 1.0], [0.2, 0.3], [-0.5, 0.6]])
+    res = ik_newton.ik_newton(chain, targets, q0, max_iter=12)
+    history = np.asarray(res.history)
+    assert history.shape == (13, 4, 2)
+    np.testing.assert_array_equal(history[0], q0)
+    its = np.asarray(res.iterations)
+    assert len(set(its.tolist())) > 1  # elements converge at different steps
+    for i, k in enumerate(its):
+        np.testing.assert_array_equal(history[k:, i], np.broadcast_to(res.q[i], (13 - k, 2)))
+        assert np.all(np.any(history[1 : k + 1, i] != history[:k, i], axis=-1))
+        single = ik_newton.ik_newton(chain, targets[i], q0[i], max_iter=12)
+        np.testing.assert_array_equal(single.q, res.q[i])
+        assert int(single.iterations) == k
+
+
+def test_unreachable_and_invalid_input():
+    chain = _planar_2r_body()
+    targets = _planar_target([3.0, 0.0, 1.0, 0.366], [0.0, 0.0, 1.0, 1.366], [0.0, 0.0, 0.5, 2.0])
+    # 0: beyond the reach of 2 m; 1: out of the plane, unreachable for a planar arm.
+    targets[1, 2, 3] = 0.5
+    targets[2, 0, 3] = np.nan
+    q0 = np.array([[0.1, 0.2], [0.1, 0.2], [0.1, 0.2], [np.inf, 0.5]])
+    res = ik_newton.ik_newton(chain, targets, q0, max_iter=15)
+    assert [Status(int(s)).name for s in res.status] == [
+        "NOT_CONVERGED",
+        "NOT_CONVERGED",
+        "INVALID_INPUT",
+        "INVALID_INPUT",
+    ]
+    assert tree_allfinite(res)
+    assert not np.any(np.asarray(res.converged))
+    np.testing.assert_array_equal(res.iterations[2:], 0)
+    with pytest.raises(RuntimeError, match="NOT_CONVERGED"):
+        res.raise_if_failed()
+    # Gradients through the unrolled iterations stay finite even for failing elements.
+    grad = jax.grad(lambda t: ik_newton.ik_newton(chain, t, q0, max_iter=5).q.sum())(
+        jnp.asarray(targets)
+    )
+    assert tree_allfinite(grad)
+
+
+def test_joint_limits_and_damping():
+    chain = _planar_2r_body()
+    # A full planar pose (x, y, phi) fixes q uniquely (mod 2 pi): q = (0.3, 0.9) has q2 > 0,
+    # so limits forbidding q2 > 0 make the pose unreachable.
+    target = _planar_2r_pose([0.3, 0.9])
+    q0 = np.array([0.1, 0.5])
+    tight = dict(eps_omega=1e-10, eps_v=1e-10)
+    free = ik_newton.ik_newton(chain, target, q0, **tight)
+    assert bool(free.converged)
+    np.testing.assert_allclose(free.q, [0.3, 0.9], atol=1e-9)
+    lower, upper = np.array([-np.pi, -np.pi]), np.array([np.pi, 0.0])
+    limited = ik_newton.ik_newton(chain, target, q0, limits=(lower, upper), max_iter=10)
+    history = np.asarray(limited.history)
+    assert np.all(history >= lower) and np.all(history <= upper)
+    assert int(limited.status) == Status.NOT_CONVERGED
+    damped = ik_newton.ik_newton(chain, target, q0, damping=0.05, max_iter=40, **tight)
+    assert bool(damped.converged)
+    assert int(damped.iterations) > int(free.iterations)  # damping slows the final approach
+    np.testing.assert_allclose(damped.q, [0.3, 0.9], atol=1e-9)
+
+
+def test_batch_broadcast_no_recompile_and_float32():
+    chain = _planar_2r_body()
+    targets = _planar_2r_pose(
+        np.stack([RNG.uniform(0.0, 0.8, (3, 5)), RNG.uniform(0.6, 1.8, (3, 5))], axis=-1)
+    )
+    q0 = np.array([0.2, 1.0])  # one seed broadcast over the (3, 5) batch
+    res = ik_newton.ik_newton(chain, targets, q0, max_iter=15)
+    assert res.q.shape == (3, 5, 2) and res.history.shape == (16, 3, 5, 2)
+    assert res.status.shape == (3, 5) and res.error.shape == (3, 5, 2)
+    before = compile_count(ik_newton._ik_jit)
+    ik_newton.ik_newton(chain, targets * 1.0, q0 + 0.1, eps_omega=1e-6, damping=0.01, max_iter=15)
+    assert compile_count(ik_newton._ik_jit) == before
+    # float32 end to end (chain, target, seed): converges to the default tolerances.
+    chain32 = jax.tree.map(lambda x: x.astype(jnp.float32), chain)
+    res32 = ik_newton.ik_newton(
+        chain32, targets.astype(np.float32), q0.astype(np.float32), max_iter=15
+    )
+    assert res32.q.dtype == jnp.float32
+    assert np.mean(np.asarray(res32.converged)) >= np.mean(np.asarray(res.converged)) - 0.1
+    ok = np.asarray(res32.converged) & np.asarray(res.converged)
+    np.testing.assert_allclose(np.asarray(res32.q)[ok], np.asarray(res.q)[ok], atol=2e-3)
+
+
+def test_validation():
+    chain = _planar_2r_body()
+    target, q0 = np.eye(4), np.zeros(2)
+    cases = [
+        (dict(target=np.eye(3)), r"target: expected shape \(\.\.\., 4, 4\)"),
+        (dict(q0=np.zeros(3)), r"q0: expected shape \(\.\.\., 2\)"),
+        (dict(eps_omega=0.0), "eps_omega must be positive"),
+        (dict(eps_v=-1.0), "eps_v must be positive"),
+        (dict(damping=-0.1), "damping must be non-negative"),
+        (dict(max_iter=-1), "max_iter"),
+        (dict(max_iter=2.5), "max_iter"),
+        (dict(limits=([0.0, 0.0], [-1.0, 1.0])), "limits: need lower <= upper"),
+        (dict(limits=[0.0]), "limits: expected a pair"),
+        (dict(frame="world"), "frame must be one of"),
+        (dict(target=np.tile(np.eye(4), (3, 1, 1)), q0=np.zeros((2, 2))), "do not broadcast"),
+    ]
+    for kwargs, match in cases:
+        args = dict(target=target, q0=q0) | kwargs
+        with pytest.raises(ValueError, match=match):
+            ik_newton.ik_newton(chain, **args)
+    with pytest.raises(ValueError, match="chain: expected a PoEChain or a DHTable"):
+        ik_newton.ik_newton("arm", target, q0)
