@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from reference_serial import ARMS, fk_dh_numpy, ik_newton_numpy, random_problems
 
-from jaxkin.serial import dh, ik_newton, poe
+from jaxkin.serial import dh, newton_ik, poe
 
 SIZES = [1_000, 100_000]
 
@@ -52,7 +52,7 @@ def test_jaxkin_ik_newton(measure, benchmark, n, arm):
     table = _table(ARMS[arm])
     targets, q0 = jnp.asarray(targets), jnp.asarray(q0)
     res = measure(
-        lambda: ik_newton.ik_newton(table, targets, q0),
+        lambda: newton_ik.ik_newton(table, targets, q0),
         n,
         rounds=3,
         kernel=f"ik_newton[{arm}]",

@@ -4,7 +4,7 @@ Links of 1 m; home M = Trans(2, 0, 0); body screws B1 = (0, 0, 1, 0, 2, 0) and
 B2 = (0, 0, 1, 0, 1, 0); target (x, y) = (0.366, 1.366) m with the end-effector x axis at
 120 degrees; seed theta0 = (0, 30 deg); tolerances eps_omega = 1e-3 rad, eps_v = 1e-4 m.
 
-The script runs ``jaxkin.serial.ik_newton`` and prints every iterate (joint angles, end
+The script runs ``jaxkin.serial.newton_ik`` and prints every iterate (joint angles, end
 position, body twist V_b = log(T_sb^-1 T_sd)) beside the table printed in the seed. As the
 errata note, the table is that of the body-frame update theta += J_b^+ V_b, and its 4 rows are
 3 updates. Outputs: examples/output/planar_2r_newton.csv and, with matplotlib installed,
@@ -18,7 +18,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin.serial import ik_newton, lie, poe
+from jaxkin.serial import lie, newton_ik, poe
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never sets it
 
@@ -52,10 +52,10 @@ def target() -> np.ndarray:
     )
 
 
-def run() -> tuple[np.ndarray, ik_newton.NewtonIKResult]:
+def run() -> tuple[np.ndarray, newton_ik.NewtonIKResult]:
     """Solve the example; return the computed table (one row per iterate) and the result."""
     arm, t_sd = chain(), target()
-    result = ik_newton.ik_newton(
+    result = newton_ik.ik_newton(
         arm, t_sd, np.radians([0.0, 30.0]), eps_omega=1e-3, eps_v=1e-4, max_iter=20
     )
     iterates = np.asarray(result.history[: int(result.iterations) + 1])

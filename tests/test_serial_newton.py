@@ -9,7 +9,7 @@ import pytest
 from helpers import compile_count, tree_allfinite
 
 from jaxkin import Status
-from jaxkin.serial import dh, ik_newton, poe
+from jaxkin.serial import dh, newton_ik, poe
 
 RNG = np.random.default_rng(11)
 
@@ -70,7 +70,7 @@ def _well_conditioned(n, batch=5):
 def test_step_matches_pinv_and_damped_formula(n, damping):
     jac = _well_conditioned(n)
     twist = RNG.normal(size=(5, 6))
-    step = np.asarray(ik_newton._newton_step(jnp.asarray(jac), jnp.asarray(twist), damping))
+    step = np.asarray(newton_ik._newton_step(jnp.asarray(jac), jnp.asarray(twist), damping))
     if damping == 0.0:
         # Soft cut-off mu = sqrt(eps) trace(J^T J): relative deviation from pinv <= mu / s^2,
         # here <= 1.5e-8 * 24 / 0.25 ~ 1.5e-6 (module docstring).
@@ -91,9 +91,9 @@ def test_step_at_singular_jacobian_is_finite_and_is_pinv():
     col = RNG.normal(size=6)
     jac = np.stack([col, col, RNG.normal(size=6)], axis=-1)
     twist = RNG.normal(size=6)
-    step = np.asarray(ik_newton._newton_step(jnp.asarray(jac), jnp.asarray(twist), 0.0))
+    step = np.asarray(newton_ik._newton_step(jnp.asarray(jac), jnp.asarray(twist), 0.0))
     np.testing.assert_allclose(step, np.linalg.pinv(jac) @ twist, rtol=1e-6, atol=1e-7)
-    zero = ik_newton._newton_step(jnp.zeros((6, 2)), jnp.asarray(twist), 0.0)
+    zero = newton_ik._newton_step(jnp.zeros((6, 2)), jnp.asarray(twist), 0.0)
     np.testing.assert_array_equal(zero, 0.0)
 
 
@@ -102,7 +102,7 @@ def test_planar_2r_quadratic_convergence():
     chain = _planar_2r_body()
     q_true = np.array([0.4, 1.1])
     target = poe.chain_fk(chain, q_true)
-    res = ik_newton.ik_newton(
+    res = newton_ik.ik_newton(
         chain, target, q_true + np.array([0.3, -0.25]), eps_omega=1e-13, eps_v=1e-13
     )
     assert bool(res.converged)
@@ -123,7 +123,7 @@ def test_random_reachable_targets(name, table, noise, min_success):
     q_true = RNG.uniform(-np.pi, np.pi, size=(200, n))
     targets = np.asarray(dh.fk_dh(table, q_true))
     q0 = q_true + RNG.uniform(-noise, noise, size=q_true.shape)
-    res = ik_newton.ik_newton(table, targets, q0, eps_omega=1e-10, eps_v=1e-10, max_iter=20)
+    res = newton_ik.ik_newton(table, targets, q0, eps_omega=1e-10, eps_v=1e-10, max_iter=20)
     ok = np.asarray(res.converged)
     its = np.asarray(res.iterations)[ok]
     print(
@@ -143,7 +143,7 @@ def test_frames_and_error_field(frame):
     chain = poe.poe_from_dh(ANTHRO)
     q_true = RNG.uniform(-2.0, 2.0, size=(20, 3))
     targets = np.asarray(poe.chain_fk(chain, q_true))
-    res = ik_newton.ik_newton(chain, targets, q_true + 0.2, frame=frame)
+    res = newton_ik.ik_newton(chain, targets, q_true + 0.2, frame=frame)
     assert np.all(np.asarray(res.converged))
     err = np.asarray(res.error)
     assert err.shape == (20, 2)
@@ -159,7 +159,7 @@ def test_history_held_after_convergence_and_elements_independent():
         [0.366, 1.2, 1.9, 0.5], [1.366, 0.4, 0.0, -1.0], [2.0944, 0.2, 0.1, -1]
     )
     q0 = np.array([[0.0, 0.5236], [0.3, 1.0], [0.2, 0.3], [-0.5, 0.6]])
-    res = ik_newton.ik_newton(chain, targets, q0, max_iter=12)
+    res = newton_ik.ik_newton(chain, targets, q0, max_iter=12)
     history = np.asarray(res.history)
     assert history.shape == (13, 4, 2)
     np.testing.assert_array_equal(history[0], q0)
@@ -168,7 +168,7 @@ def test_history_held_after_convergence_and_elements_independent():
     for i, k in enumerate(its):
         np.testing.assert_array_equal(history[k:, i], np.broadcast_to(res.q[i], (13 - k, 2)))
         assert np.all(np.any(history[1 : k + 1, i] != history[:k, i], axis=-1))
-        single = ik_newton.ik_newton(chain, targets[i], q0[i], max_iter=12)
+        single = newton_ik.ik_newton(chain, targets[i], q0[i], max_iter=12)
         np.testing.assert_array_equal(single.q, res.q[i])
         assert int(single.iterations) == k
 
@@ -180,7 +180,7 @@ def test_unreachable_and_invalid_input():
     targets[1, 2, 3] = 0.5
     targets[2, 0, 3] = np.nan
     q0 = np.array([[0.1, 0.2], [0.1, 0.2], [0.1, 0.2], [np.inf, 0.5]])
-    res = ik_newton.ik_newton(chain, targets, q0, max_iter=15)
+    res = newton_ik.ik_newton(chain, targets, q0, max_iter=15)
     assert [Status(int(s)).name for s in res.status] == [
         "NOT_CONVERGED",
         "NOT_CONVERGED",
@@ -193,7 +193,7 @@ def test_unreachable_and_invalid_input():
     with pytest.raises(RuntimeError, match="NOT_CONVERGED"):
         res.raise_if_failed()
     # Gradients through the unrolled iterations stay finite even for failing elements.
-    grad = jax.grad(lambda t: ik_newton.ik_newton(chain, t, q0, max_iter=5).q.sum())(
+    grad = jax.grad(lambda t: newton_ik.ik_newton(chain, t, q0, max_iter=5).q.sum())(
         jnp.asarray(targets)
     )
     assert tree_allfinite(grad)
@@ -206,15 +206,15 @@ def test_joint_limits_and_damping():
     target = _planar_2r_pose([0.3, 0.9])
     q0 = np.array([0.1, 0.5])
     tight = dict(eps_omega=1e-10, eps_v=1e-10)
-    free = ik_newton.ik_newton(chain, target, q0, **tight)
+    free = newton_ik.ik_newton(chain, target, q0, **tight)
     assert bool(free.converged)
     np.testing.assert_allclose(free.q, [0.3, 0.9], atol=1e-9)
     lower, upper = np.array([-np.pi, -np.pi]), np.array([np.pi, 0.0])
-    limited = ik_newton.ik_newton(chain, target, q0, limits=(lower, upper), max_iter=10)
+    limited = newton_ik.ik_newton(chain, target, q0, limits=(lower, upper), max_iter=10)
     history = np.asarray(limited.history)
     assert np.all(history >= lower) and np.all(history <= upper)
     assert int(limited.status) == Status.NOT_CONVERGED
-    damped = ik_newton.ik_newton(chain, target, q0, damping=0.05, max_iter=40, **tight)
+    damped = newton_ik.ik_newton(chain, target, q0, damping=0.05, max_iter=40, **tight)
     assert bool(damped.converged)
     assert int(damped.iterations) > int(free.iterations)  # damping slows the final approach
     np.testing.assert_allclose(damped.q, [0.3, 0.9], atol=1e-9)
@@ -226,15 +226,15 @@ def test_batch_broadcast_no_recompile_and_float32():
         np.stack([RNG.uniform(0.0, 0.8, (3, 5)), RNG.uniform(0.6, 1.8, (3, 5))], axis=-1)
     )
     q0 = np.array([0.2, 1.0])  # one seed broadcast over the (3, 5) batch
-    res = ik_newton.ik_newton(chain, targets, q0, max_iter=15)
+    res = newton_ik.ik_newton(chain, targets, q0, max_iter=15)
     assert res.q.shape == (3, 5, 2) and res.history.shape == (16, 3, 5, 2)
     assert res.status.shape == (3, 5) and res.error.shape == (3, 5, 2)
-    before = compile_count(ik_newton._ik_jit)
-    ik_newton.ik_newton(chain, targets * 1.0, q0 + 0.1, eps_omega=1e-6, damping=0.01, max_iter=15)
-    assert compile_count(ik_newton._ik_jit) == before
+    before = compile_count(newton_ik._ik_jit)
+    newton_ik.ik_newton(chain, targets * 1.0, q0 + 0.1, eps_omega=1e-6, damping=0.01, max_iter=15)
+    assert compile_count(newton_ik._ik_jit) == before
     # float32 end to end (chain, target, seed): converges to the default tolerances.
     chain32 = jax.tree.map(lambda x: x.astype(jnp.float32), chain)
-    res32 = ik_newton.ik_newton(
+    res32 = newton_ik.ik_newton(
         chain32, targets.astype(np.float32), q0.astype(np.float32), max_iter=15
     )
     assert res32.q.dtype == jnp.float32
@@ -262,6 +262,6 @@ def test_validation():
     for kwargs, match in cases:
         args = dict(target=target, q0=q0) | kwargs
         with pytest.raises(ValueError, match=match):
-            ik_newton.ik_newton(chain, **args)
+            newton_ik.ik_newton(chain, **args)
     with pytest.raises(ValueError, match="chain: expected a PoEChain or a DHTable"):
-        ik_newton.ik_newton("arm", target, q0)
+        newton_ik.ik_newton("arm", target, q0)

@@ -10,7 +10,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from reference_serial import ARMS, ik_newton_numpy, random_problems  # noqa: E402
 
-from jaxkin.serial import dh, ik_newton, poe  # noqa: E402
+from jaxkin.serial import dh, newton_ik, poe  # noqa: E402
 
 
 @pytest.mark.parametrize("arm", list(ARMS))
@@ -25,7 +25,7 @@ def test_fk_references_equal_jaxkin(arm):
 def test_newton_reference_takes_the_same_path(arm):
     _, targets, q0 = random_problems(ARMS[arm], 200, seed=4)
     q_np, ok_np, its_np = ik_newton_numpy(ARMS[arm], targets, q0)
-    res = ik_newton.ik_newton(dh.DHTable.create(**ARMS[arm]), targets, q0)
+    res = newton_ik.ik_newton(dh.DHTable.create(**ARMS[arm]), targets, q0)
     ok = np.asarray(res.converged)
     assert ok.mean() == 1.0 and ok_np.mean() == 1.0
     same = np.asarray(res.iterations) == its_np

@@ -24,8 +24,8 @@ from .arms import ik_jet as ik_jet
 from .dh import DHTable as DHTable
 from .dh import dh_transform as dh_transform
 from .dh import fk_dh as fk_dh
-from .ik_newton import NewtonIKResult as NewtonIKResult
-from .ik_newton import ik_newton as ik_newton
+from .newton_ik import NewtonIKResult as NewtonIKResult
+from .newton_ik import ik_newton as ik_newton
 from .poe import PoEChain as PoEChain
 from .poe import body_jacobian as body_jacobian
 from .poe import chain_fk as chain_fk

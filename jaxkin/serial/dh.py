@@ -25,7 +25,7 @@ joint_types="RRR")``.
 Units: lengths in the caller's unit (the output translation uses the same), angles in radians.
 FK is a smooth closed-form map: it has no failure cases and no status; NaN or inf in ``q``
 propagates only to the affected batch elements (the solvers built on it, such as
-``jaxkin.serial.ik_newton``, flag such elements ``INVALID_INPUT``). Float32 tables and ``q``
+``jaxkin.serial.newton_ik``, flag such elements ``INVALID_INPUT``). Float32 tables and ``q``
 give float32 transforms, accurate to ~1e-6 absolute for metre-scale arms (tested).
 
 Implementation note: the kernel multiplies the link transforms entry by entry (a rotation is
