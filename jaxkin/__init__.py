@@ -1,7 +1,23 @@
-"""jaxkin: batched, differentiable robot kinematics on JAX."""
+"""jaxkin: batched, differentiable robot kinematics on JAX.
 
+Modules: ``dyad`` (RRR dyad / Assur group), ``scara``, ``delta``, ``serial`` (DH, PoE, analytic
+and Newton IK), ``plan`` (planner backend), ``optimize`` (optax trajectory optimisation),
+``workspace`` (voxel sweeps), ``newton`` (batched Newton-Raphson), ``planar`` (angle and
+distance rates), ``fixedpoint`` (bit-width studies), ``splines``, ``io``, ``plot`` (needs the
+``plot`` extra; imported on demand).
+"""
+
+from . import delta as delta
 from . import dyad as dyad
+from . import fixedpoint as fixedpoint
+from . import newton as newton
+from . import optimize as optimize
+from . import plan as plan
 from . import planar as planar
+from . import scara as scara
+from . import serial as serial
+from . import splines as splines
+from . import workspace as workspace
 from .jet import Jet as Jet
 from .jet import lift as lift
 from .result import SolverResult as SolverResult
@@ -10,4 +26,22 @@ from .status import describe as describe
 
 __version__ = "0.1.0"
 
-__all__ = ["Jet", "SolverResult", "Status", "describe", "dyad", "lift", "planar", "__version__"]
+__all__ = [
+    "Jet",
+    "SolverResult",
+    "Status",
+    "__version__",
+    "delta",
+    "describe",
+    "dyad",
+    "fixedpoint",
+    "lift",
+    "newton",
+    "optimize",
+    "plan",
+    "planar",
+    "scara",
+    "serial",
+    "splines",
+    "workspace",
+]

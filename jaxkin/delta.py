@@ -1,0 +1,911 @@
+"""The Delta parallel robot of seed 002 (Cardona): IK, FK, rates, singularities, workspace.
+
+Convention (ERRATA seed 002; the paper's figures are not available):
+
+* origin at the centre of the fixed platform (base), z up; the moving platform hangs below the
+  base (z < 0 in normal operation);
+* chain i (i = 1, 2, 3) has its actuator axis at ``A_i = r_base u_i`` with the radial unit
+  vector ``u_i = (cos phi_i, sin phi_i, 0)``, ``phi_i = -90 + 120 (i - 1)`` degrees: chain 1 lies
+  in the YZ plane on the -y side, chains 2 and 3 follow at +120 and +240 degrees
+  (counter-clockwise seen from +z);
+* ``theta_i = 0`` with the arm horizontal pointing radially outward, positive *downward*:
+  the elbow is ``E_i = A_i + l_arm (cos theta_i u_i - sin theta_i e_z)``;
+* the platform does not rotate; its joint i is at ``D_i = p + r_platform u_i``, and the
+  parallelogram keeps ``|D_i - E_i| = l_rod``.
+
+Lengths are in the user's unit (the paper's robot, ``Delta.paper()``, is in cm).
+
+Inverse kinematics (eqs. 1-7, corrected per ERRATA). Let ``Q_i = p - (r_base - r_platform) u_i``
+and its chain-local coordinates ``a = Q_i . u_i`` (radial), ``b = Q_i . (e_z x u_i)``
+(tangential), ``z``. The constraint ``(a - l_arm cos th)^2 + b^2 + (z + l_arm sin th)^2 =
+l_rod^2`` is the paper's eq. 5, ``2 T L cos th + 2 z L sin th = K`` with ``T = -a`` (the paper's
+``OA + y0 - G'D'`` for chain 1), ``L = l_arm`` and ``K = l_rod^2 - b^2 - T^2 - L^2 - z^2``. With
+``t = tan(th / 2)`` it becomes ``e1 t^2 + e2 t + e3 = 0`` (eq. 6, "e - 3" read as e3) with
+``e1 = K + 2 T L``, ``e2 = -4 z L``, ``e3 = K - 2 T L``, and discriminant ``D = e2^2 - 4 e1 e3``.
+The roots are taken in the stable form ``t = 2 e3 / (-e2 -/+ sqrt(D))`` (no division by e1,
+which changes sign inside the workspace).
+
+Root choice (the paper: "only the negative root worked in our tests"). The elbow's radial
+coordinate is ``r_base + l_arm cos th`` and ``cos th = (1 - t^2) / (1 + t^2)`` decreases with
+``|t|``: the elbow-out solution (elbow farther out from the z axis) is the root of *smaller*
+``|t|``, i.e. the one whose denominator ``-e2 -/+ sqrt(D)`` has the larger magnitude:
+``t_out = -2 e3 / (e2 + sign(e2) sqrt(D))``. For a hanging platform (z < 0, so e2 > 0) this is
+``2 e3 / (-e2 - sqrt(D))``, which equals the paper's eq. 7 with the *plus* sign
+(``(-e2 + sqrt(D)) / (2 e1)``); the paper's "negative root" ``(-e2 - sqrt(D)) / (2 e1)`` is the
+elbow-in one in this convention (the paper measured z positive downward and theta positive
+upward, which swaps the two). Conveniently the elbow-out root is also the cancellation-free
+one. The elbow-in root is ``t_in = -(e2 + sign(e2) sqrt(D)) / (2 e1)``. Both are evaluated as
+``theta = 2 atan2(num, den)`` with ``den >= 0``, so ``e1 = 0`` (theta_in = +/- pi) is harmless;
+theta lies in (-pi, pi].
+
+Forward kinematics by Newton-Raphson (eqs. 8-16, corrected): unknown ``p`` (the quaternion part
+is the identity, the platform does not rotate), residuals
+``r_i(p) = (|p + r_platform u_i - E_i(theta_i)|^2 - l_rod^2) / (2 l_rod)`` (length units, about
+``|D_i - E_i| - l_rod`` near the solution), Jacobian by forward-mode autodiff, explicit 3x3
+adjugate solve, per-element convergence in one ``lax.while_loop`` (``jaxkin.newton``);
+converged where ``max|r| <= tol * (l_arm + l_rod)``.
+Derivatives through the solution come from the implicit function theorem
+(``lax.custom_root``), so ``jaxkin.lift`` of fk gives exact velocity and acceleration.
+
+Default initial guess: with the sphere centres ``C_i = E_i - r_platform u_i`` (``p`` lies at
+distance ``l_rod`` from each), the centroid ``c`` of the three centres lowered by
+``sqrt(max(l_rod^2 - mean_i |C_i - c|_xy^2, l_rod^2 / 4))``: exact when the three elbows are at
+the same height, and always below the centres, so Newton lands on the lower (physical, hanging)
+assembly. Pass ``guess`` (e.g. the previous sample of a trajectory) to warm-start.
+
+Closed form FK (three-sphere intersection): ``a = C_2 - C_1``, ``b = C_3 - C_1``, ``n = a x b``;
+the circumcentre ``O = C_1 + ((|a|^2 b - |b|^2 a) x n) / (2 |n|^2)`` and
+``p = O +/- h n`` with ``h^2 = (l_rod^2 - |O - C_1|^2) / |n|^2``; ``p`` is the lower one,
+``p_upper`` its mirror through the plane of the centres.
+
+Rates. With ``d_i = D_i - E_i`` and ``E_i' = dE_i/dtheta_i = -l_arm (sin th u_i + cos th e_z)``,
+differentiating ``|d_i|^2 = l_rod^2`` gives the constraint Jacobians
+``J_p = [d_1; d_2; d_3]`` (3x3, the platform Jacobian) and
+``J_theta = diag(d_i . E_i')`` (the actuator Jacobian), with ``J_p p_dot = J_theta theta_dot``,
+and for the accelerations (``E_i'' = -(E_i - A_i)``)::
+
+    d_i . p_ddot - (d_i . E_i') theta_ddot_i = (d_i . E_i'') theta_dot_i^2 - |d_i_dot|^2,
+    d_i_dot = p_dot - E_i' theta_dot_i.
+
+``method="analytic"`` uses these; ``method="autodiff"`` lifts the position solvers with
+``jaxkin.lift`` (nested jvp). Both agree to ~1e-12 in float64.
+
+Singularity measures (both in [0, 1], 0 at the singularity, scale-free):
+
+* inverse-type (serial): ``min_i |d_i . E_i'| / (l_arm l_rod)``, the cosine of the angle
+  between rod i and the velocity of elbow i: 0 where a rod is perpendicular to it, i.e. the arm
+  and the rod's projection on the arm's plane are aligned (both IK branches meet: the workspace
+  boundary);
+* direct-type (parallel): ``|det [d_1; d_2; d_3]| / l_rod^3``, the volume spanned by the unit
+  rod vectors: 0 where the three rods are coplanar (both FK assemblies meet, the platform
+  gains a degree of freedom).
+
+A measure ``m`` with ``m^2 <= sqrt(eps(dtype))`` gives status ``SINGULAR`` (``m`` below ~1.2e-4 in
+float64, ~0.019 in float32). The square is what the solvers compute without cancellation (a
+discriminant, a squared height): rounding there is ~eps relative, so ``m`` itself carries
+~sqrt(eps) noise near a singularity, and a band on ``m^2`` at sqrt(eps) matches the dyad's
+length tolerance (``jaxkin.dyad``: ``sin(beta)^2 ~ 2 sqrt(eps)`` at its band edge).
+
+Statuses (``jaxkin.Status``), most basic first:
+
+* ik: ``INVALID_INPUT`` (non-finite p), ``UNREACHABLE`` (some chain has
+  ``D / (4 l_arm l_rod)^2 < -sqrt(eps)``: the target is outside that chain's torus), ``SINGULAR``
+  (``|D| / (4 l_arm l_rod)^2 <= sqrt(eps)``: on the workspace boundary, position valid, rates
+  not), ``OUT_OF_LIMITS`` (solved but outside the actuator limits), ``OK``. ``margin`` = the
+  smallest signed inverse measure over the chains, ``sign(D) sqrt(|D|) / (4 l_arm l_rod)``, which
+  equals the inverse-type measure at a solution and is negative outside the workspace:
+  continuous, usable as a barrier.
+* fk: ``INVALID_INPUT`` (non-finite theta or guess), ``SINGULAR`` (direct-type: the squared
+  Hadamard ratio of the Jacobian, which is the direct measure at a solution, <= sqrt(eps)),
+  ``NOT_CONVERGED`` (including theta for which the mechanism cannot be assembled: use
+  ``fk_closed_form`` to tell), ``OUT_OF_LIMITS``, ``OK``.
+* fk_closed_form: with ``w = h^2 |n|^2 / l_rod^2`` (the squared sine of the rods' elevation
+  above the plane of the centres): ``INVALID_INPUT``, ``UNREACHABLE`` (``w < -sqrt(eps)``: no
+  common point of the three spheres), ``SINGULAR`` (collinear centres, or ``|w| <= sqrt(eps)``:
+  the two assemblies meet, a direct singularity), ``OUT_OF_LIMITS``, ``OK``.
+
+Placeholders: where the status is not OK, rates are 0; unreachable IK returns the angle of the
+nearest (tangent) configuration, unreachable closed-form FK returns the circumcentre ``O``;
+non-finite input is replaced by a harmless value before any arithmetic (double-where), so values
+and gradients stay finite for the rest of the batch.
+
+Float32 (measured on 2,000 random workspace points of the paper's robot, see
+``tests/test_delta.py::test_float32``): IK angles within 6e-7 rad of float64; closed-form FK
+within 1e-5 cm; Newton FK needs ``tol`` of at least ~1e-6 (the default 1e-12 is below float32
+resolution, so most elements report ``NOT_CONVERGED`` after ``max_iter``): with ``tol=1e-6`` all
+converge in <= 4 iterations to within 6e-5 cm (about 1e-6 of the robot's reach). The singular
+bands widen with ``sqrt(eps)`` (measure below ~0.02 in float32).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
+
+from . import _validate, newton
+from ._numerics import all_finite, safe_sqrt, singular_rtol
+from .jet import Jet, lift
+from .result import SolverResult
+from .status import STATUS_DTYPE, Status
+
+BRANCHES = ("out", "in")
+METHODS = ("analytic", "autodiff")
+LOWER = 0
+UPPER = 1
+
+# Radial unit vectors u_i = (cos phi_i, sin phi_i), phi_i = -90, 30, 150 degrees.
+_SQRT3_2 = math.sqrt(3.0) / 2.0
+_UX = (0.0, _SQRT3_2, -_SQRT3_2)
+_UY = (-1.0, 0.5, 0.5)
+
+
+def _any3(x: Array) -> Array:
+    """``any`` over a last axis of size 3, written elementwise: XLA on CPU runs reductions over
+    a tiny minor axis as separate slow loops, elementwise ORs fuse with their producers."""
+    return x[..., 0] | x[..., 1] | x[..., 2]
+
+
+def _finite3(x: Array) -> Array:
+    return ~_any3(~jnp.isfinite(x))
+
+
+def _radial(dtype) -> tuple[Array, Array]:
+    return jnp.asarray(_UX, dtype), jnp.asarray(_UY, dtype)
+
+
+@dataclasses.dataclass(frozen=True)
+class Delta:
+    """Geometry of a Delta robot (see the module docstring for the frame and angles).
+
+    Attributes:
+        r_base: radius of the fixed platform, centre to actuator axis (scalar, length).
+        r_platform: radius of the moving platform, centre to rod joint (scalar, length).
+        l_arm: length of the actuated arm, actuator axis to elbow (scalar, length).
+        l_rod: length of the parallelogram rods, elbow to platform joint (scalar, length).
+        theta_min: lower actuator limit (scalar, rad), ``-inf`` for none.
+        theta_max: upper actuator limit (scalar, rad), ``+inf`` for none.
+
+    All fields are pytree leaves (differentiable, e.g. for calibration; vmappable over a batch
+    of robots). Concrete values are validated when you construct a ``Delta``: lengths positive
+    and finite, ``theta_min < theta_max``. Pytree operations (gradients, ``tree.map``) rebuild
+    instances without validation, so a gradient may hold negative "lengths".
+    """
+
+    r_base: Any
+    r_platform: Any
+    l_arm: Any
+    l_rod: Any
+    theta_min: Any = -math.inf
+    theta_max: Any = math.inf
+
+    def __post_init__(self) -> None:
+        fields = (self.r_base, self.r_platform, self.l_arm, self.l_rod)
+        limits = (self.theta_min, self.theta_max)
+        # Only validate real values: pytree unflattening may pass tracers or placeholders.
+        if not all(_is_number(x) for x in (*fields, *limits)):
+            return
+        for name in ("r_base", "r_platform", "l_arm", "l_rod"):
+            value = np.asarray(getattr(self, name), dtype=float)
+            if value.shape != ():
+                raise ValueError(f"{name} must be a scalar, got shape {value.shape}")
+            _validate.positive_length(value, name)
+        lo = np.asarray(self.theta_min, dtype=float)
+        hi = np.asarray(self.theta_max, dtype=float)
+        if lo.shape != () or hi.shape != ():
+            raise ValueError("theta_min and theta_max must be scalars")
+        if np.isnan(lo) or np.isnan(hi) or not lo < hi:
+            raise ValueError(f"need theta_min < theta_max, got {float(lo)} and {float(hi)}")
+
+    @classmethod
+    def paper(cls) -> Delta:
+        """The robot of the paper's workspace study, in cm: (7, 2.5, 15.5, 30)."""
+        return cls(7.0, 2.5, 15.5, 30.0)
+
+    def with_limits(self, theta_min: float, theta_max: float) -> Delta:
+        """The same robot with actuator limits (rad)."""
+        return dataclasses.replace(self, theta_min=theta_min, theta_max=theta_max)
+
+
+_DELTA_FIELDS = ("r_base", "r_platform", "l_arm", "l_rod", "theta_min", "theta_max")
+
+
+def _delta_flatten(robot: Delta):
+    children = tuple(getattr(robot, name) for name in _DELTA_FIELDS)
+    keys = tuple(jax.tree_util.GetAttrKey(name) for name in _DELTA_FIELDS)
+    return tuple(zip(keys, children, strict=True)), None
+
+
+def _delta_unflatten(_aux: None, children) -> Delta:
+    # Bypass __init__/__post_init__: tree operations carry gradients and tracers, not robots.
+    robot = object.__new__(Delta)
+    for name, value in zip(_DELTA_FIELDS, children, strict=True):
+        object.__setattr__(robot, name, value)
+    return robot
+
+
+jax.tree_util.register_pytree_with_keys(Delta, _delta_flatten, _delta_unflatten)
+
+
+def _is_number(x: Any) -> bool:
+    if isinstance(x, bool):
+        return False
+    if isinstance(x, int | float | np.number):
+        return True
+    if isinstance(x, np.ndarray | jax.Array) and _validate.is_concrete(x):
+        return np.issubdtype(np.asarray(x).dtype, np.number)
+    return False
+
+
+def _params(robot: Delta, dtype) -> tuple[Array, ...]:
+    return tuple(
+        jnp.asarray(getattr(robot, f), dtype)
+        for f in ("r_base", "r_platform", "l_arm", "l_rod", "theta_min", "theta_max")
+    )
+
+
+# ----------------------------------------------------------------------------------- results
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class IKResult(SolverResult):
+    """Inverse kinematics of a batch.
+
+    Attributes:
+        theta: Jet of the actuator angles, shape ``(..., 3)`` (rad).
+        status: ``int8`` codes, shape ``(...)``.
+        margin: smallest signed inverse-type singularity measure, shape ``(...)``: in (0, 1]
+            inside the workspace, 0 on its boundary, negative outside.
+    """
+
+    theta: Jet
+    status: Array
+    margin: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class FKResult(SolverResult):
+    """Forward kinematics by Newton-Raphson.
+
+    Attributes:
+        p: Jet of the platform centre, shape ``(..., 3)``.
+        converged: shape ``(...)``.
+        iterations: Newton updates applied, ``int32``, shape ``(...)``.
+        residual: ``max_i |r_i|`` (length units, see the module docstring), shape ``(...)``.
+        conditioning: direct-type singularity measure at ``p`` (Jacobian Hadamard ratio).
+        status: ``int8`` codes, shape ``(...)``.
+    """
+
+    p: Jet
+    converged: Array
+    iterations: Array
+    residual: Array
+    conditioning: Array
+    status: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class ClosedFormFKResult(SolverResult):
+    """Forward kinematics by three-sphere intersection.
+
+    Attributes:
+        p: lower solution (the physical one for a hanging Delta), shape ``(..., 3)``.
+        p_upper: the mirror solution, shape ``(..., 3)``.
+        status: ``int8`` codes, shape ``(...)``.
+    """
+
+    p: Array
+    p_upper: Array
+    status: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class SingularityResult(SolverResult):
+    """Singularity measures, each in [0, 1] with 0 at the singularity, shape ``(...)``.
+
+    Attributes:
+        inverse: ``min_i |d_i . E_i'| / (l_arm l_rod)`` (actuator Jacobian degenerate).
+        direct: ``|det [d_1; d_2; d_3]| / l_rod^3`` (platform Jacobian degenerate).
+        status: ``SINGULAR`` where either measure squared is <= sqrt(eps), ``INVALID_INPUT``,
+            or ``OK``.
+    """
+
+    inverse: Array
+    direct: Array
+    status: Array
+
+
+# ------------------------------------------------------------------------------ position level
+
+
+def _chain_terms(robot: Delta, theta: Array, cos_sin: tuple[Array, Array] | None = None):
+    """Elbows and their derivatives: ``E, E', E''`` and the platform offsets, ``(..., 3, 3)``.
+
+    The second-to-last axis is the chain, the last the coordinates. ``cos_sin`` may pass
+    precomputed ``(cos theta, sin theta)`` (saves transcendental calls).
+    """
+    r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
+    ux, uy = _radial(theta.dtype)
+    c, s = (jnp.cos(theta), jnp.sin(theta)) if cos_sin is None else cos_sin
+    zeros = jnp.zeros_like(c)
+    radial = jnp.stack([ux + zeros, uy + zeros, zeros], axis=-1)  # u_i
+    up = jnp.stack([zeros, zeros, zeros + 1.0], axis=-1)  # e_z
+    arm = l_arm * (c[..., None] * radial - s[..., None] * up)  # E_i - A_i
+    elbow = r_base * radial + arm
+    d_elbow = -l_arm * (s[..., None] * radial + c[..., None] * up)  # E_i'
+    dd_elbow = -arm  # E_i''
+    return elbow, d_elbow, dd_elbow, r_platform * radial
+
+
+def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
+    """Actuator angles, their cosines and sines, and the signed inverse measure, ``(..., 3)``."""
+    dtype = p.dtype
+    r_base, r_platform, l_arm, l_rod, _, _ = _params(robot, dtype)
+    ux, uy = _radial(dtype)
+    x, y, z = p[..., 0:1], p[..., 1:2], p[..., 2:3]  # broadcast against the chain axis
+    a = x * ux + y * uy - (r_base - r_platform)  # radial coordinate of Q_i from A_i
+    b = -x * uy + y * ux  # tangential coordinate
+    t_coef = -a  # the paper's T
+    # Eq. 5: 2 T L cos(theta) + 2 z L sin(theta) = K.
+    k = l_rod * l_rod - b * b - t_coef * t_coef - l_arm * l_arm - z * z
+    e1 = k + 2.0 * t_coef * l_arm  # eq. 6 (ERRATA: "e - 3" is e3)
+    e2 = -4.0 * z * l_arm
+    e3 = k - 2.0 * t_coef * l_arm
+    disc = e2 * e2 - 4.0 * e1 * e3
+    sqrt_disc = safe_sqrt(disc)
+    sign_e2 = jnp.where(e2 >= 0, 1.0, -1.0).astype(dtype)
+    big = jnp.abs(e2) + sqrt_disc  # |e2 + sign(e2) sqrt(D)|, never a cancellation
+    if branch == "out":
+        # t_out = -2 e3 / (e2 + sign(e2) sqrt(D)) (stable form of eq. 7, see module docstring).
+        num, den = -2.0 * e3 * sign_e2, big
+    else:
+        # t_in = -(e2 + sign(e2) sqrt(D)) / (2 e1).
+        sign_e1 = jnp.where(e1 >= 0, 1.0, -1.0).astype(dtype)
+        num, den = -sign_e2 * big * sign_e1, 2.0 * jnp.abs(e1)
+    degenerate = (num == 0) & (den == 0)  # z = 0 and D = 0 and e3 = 0: any angle; take 0
+    den = jnp.where(degenerate, 1.0, den)
+    theta = 2.0 * jnp.arctan2(num, den)
+    # cos and sin of theta = 2 atan2(num, den), algebraically (no further transcendentals).
+    norm_sq = num * num + den * den
+    cos_theta = (den * den - num * num) / norm_sq
+    sin_theta = 2.0 * num * den / norm_sq
+    # Signed inverse measure sign(D) sqrt(|D|) / (4 L l_rod). With rho the distance from A_i to
+    # the in-plane projection Q_i' and alpha the angle at A_i of the triangle (A_i, E_i, Q_i'),
+    # sqrt(D) = 4 L rho sin(alpha) and |d_i . E_i'| = L rho sin(alpha) (law of sines), so at a
+    # solution this is exactly the inverse-type measure |d_i . E_i'| / (l_arm l_rod).
+    signed = jnp.where(disc >= 0, sqrt_disc, -safe_sqrt(-disc)) / (4.0 * l_arm * l_rod)
+    return theta, cos_theta, sin_theta, signed
+
+
+def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array:
+    _, _, _, _, lo, hi = _params(robot, theta.dtype)
+    rtol = singular_rtol(theta.dtype)
+    margin = jnp.minimum(jnp.minimum(signed[..., 0], signed[..., 1]), signed[..., 2])
+    margin_sq = jnp.sign(margin) * margin * margin  # D / (4 l_arm l_rod)^2, signed
+    out_of_limits = _any3((theta < lo) | (theta > hi))
+    return jnp.where(
+        ~valid,
+        Status.INVALID_INPUT,
+        jnp.where(
+            margin_sq < -rtol,
+            Status.UNREACHABLE,
+            jnp.where(
+                margin_sq <= rtol,
+                Status.SINGULAR,
+                jnp.where(out_of_limits, Status.OUT_OF_LIMITS, Status.OK),
+            ),
+        ),
+    ).astype(STATUS_DTYPE)
+
+
+def _residual(p, centres, rod: tuple[Array, Array]) -> tuple[Array, Array, Array]:
+    """Normalised distance constraints ``(|D_i - E_i|^2 - l_rod^2) / (2 l_rod)``, i = 1..3.
+
+    On components (``jaxkin.newton``): ``p = (x, y, z)`` and the sphere centres
+    ``C_i = E_i - r_platform u_i`` as ``centres[i][k]``, all of the batch shape;
+    ``D_i - E_i = p - C_i``. ``rod = (l_rod^2, 1 / (2 l_rod))``: multiplications only in the
+    Newton loop (divisions by a runtime geometry value are not folded by XLA).
+    """
+    l_rod_sq, inv_two_l_rod = rod
+    out = []
+    for c in centres:
+        dx, dy, dz = p[0] - c[0], p[1] - c[1], p[2] - c[2]
+        out.append((dx * dx + dy * dy + dz * dz - l_rod_sq) * inv_two_l_rod)
+    return tuple(out)
+
+
+def _centres(robot: Delta, theta: Array) -> Array:
+    """Sphere centres ``C_i = E_i - r_platform u_i``: p is at distance l_rod from each."""
+    elbow, _, _, offset = _chain_terms(robot, theta)
+    return elbow - offset
+
+
+def _centre_components(robot: Delta, theta: Array) -> tuple[tuple[Array, ...], ...]:
+    """The sphere centres as components ``C[i][k]`` (chain i, coordinate k), batch-shaped.
+
+    Same values as ``_centres``, written elementwise for the fused Newton loop.
+    """
+    r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
+    out = []
+    for i in range(3):
+        t = theta[..., i]
+        radial = r_base - r_platform + l_arm * jnp.cos(t)
+        out.append((radial * _UX[i], radial * _UY[i], -l_arm * jnp.sin(t)))
+    return tuple(out)
+
+
+def _default_guess(robot: Delta, centres: tuple[tuple[Array, ...], ...]) -> Array:
+    """Centroid of the sphere centres, lowered by ``sqrt(max(l_rod^2 - spread, l_rod^2/4))``."""
+    l_rod = jnp.asarray(robot.l_rod, centres[0][0].dtype)
+    mean = [(centres[0][k] + centres[1][k] + centres[2][k]) / 3.0 for k in range(3)]
+    spread = (
+        sum(
+            (c[0] - mean[0]) * (c[0] - mean[0]) + (c[1] - mean[1]) * (c[1] - mean[1])
+            for c in centres
+        )
+        / 3.0
+    )
+    drop = jnp.sqrt(jnp.maximum(l_rod * l_rod - spread, 0.25 * l_rod * l_rod))
+    return jnp.stack([mean[0], mean[1], mean[2] - drop], axis=-1)
+
+
+def _fk_newton(robot: Delta, theta: Array, guess: Array | None, tol: float, max_iter: int):
+    dtype = theta.dtype
+    centres = _centre_components(robot, theta)
+    if guess is None:
+        guess = jax.lax.stop_gradient(_default_guess(robot, centres))
+    scale = jnp.asarray(robot.l_arm, dtype) + jnp.asarray(robot.l_rod, dtype)
+    l_rod = jnp.asarray(robot.l_rod, dtype)
+    rod = (l_rod * l_rod, 0.5 / l_rod)
+    return newton.solve(_residual, guess, centres, rod, tol=tol, scale=scale, max_iter=max_iter)
+
+
+def _sphere_intersection(robot: Delta, theta: Array):
+    """Closed-form FK: lower and upper solutions, the circumcentre, ``n`` and the status parts.
+
+    Written on components (batch-shaped arrays per coordinate), which XLA fuses into one loop;
+    stacked ``(..., 3)`` cross products ran ~2x slower at 1e6 points.
+    """
+    # The barrier materialises the centres once: otherwise XLA recomputes their sin/cos in
+    # every output's fusion (lower, upper, status), measured 3-4x slower.
+    (c1, c2, c3) = jax.lax.optimization_barrier(_centre_components(robot, theta))
+    l_rod = jnp.asarray(robot.l_rod, theta.dtype)
+    a = [c2[k] - c1[k] for k in range(3)]
+    b = [c3[k] - c1[k] for k in range(3)]
+    n = _cross3(a, b)
+    aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+    bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2]
+    nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
+    rtol = singular_rtol(theta.dtype)
+    collinear = nn <= rtol * aa * bb  # sin(angle(a, b))^2 <= sqrt(eps)
+    inv_two_nn = 0.5 / jnp.where(collinear, 1.0, nn)
+    offset = _cross3([aa * b[k] - bb * a[k] for k in range(3)], n)
+    offset = [v * inv_two_nn for v in offset]
+    centre = [c1[k] + offset[k] for k in range(3)]  # circumcentre O of the sphere centres
+    flip = jnp.where(n[2] > 0, -1.0, 1.0)  # orient n downward (n_z <= 0)
+    n = [v * flip for v in n]
+    height_sq = l_rod * l_rod - (offset[0] ** 2 + offset[1] ** 2 + offset[2] ** 2)  # |O p|^2
+    h = safe_sqrt(height_sq * (2.0 * inv_two_nn))
+    w = height_sq / (l_rod * l_rod)
+    lower = jnp.stack([centre[k] + h * n[k] for k in range(3)], axis=-1)
+    upper = jnp.stack([centre[k] - h * n[k] for k in range(3)], axis=-1)
+    return lower, upper, jnp.stack(centre, -1), jnp.stack(n, -1), w, collinear
+
+
+def _cross3(u, v):
+    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+
+
+# ---------------------------------------------------------------------------------- rates
+
+
+def _constraint_jacobians(robot: Delta, p: Array, theta: Array, cos_sin=None):
+    """``d_i = D_i - E_i`` (rows of J_p), ``d_i . E_i'`` (diagonal of J_theta), E', E''."""
+    elbow, d_elbow, dd_elbow, offset = _chain_terms(robot, theta, cos_sin)
+    d = p[..., None, :] + offset - elbow
+    jt = jnp.sum(d * d_elbow, -1)
+    return d, jt, d_elbow, dd_elbow
+
+
+def _ik_rates_analytic(robot, p: Jet, theta: Array, cos_sin, ok: Array) -> Jet:
+    d, jt, d_elbow, dd_elbow = _constraint_jacobians(robot, p.p, theta, cos_sin)
+    jt_safe = jnp.where(ok[..., None], jt, 1.0)
+    theta_dot = jnp.sum(d * p.v[..., None, :], -1) / jt_safe  # J_p p_dot = J_theta theta_dot
+    d_dot = p.v[..., None, :] - d_elbow * theta_dot[..., None]
+    rhs = (
+        jnp.sum(d * p.a[..., None, :], -1)
+        + jnp.sum(d_dot * d_dot, -1)
+        - jnp.sum(d * dd_elbow, -1) * theta_dot * theta_dot
+    )
+    theta_ddot = rhs / jt_safe
+    okc = ok[..., None]
+    return Jet(theta, jnp.where(okc, theta_dot, 0.0), jnp.where(okc, theta_ddot, 0.0))
+
+
+def _fk_rates_analytic(robot, theta: Jet, p: Array, ok: Array) -> Jet:
+    d, jt, d_elbow, dd_elbow = _constraint_jacobians(robot, p, theta.p)
+    det = newton.det_small(d)
+    det = jnp.where(ok & (det != 0), det, 1.0)
+    p_dot = newton.solve_small(d, jt * theta.v, det)
+    d_dot = p_dot[..., None, :] - d_elbow * theta.v[..., None]
+    rhs = jt * theta.a + jnp.sum(d * dd_elbow, -1) * theta.v * theta.v - jnp.sum(d_dot * d_dot, -1)
+    p_ddot = newton.solve_small(d, rhs, det)
+    okc = ok[..., None]
+    return Jet(p, jnp.where(okc, p_dot, 0.0), jnp.where(okc, p_ddot, 0.0))
+
+
+# -------------------------------------------------------------------------------- kernels
+
+
+def _sanitise(x: Jet, fill: Array, rates: bool = True) -> tuple[Jet, Array]:
+    """Double-where, step 1: replace non-finite elements by ``fill`` (position) and 0 (rates).
+
+    Without rates, ``x.v`` and ``x.a`` are ``None`` (positions only, nothing else allocated).
+    """
+    valid = _finite3(x.p)
+    if rates:
+        valid = valid & _finite3(x.v) & _finite3(x.a)
+    vc = valid[..., None]
+    p = jnp.where(vc, x.p, fill)
+    if not rates:
+        return Jet(p, None, None), valid
+    return Jet(p, jnp.where(vc, x.v, 0.0), jnp.where(vc, x.a, 0.0)), valid
+
+
+def _home(robot: Delta, dtype) -> Array:
+    r_base, r_platform, l_arm, l_rod, _, _ = _params(robot, dtype)
+    reach = r_base - r_platform + l_arm
+    z = -safe_sqrt(l_rod * l_rod - reach * reach)
+    return jnp.stack([0.0 * z, 0.0 * z, jnp.where(z < 0, z, -l_rod)])
+
+
+def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+    p, valid = _sanitise(p, _home(robot, p.p.dtype), rates)
+
+    if method == "analytic" or not rates:
+        theta, cos_theta, sin_theta, signed = _ik_position(robot, p.p, branch)
+        status = _ik_status(robot, theta, signed, valid)
+        if rates:
+            ok = _rates_ok(status)
+            theta_jet = _ik_rates_analytic(robot, p, theta, (cos_theta, sin_theta), ok)
+        else:
+            theta_jet = Jet.constant(theta)
+    else:
+
+        def position(x):
+            theta, _, _, signed = _ik_position(robot, x, branch)
+            return theta, signed
+
+        theta_j, signed_j = lift(position)(p)
+        status = _ik_status(robot, theta_j.p, signed_j.p, valid)
+        okc = _rates_ok(status)[..., None]
+        theta_jet = Jet(theta_j.p, jnp.where(okc, theta_j.v, 0.0), jnp.where(okc, theta_j.a, 0.0))
+        signed = signed_j.p
+    margin = jnp.where(valid, jnp.clip(jnp.min(signed, axis=-1), -1.0, 1.0), -1.0)
+    return IKResult(theta_jet, status, margin)
+
+
+def _rates_ok(status: Array) -> Array:
+    # Rates are defined where the position is solved and the relevant Jacobian is regular.
+    return (status == Status.OK) | (status == Status.OUT_OF_LIMITS)
+
+
+def _fk_impl(
+    robot, theta: Jet, guess, tol: float, max_iter: int, method: str, rates: bool
+) -> FKResult:
+    dtype = theta.p.dtype
+    theta, valid = _sanitise(theta, jnp.zeros((3,), dtype), rates)
+    if guess is None:
+        guess_valid = valid
+    else:
+        guess = jnp.broadcast_to(guess, theta.p.shape)
+        guess_valid = all_finite(guess)
+        fallback = _default_guess(robot, _centre_components(robot, theta.p))
+        guess = jax.lax.stop_gradient(jnp.where(guess_valid[..., None], guess, fallback))
+
+    def position(th):
+        return _fk_newton(robot, th, guess, tol, max_iter)
+
+    if method == "analytic" or not rates:
+        sol = position(theta.p)
+    else:
+
+        def position_tuple(th):
+            sol = position(th)
+            return tuple(getattr(sol, f.name) for f in dataclasses.fields(sol))
+
+        lifted = lift(position_tuple)(theta)
+        x, converged, iterations, residual, conditioning, status = lifted
+        sol = newton.NewtonResult(x, converged, iterations, residual.p, conditioning.p, status)
+    _, _, _, _, lo, hi = _params(robot, dtype)
+    out_of_limits = jnp.any((theta.p < lo) | (theta.p > hi), axis=-1)
+    rtol = singular_rtol(dtype)
+    direct_singular = sol.conditioning * sol.conditioning <= rtol
+    status = jnp.where(
+        ~(valid & guess_valid),
+        Status.INVALID_INPUT,
+        jnp.where(
+            sol.status != Status.OK,
+            sol.status,
+            jnp.where(
+                direct_singular,
+                Status.SINGULAR,
+                jnp.where(out_of_limits, Status.OUT_OF_LIMITS, Status.OK),
+            ),
+        ),
+    ).astype(STATUS_DTYPE)
+    ok = _rates_ok(status)
+    if not rates:
+        p_jet = Jet.constant(sol.x)
+    elif method == "analytic":
+        p_jet = _fk_rates_analytic(robot, theta, sol.x, ok)
+    else:
+        okc = ok[..., None]
+        x = sol.x
+        p_jet = Jet(x.p, jnp.where(okc, x.v, 0.0), jnp.where(okc, x.a, 0.0))
+    return FKResult(p_jet, sol.converged, sol.iterations, sol.residual, sol.conditioning, status)
+
+
+def _fk_closed_form_impl(robot: Delta, theta: Array) -> ClosedFormFKResult:
+    valid = _finite3(theta)
+    theta = jnp.where(valid[..., None], theta, 0.0)
+    lower, upper, centre, _, w, collinear = _sphere_intersection(robot, theta)
+    rtol = singular_rtol(theta.dtype)
+    _, _, _, _, lo, hi = _params(robot, theta.dtype)
+    out_of_limits = _any3((theta < lo) | (theta > hi))
+    status = jnp.where(
+        ~valid,
+        Status.INVALID_INPUT,
+        jnp.where(
+            collinear,
+            Status.SINGULAR,
+            jnp.where(
+                w < -rtol,
+                Status.UNREACHABLE,
+                jnp.where(
+                    w <= rtol,
+                    Status.SINGULAR,
+                    jnp.where(out_of_limits, Status.OUT_OF_LIMITS, Status.OK),
+                ),
+            ),
+        ),
+    ).astype(STATUS_DTYPE)
+    del centre
+    return ClosedFormFKResult(lower, upper, status)
+
+
+def _branch_impl(robot: Delta, theta: Array, p: Array) -> Array:
+    _, _, centre, n, _, _ = _sphere_intersection(robot, theta)
+    side = jnp.sum((p - centre) * n, -1)  # n points downward
+    return jnp.where(side >= 0, LOWER, UPPER).astype(STATUS_DTYPE)
+
+
+def _singularity_impl(robot: Delta, p: Array, theta: Array) -> SingularityResult:
+    valid = all_finite(p) & all_finite(theta)
+    p = jnp.where(valid[..., None], p, _home(robot, p.dtype))
+    theta = jnp.where(valid[..., None], theta, 0.0)
+    _, _, l_arm, l_rod, _, _ = _params(robot, p.dtype)
+    d, jt, _, _ = _constraint_jacobians(robot, p, theta)
+    inverse = jnp.min(jnp.abs(jt), axis=-1) / (l_arm * l_rod)
+    direct = jnp.abs(newton.det_small(d)) / (l_rod * l_rod * l_rod)
+    rtol = singular_rtol(p.dtype)
+    status = jnp.where(
+        ~valid,
+        Status.INVALID_INPUT,
+        jnp.where(
+            (inverse * inverse <= rtol) | (direct * direct <= rtol), Status.SINGULAR, Status.OK
+        ),
+    ).astype(STATUS_DTYPE)
+    return SingularityResult(inverse, direct, status)
+
+
+_ik_jit = jax.jit(_ik_impl, static_argnames=("branch", "method", "rates"))
+_fk_jit = jax.jit(_fk_impl, static_argnames=("tol", "max_iter", "method", "rates"))
+_fk_closed_form_jit = jax.jit(_fk_closed_form_impl)
+_branch_jit = jax.jit(_branch_impl)
+_singularity_jit = jax.jit(_singularity_impl)
+
+
+# --------------------------------------------------------------------------------- public
+
+
+def _check_robot(robot: Any) -> Delta:
+    if not isinstance(robot, Delta):
+        raise ValueError(f"robot must be a jaxkin.delta.Delta, got {type(robot).__name__}")
+    return robot
+
+
+def _dtype(*xs: Any) -> Any:
+    return jnp.result_type(*xs, float)
+
+
+def ik(robot: Delta, p: Jet | ArrayLike, branch: str = "out", method: str = "analytic") -> IKResult:
+    """Actuator angles (and rates) for platform positions.
+
+    Args:
+        robot: the geometry.
+        p: platform centre, shape ``(..., 3)``: a ``Jet`` (position, velocity, acceleration) or
+            a plain array (taken at rest).
+        branch: ``"out"`` (elbow-out, elbows farther from the z axis; default) or ``"in"``.
+        method: ``"analytic"`` (constraint Jacobians) or ``"autodiff"`` (``jaxkin.lift``).
+
+    Returns:
+        ``IKResult`` with ``theta`` (Jet, ``(..., 3)``), ``status`` and ``margin`` (``(...)``).
+
+    Raises:
+        ValueError: unknown branch/method, last axis not 3, or ``robot`` not a ``Delta``.
+    """
+    robot = _check_robot(robot)
+    branch = _validate.choice(branch, "branch", BRANCHES)
+    method = _validate.choice(method, "method", METHODS)
+    if isinstance(p, Jet):
+        p = _validate.as_jet(p, "p", coords=3)
+        return _ik_jit(robot, p.astype(_dtype(p.p)), branch, method, True)
+    # Positions only: no rate arrays are built or passed (the result has zero rates).
+    p = _as_coords(p, "p")
+    return _ik_jit(robot, Jet(p, None, None), branch, method, False)
+
+
+def fk(
+    robot: Delta,
+    theta: Jet | ArrayLike,
+    guess: ArrayLike | None = None,
+    tol: float = 1e-12,
+    max_iter: int = 30,
+    method: str = "analytic",
+) -> FKResult:
+    """Platform position (and rates) from actuator angles by batched Newton-Raphson.
+
+    Args:
+        robot: the geometry.
+        theta: actuator angles, shape ``(..., 3)``: a ``Jet`` or a plain array (at rest).
+        guess: initial platform positions, broadcastable to ``(..., 3)`` (warm start, e.g. the
+            previous trajectory sample); ``None`` for the default guess below the elbows
+            (module docstring), which converges to the lower (hanging) assembly.
+        tol: converged where ``max_i |r_i| <= tol * (l_arm + l_rod)``.
+        max_iter: maximum number of Newton updates.
+        method: ``"analytic"`` rates (constraint Jacobians) or ``"autodiff"`` (``jaxkin.lift``
+            through ``lax.custom_root``).
+
+    Returns:
+        ``FKResult`` (``p`` Jet ``(..., 3)``, ``converged``, ``iterations``, ``residual``,
+        ``conditioning``, ``status``).
+
+    Raises:
+        ValueError: bad shapes, ``tol <= 0``, ``max_iter < 1``, unknown method.
+    """
+    robot = _check_robot(robot)
+    method = _validate.choice(method, "method", METHODS)
+    rates = isinstance(theta, Jet)
+    if rates:
+        theta = _validate.as_jet(theta, "theta", coords=3)
+    else:
+        theta = Jet(_as_coords(theta, "theta"), None, None)
+    if not (isinstance(tol, int | float) and math.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol must be a positive finite float, got {tol!r}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
+        raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
+    dtype = _dtype(theta.p)
+    if guess is not None:
+        guess = jnp.asarray(guess, dtype)
+        if guess.ndim == 0 or guess.shape[-1] != 3:
+            raise ValueError(f"guess: expected shape (..., 3), got {tuple(guess.shape)}")
+        shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
+        theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)), theta)
+    theta = jax.tree.map(lambda x: x.astype(dtype), theta)
+    return _fk_jit(robot, theta, guess, float(tol), max_iter, method, rates)
+
+
+def fk_closed_form(robot: Delta, theta: ArrayLike) -> ClosedFormFKResult:
+    """Platform position by three-sphere intersection (both assemblies), shape ``(..., 3)``."""
+    robot = _check_robot(robot)
+    theta = _as_coords(theta, "theta")
+    return _fk_closed_form_jit(robot, theta)
+
+
+def which_branch(robot: Delta, theta: ArrayLike, p: ArrayLike) -> Array:
+    """Which assembly ``p`` is: ``LOWER`` (0, below the plane of the sphere centres) or
+    ``UPPER`` (1), e.g. to report which branch Newton converged to; shape ``(...)``."""
+    robot = _check_robot(robot)
+    theta = _as_coords(theta, "theta")
+    p = _as_coords(p, "p")
+    _validate.batch_shape({"theta": theta.shape[:-1], "p": p.shape[:-1]})
+    dtype = _dtype(theta, p)
+    return _branch_jit(robot, theta.astype(dtype), p.astype(dtype))
+
+
+def singularity(
+    robot: Delta, p: ArrayLike, theta: ArrayLike | None = None, branch: str = "out"
+) -> SingularityResult:
+    """Inverse- and direct-type singularity measures at ``(p, theta)``, shape ``(...)``.
+
+    ``theta`` defaults to ``ik(robot, p, branch).theta.p``. See the module docstring for the
+    normalisation (both measures in [0, 1], 0 at the singularity).
+    """
+    robot = _check_robot(robot)
+    p = _as_coords(p, "p")
+    if theta is None:
+        theta = ik(robot, p, branch=branch).theta.p
+    theta = _as_coords(theta, "theta")
+    shape = _validate.batch_shape({"p": p.shape[:-1], "theta": theta.shape[:-1]})
+    dtype = _dtype(p, theta)
+    p = jnp.broadcast_to(p, (*shape, 3)).astype(dtype)
+    theta = jnp.broadcast_to(theta, (*shape, 3)).astype(dtype)
+    return _singularity_jit(robot, p, theta)
+
+
+def _as_coords(x: ArrayLike, name: str) -> Array:
+    x = jnp.asarray(x)
+    if not jnp.issubdtype(x.dtype, jnp.inexact):
+        x = x.astype(jnp.result_type(float))
+    if x.ndim == 0 or x.shape[-1] != 3:
+        raise ValueError(f"{name}: expected shape (..., 3), got {tuple(x.shape)}")
+    return x
+
+
+def workspace(
+    robot: Delta,
+    bounds: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None,
+    resolution: float = 1.0,
+    branch: str = "out",
+    chunk_size: int = 1 << 18,
+    dtype: Any = None,
+    progress: bool | None = None,
+):
+    """Voxel sweep of the reachable workspace (see ``jaxkin.workspace.sweep``).
+
+    ``bounds`` defaults to the paper's box for this robot: ``x, y`` in ``[-R, R]`` with
+    ``R = r_base - r_platform + l_arm + l_rod`` (the maximum horizontal reach) and ``z`` in
+    ``[-0.9 R, 0.9 R]`` (for the paper's robot: [-50, 50]^2 x [-45, 45] cm, 101 x 101 x 91 =
+    928,291 voxels at 1 cm, as ERRATA explains). A voxel is reachable where ``ik`` gives
+    ``OK`` or ``SINGULAR`` (the position is solved; the boundary itself is singular).
+    """
+    from . import workspace as _workspace
+
+    robot = _check_robot(robot)
+    if bounds is None:
+        reach = float(robot.r_base) - float(robot.r_platform)
+        reach += float(robot.l_arm) + float(robot.l_rod)
+        bounds = ((-reach, reach), (-reach, reach), (-0.9 * reach, 0.9 * reach))
+
+    def status_of(points: Array) -> Array:
+        return ik(robot, points, branch=branch).status
+
+    return _workspace.sweep(
+        status_of,
+        bounds,
+        resolution,
+        chunk_size=chunk_size,
+        dtype=dtype,
+        progress=progress,
+        reachable=(Status.OK, Status.SINGULAR),
+    )
+
+
+__all__ = [
+    "BRANCHES",
+    "LOWER",
+    "METHODS",
+    "UPPER",
+    "ClosedFormFKResult",
+    "Delta",
+    "FKResult",
+    "IKResult",
+    "SingularityResult",
+    "fk",
+    "fk_closed_form",
+    "ik",
+    "singularity",
+    "which_branch",
+    "workspace",
+]
