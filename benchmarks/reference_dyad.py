@@ -1,32 +1,43 @@
 """Reference RRR dyad implementations for benchmarks (not part of the library).
 
-Both follow the paper's trigonometric formulation literally (seed 000 eqs. 1-10, Fig. 2-3,
-errata corrected): theta by atan2, beta by arccos, then cos/sin of phi. Only OK elements are
-meaningful (no status handling beyond a validity mask), which flatters the references.
+The formulas follow the paper's trigonometric formulation literally (seed 000 eqs. 1-10,
+Figs. 2-3, errata corrected): theta by atan2, beta by arccos, then cos/sin of phi. They are
+written once, elementwise (``dyad_formulas``, ``angle_formulas``), and run two ways: on whole
+NumPy arrays (vectorised) and compiled by Numba into a fused parallel ``prange`` loop. No status
+handling beyond a validity mask, which flatters the references.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+try:  # the formulas below run as NumPy code and, compiled, inside Numba loops
+    from numba.extending import register_jitable
+except ImportError:  # numba is a benchmark extra
 
-def dyad_numpy(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode=1):
-    """Vectorised NumPy: returns (c_p, c_v, c_a, phi, phi_dot, phi_ddot, ok)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return _dyad_numpy(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode)
+    def register_jitable(fn):
+        return fn
 
 
-def _dyad_numpy(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode):
-    d, dv, da = b_p - a_p, b_v - a_v, b_a - a_a
-    x, y = d[..., 0], d[..., 1]
-    xd, yd = dv[..., 0], dv[..., 1]
-    xdd, ydd = da[..., 0], da[..., 1]
+@register_jitable
+def angle_formulas(x, y, xd, yd, xdd, ydd):
+    """Fig. 2 (corrected): theta, theta_dot, theta_ddot of the vector (x, y); elementwise."""
     r2 = x * x + y * y
-    l = np.sqrt(r2)
-    theta = np.arctan2(y, x)
     cross = x * yd - y * xd
     theta_dot = cross / r2
     theta_ddot = ((x * ydd - y * xdd) * r2 - cross * 2.0 * (x * xd + y * yd)) / (r2 * r2)
+    return np.arctan2(y, x), theta_dot, theta_ddot
+
+
+@register_jitable
+def dyad_formulas(x, y, xd, yd, xdd, ydd, l_ac, l_bc, mode):
+    """phi, phi_dot, phi_ddot of link AC for the vector A->B = (x, y) and its rates.
+
+    Elementwise on scalars or arrays (eqs. 1-5, 9-10; eq. 4's A_ddot corrected).
+    """
+    theta, theta_dot, theta_ddot = angle_formulas(x, y, xd, yd, xdd, ydd)
+    r2 = x * x + y * y
+    l = np.sqrt(r2)
     dot = x * xd + y * yd
     l_dot = dot / l
     l_ddot = ((xd * xd + yd * yd + x * xdd + y * ydd) * l - dot * l_dot) / r2
@@ -36,10 +47,7 @@ def _dyad_numpy(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode):
     big_b = 2.0 * l_ac * l
     b_dot = 2.0 * l_ac * l_dot
     b_ddot = 2.0 * l_ac * l_ddot
-    u = big_a / big_b
-    ok = np.abs(u) < 1.0
-    u = np.clip(u, -1.0, 1.0)
-    beta = np.arccos(u)
+    u = np.minimum(np.maximum(big_a / big_b, -1.0), 1.0)
     s = np.sqrt(1.0 - u * u)
     q = a_dot * big_b - big_a * b_dot
     u_dot = q / (big_b * big_b)
@@ -48,81 +56,67 @@ def _dyad_numpy(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode):
     )
     beta_dot = -u_dot / s
     beta_ddot = -(u * u_dot * u_dot / (s * s) + u_ddot) / s
-    phi = theta + mode * beta
-    phi_dot = theta_dot + mode * beta_dot
-    phi_ddot = theta_ddot + mode * beta_ddot
-    cphi, sphi = np.cos(phi), np.sin(phi)
-    c_p = a_p + l_ac * np.stack([cphi, sphi], axis=-1)
-    c_v = a_v + l_ac * np.stack([-sphi * phi_dot, cphi * phi_dot], axis=-1)
-    c_a = a_a + l_ac * np.stack(
-        [-(cphi * phi_dot**2 + sphi * phi_ddot), -sphi * phi_dot**2 + cphi * phi_ddot], axis=-1
+    phi = theta + mode * np.arccos(u)
+    return phi, theta_dot + mode * beta_dot, theta_ddot + mode * beta_ddot
+
+
+@register_jitable
+def link_end(px, py, vx, vy, ax, ay, length, phi, phi_dot, phi_ddot):
+    """Eqs. 6-8: the far end of a link of ``length`` at angle phi from (px, py); elementwise."""
+    c, s = np.cos(phi), np.sin(phi)
+    return (
+        px + length * c,
+        py + length * s,
+        vx - length * s * phi_dot,
+        vy + length * c * phi_dot,
+        ax - length * (c * phi_dot * phi_dot + s * phi_ddot),
+        ay + length * (c * phi_ddot - s * phi_dot * phi_dot),
     )
-    return c_p, c_v, c_a, phi, phi_dot, phi_ddot, ok
+
+
+@register_jitable
+def _dyad_point(ax, ay, avx, avy, aax, aay, bx, by, bvx, bvy, bax, bay, l_ac, l_bc, mode):
+    phi, phi_dot, phi_ddot = dyad_formulas(
+        bx - ax, by - ay, bvx - avx, bvy - avy, bax - aax, bay - aay, l_ac, l_bc, mode
+    )
+    c = link_end(ax, ay, avx, avy, aax, aay, l_ac, phi, phi_dot, phi_ddot)
+    return (*c, phi, phi_dot, phi_ddot)
+
+
+def _columns(*arrays):
+    return [arr[..., k] for arr in arrays for k in (0, 1)]
+
+
+def dyad_numpy(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode=1):
+    """Vectorised NumPy: returns (c_p, c_v, c_a, phi, phi_dot, phi_ddot)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = _dyad_point(*_columns(a_p, a_v, a_a, b_p, b_v, b_a), l_ac, l_bc, mode)
+    c_p, c_v, c_a = (np.stack(out[k : k + 2], axis=-1) for k in (0, 2, 4))
+    return c_p, c_v, c_a, *out[6:]
 
 
 def make_numba_dyad():
-    """A fused Numba ``prange`` loop of the same formulas, or None when numba is absent."""
+    """The same formulas as one fused Numba ``prange`` loop, or None when numba is absent."""
     try:
         import numba
     except ImportError:
         return None
 
-    @numba.njit(parallel=True, fastmath=False, cache=False)
-    def dyad_numba(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode, c_p, c_v, c_a, phi_out):
-        n = a_p.shape[0]
-        for i in numba.prange(n):
-            x = b_p[i, 0] - a_p[i, 0]
-            y = b_p[i, 1] - a_p[i, 1]
-            xd = b_v[i, 0] - a_v[i, 0]
-            yd = b_v[i, 1] - a_v[i, 1]
-            xdd = b_a[i, 0] - a_a[i, 0]
-            ydd = b_a[i, 1] - a_a[i, 1]
-            r2 = x * x + y * y
-            l = np.sqrt(r2)
-            theta = np.arctan2(y, x)
-            cross = x * yd - y * xd
-            theta_dot = cross / r2
-            theta_ddot = ((x * ydd - y * xdd) * r2 - cross * 2.0 * (x * xd + y * yd)) / (r2 * r2)
-            dot = x * xd + y * yd
-            l_dot = dot / l
-            l_ddot = ((xd * xd + yd * yd + x * xdd + y * ydd) * l - dot * l_dot) / r2
-            big_a = l_ac * l_ac + r2 - l_bc * l_bc
-            a_dot = 2.0 * l * l_dot
-            a_ddot = 2.0 * (l_dot * l_dot + l * l_ddot)
-            big_b = 2.0 * l_ac * l
-            b_dot = 2.0 * l_ac * l_dot
-            b_ddot = 2.0 * l_ac * l_ddot
-            u = min(max(big_a / big_b, -1.0), 1.0)
-            beta = np.arccos(u)
-            s = np.sqrt(1.0 - u * u)
-            q = a_dot * big_b - big_a * b_dot
-            u_dot = q / (big_b * big_b)
-            u_ddot = (
-                (a_ddot * big_b - big_a * b_ddot) * big_b * big_b - 2.0 * q * big_b * b_dot
-            ) / big_b**4
-            beta_dot = -u_dot / s
-            beta_ddot = -(u * u_dot * u_dot / (s * s) + u_ddot) / s
-            phi = theta + mode * beta
-            phi_dot = theta_dot + mode * beta_dot
-            phi_ddot = theta_ddot + mode * beta_ddot
-            cphi = np.cos(phi)
-            sphi = np.sin(phi)
-            c_p[i, 0] = a_p[i, 0] + l_ac * cphi
-            c_p[i, 1] = a_p[i, 1] + l_ac * sphi
-            c_v[i, 0] = a_v[i, 0] - l_ac * sphi * phi_dot
-            c_v[i, 1] = a_v[i, 1] + l_ac * cphi * phi_dot
-            c_a[i, 0] = a_a[i, 0] - l_ac * (cphi * phi_dot * phi_dot + sphi * phi_ddot)
-            c_a[i, 1] = a_a[i, 1] + l_ac * (-sphi * phi_dot * phi_dot + cphi * phi_ddot)
-            phi_out[i, 0] = phi
-            phi_out[i, 1] = phi_dot
-            phi_out[i, 2] = phi_ddot
+    @numba.njit(parallel=True)
+    def loop(ax, ay, avx, avy, aax, aay, bx, by, bvx, bvy, bax, bay, l_ac, l_bc, mode, out):
+        for i in numba.prange(ax.shape[0]):
+            res = _dyad_point(
+                ax[i], ay[i], avx[i], avy[i], aax[i], aay[i],
+                bx[i], by[i], bvx[i], bvy[i], bax[i], bay[i], l_ac, l_bc, mode,
+            )  # fmt: skip
+            for k in numba.literal_unroll(range(9)):
+                out[k, i] = res[k]
 
     def run(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode=1):
-        n = a_p.shape[0]
-        c_p, c_v, c_a = (np.empty((n, 2), a_p.dtype) for _ in range(3))
-        phi = np.empty((n, 3), a_p.dtype)
-        dyad_numba(a_p, a_v, a_a, b_p, b_v, b_a, l_ac, l_bc, mode, c_p, c_v, c_a, phi)
-        return c_p, c_v, c_a, phi[:, 0], phi[:, 1], phi[:, 2]
+        out = np.empty((9, a_p.shape[0]), a_p.dtype)
+        loop(*_columns(a_p, a_v, a_a, b_p, b_v, b_a), l_ac, l_bc, mode, out)
+        c_p, c_v, c_a = (out[k : k + 2].T for k in (0, 2, 4))
+        return c_p, c_v, c_a, out[6], out[7], out[8]
 
     return run
 
