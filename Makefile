@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench lint format clean
+.PHONY: demo test bench bench-peers lint format clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -20,7 +20,13 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q tests
 
 bench: $(STAMP)
-	$(BIN)/python -m pytest -q benchmarks --benchmark-only --benchmark-columns=min,median,rounds
+	$(BIN)/python -m pytest -q benchmarks --ignore=benchmarks/test_peers.py --benchmark-only --benchmark-columns=min,median,rounds
+
+# Installs the peer libraries into .venv (torch CPU, roboticstoolbox, pytorch_kinematics,
+# PyRoki, pylinkage, visual-kinematics; jax/numpy pinned), then times them beside jaxkin.
+bench-peers: $(STAMP)
+	bash benchmarks/install_peers.sh $(VENV)
+	$(BIN)/python -m pytest -q benchmarks/test_peers.py --benchmark-only --benchmark-columns=min,median,rounds
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
