@@ -57,7 +57,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _validate
-from ._numerics import all_finite, safe_div, safe_sqrt, singular_rtol
+from ._numerics import all_finite, safe_sqrt, singular_rtol
 from .jet import Jet, lift
 from .planar import angle_rates, length_rates
 from .result import SolverResult
@@ -99,11 +99,32 @@ class _Position(NamedTuple):
     margin: Array
 
 
+@jax.custom_jvp
+def _unit_atan2(sin_phi: Array, cos_phi: Array) -> Array:
+    """``atan2(sin_phi, cos_phi)`` for a unit vector (as built by ``_position``).
+
+    Its derivative rule uses ``cos^2 + sin^2 = 1``: ``phi' = cos sin' - sin cos'``, which has no
+    division (atan2's generic rule divides by ``cos^2 + sin^2``); nested jvp differentiates the
+    rule again, giving ``phi'' = cos sin'' - sin cos''``. This keeps the autodiff path cheap.
+    """
+    return jnp.arctan2(sin_phi, cos_phi)
+
+
+@_unit_atan2.defjvp
+def _unit_atan2_jvp(primals, tangents):
+    sin_phi, cos_phi = primals
+    sin_dot, cos_dot = tangents
+    return _unit_atan2(sin_phi, cos_phi), cos_phi * sin_dot - sin_phi * cos_dot
+
+
 def _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode: int) -> _Position:
     """Position of C from components; ``valid`` marks elements whose raw input was finite."""
     dx, dy = b_x - a_x, b_y - a_y
-    l = safe_sqrt(dx * dx + dy * dy)
-    inv_l = safe_div(1.0, l)
+    r2 = dx * dx + dy * dy
+    # One rsqrt for both |AB| and its reciprocal (double-where at A = B); fewer divisions
+    # also keep the autodiff path's nested jvp cheap.
+    inv_l = jnp.where(r2 > 0, jax.lax.rsqrt(jnp.where(r2 > 0, r2, 1.0)), 0.0)
+    l = r2 * inv_l
     cos_theta = jnp.where(l > 0, dx * inv_l, 1.0)
     sin_theta = dy * inv_l
 
@@ -118,7 +139,7 @@ def _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode: int) -> _Position:
 
     # Eqs. 1, 4, 5: u = cos(beta) = A / B.
     # l = 0 cannot assemble unless coincident: u_raw = 2 there makes the margin negative.
-    u_raw = jnp.where(l > 0, (l_ac * l_ac + l * l - l_bc * l_bc) * (0.5 * inv_l / l_ac), 2.0)
+    u_raw = jnp.where(l > 0, (l_ac * l_ac + r2 - l_bc * l_bc) * inv_l * (0.5 / l_ac), 2.0)
     u = jnp.where(extended, 1.0, jnp.where(folded, -1.0, jnp.clip(u_raw, -1.0, 1.0)))
     sin_beta = safe_sqrt(1.0 - u * u)
 
@@ -127,7 +148,7 @@ def _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode: int) -> _Position:
     sin_phi = sin_theta * u + mode * cos_theta * sin_beta
 
     # atan2 wraps to (-pi, pi]; restore the paper's unwrapped theta + mode * beta.
-    phi_wrapped = jnp.arctan2(sin_phi, cos_phi)
+    phi_wrapped = _unit_atan2(sin_phi, cos_phi)
     if mode == 1:
         theta_on_side = (dy > 0) | ((dy == 0) & (dx < 0))  # theta > 0 (theta = pi for y = 0)
     else:
