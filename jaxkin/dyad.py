@@ -95,6 +95,7 @@ class _Position(NamedTuple):
     sin_phi: Array
     u: Array  # cos(beta) = A/B, clamped to [-1, 1]
     sin_beta: Array
+    inv_l: Array  # 1 / |AB|, 0 where A = B (reused by the rates)
     status: Array
     margin: Array
 
@@ -177,6 +178,7 @@ def _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode: int) -> _Position:
         sin_phi,
         u,
         sin_beta,
+        inv_l,
         status,
         margin,
     )
@@ -190,14 +192,15 @@ def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
     """
     ok = pos.status == Status.OK
     rel = [bk - ak for ak, bk in zip(a, b, strict=True)]  # the vector A->B and its rates
-    theta_dot, theta_ddot = angle_rates(*rel)  # Fig. 2 (corrected, ERRATA items 1-3)
-    l, l_dot, l_ddot = length_rates(*rel)  # Fig. 3
+    inv_l = pos.inv_l
+    theta_dot, theta_ddot = angle_rates(*rel, inv_r2=inv_l * inv_l)  # Fig. 2 (ERRATA 1-3)
+    l, l_dot, l_ddot = length_rates(*rel, inv_l=inv_l)  # Fig. 3
     # Eq. 4 (A_ddot corrected, ERRATA seed 000 item 4) and eq. 5. B and sin(beta) are replaced
     # by 1 where the status is not OK so no division below can make an inf (double-where).
     a_term = l_ac * l_ac + l * l - l_bc * l_bc
     a_dot = 2.0 * l * l_dot
     a_ddot = 2.0 * (l_dot * l_dot + l * l_ddot)
-    inv_b = 1.0 / jnp.where(ok, 2.0 * l_ac * l, 1.0)
+    inv_b = jnp.where(ok, 0.5 * inv_l / l_ac, 1.0)
     b_term = 2.0 * l_ac * l
     b_dot = 2.0 * l_ac * l_dot
     b_ddot = 2.0 * l_ac * l_ddot

@@ -19,33 +19,53 @@ from .jet import Jet
 
 
 def angle_rates(
-    x: Array, y: Array, x_dot: Array, y_dot: Array, x_ddot: Array, y_ddot: Array
+    x: Array,
+    y: Array,
+    x_dot: Array,
+    y_dot: Array,
+    x_ddot: Array,
+    y_ddot: Array,
+    inv_r2: Array | None = None,
 ) -> tuple[Array, Array]:
     """``(theta_dot, theta_ddot)`` of ``theta = atan2(y, x)``; 0 for the zero vector.
+
+    ``inv_r2``: ``1 / (x^2 + y^2)`` (0 for the zero vector) when the caller already has it.
 
     Seed 000 Fig. 2, corrected (ERRATA seed 000 items 1-3), one formula for every quadrant::
 
         theta_dot  = (x y' - y x') / r2                                   r2 = x^2 + y^2
         theta_ddot = ((x y'' - y x'') r2 - (x y' - y x') 2 (x x' + y y')) / r2^2
     """
-    inv_r2 = safe_div(1.0, x * x + y * y)
+    if inv_r2 is None:
+        inv_r2 = safe_div(1.0, x * x + y * y)
     theta_dot = (x * y_dot - y * x_dot) * inv_r2
     theta_ddot = ((x * y_ddot - y * x_ddot) - 2.0 * theta_dot * (x * x_dot + y * y_dot)) * inv_r2
     return theta_dot, theta_ddot
 
 
 def length_rates(
-    x: Array, y: Array, x_dot: Array, y_dot: Array, x_ddot: Array, y_ddot: Array
+    x: Array,
+    y: Array,
+    x_dot: Array,
+    y_dot: Array,
+    x_ddot: Array,
+    y_ddot: Array,
+    inv_l: Array | None = None,
 ) -> tuple[Array, Array, Array]:
     """``(l, l_dot, l_ddot)`` of ``l = |(x, y)|``; the rates are 0 where ``l = 0``.
+
+    ``inv_l``: ``1 / l`` (0 where ``l = 0``) when the caller already has it.
 
     Seed 000 Fig. 3 (correct as printed), with ``d = (x, y)``::
 
         l_dot  = (d . d') / l
         l_ddot = ((d' . d' + d . d'') l - (d . d') l_dot) / l^2
     """
-    l = safe_sqrt(x * x + y * y)
-    inv_l = safe_div(1.0, l)
+    if inv_l is None:
+        l = safe_sqrt(x * x + y * y)
+        inv_l = safe_div(1.0, l)
+    else:
+        l = (x * x + y * y) * inv_l
     d_dot_d = x * x_dot + y * y_dot
     l_dot = d_dot_d * inv_l
     l_ddot = x_dot * x_dot + y_dot * y_dot + x * x_ddot + y * y_ddot - d_dot_d * l_dot * inv_l
