@@ -20,7 +20,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q tests
 
 bench: $(STAMP)
-	$(BIN)/python -m pytest -q benchmarks --ignore=benchmarks/test_peers.py --benchmark-only --benchmark-columns=min,median,rounds
+	JAXKIN_WRITE_RESULTS=1 $(BIN)/python -m pytest -q benchmarks --ignore=benchmarks/test_peers.py --benchmark-only --benchmark-columns=min,median,rounds
 
 # Installs the peer libraries into .venv (torch CPU, roboticstoolbox, pytorch_kinematics,
 # PyRoki, pylinkage, visual-kinematics; jax/numpy pinned), then times them beside jaxkin.

@@ -35,12 +35,16 @@ def measure(benchmark) -> Callable:
 
 
 def pytest_sessionfinish(session, exitstatus):
-    """Write benchmarks/results.md: one row per benchmark, from this run's measurements."""
+    """Write benchmarks/results.md (one row per benchmark) and scaling.png from this run.
+
+    Only when ``JAXKIN_WRITE_RESULTS`` is set (``make bench`` sets it), so running a subset of
+    the benchmarks never replaces the full table.
+    """
+    if not os.environ.get("JAXKIN_WRITE_RESULTS"):
+        return
     bench_session = getattr(session.config, "_benchmarksession", None)
     if bench_session is None or not bench_session.benchmarks:
         return
-    if all("test_peers.py::" in b.fullname for b in bench_session.benchmarks):
-        return  # peer runs write benchmarks/peers_results.md instead
     import platform
     from pathlib import Path
 
@@ -72,3 +76,36 @@ def pytest_sessionfinish(session, exitstatus):
         "| --- | --- | --- | --- | --- | --- | --- |",
     ]
     Path(__file__).with_name("results.md").write_text("\n".join(header + rows) + "\n")
+    _scaling_plot(bench_session.benchmarks, Path(__file__).with_name("scaling.png"))
+
+
+def _scaling_plot(benchmarks, path) -> None:
+    """Throughput against batch size per kernel (test_scaling rows), when matplotlib exists."""
+    curves: dict[str, list[tuple[int, float]]] = {}
+    for bench in benchmarks:
+        info = bench.extra_info
+        if "test_scaling[" in bench.fullname and info.get("cases_per_second"):
+            curves.setdefault(info["kernel"], []).append(
+                (info["n_cases"], info["cases_per_second"])
+            )
+    if not curves:
+        return
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for kernel, points in sorted(curves.items()):
+        n, rate = zip(*sorted(points), strict=True)
+        ax.loglog(n, rate, marker="o", label=kernel)
+    ax.set_xlabel("batch size (cases per call)")
+    ax.set_ylabel("cases per second (float64)")
+    ax.set_title("jaxkin throughput against batch size")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
