@@ -43,6 +43,19 @@ def spiral_candidates(n=6, n_samples=33):
     return Jet.of(p, v, a), t[1] - t[0]
 
 
+def assert_same_result(x, y):
+    """Statuses, masks and indices identical; floats equal up to rounding.
+
+    The same kernel compiled for another batch shape may round differently in the last bit
+    (XLA vectorises the loop body and the remainder differently), hence 1e-13, not bitwise.
+    """
+    x, y = np.asarray(x), np.asarray(y)
+    if np.issubdtype(x.dtype, np.floating):
+        np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-13)
+    else:
+        np.testing.assert_array_equal(x, y)
+
+
 @pytest.mark.parametrize("mode", [1, -1])
 def test_joint_values_equal_per_point_ik(mode):
     path, dt = spiral_candidates()
@@ -154,7 +167,7 @@ def test_chunking_equals_one_call():
     whole = plan.evaluate(ROBOT, path, dt=dt)
     chunked = plan.evaluate(ROBOT, path, dt=dt, chunk_size=3)
     for x, y in zip(jax.tree.leaves(whole), jax.tree.leaves(chunked), strict=True):
-        np.testing.assert_array_equal(x, y)
+        assert_same_result(x, y)
 
 
 def test_delta_evaluation_equals_per_point_ik():
@@ -200,7 +213,7 @@ def test_sharded_equals_unsharded():
             results.append([data[f"arr_{i}"] for i in range(len(data.files) - 1)])
         out.unlink()
     for x, y in zip(*results, strict=True):
-        np.testing.assert_array_equal(x, y)
+        assert_same_result(x, y)
 
 
 @pytest.mark.parametrize(
