@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -11,16 +14,11 @@ from helpers import BATCH_SHAPES, compile_count
 
 from jaxkin.serial import dh, lie, poe
 
-RNG = np.random.default_rng(5)
-
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 # PUMA-560-type arm, standard DH (Corke's Robotics Toolbox p560 kinematic parameters, metres).
-PUMA = dict(
-    a=[0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0],
-    alpha=[np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0],
-    d=[0.0, 0.0, 0.15005, 0.4318, 0.0, 0.0],
-    theta=[0.0] * 6,
-    joint_types="RRRRRR",
-)
+from reference_serial import PUMA  # noqa: E402
+
+RNG = np.random.default_rng(5)
 
 
 def _seed001(l1=0.5, l2=0.4, l3=0.3):
