@@ -51,9 +51,3 @@ def all_finite(x: ArrayLike, axis: int | tuple[int, ...] | None = -1) -> Array:
     """True where every entry along ``axis`` is finite (``axis=None``: elementwise)."""
     finite = jnp.isfinite(x)
     return finite if axis is None else jnp.all(finite, axis=axis)
-
-
-def where_finite(x: ArrayLike, fill: float = 0.0) -> Array:
-    """Replace NaN/inf entries by ``fill`` so downstream arithmetic stays finite."""
-    x = jnp.asarray(x)
-    return jnp.where(jnp.isfinite(x), x, fill)
