@@ -11,7 +11,6 @@ import enum
 
 import jax.numpy as jnp
 import numpy as np
-from jax import Array
 from jax.typing import ArrayLike
 
 STATUS_DTYPE = jnp.int8
@@ -54,15 +53,6 @@ def describe(code: int | Status) -> str:
     """One-line, human-readable description of a status code."""
     status = Status(int(code))
     return f"{status.name}: {_DESCRIPTIONS[status]}"
-
-
-def first_failure(*statuses: ArrayLike) -> Array:
-    """Combine status arrays: the first non-OK code, in argument order, wins per element."""
-    result = jnp.asarray(statuses[-1], STATUS_DTYPE)
-    for status in reversed(statuses[:-1]):
-        status = jnp.asarray(status, STATUS_DTYPE)
-        result = jnp.where(status != Status.OK, status, result)
-    return result
 
 
 def status_names(status: ArrayLike) -> np.ndarray:
