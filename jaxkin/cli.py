@@ -492,12 +492,10 @@ def _warn_invalid(traj: kio.Trajectory, valid: np.ndarray) -> None:
 def _check_output(path: str, what: str = "--output") -> None:
     if path == "-":
         return
-    target = Path(path)
-    parent = target.parent if str(target.parent) else Path(".")
-    if target.is_dir():
-        raise CliError(f"{what} {path}: is a directory")
-    if not parent.is_dir():
-        raise CliError(f"{what} {path}: directory {parent} does not exist")
+    try:  # fail before solving, with the checks atomic_write applies at the end
+        kio.check_output_path(path)
+    except kio.InputError as exc:
+        raise CliError(f"{what} {exc}") from None
 
 
 def _solve_file(args: argparse.Namespace, inverse: bool) -> int:

@@ -337,6 +337,21 @@ def trajectory_columns(
 # ------------------------------------------------------------------------------------ writing
 
 
+def check_output_path(path: str | Path) -> Path:
+    """The directory an output file ``path`` would be written in, after checking it exists.
+
+    Raises:
+        InputError: ``path`` is a directory, or its directory does not exist.
+    """
+    path = Path(path)
+    directory = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise InputError(f"{path}: is a directory, expected an output file name")
+    if not directory.is_dir():
+        raise InputError(f"{path}: cannot write: directory {directory} does not exist")
+    return directory
+
+
 @contextlib.contextmanager
 def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
     """Open a temporary file beside ``path``; on success rename it over ``path``.
@@ -349,11 +364,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
         InputError: the directory does not exist or ``path`` is a directory.
     """
     path = Path(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, expected an output file name")
-    if not directory.is_dir():
-        raise InputError(f"{path}: cannot write: directory {directory} does not exist")
+    directory = check_output_path(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     except OSError as exc:
