@@ -42,8 +42,14 @@ Forward kinematics by Newton-Raphson (eqs. 8-16, corrected): unknown ``p`` (the 
 is the identity, the platform does not rotate), residuals
 ``r_i(p) = (|p + r_platform u_i - E_i(theta_i)|^2 - l_rod^2) / (2 l_rod)`` (length units, about
 ``|D_i - E_i| - l_rod`` near the solution), Jacobian by forward-mode autodiff, explicit 3x3
-adjugate solve, per-element convergence in one ``lax.while_loop`` (``jaxkin.newton``);
-converged where ``max|r| <= tol * (l_arm + l_rod)``.
+adjugate solve, per-element convergence in one ``lax.while_loop`` (``jaxkin.newton``) run on
+cache-sized chunks of the batch (``jaxkin._chunks``); converged where
+``max|r| <= tol * (l_arm + l_rod)``.
+
+Compilation: a ``Delta`` whose fields are Python numbers is compiled into the kernels as
+constants (one compilation per geometry, cached; measured 1.4x faster for the Newton FK and
+2.5x for the closed form at batch 1e6 than runtime geometry). A traced or batched geometry
+(gradients with respect to the design, ``vmap`` over robots) is passed as data instead.
 Derivatives through the solution come from the implicit function theorem
 (``lax.custom_root``), so ``jaxkin.lift`` of fk gives exact velocity and acceleration.
 
@@ -120,7 +126,9 @@ bands widen with ``sqrt(eps)`` (measure below ~0.02 in float32).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -129,8 +137,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate, newton
-from ._numerics import all_finite, safe_sqrt, singular_rtol
+from . import _chunks, _validate, newton
+from ._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
 from .jet import Jet, lift
 from .result import SolverResult
 from .status import STATUS_DTYPE, Status
@@ -436,11 +444,12 @@ def _centre_components(robot: Delta, theta: Array) -> tuple[tuple[Array, ...], .
     Same values as ``_centres``, written elementwise for the fused Newton loop.
     """
     r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
+    angles = [theta[..., i] for i in range(3)]
+    cos_sin = computed_once(jnp.stack([jnp.cos(t) for t in angles] + [jnp.sin(t) for t in angles]))
     out = []
     for i in range(3):
-        t = theta[..., i]
-        radial = r_base - r_platform + l_arm * jnp.cos(t)
-        out.append((radial * _UX[i], radial * _UY[i], -l_arm * jnp.sin(t)))
+        radial = r_base - r_platform + l_arm * cos_sin[i]
+        out.append((radial * _UX[i], radial * _UY[i], -l_arm * cos_sin[3 + i]))
     return tuple(out)
 
 
@@ -628,7 +637,7 @@ def _fk_impl(
         x, converged, iterations, residual, conditioning, status = lifted
         sol = newton.NewtonResult(x, converged, iterations, residual.p, conditioning.p, status)
     _, _, _, _, lo, hi = _params(robot, dtype)
-    out_of_limits = jnp.any((theta.p < lo) | (theta.p > hi), axis=-1)
+    out_of_limits = _any3((theta.p < lo) | (theta.p > hi))
     rtol = singular_rtol(dtype)
     direct_singular = sol.conditioning * sol.conditioning <= rtol
     status = jnp.where(
@@ -646,7 +655,7 @@ def _fk_impl(
     ).astype(STATUS_DTYPE)
     ok = _rates_ok(status)
     if not rates:
-        p_jet = Jet.constant(sol.x)
+        p_jet = Jet(sol.x, None, None)  # at rest: zero rates added by _fk_chunked
     elif method == "analytic":
         p_jet = _fk_rates_analytic(robot, theta, sol.x, ok)
     else:
@@ -709,11 +718,62 @@ def _singularity_impl(robot: Delta, p: Array, theta: Array) -> SingularityResult
     return SingularityResult(inverse, direct, status)
 
 
-_ik_jit = jax.jit(_ik_impl, static_argnames=("branch", "method", "rates"))
-_fk_jit = jax.jit(_fk_impl, static_argnames=("tol", "max_iter", "method", "rates"))
-_fk_closed_form_jit = jax.jit(_fk_closed_form_impl)
-_branch_jit = jax.jit(_branch_impl)
-_singularity_jit = jax.jit(_singularity_impl)
+def _fk_chunked(
+    robot: Delta, theta: Jet, guess, tol: float, max_iter: int, method: str, rates: bool
+) -> FKResult:
+    # The Newton loop runs on cache-sized chunks (jaxkin._chunks): 1.5-2x faster at 1e6.
+    batch = theta.p.shape[:-1]
+    if guess is not None:
+        guess = jnp.broadcast_to(guess, theta.p.shape)
+
+    def solve_chunk(chunk):
+        return _fk_impl(robot, *chunk, tol, max_iter, method, rates)
+
+    result = _chunks.map_chunks(solve_chunk, (theta, guess), batch)
+    if rates:
+        return result
+    # Zero rates are written once here, not copied chunk by chunk out of the loop.
+    return dataclasses.replace(result, p=Jet.constant(result.p.p))
+
+
+def _frozen(robot: Delta) -> Delta | None:
+    """The robot with Python-float fields when every field is a concrete scalar, else None."""
+    values = [getattr(robot, name) for name in _DELTA_FIELDS]
+    if not all(_is_number(v) and np.ndim(v) == 0 for v in values):
+        return None
+    frozen = object.__new__(Delta)
+    for name, value in zip(_DELTA_FIELDS, values, strict=True):
+        object.__setattr__(frozen, name, float(value))
+    return frozen
+
+
+def _jit(fn: Callable[..., Any], static_argnames: tuple[str, ...] = ()) -> Callable[..., Any]:
+    """``jax.jit(fn)`` that compiles a concrete geometry in as constants.
+
+    A geometry of Python numbers is a static argument (one compilation per robot, cached):
+    XLA then folds it into the kernel, which measured 1.4x faster for the Newton FK at batch
+    1e6 than passing it as runtime data. A traced or batched geometry (gradients with respect
+    to the design, ``vmap`` over robots) takes the dynamic path.
+    """
+    dynamic = jax.jit(fn, static_argnames=static_argnames)
+    static = jax.jit(fn, static_argnames=("robot", *static_argnames))
+
+    @functools.wraps(fn)
+    def call(robot: Delta, *args: Any, **kwargs: Any) -> Any:
+        frozen = _frozen(robot)
+        if frozen is None:
+            return dynamic(robot, *args, **kwargs)
+        return static(frozen, *args, **kwargs)
+
+    call._cache_size = static._cache_size  # for tests (both jits share one cache)
+    return call
+
+
+_ik_jit = _jit(_ik_impl, ("branch", "method", "rates"))
+_fk_jit = _jit(_fk_chunked, ("tol", "max_iter", "method", "rates"))
+_fk_closed_form_jit = _jit(_fk_closed_form_impl)
+_branch_jit = _jit(_branch_impl)
+_singularity_jit = _jit(_singularity_impl)
 
 
 # --------------------------------------------------------------------------------- public

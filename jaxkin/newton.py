@@ -146,6 +146,14 @@ def _jacobian_rows(linear: Callable[[Components], Any], like: Components) -> lis
     return [[cols[j][i] for j in range(n)] for i in range(n)]
 
 
+def _max_abs(r: Components) -> Array:
+    return functools.reduce(jnp.maximum, [jnp.abs(v) for v in r])
+
+
+def _all_finite(x: Components) -> Array:
+    return functools.reduce(operator.and_, [jnp.isfinite(v) for v in x])
+
+
 def _cross(u, v):
     return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
 
@@ -202,39 +210,33 @@ def _solve_batch(
         return tuple(residual(x, args, shared))
 
     def newton(f: Callable[[Components], Components], guess: Components):
-        def step_data(x):
+        def linear_solve(x):
+            """The Newton step at ``x``, ``max|r(x)|`` and the Jacobian's (det^2, bound^2)."""
             r, f_jvp = jax.linearize(f, x)
-            dx, ratio_sq = _solve_components(_jacobian_rows(f_jvp, x), r)  # (det^2, bound^2)
-            res = functools.reduce(jnp.maximum, [jnp.abs(v) for v in r])
-            finite = functools.reduce(operator.and_, [jnp.isfinite(v) for v in x])
-            return dx, res, ratio_sq, finite & jnp.isfinite(res)
+            dx, ratio_sq = _solve_components(_jacobian_rows(f_jvp, x), r)
+            return dx, _max_abs(r), ratio_sq
 
-        def active(res, ratio_sq, finite, it):
-            regular = ratio_sq[0] > rtol_sq * ratio_sq[1]
-            return (res > threshold) & regular & finite & (it < max_iter)
-
-        dx0, res0, ratio0, finite0 = step_data(guess)
-        it0 = jnp.zeros(res0.shape, jnp.int32)
-
-        def cond(state):
-            return jnp.any(state[-1])
-
+        # Each trip computes the step and the residual at x, then steps the elements that are
+        # still active. The loop carries only (x, iterations, active): values shared by the
+        # per-component update loops XLA generates are recomputed there, never stored, and
+        # the stopping test reuses the residual the step needs anyway. An element's stopping
+        # test never changes once it is true (x and its count are frozen), so the last trip
+        # finds every element stopped and updates nothing.
         def body(state):
-            x, dx, res, ratio_sq, finite, it, act = state
-            x_new = tuple(jnp.where(act, a - b, a) for a, b in zip(x, dx, strict=True))
-            dx_n, res_n, ratio_n, finite_n = step_data(x_new)
-            it = it + act.astype(jnp.int32)
-            res = jnp.where(act, res_n, res)
-            ratio_sq = tuple(
-                jnp.where(act, new, old) for new, old in zip(ratio_n, ratio_sq, strict=True)
-            )
-            finite = jnp.where(act, finite_n, finite)
-            act = active(res, ratio_sq, finite, it)
-            return x_new, dx_n, res, ratio_sq, finite, it, act
+            x, it, _ = state
+            dx, res, (det_sq, bound_sq) = linear_solve(x)
+            # A NaN residual compares False, so non-finite iterates stop too.
+            act = (res > threshold) & _all_finite(x) & (it < max_iter)
+            act = act & (det_sq > rtol_sq * bound_sq)  # a singular Jacobian stops the element
+            x = tuple(jnp.where(act, a - b, a) for a, b in zip(x, dx, strict=True))
+            return x, it + act.astype(jnp.int32), act
 
-        init = (guess, dx0, res0, ratio0, finite0, it0, active(res0, ratio0, finite0, it0))
-        x, _, res, ratio_sq, finite, it, _ = jax.lax.while_loop(cond, body, init)
+        it0 = jnp.zeros(guess[0].shape, jnp.int32)
+        init = (guess, it0, jnp.ones(it0.shape, bool))
+        x, it, _ = jax.lax.while_loop(lambda state: jnp.any(state[-1]), body, init)
+        _, res, ratio_sq = linear_solve(x)
         # Failure is data: a non-finite iterate is replaced by the guess (double-where).
+        finite = _all_finite(x) & jnp.isfinite(res)
         x = tuple(jnp.where(finite, a, g) for a, g in zip(x, guess, strict=True))
         res = jnp.where(finite, res, jnp.inf)
         # custom_root's jvp rule gives aux outputs float tangents: keep them floating.

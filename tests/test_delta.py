@@ -389,6 +389,48 @@ def test_jit_over_batch_and_time_without_recompilation():
     assert per_robot(robots).theta.p.shape == (2, 6, 3)
 
 
+def test_chunked_batches_equal_small_batches():
+    """A batch over jaxkin._chunks.CHUNK is solved in padded chunks: same answers per element.
+
+    The reference solves slices of at most CHUNK elements whole; the compiled loops differ,
+    so values agree to rounding (1e-12 cm on a 30 cm robot) and counts/statuses exactly.
+    """
+    from jaxkin import _chunks
+
+    n = _chunks.CHUNK + 37  # two chunks, the last one padded
+    p = random_workspace_points(n, seed=11)
+    theta = np.array(delta.ik(ROBOT, p).theta.p)
+    theta[5] = np.nan  # invalid input in the first chunk, an unreachable one in the tail
+    theta[-1] = [3.0, -3.0, 2.5]
+    whole = delta.fk(ROBOT, theta)
+    half = n // 2
+    parts = [delta.fk(ROBOT, theta[:half]), delta.fk(ROBOT, theta[half:])]
+    np.testing.assert_allclose(
+        whole.p.p, np.concatenate([r.p.p for r in parts]), rtol=0, atol=1e-12
+    )
+    for field in ("iterations", "status", "converged"):
+        np.testing.assert_array_equal(
+            getattr(whole, field), np.concatenate([getattr(r, field) for r in parts])
+        )
+    assert whole.status[5] == Status.INVALID_INPUT
+    np.testing.assert_allclose(whole.p.p[:-1][whole.ok[:-1]], p[:-1][whole.ok[:-1]], atol=1e-10)
+
+
+def test_static_and_traced_geometry_agree():
+    """Concrete geometry is compiled in as constants; traced geometry takes the data path."""
+    p = random_workspace_points(64, seed=12)
+    theta = delta.ik(ROBOT, p).theta
+    static = delta.fk(ROBOT, theta)
+    traced = jax.jit(lambda robot, th: delta.fk(robot, th))(ROBOT, theta)
+    for a, b in zip(jax.tree.leaves(static.p), jax.tree.leaves(traced.p), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(static.residual, traced.residual, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(static.iterations, traced.iterations)
+    np.testing.assert_array_equal(static.status, traced.status)
+    closed = jax.jit(lambda robot, th: delta.fk_closed_form(robot, th).p)(ROBOT, theta.p)
+    np.testing.assert_allclose(closed, delta.fk_closed_form(ROBOT, theta.p).p, rtol=1e-12)
+
+
 def test_finite_gradients_on_mixed_batches():
     p = np.array([[0.0, 0.0, -30.0], [0.0, 0.0, -60.0], [np.nan, 0.0, -30.0], [3.0, 4.0, -25.0]])
 

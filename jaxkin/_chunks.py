@@ -1,0 +1,60 @@
+"""Cache-sized chunks inside a jitted kernel (``lax.map`` over slices of a flat batch).
+
+An iterative kernel (a Newton ``while_loop``) over a whole batch of 1e6 elements streams every
+state array through memory once per iteration; on a 2-core CPU that, not arithmetic, sets its
+speed. Running the same loop on chunks of a few thousand elements keeps the state in cache and
+lets each chunk stop as soon as its own elements have converged. Measured on the Delta Newton
+FK (2-core CPU, float64, 2^20 cases): 1.25x faster than one loop over the whole batch. Not
+worth it for loop-free kernels (the dyad measured slower in chunks: L3 holds its inputs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+# Elements per chunk: the loop's arrays (~20) of 8192 float64 elements are ~1.3 MB, which
+# stay in L2. 2048-32768 measured within 15 % of each other; much smaller chunks pay the
+# per-iteration overhead of the loop, the whole batch pays memory bandwidth.
+CHUNK = 8192
+
+
+def map_chunks(fn: Callable[[Any], Any], tree: Any, batch: tuple[int, ...]) -> Any:
+    """``fn(tree)`` computed chunk by chunk over the flattened batch.
+
+    Args:
+        fn: elementwise in the batch (element ``i`` of the output depends only on element
+            ``i`` of the input); takes and returns pytrees of arrays of shape ``(chunk, ...)``.
+        tree: pytree whose leaves have shape ``(*batch, ...)``.
+        batch: the batch shape (static).
+
+    Returns:
+        ``fn``'s output with leaves reshaped to ``(*batch, ...)``. Batches of at most ``CHUNK``
+        elements are passed to ``fn`` whole. Otherwise the batch is split into equal chunks of
+        at most ``CHUNK`` elements, the last padded by repeating the final element (the padding
+        is computed and dropped), so the loop body compiles once.
+    """
+    size = math.prod(batch)
+    if size <= CHUNK:
+        return fn(tree)
+    n_chunks = math.ceil(size / CHUNK)
+    chunk = math.ceil(size / n_chunks)
+    padded = n_chunks * chunk
+
+    def split(x):
+        flat = x.reshape((size, *x.shape[len(batch) :]))
+        if padded > size:
+            tail = jnp.broadcast_to(flat[-1:], (padded - size, *flat.shape[1:]))
+            flat = jnp.concatenate([flat, tail])
+        return flat.reshape((n_chunks, chunk, *flat.shape[1:]))
+
+    def join(y):
+        flat = y.reshape((padded, *y.shape[2:]))[:size]
+        return flat.reshape((*batch, *flat.shape[1:]))
+
+    out = jax.lax.map(fn, jax.tree.map(split, tree))
+    return jax.tree.map(join, out)
