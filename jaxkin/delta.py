@@ -741,10 +741,7 @@ def _frozen(robot: Delta) -> Delta | None:
     values = [getattr(robot, name) for name in _DELTA_FIELDS]
     if not all(_is_number(v) and np.ndim(v) == 0 for v in values):
         return None
-    frozen = object.__new__(Delta)
-    for name, value in zip(_DELTA_FIELDS, values, strict=True):
-        object.__setattr__(frozen, name, float(value))
-    return frozen
+    return _delta_unflatten(None, [float(v) for v in values])
 
 
 def _jit(fn: Callable[..., Any], static_argnames: tuple[str, ...] = ()) -> Callable[..., Any]:
