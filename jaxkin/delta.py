@@ -44,7 +44,10 @@ is the identity, the platform does not rotate), residuals
 ``|D_i - E_i| - l_rod`` near the solution), Jacobian by forward-mode autodiff, explicit 3x3
 adjugate solve, per-element convergence in one ``lax.while_loop`` (``jaxkin.newton``) run on
 cache-sized chunks of the batch (``jaxkin._chunks``); converged where
-``max|r| <= tol * (l_arm + l_rod)``.
+``max|r| <= tol * (l_arm + l_rod)``. The loop solves the equivalent system
+``(r_1, r_2 - r_1, r_3 - r_1)``, whose last two rows are linear in ``p`` (same Newton iterates,
+~30 % fewer operations a trip); ``residual``, ``conditioning`` and ``status`` are evaluated for
+``r`` itself at the returned point.
 
 Compilation: a ``Delta`` whose fields are Python numbers is compiled into the kernels as
 constants (one compilation per geometry, cached; measured 1.4x faster for the Newton FK and
@@ -416,20 +419,29 @@ def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array
     ).astype(STATUS_DTYPE)
 
 
-def _residual(p, centres, rod: tuple[Array, Array]) -> tuple[Array, Array, Array]:
-    """Normalised distance constraints ``(|D_i - E_i|^2 - l_rod^2) / (2 l_rod)``, i = 1..3.
+def _reduced_residual(p, planes, rod: tuple[Array, Array]) -> tuple[Array, Array, Array]:
+    """The distance constraints, rows 2 and 3 taken relative to row 1 (length units).
 
-    On components (``jaxkin.newton``): ``p = (x, y, z)`` and the sphere centres
-    ``C_i = E_i - r_platform u_i`` as ``centres[i][k]``, all of the batch shape;
-    ``D_i - E_i = p - C_i``. ``rod = (l_rod^2, 1 / (2 l_rod))``: multiplications only in the
-    Newton loop (divisions by a runtime geometry value are not folded by XLA).
+    With the sphere centres ``C_i`` (``p`` at distance ``l_rod`` from each), ``d = p - C_1``,
+    ``e_i = C_i - C_1`` and the constraints ``r_i = (|p - C_i|^2 - l_rod^2) / (2 l_rod)``::
+
+        r_1          = (|d|^2 - l_rod^2) / (2 l_rod)
+        r_i - r_1    = (|e_i|^2 / 2 - d . e_i) / l_rod          (i = 2, 3: linear in p)
+
+    Newton's iterates are invariant under a constant invertible recombination of the
+    equations, so this system has the same iterates as ``r`` itself; its two linear rows cut
+    the arithmetic of each trip by ~30 % (operations counted in the compiled loop).
+    ``planes = (C_1, e_2, e_3, |e_2|^2 / 2, |e_3|^2 / 2)``
+    as components (``jaxkin.newton``); ``rod = (l_rod^2, 1 / l_rod)``: multiplications only in
+    the loop (XLA does not fold a division by a runtime geometry value).
     """
-    l_rod_sq, inv_two_l_rod = rod
-    out = []
-    for c in centres:
-        dx, dy, dz = p[0] - c[0], p[1] - c[1], p[2] - c[2]
-        out.append((dx * dx + dy * dy + dz * dz - l_rod_sq) * inv_two_l_rod)
-    return tuple(out)
+    l_rod_sq, inv_l_rod = rod
+    centre, e_2, e_3, half_sq_2, half_sq_3 = planes
+    d = [p[k] - centre[k] for k in range(3)]
+    r_1 = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - l_rod_sq) * (0.5 * inv_l_rod)
+    r_2 = (half_sq_2 - (d[0] * e_2[0] + d[1] * e_2[1] + d[2] * e_2[2])) * inv_l_rod
+    r_3 = (half_sq_3 - (d[0] * e_3[0] + d[1] * e_3[1] + d[2] * e_3[2])) * inv_l_rod
+    return r_1, r_2, r_3
 
 
 def _centres(robot: Delta, theta: Array) -> Array:
@@ -469,14 +481,45 @@ def _default_guess(robot: Delta, centres: tuple[tuple[Array, ...], ...]) -> Arra
 
 
 def _fk_newton(robot: Delta, theta: Array, guess: Array | None, tol: float, max_iter: int):
+    """Newton on ``_reduced_residual``; every reported field refers to the original ``r``.
+
+    The loop stops at ``max|r_reduced| <= tol * scale / 2``, which bounds the original
+    ``max|r| = max(|r_1|, |r_1 + (r_i - r_1)|)`` by ``tol * scale``. ``residual``,
+    ``conditioning`` (Hadamard ratio of ``J = [p - C_i]_i``), ``converged`` and ``status``
+    are then recomputed at the returned ``p`` for ``r`` itself.
+    """
     dtype = theta.dtype
     centres = _centre_components(robot, theta)
     if guess is None:
         guess = jax.lax.stop_gradient(_default_guess(robot, centres))
     scale = jnp.asarray(robot.l_arm, dtype) + jnp.asarray(robot.l_rod, dtype)
     l_rod = jnp.asarray(robot.l_rod, dtype)
-    rod = (l_rod * l_rod, 0.5 / l_rod)
-    return newton.solve(_residual, guess, centres, rod, tol=tol, scale=scale, max_iter=max_iter)
+    rod = (l_rod * l_rod, 1.0 / l_rod)
+    centre = centres[0]
+    e_2, e_3 = ([c[k] - centre[k] for k in range(3)] for c in centres[1:])
+    half_sq = [0.5 * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]) for e in (e_2, e_3)]
+    planes = (centre, e_2, e_3, *half_sq)
+    sol = newton.solve(
+        _reduced_residual, guess, planes, rod, tol=0.5 * tol, scale=scale, max_iter=max_iter
+    )
+    # The original system at the returned p (no gradient flows through these diagnostics).
+    x = jax.lax.stop_gradient(sol.x)
+    d = [x[..., k] - centre[k] for k in range(3)]
+    r_1, r_2, r_3 = _reduced_residual(tuple(x[..., k] for k in range(3)), planes, rod)
+    residual = jnp.maximum(jnp.abs(r_1), jnp.maximum(jnp.abs(r_1 + r_2), jnp.abs(r_1 + r_3)))
+    rows = [d, [d[k] - e_2[k] for k in range(3)], [d[k] - e_3[k] for k in range(3)]]
+    conditioning = newton.hadamard_ratio_components(rows)
+    # Each of the four outputs below would otherwise recompute both from the centres.
+    residual, conditioning = computed_once(jnp.stack([residual, conditioning]))
+    converged = residual <= tol * scale
+    status = jnp.where(
+        conditioning <= singular_rtol(dtype),
+        Status.SINGULAR,
+        jnp.where(converged, Status.OK, Status.NOT_CONVERGED),
+    ).astype(STATUS_DTYPE)
+    return dataclasses.replace(
+        sol, converged=converged, residual=residual, conditioning=conditioning, status=status
+    )
 
 
 def _sphere_intersection(robot: Delta, theta: Array):

@@ -209,7 +209,7 @@ def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
     a_term = l_ac * l_ac + l * l - l_bc * l_bc
     a_dot = 2.0 * l * l_dot
     a_ddot = 2.0 * (l_dot * l_dot + l * l_ddot)
-    inv_b = jnp.where(ok, 0.5 * inv_l / l_ac, 1.0)
+    inv_b = jnp.where(ok, inv_l * (0.5 / l_ac), 1.0)
     b_term = 2.0 * l_ac * l
     b_dot = 2.0 * l_ac * l_dot
     b_ddot = 2.0 * l_ac * l_ddot
@@ -245,24 +245,34 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     batch = jnp.broadcast_shapes(a.p.shape[:-1], b.p.shape[:-1], l_ac.shape, l_bc.shape)
     a = a.map(lambda x: jnp.broadcast_to(x, (*batch, 2)))
     b = b.map(lambda x: jnp.broadcast_to(x, (*batch, 2)))
-    l_ac = jnp.broadcast_to(l_ac, batch)
-    l_bc = jnp.broadcast_to(l_bc, batch)
+    columns = [a.p, a.v, a.a, b.p, b.v, b.a]
+    # Scalar lengths stay scalars: every term built from them alone is computed once, not
+    # per element (divisions by l_ac included).
+    lengths_are_scalars = l_ac.ndim == 0 and l_bc.ndim == 0
+    if lengths_are_scalars:
+        lengths_finite = jnp.isfinite(l_ac) & jnp.isfinite(l_bc)
+    else:
+        l_ac = jnp.broadcast_to(l_ac, batch)
+        l_bc = jnp.broadcast_to(l_bc, batch)
+        columns.append(jnp.stack([l_ac, l_bc], axis=-1))
 
     # Double-where, step 1: replace non-finite elements by a harmless dyad (A = 0, B = (1, 0),
     # unit links) before any math, so neither values nor gradients can become NaN. The mask is
     # a reduction on purpose: XLA keeps it as one loop that the others read, whereas an
     # elementwise mask would be recomputed from all 14 inputs in each of the ~20 loops XLA
     # splits this kernel into (measured 4x slower at batch 1e6).
-    scalars = jnp.stack([l_ac, l_bc], axis=-1)
-    valid = all_finite(jnp.concatenate([a.p, a.v, a.a, b.p, b.v, b.a, scalars], axis=-1))
+    valid = all_finite(jnp.concatenate(columns, axis=-1))
+    if lengths_are_scalars:
+        valid = valid & lengths_finite
     a_comps = tuple(jnp.where(valid, arr[..., k], 0.0) for arr in (a.p, a.v, a.a) for k in (0, 1))
     b_comps = tuple(
         jnp.where(valid, arr[..., k], 1.0 if (i, k) == (0, 0) else 0.0)
         for i, arr in enumerate((b.p, b.v, b.a))
         for k in (0, 1)
     )
-    l_ac = jnp.where(valid, l_ac, 1.0)
-    l_bc = jnp.where(valid, l_bc, 1.0)
+    length_valid = lengths_finite if lengths_are_scalars else valid
+    l_ac = jnp.where(length_valid, l_ac, 1.0)
+    l_bc = jnp.where(length_valid, l_bc, 1.0)
 
     if method == "analytic":
         pos = _position(*a_comps[:2], *b_comps[:2], l_ac, l_bc, valid, mode, store_cos_sin=True)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
 
-from jaxkin import Jet, Status, delta
+from jaxkin import Jet, Status, delta, newton
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import reference_delta  # noqa: E402
@@ -414,6 +414,31 @@ def test_chunked_batches_equal_small_batches():
         )
     assert whole.status[5] == Status.INVALID_INPUT
     np.testing.assert_allclose(whole.p.p[:-1][whole.ok[:-1]], p[:-1][whole.ok[:-1]], atol=1e-10)
+
+
+def test_fk_diagnostics_refer_to_the_original_constraints():
+    """Newton runs on rows taken relative to row 1; residual/conditioning are the original's.
+
+    Independent check: the rod lengths (numpy geometry of this file) give the residuals
+    ``(|rod|^2 - l_rod^2) / (2 l_rod)``, and the Hadamard ratio of the stacked Jacobian
+    ``[p - C_i]`` comes from ``newton.hadamard_ratio`` (determinant by ``jnp.cross``).
+    """
+    p = random_workspace_points(300, seed=21)
+    theta = np.asarray(delta.ik(ROBOT, p).theta.p)
+    # Stop early so the residual is far from rounding and the comparison is meaningful.
+    result = delta.fk(ROBOT, theta, max_iter=2)
+    x = np.asarray(result.p.p)
+    rods = rod_lengths_np(x, theta)
+    expected = np.max(np.abs((rods * rods - LR * LR) / (2.0 * LR)), axis=-1)
+    np.testing.assert_allclose(result.residual, expected, rtol=1e-9, atol=1e-12)
+    rows = x[..., None, :] + RP * U - elbows_np(theta)  # p - C_i = D_i - E_i
+    ratio = newton.hadamard_ratio(jnp.asarray(rows))
+    np.testing.assert_allclose(result.conditioning, ratio, rtol=1e-9)
+    scale = LA + LR
+    np.testing.assert_array_equal(result.converged, expected <= 1e-12 * scale)
+    assert not np.all(result.converged)  # two updates are not enough for every point
+    full = delta.fk(ROBOT, theta)
+    assert np.all(full.converged) and np.all(full.residual <= 1e-12 * scale)
 
 
 def test_static_and_traced_geometry_agree():

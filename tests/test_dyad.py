@@ -235,6 +235,29 @@ def test_gradients_are_finite_on_a_batch_mixing_every_status(method):
     assert np.abs(np.asarray(grads[1].p[0])).sum() > 0  # the OK element does get a gradient
 
 
+@pytest.mark.parametrize("method", ["analytic", "autodiff"])
+def test_scalar_lengths_equal_broadcast_lengths(method):
+    """Scalar l_ac/l_bc take a separate (scalar) path: same values as per-element arrays; a
+    non-finite scalar length makes every element INVALID_INPUT with finite gradients."""
+    rng = np.random.default_rng(9)
+    a = Jet.of(*(rng.normal(size=(40, 2)) * 0.2 for _ in range(3)))
+    b = Jet.of(rng.normal(size=(40, 2)) * 0.2 + [1.6, 0], *rng.normal(size=(2, 40, 2)))
+    scalar = dyad.solve(a, b, 1.2, 0.9, -1, method)
+    arrays = dyad.solve(a, b, np.full(40, 1.2), np.full(40, 0.9), -1, method)
+    # Equal to rounding: the scalar path folds terms such as 0.5 / l_ac before multiplying.
+    for x, y in zip(jax.tree.leaves(scalar), jax.tree.leaves(arrays), strict=True):
+        np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
+    assert np.any(scalar.status == Status.OK) and np.any(scalar.status != Status.OK)
+
+    def loss(l_ac):
+        res = dyad.solve(a, b, l_ac, 0.9, 1, method)
+        return jnp.where(res.ok, res.phi.a, 0.0).sum() + res.c.p.sum() + res.margin.sum()
+
+    nan_result = dyad.solve(a, b, float("nan"), 0.9, 1, method)
+    assert np.all(nan_result.status == Status.INVALID_INPUT) and tree_allfinite(nan_result)
+    assert np.isfinite(jax.grad(loss)(jnp.nan)) and jax.grad(loss)(1.2) != 0
+
+
 # ---------------------------------------------------------------- batching and compilation
 @pytest.mark.parametrize("shape", BATCH_SHAPES)
 def test_batch_shapes_and_per_element_equality(shape):

@@ -129,6 +129,16 @@ def test_small_solves_against_numpy():
         )
     q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     np.testing.assert_allclose(newton.hadamard_ratio(jnp.asarray(q)), 1.0, rtol=1e-12)
+    for n in (1, 2, 3):
+        m = rng.normal(size=(7, n, n))
+        m[0, -1] = m[0, 0]  # singular
+        m[1] = 0.0  # zero rows: ratio 0, not NaN
+        rows = [[jnp.asarray(m[:, i, j]) for j in range(n)] for i in range(n)]
+        bound = np.prod(np.linalg.norm(m, axis=-1), axis=-1)
+        expected = np.abs(np.linalg.det(m)) / np.where(bound > 0, bound, 1.0)
+        got = newton.hadamard_ratio_components(rows)
+        np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(got, newton.hadamard_ratio(jnp.asarray(m)), atol=1e-15)
 
 
 def test_bad_arguments_raise():
