@@ -153,6 +153,51 @@ def test_frames_and_error_field(frame):
     np.testing.assert_allclose(err[:, 0], ang, atol=1e-7)
 
 
+def test_step_limit_bounds_revolute_steps_and_changes_nothing_where_it_does_not_bind():
+    # Random configurations kept away from the PUMA's singularities (wrist: sin q5 = 0; elbow
+    # stretched or folded: sin(q3 + psi) = 0; wrist centre on the shoulder cylinder |d3|).
+    q_true = RNG.uniform(-np.pi, np.pi, size=(800, 6))
+    t_true = np.asarray(dh.fk_dh(PUMA, q_true))
+    psi = np.arctan2(0.4318, 0.0203)
+    away = (np.abs(np.sin(q_true[:, 4])) >= 0.1) & (np.abs(np.sin(q_true[:, 2] + psi)) >= 0.1)
+    away &= np.hypot(t_true[:, 0, 3], t_true[:, 1, 3]) >= 0.15005 + 0.05
+    q_true, targets = q_true[away][:400], t_true[away][:400]
+    n = len(q_true)
+    q0 = q_true + RNG.uniform(-0.5, 0.5, size=q_true.shape)
+    tight = dict(eps_omega=1e-10, eps_v=1e-10, max_iter=20)
+    free = newton_ik.ik_newton(PUMA, targets, q0, max_step=None, **tight)
+    for max_step in (1.0, 0.6):
+        res = newton_ik.ik_newton(PUMA, targets, q0, max_step=max_step, **tight)
+        steps = np.abs(np.diff(np.asarray(res.history), axis=0))
+        assert steps.max() <= max_step * (1.0 + 1e-12)
+        # Where the unlimited iteration never stepped further than max_step, the limit never
+        # binds and the iterates are the same.
+        free_steps = np.abs(np.diff(np.asarray(free.history), axis=0)).max(axis=(0, 2))
+        unbound = free_steps < max_step
+        assert unbound.sum() > n // 4
+        np.testing.assert_array_equal(np.asarray(res.q)[unbound], np.asarray(free.q)[unbound])
+    # Default limit (1 rad): every target reached, within the independent NumPy check.
+    res = newton_ik.ik_newton(PUMA, targets, q0, **tight)
+    print(f"\nPUMA, seeds +-0.5 rad: success {np.mean(free.converged):.3f} without the limit")
+    assert np.all(np.asarray(res.converged))
+    ang, lin = _pose_errors(dh.fk_dh(PUMA, res.q), targets)
+    assert ang.max() <= 1e-9 and lin.max() <= 1e-9
+
+
+def test_step_limit_leaves_prismatic_joints_free():
+    # Polar RP arm (body frame): revolute about z, then prismatic along the rotated x axis.
+    # With q1 already right the residual is linear in q2, so Newton lands in one step of 5
+    # length units whatever max_step (radians) is.
+    screws = np.array([[0, 0, 1, 0, 1, 0], [0, 0, 0, 1, 0, 0]], dtype=float)
+    home = np.eye(4)
+    home[0, 3] = 1.0
+    chain = poe.PoEChain.create(screws, home, frame="body")
+    target = np.asarray(poe.chain_fk(chain, np.array([0.7, 5.0])))
+    res = newton_ik.ik_newton(chain, target, np.array([0.7, 0.0]), max_step=0.1)
+    assert bool(res.converged) and int(res.iterations) == 1
+    np.testing.assert_allclose(res.q, [0.7, 5.0], atol=1e-12)
+
+
 def test_history_held_after_convergence_and_elements_independent():
     chain = _planar_2r_body()
     targets = _planar_target(
@@ -252,6 +297,7 @@ def test_validation():
         (dict(eps_omega=0.0), "eps_omega must be positive"),
         (dict(eps_v=-1.0), "eps_v must be positive"),
         (dict(damping=-0.1), "damping must be non-negative"),
+        (dict(max_step=0.0), "max_step must be positive"),
         (dict(max_iter=-1), "max_iter"),
         (dict(max_iter=2.5), "max_iter"),
         (dict(limits=([0.0, 0.0], [-1.0, 1.0])), "limits: need lower <= upper"),
