@@ -58,6 +58,7 @@ from jax.typing import ArrayLike
 
 from . import _validate
 from ._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
+from ._trig import atan2
 from .jet import Jet, lift
 from .planar import angle_rates, length_rates
 from .result import SolverResult
@@ -108,7 +109,7 @@ def _unit_atan2(sin_phi: Array, cos_phi: Array) -> Array:
     division (atan2's generic rule divides by ``cos^2 + sin^2``); nested jvp differentiates the
     rule again, giving ``phi'' = cos sin'' - sin cos''``. This keeps the autodiff path cheap.
     """
-    return jnp.arctan2(sin_phi, cos_phi)
+    return atan2(sin_phi, cos_phi)
 
 
 @_unit_atan2.defjvp

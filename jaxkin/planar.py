@@ -15,6 +15,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from ._numerics import safe_div, safe_sqrt
+from ._trig import atan2
 from .jet import Jet
 
 
@@ -92,7 +93,7 @@ def angle(vec: Jet) -> tuple[Jet, Array]:
     x, y, x_dot, y_dot, x_ddot, y_ddot = _components(vec)
     defined = (x * x + y * y) > 0
     y_pos = jnp.where(y == 0, 0.0, y)  # -0.0 -> +0.0 so atan2 gives +pi on the -X axis
-    theta = jnp.arctan2(jnp.where(defined, y_pos, 0.0), jnp.where(defined, x, 1.0))
+    theta = atan2(jnp.where(defined, y_pos, 0.0), jnp.where(defined, x, 1.0))
     theta_dot, theta_ddot = angle_rates(x, y, x_dot, y_dot, x_ddot, y_ddot)
     return Jet(theta, theta_dot, theta_ddot), defined
 

@@ -99,6 +99,7 @@ from jax.typing import ArrayLike
 
 from . import _validate, dyad, planar
 from ._numerics import all_finite
+from ._trig import sincos
 from .jet import Jet, lift
 from .result import SolverResult
 from .status import STATUS_DTYPE, Status
@@ -388,8 +389,9 @@ def ik(robot: Scara, d: Jet | ArrayLike, mode: int = 1, method: str = "analytic"
 def _fk_position(q: Array, l_oa: Array, l_ab: Array, l_bc: Array) -> Array:
     theta1, theta2, l3 = q[..., 0], q[..., 1], q[..., 2]
     theta_bc = theta1 - theta2  # eq. 15
-    x = l_ab * jnp.cos(theta1) + l_bc * jnp.cos(theta_bc)
-    y = l_ab * jnp.sin(theta1) + l_bc * jnp.sin(theta_bc)
+    (sin_1, cos_1), (sin_bc, cos_bc) = sincos(theta1), sincos(theta_bc)
+    x = l_ab * cos_1 + l_bc * cos_bc
+    y = l_ab * sin_1 + l_bc * sin_bc
     z = l_oa - l3  # eq. 14
     return jnp.stack([x, y, z], axis=-1)
 

@@ -73,6 +73,7 @@ import jax.numpy as jnp
 from jax import Array
 
 from .._numerics import safe_sqrt, singular_rtol
+from .._trig import atan2, sincos
 from . import _arms_common as common
 from .arms_3dof import _polar
 from .dh import DHTable
@@ -179,15 +180,15 @@ class Puma560(common.Arm):
         sol = common.two_link(x[..., :, None], (pz - d1)[..., None, None], a2, l3, elbow)
         # The two-link's second angle is q3 + psi, psi = atan2(d4, a3):
         # q3 = atan2(s2 a3 - c2 d4, c2 a3 + s2 d4).
-        q3 = jnp.arctan2(sol.s2 * a3 - sol.c2 * d4, sol.c2 * a3 + sol.s2 * d4)
+        q3 = atan2(sol.s2 * a3 - sol.c2 * d4, sol.c2 * a3 + sol.s2 * d4)
         q1 = jnp.broadcast_to(q1[..., :, None], sol.q1.shape)
         q_pos = jnp.stack([q1, sol.q1, q3], axis=-1)  # (..., 2, 2, 3)
         batch = q_pos.shape[:-3]
         q_pos = q_pos.reshape(*batch, 4, 3)
         # R_03 = Rz(q1) Ry(-(q2 + q3)) (DH rows 1-3; fk_dh checks it in the round-trip tests).
-        c1, s1 = jnp.cos(q_pos[..., 0]), jnp.sin(q_pos[..., 0])
+        s1, c1 = sincos(q_pos[..., 0])
         q23 = q_pos[..., 1] + q_pos[..., 2]
-        c23, s23 = jnp.cos(q23), jnp.sin(q23)
+        s23, c23 = sincos(q23)
         zero = jnp.zeros_like(c1)
         r03 = _mat3([[c1 * c23, -s1, -c1 * s23], [s1 * c23, c1, -s1 * s23], [s23, zero, c23]])
         q_wrist, wrist_singular = _wrist(r03, rot, sign=-1.0)
@@ -240,8 +241,8 @@ class Stanford(common.Arm):
         polar, pos_singular = _polar(p, d1, dtype)  # (..., 2, 3): q1, q2, rho
         q_pos = polar.at[..., 2].add(-a2)  # q3 = sqrt(r^2 + s^2) - a2 (ERRATA seed 003)
         # R_03 = Rz(q1) Ry(-(q2 + pi/2)) Rx(pi) (DH rows 1-3; checked by the round trips).
-        c1, s1 = jnp.cos(q_pos[..., 0]), jnp.sin(q_pos[..., 0])
-        c2, s2 = jnp.cos(q_pos[..., 1]), jnp.sin(q_pos[..., 1])
+        s1, c1 = sincos(q_pos[..., 0])
+        s2, c2 = sincos(q_pos[..., 1])
         zero = jnp.zeros_like(c1)
         r03 = _mat3([[-c1 * s2, s1, c1 * c2], [-s1 * s2, -c1, s1 * c2], [c2, zero, s2]])
         q_wrist, wrist_singular = _wrist(r03, rot, sign=1.0)

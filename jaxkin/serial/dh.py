@@ -46,6 +46,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate
+from .._trig import sincos
 from . import lie
 
 __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]
@@ -197,9 +198,9 @@ def _joint_parameters(table: DHTable, q: Array) -> tuple[Array, Array, Array, Ar
 
 def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
     _, _, d, theta = _joint_parameters(table, q)
-    # Materialise cos/sin once: without the barrier XLA's CPU fusion recomputes them in every
-    # output loop (measured 3x slower for a 6R arm).
-    ct, st = jax.lax.optimization_barrier((jnp.cos(theta), jnp.sin(theta)))
+    # Materialise sin/cos once: without the barrier XLA's CPU fusion recomputes them in every
+    # output loop (measured 3x slower for a 6R arm). ``sincos``: see ``jaxkin._trig``.
+    st, ct = jax.lax.optimization_barrier(sincos(theta))
     # Unbatched per-joint constants, materialised too (else fused and recomputed per element).
     ca, sa, a = jax.lax.optimization_barrier((jnp.cos(table.alpha), jnp.sin(table.alpha), table.a))
     batch, dtype = q.shape[:-1], q.dtype
@@ -208,6 +209,10 @@ def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
     for i in range(table.n_joints):
         link = _link(ct[..., i], st[..., i], ca[i], sa[i], a[i], d[..., i])
         pose = link if pose is None else lie.compose_soa(pose, link)
+        # Stored every 3 joints (for a 6R arm: the shoulder's T_3): 1.4x faster at batch 1e4
+        # than no barrier, 1.5x faster than one after every joint (PUMA 560, float64).
+        if i % 3 == 2 and i < table.n_joints - 1:
+            pose = lie.computed_once_soa(pose, batch)
         if all_frames or i == table.n_joints - 1:
             frames.append(lie.to_matrix_soa(pose, batch, dtype))
     if all_frames:
@@ -218,14 +223,20 @@ def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
 _fk_dh_jit = jax.jit(_fk_dh_impl, static_argnames=("all_frames",))
 
 
-def _check_q(q: ArrayLike, n: int, dtype) -> Array:
-    q = jnp.asarray(q)
+def check_q(q: ArrayLike, n: int, dtype) -> Array:
+    """``q`` as an array of shape ``(..., n)`` in its promotion with ``dtype`` (and float).
+
+    Raises:
+        ValueError: ``q``'s last axis is not ``n``.
+    """
+    if not isinstance(q, jax.Array):
+        q = jnp.asarray(q)
     if q.ndim == 0 or q.shape[-1] != n:
         raise ValueError(
             f"q: expected shape (..., {n}) (last axis = the chain's {n} joints), "
             f"got {tuple(q.shape)}"
         )
-    return q.astype(jnp.result_type(q, dtype, float))
+    return _validate.cast_leaves(q, jnp.result_type(q, dtype, float))
 
 
 def fk_dh(table: DHTable, q: ArrayLike, all_frames: bool = False) -> Array:
@@ -246,6 +257,6 @@ def fk_dh(table: DHTable, q: ArrayLike, all_frames: bool = False) -> Array:
     """
     if not isinstance(table, DHTable):
         raise ValueError(f"table: expected a DHTable, got {type(table).__name__}")
-    q = _check_q(q, table.n_joints, table.dtype)
-    table = jax.tree.map(lambda x: x.astype(q.dtype), table)
+    q = check_q(q, table.n_joints, table.dtype)
+    table = _validate.cast_leaves(table, q.dtype)
     return _fk_dh_jit(table, q, bool(all_frames))

@@ -43,7 +43,8 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .._numerics import eps, safe_sqrt
+from .._numerics import computed_once, eps, safe_sqrt
+from .._trig import atan2, sincos
 
 __all__ = [
     "adjoint",
@@ -124,7 +125,7 @@ def _exp_coefficients(theta_sq: Array) -> tuple[Array, Array, Array]:
     # Double-where: the exact formulas see a safe angle where t is small.
     t_sq_safe = jnp.where(small, 1.0, theta_sq)
     t = jnp.sqrt(t_sq_safe)
-    s, c = jnp.sin(t), jnp.cos(t)
+    s, c = sincos(t)
     a_exact = s / t
     b_exact = (1.0 - c) / t_sq_safe
     c_exact = (t - s) / (t_sq_safe * t)
@@ -218,6 +219,22 @@ def compose_soa(first: tuple[Rot, Vec], second: tuple[Rot, Vec]) -> tuple[Rot, V
     return rot, p
 
 
+def computed_once_soa(pose: tuple[Rot, Vec], batch: tuple[int, ...]) -> tuple[Rot, Vec]:
+    """``pose`` stored once (``jaxkin._numerics.computed_once``), structural zeros kept.
+
+    A chain of ``compose_soa`` calls is one expression per output entry; XLA's CPU fusion
+    evaluates each entry's whole tree in its own loop, so shared partial products are
+    recomputed. Storing a partial product cuts the trees.
+    """
+    rot, p = pose
+    flat = [x for row in rot for x in row] + list(p)
+    stored = iter(
+        computed_once(jnp.stack([jnp.broadcast_to(x, batch) for x in flat if x is not None]))
+    )
+    flat = [None if x is None else next(stored) for x in flat]
+    return [flat[0:3], flat[3:6], flat[6:9]], flat[9:12]
+
+
 def rotate_soa(rot: Rot, x: Vec, transpose: bool = False) -> Vec:
     """``R x`` (or ``R^T x``) on the list representation."""
     out = []
@@ -259,7 +276,7 @@ def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
     s2 = safe_sqrt(anti[0] * anti[0] + anti[1] * anti[1] + anti[2] * anti[2])  # 2 sin t
     cos_t = jnp.clip(0.5 * (rot[0][0] + rot[1][1] + rot[2][2] - 1.0), -1.0, 1.0)
     sin_t = 0.5 * s2
-    theta = jnp.arctan2(sin_t, cos_t)
+    theta = atan2(sin_t, cos_t)
     dtype = theta.dtype
 
     # Branch 1 (t <= pi/2): omega = t / (2 sin t) * anti, Taylor series near t = 0.

@@ -353,7 +353,7 @@ def ik_newton(
                 raise ValueError(f"limits: need lower <= upper (no NaN), got {lo} and {up}")
     if frame != chain.frame:
         chain = _poe.change_frame(chain, frame)
-    chain = jax.tree.map(lambda x: x.astype(dtype), chain)
+    chain = _validate.cast_leaves(chain, dtype)
     return _ik_jit(
         chain,
         target.astype(dtype),

@@ -41,6 +41,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate
+from .._trig import sincos
 from . import dh as _dh
 from . import lie
 
@@ -172,7 +173,7 @@ def _joint_exps(chain: PoEChain, q: Array) -> list[tuple[Array, Array]]:
     v = chain.screws[:, 3:]
     wv = jnp.einsum("nij,nj->ni", w, v)
     w2v = jnp.einsum("nij,nj->ni", w2, v)
-    s_all, c_all = jnp.sin(q), jnp.cos(q)
+    s_all, c_all = sincos(q)
     eye = jnp.eye(3, dtype=q.dtype)
     exps = []
     for i in range(chain.n_joints):
@@ -330,16 +331,8 @@ def as_poe(chain: PoEChain | _dh.DHTable, name: str = "chain") -> PoEChain:
 
 def _prepare(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> tuple[PoEChain, Array]:
     chain = as_poe(chain)
-    q = jnp.asarray(q)
-    n = chain.n_joints
-    if q.ndim == 0 or q.shape[-1] != n:
-        raise ValueError(
-            f"q: expected shape (..., {n}) (last axis = the chain's {n} joints), "
-            f"got {tuple(q.shape)}"
-        )
-    dtype = jnp.result_type(q, chain.dtype, float)
-    chain = jax.tree.map(lambda x: x.astype(dtype), chain)
-    return chain, q.astype(dtype)
+    q = _dh.check_q(q, chain.n_joints, chain.dtype)
+    return _validate.cast_leaves(chain, q.dtype), q
 
 
 # ----------------------------------------------------------------------------------------------

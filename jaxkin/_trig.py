@@ -1,0 +1,213 @@
+"""Fast ``sincos`` and ``atan2``: vectorisable polynomial forms of fdlibm's algorithms.
+
+Why. XLA on CPU evaluates ``cos``, ``sin`` and ``atan2`` slowly for our batches (measured at
+batch 1e6 on the 2-core CI class, after compilation: ``cos`` + ``sin`` of angles in [-4, 4]
+12 ms in float64, ``atan2`` 9 ms in float64 and 10 ms in float32, against 0.6 ms for an
+addition); the same algorithms written as plain elementwise arithmetic fuse into the callers'
+loops and vectorise: ``sincos`` 1.5 ms for both. Both are drop-in replacements; measured
+against NumPy's libm (tests/test_trig.py): ``sincos`` within 1 ulp, ``atan2`` within 2 ulp, in
+float64 and float32.
+
+``sincos(x) -> (sin x, cos x)``, one argument reduction for both (fdlibm ``__kernel_sin``,
+``__kernel_cos`` and its medium-size Cody-Waite reduction)::
+
+    n = round(x * 2/pi),  r = x - n pi/2   (pi/2 split in 3 parts: n * part exact)
+    sin r, cos r by polynomials in r^2 on |r| <= pi/4 (with the reduction's tail)
+    (sin x, cos x) = (sin r, cos r), (cos r, -sin r), (-sin r, -cos r), (-cos r, sin r)
+                     for n mod 4 = 0, 1, 2, 3
+
+The exact-product reduction is valid for ``|x| <= REDUCTION_LIMIT[dtype]`` (8e5 rad in
+float64, 8e3 in float32); a batch holding a finite angle beyond it takes ``jnp.sin``/``jnp.cos``
+instead (``lax.cond`` on the whole batch: correct, slow; under ``vmap`` both branches run).
+
+``atan2(y, x)``, fdlibm ``atan`` on the ratio of the smaller to the larger magnitude::
+
+    m = min(|x|, |y|),  M = max(|x|, |y|),  u = m / M in [0, 1]
+    atan(u) = atan(c) + atan(t):  u <= 7/16: c = 0,      t = m / M
+                                  u <= 11/16: c = 1/2,   t = (2m - M) / (2M + m)
+                                  else:       c = 1,     t = (m - M) / (m + M)
+    (one division; |t| < 7/16, where fdlibm's degree-21 odd polynomial is accurate)
+    then pi/2 - a if |y| > |x|, pi - a if x < 0 (sign bit: x = -0 counts), sign of y.
+
+Special values follow C's ``atan2`` (``atan2(+-0, -0) = +-pi``, ``atan2(inf, inf) = pi/4``,
+NaN in, NaN out). Both functions carry the usual derivative rules (``custom_jvp``), so nested
+``jvp`` and ``grad`` see ``d sin = cos``, ``d atan2(y, x) = (x dy - y dx) / (x^2 + y^2)``,
+the same rule (and the same 0/0 at the origin) as ``jnp.arctan2``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
+
+# fdlibm k_sin.c / k_cos.c (|r| <= pi/4).
+_SIN = (
+    -1.66666666666666324348e-01,
+    8.33333333332248946124e-03,
+    -1.98412698298579493134e-04,
+    2.75573137070700676789e-06,
+    -2.50507602534068634195e-08,
+    1.58969099521155010221e-10,
+)
+_COS = (
+    4.16666666666666019037e-02,
+    -1.38888888888741095749e-03,
+    2.48015872894767294178e-05,
+    -2.75573143513906633035e-07,
+    2.08757232129817482790e-09,
+    -1.13596475577881948265e-11,
+)
+_TWO_OVER_PI = 6.36619772367581382433e-01
+# pi/2 = part_1 + ... + part_k + tail: every part but the tail has few enough significant
+# bits that n * part is exact for every n the reduction limit allows (|n| < 2^20 in float64,
+# 2^13 in float32), so the subtractions are exact and only the tail rounds.
+_PIO2_PARTS = {
+    np.dtype(np.float64): (
+        1.57079632673412561417e00,  # fdlibm pio2_1 (33 bits)
+        6.07710050630396597660e-11,  # pio2_2 (33 bits)
+        2.02226624879595063154e-21,  # pio2_2t (tail)
+    ),
+    np.dtype(np.float32): (  # 11 significant bits each, tail rounded to float32
+        1.5703125,
+        4.837512969970703125e-4,
+        7.549533620476723e-08,
+        2.5633440682570896e-12,
+    ),
+}
+REDUCTION_LIMIT = {np.dtype(np.float64): 8.0e5, np.dtype(np.float32): 8.0e3}
+
+# fdlibm s_atan.c: atan(c) as hi + lo for c = 1/2, 1 (pi/4), and the polynomial on |t| < 7/16.
+_ATAN_HALF = (4.63647609000806093515e-01, 2.26987774529616870924e-17)
+_PI_OVER_4 = (7.85398163397448278999e-01, 3.06161699786838301793e-17)
+_PI_OVER_2 = (1.57079632679489655800e00, 6.12323399573676603587e-17)
+_PI = (3.14159265358979311600e00, 1.22464679914735317720e-16)
+_ATAN = (
+    3.33333333333329318027e-01,
+    -1.99999999998764832476e-01,
+    1.42857142725034663711e-01,
+    -1.11111104054623557880e-01,
+    9.09088713343650656196e-02,
+    -7.69187620504482999495e-02,
+    6.66107313738753120669e-02,
+    -5.83357013379057348645e-02,
+    4.97687799461593236017e-02,
+    -3.65315727442169155270e-02,
+    1.62858201153657823623e-02,
+)
+
+
+def _horner(z: Array, coefficients: tuple[float, ...]) -> Array:
+    """``c0 + z (c1 + z (c2 + ...))``."""
+    result = coefficients[-1]
+    for c in reversed(coefficients[:-1]):
+        result = c + z * result
+    return result
+
+
+def _sincos_reduced(x: Array) -> tuple[Array, Array]:
+    """Polynomial sin and cos, valid for ``|x| <= REDUCTION_LIMIT`` (and NaN/inf -> NaN)."""
+    *parts, tail = _PIO2_PARTS[np.dtype(x.dtype)]
+    n = jnp.round(x * _TWO_OVER_PI)
+    r = x
+    for part in parts:
+        r = r - n * part  # exact
+    hi = r - n * tail
+    lo = (r - hi) - n * tail  # what hi lost: fdlibm's y
+    z = hi * hi
+    v = z * hi
+    sin_r = hi - ((z * (0.5 * lo - v * _horner(z, _SIN[1:])) - lo) - v * _SIN[0])
+    half_z = 0.5 * z
+    w = 1.0 - half_z
+    cos_r = w + (((1.0 - w) - half_z) + (z * z * _horner(z, _COS) - hi * lo))
+    quadrant = n - 4.0 * jnp.floor(0.25 * n)  # n mod 4, exact
+    odd = (quadrant == 1.0) | (quadrant == 3.0)
+    sin_x = jnp.where(odd, cos_r, sin_r)
+    cos_x = jnp.where(odd, sin_r, cos_r)
+    sin_x = jnp.where(quadrant >= 2.0, -sin_x, sin_x)
+    sin_x = jnp.where(x == 0, x, sin_x)  # sin(-0) = -0 (the reduction made r = +0)
+    cos_x = jnp.where((quadrant == 1.0) | (quadrant == 2.0), -cos_x, cos_x)
+    return sin_x, cos_x
+
+
+@jax.custom_jvp
+def _sincos(x: Array) -> tuple[Array, Array]:
+    if np.dtype(x.dtype) not in _PIO2_PARTS:
+        return jnp.sin(x), jnp.cos(x)
+    beyond = jnp.abs(x) > REDUCTION_LIMIT[np.dtype(x.dtype)]  # False for NaN
+    return jax.lax.cond(
+        jnp.any(beyond & jnp.isfinite(x)),
+        lambda x: (jnp.sin(x), jnp.cos(x)),
+        _sincos_reduced,
+        x,
+    )
+
+
+@_sincos.defjvp
+def _sincos_jvp(primals, tangents):
+    (x,), (x_dot,) = primals, tangents
+    sin_x, cos_x = _sincos(x)
+    return (sin_x, cos_x), (cos_x * x_dot, -sin_x * x_dot)
+
+
+def sincos(x: ArrayLike) -> tuple[Array, Array]:
+    """``(sin x, cos x)`` elementwise, any shape; float64/float32 within 1 ulp.
+
+    Other dtypes (float16, bfloat16, integers promoted to float) use ``jnp.sin``/``jnp.cos``.
+    """
+    x = jnp.asarray(x)
+    if not jnp.issubdtype(x.dtype, jnp.floating):
+        x = x.astype(jnp.result_type(float))
+    return _sincos(x)
+
+
+def _atan2_value(y: Array, x: Array) -> Array:
+    dtype = jnp.result_type(y, x)
+    y, x = jnp.asarray(y, dtype), jnp.asarray(x, dtype)
+    abs_x, abs_y = jnp.abs(x), jnp.abs(y)
+    swapped = abs_y > abs_x
+    small = jnp.minimum(abs_x, abs_y)
+    large = jnp.maximum(abs_x, abs_y)
+    both_inf = jnp.isinf(small)  # then large is inf too: atan(1), from m = M = 1
+    small = jnp.where(both_inf, 1.0, small)
+    large = jnp.where(both_inf, 1.0, large)
+    direct = small <= 0.4375 * large
+    middle = ~direct & (small <= 0.6875 * large)
+    num = jnp.where(direct, small, jnp.where(middle, 2.0 * small - large, small - large))
+    den = jnp.where(direct, large, jnp.where(middle, 2.0 * large + small, small + large))
+    t = num / jnp.where(den == 0, 1.0, den)  # den = 0 only at x = y = 0: t = 0
+    z = t * t
+    w = z * z
+    odd_terms = z * _horner(w, _ATAN[0::2])
+    even_terms = w * _horner(w, _ATAN[1::2])
+    series = t * (odd_terms + even_terms)
+    hi = jnp.where(direct, 0.0, jnp.where(middle, _ATAN_HALF[0], _PI_OVER_4[0]))
+    lo = jnp.where(direct, 0.0, jnp.where(middle, _ATAN_HALF[1], _PI_OVER_4[1]))
+    angle = hi - ((series - lo) - t)  # atan(small / large) in [0, pi/4]
+    angle = jnp.where(swapped, (_PI_OVER_2[0] - angle) + _PI_OVER_2[1], angle)
+    angle = jnp.where(jnp.signbit(x), (_PI[0] - angle) + _PI[1], angle)
+    return jnp.where(jnp.signbit(y), -angle, angle)
+
+
+@jax.custom_jvp
+def _atan2(y: Array, x: Array) -> Array:
+    if np.dtype(jnp.result_type(y, x)) not in _PIO2_PARTS:
+        return jnp.arctan2(y, x)
+    return _atan2_value(y, x)
+
+
+@_atan2.defjvp
+def _atan2_jvp(primals, tangents):
+    (y, x), (y_dot, x_dot) = primals, tangents
+    inv_r2 = 1.0 / (x * x + y * y)
+    return _atan2(y, x), (x * y_dot - y * x_dot) * inv_r2
+
+
+def atan2(y: ArrayLike, x: ArrayLike) -> Array:
+    """``atan2(y, x)`` elementwise with broadcasting, like ``jnp.arctan2`` (within 2 ulp)."""
+    y, x = jnp.asarray(y), jnp.asarray(x)
+    dtype = jnp.result_type(y, x, float)
+    y, x = jnp.broadcast_arrays(y.astype(dtype), x.astype(dtype))
+    return _atan2(y, x)

@@ -1,0 +1,109 @@
+"""``jaxkin._trig``: polynomial sincos/atan2 against NumPy's libm (the independent reference)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxkin import _trig
+
+RNG = np.random.default_rng(5)
+
+
+def _ulps(got, exact, dtype):
+    """|got - exact| in units of the spacing of ``dtype`` at the exact value (rounded)."""
+    exact_in_dtype = np.asarray(exact).astype(dtype)
+    spacing = np.spacing(np.abs(exact_in_dtype)).astype(np.float64)
+    return np.abs(np.asarray(got, np.float64) - exact_in_dtype.astype(np.float64)) / spacing
+
+
+def _angles(dtype):
+    limit = _trig.REDUCTION_LIMIT[np.dtype(dtype)]
+    return np.concatenate(
+        [
+            RNG.uniform(-10.0, 10.0, 200_000),
+            RNG.uniform(-limit, limit, 200_000),
+            np.arange(-400, 401) * (np.pi / 4),  # near the quadrant boundaries
+            [0.0, -0.0, 1e-30, -1e-30, limit, -limit],
+        ]
+    ).astype(dtype)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_sincos_within_one_ulp(dtype):
+    x = _angles(dtype)
+    exact = x.astype(np.float64)
+    sin_x, cos_x = jax.jit(_trig.sincos)(x)
+    assert sin_x.dtype == dtype and cos_x.dtype == dtype
+    assert _ulps(sin_x, np.sin(exact), dtype).max() <= 1.0
+    assert _ulps(cos_x, np.cos(exact), dtype).max() <= 1.0
+    signed = np.asarray(x[-6:-2])  # 0, -0, tiny, -tiny: sin keeps the sign (sin(-0) = -0)
+    assert np.array_equal(np.signbit(np.asarray(sin_x)[-6:-2]), np.signbit(signed))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_sincos_beyond_reduction_limit_and_non_finite(dtype):
+    limit = _trig.REDUCTION_LIMIT[np.dtype(dtype)]
+    x = np.array([0.5, 3.0 * limit, -40.0 * limit, np.nan, np.inf, -np.inf], dtype)
+    sin_x, cos_x = _trig.sincos(x)  # one large finite angle: the whole batch takes jnp
+    np.testing.assert_array_equal(sin_x, jnp.sin(x))
+    np.testing.assert_array_equal(cos_x, jnp.cos(x))
+    sin_x, cos_x = _trig.sincos(x[[0, 3, 4, 5]])  # non-finite alone stays on the fast path
+    assert np.isnan(np.asarray(sin_x)[1:]).all() and np.isnan(np.asarray(cos_x)[1:]).all()
+    np.testing.assert_allclose(sin_x[0], np.sin(0.5), rtol=2 * np.finfo(dtype).eps)
+
+
+def test_sincos_derivatives_vmap_and_other_dtypes():
+    x = jnp.asarray(RNG.uniform(-5.0, 5.0, 64))
+    (s, c), (s_dot, c_dot) = jax.jvp(_trig.sincos, (x,), (jnp.ones_like(x),))
+    np.testing.assert_array_equal(s_dot, c)
+    np.testing.assert_array_equal(c_dot, -s)
+    second = jax.vmap(jax.grad(jax.grad(lambda t: _trig.sincos(t)[0])))(x)
+    np.testing.assert_allclose(second, -np.sin(np.asarray(x)), rtol=0, atol=2e-16)
+    batched = jax.vmap(_trig.sincos)(jnp.reshape(x, (8, 8)))  # cond under vmap: a select
+    np.testing.assert_array_equal(batched[0], jnp.reshape(s, (8, 8)))
+    half = _trig.sincos(jnp.asarray([0.5, 1.0], jnp.float16))
+    assert half[0].dtype == jnp.float16
+    np.testing.assert_allclose(np.asarray(half[0], np.float64), np.sin([0.5, 1.0]), atol=1e-3)
+    ints = _trig.sincos(jnp.arange(3))
+    np.testing.assert_allclose(ints[1], np.cos(np.arange(3)), rtol=1e-15)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_atan2_within_two_ulp(dtype):
+    y = np.concatenate(
+        [RNG.normal(size=200_000), 1e-3 * RNG.uniform(-1, 1, 50_000), RNG.uniform(-1, 1, 9)]
+    )
+    x = np.concatenate(
+        [RNG.normal(size=200_000), RNG.uniform(-1, 1, 50_000), [1, -1, 0.5, 2, 0.7, 1.4, 1, 0, 0]]
+    )
+    y, x = y.astype(dtype), x.astype(dtype)
+    got = jax.jit(_trig.atan2)(y, x)
+    assert got.dtype == dtype
+    assert _ulps(got, np.arctan2(y.astype(np.float64), x.astype(np.float64)), dtype).max() <= 2.0
+
+
+def test_atan2_special_values_follow_c():
+    values = np.array([0.0, -0.0, 1.0, -1.0, np.inf, -np.inf, np.nan, 1e-300])
+    y, x = (a.ravel() for a in np.meshgrid(values, values))
+    got, expected = np.asarray(_trig.atan2(y, x)), np.arctan2(y, x)
+    np.testing.assert_allclose(got, expected, rtol=2 * np.finfo(float).eps)  # NaN == NaN
+    finite = np.isfinite(expected)
+    np.testing.assert_array_equal(np.signbit(got[finite]), np.signbit(expected[finite]))
+
+
+def test_atan2_broadcasts_and_has_arctan2_derivatives():
+    y = jnp.asarray(RNG.normal(size=(4, 1)))
+    x = jnp.asarray(RNG.normal(size=(5,)))
+    assert _trig.atan2(y, x).shape == (4, 5)
+    assert _trig.atan2(1, 2).dtype == jnp.float64
+    ours = jax.jacfwd(lambda v: _trig.atan2(v[0], v[1]))
+    reference = jax.jacfwd(lambda v: jnp.arctan2(v[0], v[1]))
+    points = RNG.normal(size=(20, 2))
+    for v in points:
+        np.testing.assert_allclose(ours(v), reference(v), rtol=1e-15, atol=1e-16)
+    hess = jax.hessian(lambda v: _trig.atan2(v[0], v[1]))(points[0])
+    hess_ref = jax.hessian(lambda v: jnp.arctan2(v[0], v[1]))(points[0])
+    np.testing.assert_allclose(hess, hess_ref, rtol=1e-13)
