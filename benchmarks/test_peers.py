@@ -21,7 +21,8 @@ Tasks and solvers:
 
 * four-bar (1,000 crank-rockers x 360 crank steps = 360,000 RRR dyads): pylinkage ``Ensemble``
   of ``Crank`` + ``RRRDyad`` (``simulate``: numba stepping, a Python loop over members) vs a
-  jitted crank + ``jaxkin.dyad.solve`` (which also returns zero velocity/acceleration jets);
+  jitted crank + ``jaxkin.dyad.position`` (positions only, as pylinkage; the speedups refer
+  to it) and ``jaxkin.dyad.solve`` (which also computes zero velocity/acceleration jets);
 * Delta IK (10,000 poses): visual-kinematics ``RobotDelta.inverse``, one call per pose (each
   call also re-runs its FK), vs ``jaxkin.delta.ik`` (elbow-out, the same branch);
 * PUMA 560 IK (1e3 and 1e4 targets; every iterative solver starts from the same seeds
@@ -126,37 +127,39 @@ def fourbar():
     return tasks.fourbar_variants(FOURBAR_VARIANTS)
 
 
-def test_fourbar_jaxkin(benchmark, fourbar):
+def _fourbar_jaxkin(benchmark, fourbar, kernel, name, reference):
     steps = tasks.FOURBAR_STEPS
     n = FOURBAR_VARIANTS * steps
     th = jnp.asarray(tasks.fourbar_angles(steps))
     a, b, c, d = (jnp.asarray(fourbar[k])[:, None] for k in "abcd")
     # The crank's (cos, sin) in their own jit, on the (steps,) angles: inside the dyad's jit XLA
     # fuses them into the (variants, steps) loop and evaluates them per element (measured
-    # 8.8 M/s instead of ~16 M/s at 1,000 x 360 float64).
+    # 8.8 M/s instead of ~16 M/s at 1,000 x 360 float64, with XLA's cos/sin).
     unit = jax.jit(lambda th: (jnp.cos(th), jnp.sin(th)))
 
     @jax.jit
     def solve(cos_sin, a, b, c, d):
         pin = jnp.stack([a * cos_sin[0], a * cos_sin[1]], -1)  # (variants, steps, 2)
         o2 = jnp.stack([d, jnp.zeros_like(d)], -1)  # (variants, 1, 2)
-        res = dyad.solve(pin, o2, b, c, mode=1)
-        return res.c.p, res.status
+        res = kernel(pin, o2, b, c, mode=1)
+        return (res.c if isinstance(res, dyad.DyadPosition) else res.c.p), res.status
 
     (c_xy, status), rate = _run(
-        benchmark, lambda: solve(unit(th), a, b, c, d), n, "four-bar", "jaxkin", rounds=5
+        benchmark, lambda: solve(unit(th), a, b, c, d), n, "four-bar", name, rounds=5
     )
-    c_xy = np.asarray(c_xy)
     assert (np.asarray(status) == 0).all()
-    _record(
-        benchmark,
-        "four-bar",
-        "jaxkin.dyad.solve",
-        n,
-        rate,
-        tasks.fourbar_error(fourbar, c_xy),
-        jaxkin=True,
-    )
+    error = tasks.fourbar_error(fourbar, np.asarray(c_xy))
+    _record(benchmark, "four-bar", f"jaxkin.{name}", n, rate, error, jaxkin=reference)
+
+
+def test_fourbar_jaxkin_position(benchmark, fourbar):
+    """The task's reference row: positions only, what pylinkage computes."""
+    _fourbar_jaxkin(benchmark, fourbar, dyad.position, "dyad.position", reference=True)
+
+
+def test_fourbar_jaxkin_solve(benchmark, fourbar):
+    """``dyad.solve`` on the same sweep: also computes (zero) velocities and accelerations."""
+    _fourbar_jaxkin(benchmark, fourbar, dyad.solve, "dyad.solve", reference=False)
 
 
 def test_fourbar_pylinkage(benchmark, fourbar):

@@ -35,6 +35,13 @@ def _kernels():
             lambda n: (_jet(rng, n, np.zeros(2), 0.2), _jet(rng, n, np.array([1.5, 0.2]), 0.2)),
             lambda a, b: dyad.solve(a, b, 1.2, 0.9),
         ),
+        "dyad.position": (
+            lambda n: (
+                rng.normal(scale=0.2, size=(n, 2)),
+                rng.normal(scale=0.2, size=(n, 2)) + [1.5, 0.2],
+            ),
+            lambda a, b: dyad.position(a, b, 1.2, 0.9),
+        ),
         "scara.ik": (
             lambda n: (_jet(rng, n, np.array([90.0, 20.0, 60.0]), 10.0),),
             lambda d: scara.ik(scara_robot, d),

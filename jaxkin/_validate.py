@@ -27,13 +27,23 @@ def as_jet(x: Jet | ArrayLike, name: str, coords: int | None) -> Jet:
     shapes = {tuple(jnp.shape(arr)) for arr in (jet.p, jet.v, jet.a)}
     if len(shapes) != 1:
         raise ValueError(f"{name}: p, v and a must have one shape, got {sorted(shapes)}")
-    if coords is not None and (jet.p.ndim == 0 or jet.p.shape[-1] != coords):
-        raise ValueError(
-            f"{name}: expected shape (..., {coords}) (last axis = coordinates), "
-            f"got {tuple(jet.p.shape)}"
-        )
+    if coords is not None:
+        point(jet.p, name, coords)
     dtype = jnp.result_type(jet.p, jet.v, jet.a, float)
     return jet.astype(dtype)
+
+
+def point(x: ArrayLike, name: str, coords: int) -> jax.Array:
+    """A floating array of points, shape ``(..., coords)``."""
+    arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
+    if arr.ndim == 0 or arr.shape[-1] != coords:
+        raise ValueError(
+            f"{name}: expected shape (..., {coords}) (last axis = coordinates), "
+            f"got {tuple(arr.shape)}"
+        )
+    if not jnp.issubdtype(arr.dtype, jnp.inexact):
+        arr = arr.astype(jnp.result_type(float))
+    return arr
 
 
 def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> jax.Array | float:

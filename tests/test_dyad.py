@@ -204,6 +204,36 @@ def test_every_status_on_constructed_cases_in_one_batch(method):
     assert np.all(margin[np.isin(res.status, [2, 3, 4])] == 0)
 
 
+@pytest.mark.parametrize("mode", [1, -1])
+def test_position_equals_the_position_part_of_solve(mode):
+    """``dyad.position`` on constructed cases (every status) and random dyads, per-element and
+    scalar lengths: C, phi, status and margin equal ``solve``'s; gradients stay finite."""
+    rng = np.random.default_rng(21)
+    cases = _constructed_cases()
+    a = np.concatenate([[c[0] for c in cases], rng.normal(size=(200, 2)) * 0.3])
+    b = np.concatenate([[c[1] for c in cases], rng.normal(size=(200, 2)) * 0.3 + [1.5, 0]])
+    l_ac = np.concatenate([[c[2] for c in cases], rng.uniform(0.5, 1.5, 200)])
+    l_bc = np.concatenate([[c[3] for c in cases], rng.uniform(0.5, 1.5, 200)])
+    for lengths in ((l_ac, l_bc), (1.1, 0.8)):
+        full = dyad.solve(a, b, *lengths, mode)
+        pos = dyad.position(a, b, *lengths, mode)
+        assert pos.c.shape == (len(a), 2) and pos.phi.shape == (len(a),)
+        np.testing.assert_array_equal(pos.status, full.status)
+        # Same formulas; XLA may fuse them differently, so equal to rounding.
+        np.testing.assert_allclose(pos.c, full.c.p, rtol=1e-14, atol=1e-14)
+        np.testing.assert_allclose(pos.phi, full.phi.p, rtol=1e-14, atol=1e-14)
+        np.testing.assert_allclose(pos.margin, full.margin, rtol=1e-14, atol=1e-14)
+        assert tree_allfinite(pos)
+    grad = jax.grad(lambda b: dyad.position(a, b, l_ac, l_bc, mode).c.sum())(jnp.asarray(b))
+    assert tree_allfinite(grad)
+    with pytest.raises(ValueError, match="b: expected shape"):
+        dyad.position(a, b[:, :1], 1.0, 1.0)
+    with pytest.raises(ValueError, match="l_bc"):
+        dyad.position(a, b, 1.0, -1.0)
+    with pytest.raises(ValueError, match="mode"):
+        dyad.position(a, b, 1.0, 1.0, mode=0)
+
+
 def test_a_bad_element_does_not_change_its_neighbours():
     rng = np.random.default_rng(5)
     a = Jet.of(*(rng.normal(size=(6, 2)) * 0.1 for _ in range(3)))
