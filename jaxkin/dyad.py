@@ -57,7 +57,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _validate
-from ._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
+from ._numerics import all_finite, computed_once, rsqrt, safe_sqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
 from .planar import angle_rates, length_rates
@@ -150,7 +150,7 @@ def _position(
     r2 = dx * dx + dy * dy
     # One rsqrt for both |AB| and its reciprocal (double-where at A = B); fewer divisions
     # also keep the autodiff path's nested jvp cheap.
-    inv_l = jnp.where(r2 > 0, jax.lax.rsqrt(jnp.where(r2 > 0, r2, 1.0)), 0.0)
+    inv_l = jnp.where(r2 > 0, rsqrt(jnp.where(r2 > 0, r2, 1.0)), 0.0)
     l = r2 * inv_l
     cos_theta = jnp.where(l > 0, dx * inv_l, 1.0)
     sin_theta = dy * inv_l
