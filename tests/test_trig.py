@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -43,16 +45,39 @@ def test_sincos_within_one_ulp(dtype):
     assert np.array_equal(np.signbit(np.asarray(sin_x)[-6:-2]), np.signbit(signed))
 
 
+def test_pi_over_2_parts_are_exact_splits_of_pi():
+    from decimal import Decimal, getcontext
+    from fractions import Fraction
+
+    getcontext().prec = 60
+    half_pi = Fraction(Decimal("3.14159265358979323846264338327950288419716939937510582097")) / 2
+    for dtype, bits in ((np.float64, 27), (np.float32, 9)):
+        *parts, tail = _trig._PIO2_PARTS[np.dtype(dtype)]
+        for part in parts:  # few significant bits, so n * part is exact for |n| < limit
+            assert np.asarray(part, dtype) == part
+            mantissa = Fraction(part) / Fraction(2) ** math.floor(math.log2(part))
+            assert (mantissa * 2 ** (bits - 1)).denominator == 1
+        remainder = half_pi - sum(Fraction(p) for p in parts) - Fraction(tail)
+        assert abs(remainder) < Fraction(tail) * np.finfo(dtype).eps
+
+
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_sincos_beyond_reduction_limit_and_non_finite(dtype):
+    # Beyond the limit the error is about half an ulp of x (the angle's own resolution); the
+    # values stay in [-1, 1] for every finite x; NaN and inf give NaN.
     limit = _trig.REDUCTION_LIMIT[np.dtype(dtype)]
-    x = np.array([0.5, 3.0 * limit, -40.0 * limit, np.nan, np.inf, -np.inf], dtype)
-    sin_x, cos_x = _trig.sincos(x)  # one large finite angle: the whole batch takes jnp
-    np.testing.assert_array_equal(sin_x, jnp.sin(x))
-    np.testing.assert_array_equal(cos_x, jnp.cos(x))
-    sin_x, cos_x = _trig.sincos(x[[0, 3, 4, 5]])  # non-finite alone stays on the fast path
-    assert np.isnan(np.asarray(sin_x)[1:]).all() and np.isnan(np.asarray(cos_x)[1:]).all()
-    np.testing.assert_allclose(sin_x[0], np.sin(0.5), rtol=2 * np.finfo(dtype).eps)
+    big = np.finfo(dtype).max
+    for scale in (10.0 * limit, 1e4 * limit):
+        x = (RNG.uniform(-1.0, 1.0, 20_000) * scale).astype(dtype)
+        sin_x, cos_x = _trig.sincos(x)
+        exact = x.astype(np.float64)
+        bound = np.spacing(np.abs(x)).astype(np.float64)  # one ulp of x
+        assert np.all(np.abs(np.asarray(sin_x, np.float64) - np.sin(exact)) <= bound)
+        assert np.all(np.abs(np.asarray(cos_x, np.float64) - np.cos(exact)) <= bound)
+    huge = np.array([big, -big, big / 3, np.nan, np.inf, -np.inf], dtype)
+    sin_x, cos_x = _trig.sincos(huge)
+    assert np.all(np.abs(sin_x[:3]) <= 1.0) and np.all(np.abs(cos_x[:3]) <= 1.0)
+    assert np.isnan(np.asarray(sin_x)[3:]).all() and np.isnan(np.asarray(cos_x)[3:]).all()
 
 
 def test_sincos_derivatives_vmap_and_other_dtypes():
@@ -62,7 +87,7 @@ def test_sincos_derivatives_vmap_and_other_dtypes():
     np.testing.assert_array_equal(c_dot, -s)
     second = jax.vmap(jax.grad(jax.grad(lambda t: _trig.sincos(t)[0])))(x)
     np.testing.assert_allclose(second, -np.sin(np.asarray(x)), rtol=0, atol=2e-16)
-    batched = jax.vmap(_trig.sincos)(jnp.reshape(x, (8, 8)))  # cond under vmap: a select
+    batched = jax.vmap(_trig.sincos)(jnp.reshape(x, (8, 8)))
     np.testing.assert_array_equal(batched[0], jnp.reshape(s, (8, 8)))
     half = _trig.sincos(jnp.asarray([0.5, 1.0], jnp.float16))
     assert half[0].dtype == jnp.float16
