@@ -11,7 +11,8 @@ Position (eqs. 1, 6, 9, 10). With ``theta`` the angle of A->B and ``l = |AB|``::
 
 The kernel builds ``cos phi`` and ``sin phi`` algebraically from ``(dx, dy) / l``, ``u`` and
 ``sin(beta) = sqrt(1 - u^2)``: the only transcendental call is one ``atan2`` for the output
-``phi`` (XLA on CPU is bound by transcendental functions, see DESIGN.md).
+``phi`` (XLA on CPU is bound by transcendental functions, see DESIGN.md), and that one is
+``jaxkin._trig.atan2``, a vectorised polynomial (XLA's own ``atan2`` took ~9 ms per 1e6).
 
 Angle convention: ``theta`` is in (-pi, pi] (Fig. 2), ``beta`` in [0, pi], and ``phi`` is the
 paper's *unwrapped* sum ``theta + mode * beta``, so ``phi`` lies in (-2 pi, 2 pi): mode +1 gives

@@ -47,7 +47,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jax.typing import ArrayLike
 
 from . import _validate, delta, scara, splines
-from ._numerics import safe_div, safe_norm, safe_sqrt
+from ._numerics import computed_once, safe_div, safe_norm, safe_sqrt
 from .jet import Jet
 from .result import SolverResult
 from .serial import arms
@@ -263,6 +263,10 @@ def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Cost
 def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: int) -> Evaluation:
     branches = _branches(robot)
     q, status, margin = _solve(robot, path, branches[branch_index])
+    # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
+    # IK work into them (measured: SCARA 84k -> 141k, Delta 31k -> 35k candidates/s, 1e3 x 100
+    # samples, float64).
+    q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
     violated = limit_excess(q, limits) > 0
     status = jnp.where(
         (status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status

@@ -29,7 +29,6 @@ from jax.typing import ArrayLike
 
 from .. import _validate
 from .._numerics import safe_sqrt, singular_rtol
-from .._trig import atan2, sincos
 from ..result import SolverResult
 from ..status import STATUS_DTYPE, Status
 from .dh import DHTable, fk_dh
@@ -182,8 +181,7 @@ def guarded_atan2(y: Array, x: Array, free: Array, fill: float | Array = 0.0) ->
     the gradient stays finite at ``y = x = 0``.
     """
     fill = jnp.asarray(fill, y.dtype)
-    sin_fill, cos_fill = sincos(fill)
-    return atan2(jnp.where(free, sin_fill, y), jnp.where(free, cos_fill, x))
+    return jnp.arctan2(jnp.where(free, jnp.sin(fill), y), jnp.where(free, jnp.cos(fill), x))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -234,7 +232,7 @@ def two_link(x: Array, y: Array, l1: Array, l2: Array, elbow: ArrayLike) -> TwoL
     k1 = l1 + l2 * c2
     k2 = l2 * s2
     q1 = guarded_atan2(y * k1 - x * k2, x * k1 + y * k2, coincident)
-    q2 = elbow * atan2(s2_abs, c2)  # one atan2 for both elbows
+    q2 = elbow * jnp.arctan2(s2_abs, c2)  # one atan2 for both elbows
     singular = (extended | folded | coincident) & ~unreachable
     shape = q1.shape
     c2 = jnp.broadcast_to(c2, shape)
@@ -286,13 +284,13 @@ def zyz_wrist(rot: Array, sign: float, branch: ArrayLike) -> tuple[Array, Array,
     sin_abs = safe_sqrt(r02 * r02 + r12 * r12)
     singular = sin_abs <= singular_rtol(rot.dtype)
     sin_beta = jnp.where(singular, 0.0, w * sin_abs)
-    beta = atan2(sin_beta, r22)
+    beta = jnp.arctan2(sin_beta, r22)
     t4 = guarded_atan2(w * r12, w * r02, singular)
     cos_beta_sign = jnp.where(r22 >= 0.0, 1.0, -1.0)
     # One atan2 for both regimes; neither argument pair can vanish in its own regime
     # (regular: |(r21, r20)| = |sin beta| > tol; singular: |(r10, r00)| = 1), so the
     # gradient is finite without a further guard.
-    t6 = atan2(
+    t6 = jnp.arctan2(
         jnp.where(singular, r10, w * r21), jnp.where(singular, cos_beta_sign * r00, -w * r20)
     )
     return t4, sign * beta, t6, singular

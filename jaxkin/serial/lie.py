@@ -44,7 +44,6 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._numerics import computed_once, eps, safe_sqrt
-from .._trig import atan2, sincos
 
 __all__ = [
     "adjoint",
@@ -125,7 +124,7 @@ def _exp_coefficients(theta_sq: Array) -> tuple[Array, Array, Array]:
     # Double-where: the exact formulas see a safe angle where t is small.
     t_sq_safe = jnp.where(small, 1.0, theta_sq)
     t = jnp.sqrt(t_sq_safe)
-    s, c = sincos(t)
+    s, c = jnp.sin(t), jnp.cos(t)  # XLA's: _trig.sincos measured slower here (see so3_log)
     a_exact = s / t
     b_exact = (1.0 - c) / t_sq_safe
     c_exact = (t - s) / (t_sq_safe * t)
@@ -276,7 +275,9 @@ def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
     s2 = safe_sqrt(anti[0] * anti[0] + anti[1] * anti[1] + anti[2] * anti[2])  # 2 sin t
     cos_t = jnp.clip(0.5 * (rot[0][0] + rot[1][1] + rot[2][2] - 1.0), -1.0, 1.0)
     sin_t = 0.5 * s2
-    theta = atan2(sin_t, cos_t)
+    # XLA's atan2 here: jaxkin._trig.atan2 made ik_newton 1.3x slower (its theta feeds every
+    # output loop, and XLA duplicates the cheap polynomial into each; measured at 1e5).
+    theta = jnp.arctan2(sin_t, cos_t)
     dtype = theta.dtype
 
     # Branch 1 (t <= pi/2): omega = t / (2 sin t) * anti, Taylor series near t = 0.
