@@ -348,10 +348,7 @@ def _chain_terms(robot: Delta, theta: Array, cos_sin: tuple[Array, Array] | None
     """
     r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
     ux, uy = _radial(theta.dtype)
-    if cos_sin is None:  # stored once: every elbow term below reads them
-        s, c = computed_once(jnp.stack(sincos(theta)))
-    else:
-        c, s = cos_sin
+    c, s = (jnp.cos(theta), jnp.sin(theta)) if cos_sin is None else cos_sin
     zeros = jnp.zeros_like(c)
     radial = jnp.stack([ux + zeros, uy + zeros, zeros], axis=-1)  # u_i
     up = jnp.stack([zeros, zeros, zeros + 1.0], axis=-1)  # e_z
@@ -456,15 +453,23 @@ def _centres(robot: Delta, theta: Array) -> Array:
     return elbow - offset
 
 
-def _centre_components(robot: Delta, theta: Array) -> tuple[tuple[Array, ...], ...]:
+def _centre_components(
+    robot: Delta, theta: Array, polynomial_trig: bool = False
+) -> tuple[tuple[Array, ...], ...]:
     """The sphere centres as components ``C[i][k]`` (chain i, coordinate k), batch-shaped.
 
     Same values as ``_centres``, written elementwise for the fused Newton loop.
+    ``polynomial_trig``: ``jaxkin._trig.sincos`` instead of XLA's cos/sin; measured per caller:
+    the closed-form FK 1.4x faster with it (1e6, float64), the chunked Newton FK 5 % slower.
     """
     r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
     angles = [theta[..., i] for i in range(3)]
-    sin_cos = [sincos(t) for t in angles]
-    cos_sin = computed_once(jnp.stack([c for _, c in sin_cos] + [s for s, _ in sin_cos]))
+    if polynomial_trig:
+        sin_cos = [sincos(t) for t in angles]
+        cos_sin = [c for _, c in sin_cos] + [s for s, _ in sin_cos]
+    else:
+        cos_sin = [jnp.cos(t) for t in angles] + [jnp.sin(t) for t in angles]
+    cos_sin = computed_once(jnp.stack(cos_sin))
     out = []
     for i in range(3):
         radial = r_base - r_platform + l_arm * cos_sin[i]
@@ -537,7 +542,7 @@ def _sphere_intersection(robot: Delta, theta: Array):
     """
     # The barrier materialises the centres once: otherwise XLA recomputes their sin/cos in
     # every output's fusion (lower, upper, status), measured 3-4x slower.
-    (c1, c2, c3) = jax.lax.optimization_barrier(_centre_components(robot, theta))
+    (c1, c2, c3) = jax.lax.optimization_barrier(_centre_components(robot, theta, True))
     l_rod = jnp.asarray(robot.l_rod, theta.dtype)
     a = [c2[k] - c1[k] for k in range(3)]
     b = [c3[k] - c1[k] for k in range(3)]
