@@ -32,9 +32,9 @@ Tasks and solvers:
   pytorch_kinematics ``PseudoInverseIK`` (one retry = the seed), PyRoki (jaxls
   Levenberg-Marquardt, ``jit(vmap)``), jaxkin ``serial.ik`` (all 8 branches; success = at least
   one valid branch and every valid branch within tolerance; max error over valid branches) and
-  ``serial.ik_newton`` (pseudo-inverse Newton, tolerances 1e-10, ``max_iter`` 20, its default,
-  and 8: the batch steps until its last element converges, so the few that never do make
-  ``max_iter`` set the cost);
+  ``serial.ik_newton`` (pseudo-inverse Newton with its default 1 rad step limit, tolerances
+  1e-10, ``max_iter`` 20, its default, and 8: the batch steps until its last element
+  converges, so the slowest element sets the cost);
 * PUMA 560 FK (1e4 configurations): pytorch_kinematics, roboticstoolbox (``ETS.fkine`` of the
   batch), jaxkin ``serial.fk_dh`` and ``serial.fk``.
 """
