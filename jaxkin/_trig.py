@@ -37,7 +37,7 @@ rad is only known to 1.2e-7); the values stay within [-1, 1] for every finite ``
     atan(u) = atan(c) + atan(t):  u <= 7/16: c = 0,      t = m / M
                                   u <= 11/16: c = 1/2,   t = (2m - M) / (2M + m)
                                   else:       c = 1,     t = (m - M) / (m + M)
-    (one division; |t| < 7/16, where fdlibm's degree-21 odd polynomial is accurate)
+    (one division; |t| < 7/16, where fdlibm's odd polynomial of degree 23 is accurate)
     then pi/2 - a if |y| > |x|, pi - a if x < 0 (sign bit: x = -0 counts), sign of y.
 
 Special values follow C's ``atan2`` (``atan2(+-0, -0) = +-pi``, ``atan2(inf, inf) = pi/4``,
@@ -74,8 +74,8 @@ _COS = (
 _TWO_OVER_PI = 6.36619772367581382433e-01
 # pi/2 = part_1 + ... + part_k + tail: every part but the tail has few enough significant
 # bits (27 in float64, 9 in float32) that n * part is exact for every |n| < 2^26 (float64)
-# or 2^15 (float32); the subtractions are then exact (two-sums), only the tail rounds. Computed from
-# 100 digits of pi (see tests/test_trig.py).
+# or 2^15 (float32); the subtractions are then exact (two-sums), only the tail rounds.
+# Computed from 100 digits of pi (tests/test_trig.py checks the split).
 _PIO2_PARTS = {
     np.dtype(np.float64): (
         1.570796325802803,

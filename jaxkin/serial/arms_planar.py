@@ -36,7 +36,6 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from .._trig import sincos
 from . import _arms_common as common
 from .dh import DHTable
 
@@ -105,9 +104,8 @@ class Planar3R(common.Arm):
     def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
         l1, l2, l3 = self.lengths(target.dtype)
         phi = target[..., 2:3]
-        sin_phi, cos_phi = sincos(phi)
-        wx = target[..., 0:1] - l3 * cos_phi
-        wy = target[..., 1:2] - l3 * sin_phi
+        wx = target[..., 0:1] - l3 * jnp.cos(phi)
+        wy = target[..., 1:2] - l3 * jnp.sin(phi)
         sol = common.two_link(wx, wy, l1, l2, jnp.asarray(_ELBOWS, target.dtype))
         q3 = common.wrap_angle(phi - sol.q1 - sol.q2)
         q = jnp.stack([sol.q1, sol.q2, q3], axis=-1)
