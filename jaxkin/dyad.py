@@ -49,6 +49,7 @@ boundary get a singular/unreachable status in float32 and OK in float64.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import NamedTuple
 
 import jax
@@ -308,6 +309,37 @@ def _position_impl(a: Array, b: Array, l_ac: Array, l_bc: Array, mode: int) -> D
 _position_jit = jax.jit(_position_impl, static_argnames=("mode",))
 
 
+# The autodiff path runs as two independent halves of the batch above this size: measured
+# 1.25x faster at batch 1e6 (float64 23 -> 28-29 M cases/s, float32 60 -> 71-75 M/s, 2-core
+# CPU); the analytic path measured no gain (so it runs whole), and 4 or 8 parts no more than 2.
+_HALVES_MIN_SIZE = 1 << 17
+
+
+def _in_two_halves(fn, tree, batch: tuple[int, ...]):
+    """``fn(tree)`` computed on the two halves of the flattened batch, then joined.
+
+    ``tree``'s leaves have shape ``(*batch, ...)`` or are scalars (passed to both halves);
+    ``fn`` is elementwise in the batch. Two top-level computations, not a loop: XLA runs loop
+    bodies slower (see ``jaxkin._chunks``).
+    """
+    size = math.prod(batch)
+    half = size // 2
+
+    def part(x, lo, hi):
+        if jnp.ndim(x) == 0:
+            return x
+        return x.reshape((size, *x.shape[len(batch) :]))[lo:hi]
+
+    first = fn(*jax.tree.map(lambda x: part(x, 0, half), tree))
+    second = fn(*jax.tree.map(lambda x: part(x, half, size), tree))
+
+    def join(x, y):
+        joined = jnp.concatenate([x, y], axis=0)
+        return joined.reshape((*batch, *joined.shape[1:]))
+
+    return jax.tree.map(join, first, second)
+
+
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
     a_comps, b_comps, l_ac, l_bc, valid = _sanitized([a.p, a.v, a.a], [b.p, b.v, b.a], l_ac, l_bc)
 
@@ -322,18 +354,24 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
         )
         return DyadResult(c, Jet(pos.phi, phi_dot, phi_ddot), pos.status, pos.margin)
 
-    def position(a_x, a_y, b_x, b_y):
-        pos = _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode)
-        return pos.c_x, pos.c_y, pos.phi, pos.status, pos.margin
+    def autodiff_part(a_comps, b_comps, l_ac, l_bc, valid):
+        def position(a_x, a_y, b_x, b_y):
+            pos = _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode)
+            return pos.c_x, pos.c_y, pos.phi, pos.status, pos.margin
 
-    c_x, c_y, phi, status, margin = lift(position)(
-        *(Jet(*comps[k::2]) for comps in (a_comps, b_comps) for k in (0, 1))
-    )
-    ok = status == Status.OK
-    c_x, c_y, phi = (
-        Jet(j.p, jnp.where(ok, j.v, 0.0), jnp.where(ok, j.a, 0.0)) for j in (c_x, c_y, phi)
-    )
-    return DyadResult(Jet.stack([c_x, c_y]), phi, status, margin.p)
+        c_x, c_y, phi, status, margin = lift(position)(
+            *(Jet(*comps[k::2]) for comps in (a_comps, b_comps) for k in (0, 1))
+        )
+        ok = status == Status.OK
+        c_x, c_y, phi = (
+            Jet(j.p, jnp.where(ok, j.v, 0.0), jnp.where(ok, j.a, 0.0)) for j in (c_x, c_y, phi)
+        )
+        return DyadResult(Jet.stack([c_x, c_y]), phi, status, margin.p)
+
+    parts = (a_comps, b_comps, l_ac, l_bc, valid)
+    if valid.size < _HALVES_MIN_SIZE:
+        return autodiff_part(*parts)
+    return _in_two_halves(autodiff_part, parts, valid.shape)
 
 
 _solve_jit = jax.jit(_solve_impl, static_argnames=("mode", "method"))

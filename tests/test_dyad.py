@@ -234,6 +234,37 @@ def test_position_equals_the_position_part_of_solve(mode):
         dyad.position(a, b, 1.0, 1.0, mode=0)
 
 
+@pytest.mark.parametrize("shape", [(dyad._HALVES_MIN_SIZE + 1,), (3, 50_001)])
+def test_autodiff_in_two_halves_equals_the_whole_batch(monkeypatch, shape):
+    """Above _HALVES_MIN_SIZE the autodiff path runs on two halves of the flattened batch
+    (odd sizes: unequal halves); it must equal the one-piece computation and the analytic
+    path, bad elements included."""
+    rng = np.random.default_rng(17)
+    a = Jet.of(*(rng.normal(size=(*shape, 2)) * 0.2 for _ in range(3)))
+    b_p = rng.normal(size=(*shape, 2)) * 0.2 + [1.6, 0.0]
+    b_p[(0,) * len(shape)] = np.nan  # one invalid element, in the first half
+    b_p[tuple(s - 1 for s in shape)] = [9.0, 0.0]  # one unreachable, in the second
+    b = Jet.of(b_p, *rng.normal(size=(2, *shape, 2)))
+    l_ac = rng.uniform(0.8, 1.4, shape)
+    args = (a, b, l_ac, 0.9, -1, "autodiff")
+    halves = dyad._solve_jit(*args)
+    monkeypatch.setattr(dyad, "_HALVES_MIN_SIZE", 10**12)
+    whole = jax.jit(dyad._solve_impl, static_argnames=("mode", "method"))(*args)
+    for x, y in zip(jax.tree.leaves(halves), jax.tree.leaves(whole), strict=True):
+        assert x.shape == y.shape
+        np.testing.assert_allclose(x, y, rtol=1e-14, atol=1e-14)
+    analytic = dyad.solve(a, b, l_ac, 0.9, -1, "analytic")
+    np.testing.assert_array_equal(halves.status, analytic.status)
+    assert halves.status[(0,) * len(shape)] == Status.INVALID_INPUT
+    assert halves.status[tuple(s - 1 for s in shape)] == Status.UNREACHABLE
+    # As in test_analytic_equals_autodiff: rates compared where well conditioned.
+    ok = (np.asarray(analytic.status) == Status.OK) & (np.asarray(analytic.margin) >= 1e-3)
+    for x, y in ((halves.c, analytic.c), (halves.phi, analytic.phi)):
+        _close(np.asarray(x.p)[ok], np.asarray(y.p)[ok], 1e-14)  # differently fused: 1 ulp
+        _close(np.asarray(x.v)[ok], np.asarray(y.v)[ok], 1e-10)
+        _close(np.asarray(x.a)[ok], np.asarray(y.a)[ok], 1e-10)
+
+
 def test_a_bad_element_does_not_change_its_neighbours():
     rng = np.random.default_rng(5)
     a = Jet.of(*(rng.normal(size=(6, 2)) * 0.1 for _ in range(3)))
