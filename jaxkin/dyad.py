@@ -49,7 +49,6 @@ boundary get a singular/unreachable status in float32 and OK in float64.
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import NamedTuple
 
 import jax
@@ -58,7 +57,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate
+from . import _chunks, _validate
 from ._numerics import all_finite, computed_once, rsqrt, safe_sqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
@@ -315,31 +314,6 @@ _position_jit = jax.jit(_position_impl, static_argnames=("mode",))
 _HALVES_MIN_SIZE = 1 << 17
 
 
-def _in_two_halves(fn, tree, batch: tuple[int, ...]):
-    """``fn(tree)`` computed on the two halves of the flattened batch, then joined.
-
-    ``tree``'s leaves have shape ``(*batch, ...)`` or are scalars (passed to both halves);
-    ``fn`` is elementwise in the batch. Two top-level computations, not a loop: XLA runs loop
-    bodies slower (see ``jaxkin._chunks``).
-    """
-    size = math.prod(batch)
-    half = size // 2
-
-    def part(x, lo, hi):
-        if jnp.ndim(x) == 0:
-            return x
-        return x.reshape((size, *x.shape[len(batch) :]))[lo:hi]
-
-    first = fn(*jax.tree.map(lambda x: part(x, 0, half), tree))
-    second = fn(*jax.tree.map(lambda x: part(x, half, size), tree))
-
-    def join(x, y):
-        joined = jnp.concatenate([x, y], axis=0)
-        return joined.reshape((*batch, *joined.shape[1:]))
-
-    return jax.tree.map(join, first, second)
-
-
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
     a_comps, b_comps, l_ac, l_bc, valid = _sanitized([a.p, a.v, a.a], [b.p, b.v, b.a], l_ac, l_bc)
 
@@ -371,16 +345,20 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     parts = (a_comps, b_comps, l_ac, l_bc, valid)
     if valid.size < _HALVES_MIN_SIZE:
         return autodiff_part(*parts)
-    return _in_two_halves(autodiff_part, parts, valid.shape)
+    return _chunks.in_two_halves(autodiff_part, parts, valid.shape)
 
 
 _solve_jit = jax.jit(_solve_impl, static_argnames=("mode", "method"))
 
 
-def _checked_lengths(l_ac: ArrayLike, l_bc: ArrayLike):
+def _checked_lengths(a_batch: tuple[int, ...], b_batch: tuple[int, ...], l_ac, l_bc):
+    """The lengths, checked, after checking that every batch shape broadcasts."""
     # Lengths may be per-element batch data: NaN/inf there becomes INVALID_INPUT, not an error.
     l_ac = _validate.positive_length(l_ac, "l_ac", allow_nonfinite=True)
     l_bc = _validate.positive_length(l_bc, "l_bc", allow_nonfinite=True)
+    _validate.batch_shape(
+        {"a": a_batch, "b": b_batch, "l_ac": np.shape(l_ac), "l_bc": np.shape(l_bc)}
+    )
     return l_ac, l_bc
 
 
@@ -409,10 +387,7 @@ def position(
     mode = _validate.choice(mode, "mode", MODES)
     a = _validate.point(a, "a", coords=2)
     b = _validate.point(b, "b", coords=2)
-    l_ac, l_bc = _checked_lengths(l_ac, l_bc)
-    _validate.batch_shape(
-        {"a": a.shape[:-1], "b": b.shape[:-1], "l_ac": np.shape(l_ac), "l_bc": np.shape(l_bc)}
-    )
+    l_ac, l_bc = _checked_lengths(a.shape[:-1], b.shape[:-1], l_ac, l_bc)
     return _position_jit(a, b, l_ac, l_bc, mode)
 
 
@@ -449,8 +424,5 @@ def solve(
     method = _validate.choice(method, "method", METHODS)
     a = _validate.as_jet(a, "a", coords=2)
     b = _validate.as_jet(b, "b", coords=2)
-    l_ac, l_bc = _checked_lengths(l_ac, l_bc)
-    _validate.batch_shape(
-        {"a": a.shape[:-1], "b": b.shape[:-1], "l_ac": np.shape(l_ac), "l_bc": np.shape(l_bc)}
-    )
+    l_ac, l_bc = _checked_lengths(a.shape[:-1], b.shape[:-1], l_ac, l_bc)
     return _solve_jit(a, b, l_ac, l_bc, mode, method)

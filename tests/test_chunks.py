@@ -39,3 +39,24 @@ def test_map_chunks_equals_whole_batch(batch):
     for key in whole:
         assert chunked[key].shape == whole[key].shape
         np.testing.assert_array_equal(chunked[key], whole[key])
+
+
+@pytest.mark.parametrize("batch", [(10,), (7,), (3, 5)])
+def test_in_two_halves_equals_whole_batch(batch):
+    """Even, odd (unequal halves) and 2-D batches; a scalar argument reaches both halves."""
+    rng = np.random.default_rng(1)
+    x = jnp.asarray(rng.normal(size=(*batch, 2)))
+    y = jnp.asarray(rng.normal(size=batch))
+    calls = []
+
+    def fn(x, y, scale):
+        calls.append(y.shape)
+        return {"sum": x.sum(-1) * scale + y, "x": x * scale}
+
+    halves = _chunks.in_two_halves(fn, (x, y, jnp.asarray(2.0)), batch)
+    size = int(np.prod(batch))
+    assert calls == [(size // 2,), (size - size // 2,)]
+    whole = fn(x, y, 2.0)
+    for key in whole:
+        assert halves[key].shape == whole[key].shape
+        np.testing.assert_array_equal(halves[key], whole[key])
