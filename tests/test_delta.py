@@ -199,6 +199,10 @@ def test_fk_of_ik_round_trip_and_closed_form():
     fk = delta.fk(ROBOT, theta)
     assert np.all(np.asarray(fk.status) == Status.OK)
     np.testing.assert_allclose(fk.p.p, p, atol=1e-10)
+    # plain angles are taken at rest: zero rates of the position's shape and dtype
+    for rate in (fk.p.v, fk.p.a):
+        assert rate.shape == fk.p.p.shape and rate.dtype == fk.p.p.dtype
+        assert not np.any(np.asarray(rate))
     closed = delta.fk_closed_form(ROBOT, theta)
     assert np.all(np.asarray(closed.status) == Status.OK)
     np.testing.assert_allclose(closed.p, p, atol=1e-10)

@@ -97,6 +97,49 @@ def test_sincos_derivatives_vmap_and_other_dtypes():
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_sin_cos_alone_within_one_epsilon_absolute(dtype):
+    # Absolute accuracy (the contract): |error| <= eps(dtype) over the reduction range,
+    # including the multiples of pi/4 where the reduction cancels.
+    x = _angles(dtype)
+    exact = x.astype(np.float64)
+    eps = np.finfo(dtype).eps
+    sin_x, cos_x = jax.jit(_trig.sin_alone)(x), jax.jit(_trig.cos_alone)(x)
+    assert sin_x.dtype == dtype and cos_x.dtype == dtype
+    assert np.abs(np.asarray(sin_x, np.float64) - np.sin(exact)).max() <= eps
+    assert np.abs(np.asarray(cos_x, np.float64) - np.cos(exact)).max() <= eps
+    # Near zero sin keeps its relative accuracy (r = x exactly there).
+    tiny = np.geomspace(1e-30, 1e-3, 200).astype(dtype)
+    assert _ulps(_trig.sin_alone(tiny), np.sin(tiny.astype(np.float64)), dtype).max() <= 1.0
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_sin_cos_alone_beyond_reduction_limit_and_non_finite(dtype):
+    limit = _trig.REDUCTION_LIMIT[np.dtype(dtype)]
+    big = np.finfo(dtype).max
+    x = (RNG.uniform(-1.0, 1.0, 20_000) * 10.0 * limit).astype(dtype)
+    bound = np.spacing(np.abs(x)).astype(np.float64)  # the angle's own resolution
+    for ours, reference in ((_trig.sin_alone, np.sin), (_trig.cos_alone, np.cos)):
+        error = np.abs(np.asarray(ours(x), np.float64) - reference(x.astype(np.float64)))
+        assert np.all(error <= bound)
+        values = np.asarray(ours(np.array([big, -big, big / 3, np.nan, np.inf, -np.inf], dtype)))
+        assert np.all(np.abs(values[:3]) <= 1.0) and np.isnan(values[3:]).all()
+
+
+def test_sin_cos_alone_derivatives_and_other_dtypes():
+    x = jnp.asarray(RNG.uniform(-5.0, 5.0, 64))
+    s, s_dot = jax.jvp(_trig.sin_alone, (x,), (jnp.ones_like(x),))
+    c, c_dot = jax.jvp(_trig.cos_alone, (x,), (jnp.ones_like(x),))
+    np.testing.assert_array_equal(s_dot, c)
+    np.testing.assert_array_equal(c_dot, -s)
+    second = jax.vmap(jax.grad(jax.grad(_trig.cos_alone)))(x)
+    np.testing.assert_allclose(second, -np.cos(np.asarray(x)), rtol=0, atol=3e-16)
+    half = _trig.cos_alone(jnp.asarray([0.5, 1.0], jnp.float16))
+    assert half.dtype == jnp.float16
+    np.testing.assert_allclose(np.asarray(half, np.float64), np.cos([0.5, 1.0]), atol=1e-3)
+    np.testing.assert_allclose(_trig.sin_alone(jnp.arange(3)), np.sin(np.arange(3)), atol=3e-16)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
 def test_atan2_within_two_ulp(dtype):
     y = np.concatenate(
         [RNG.normal(size=200_000), 1e-3 * RNG.uniform(-1, 1, 50_000), RNG.uniform(-1, 1, 9)]
