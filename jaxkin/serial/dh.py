@@ -47,7 +47,7 @@ from jax.typing import ArrayLike
 
 from .. import _validate
 from .._numerics import computed_once
-from .._trig import sincos
+from .._trig import cos_alone, sin_alone
 from . import lie
 
 __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]
@@ -203,7 +203,11 @@ def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
     # fusion recomputes them in every output loop (measured 3x slower for a 6R arm).
     # Joint-major (n, ...) layout: each joint's sin/cos is then a contiguous row for the
     # loops that read it (strided (..., n) columns measured 1.7x slower for the PUMA at 1e4).
-    sin_cos = computed_once(jnp.stack(sincos(jnp.moveaxis(theta, -1, 0))))  # (2, n, ...)
+    # Each stored row is its own loop, so sin_alone/cos_alone (one polynomial each) rather
+    # than sincos (both kernels per row): 1.3x (PUMA) to 1.7x (anthropomorphic) faster at
+    # batch 1e5, float64; entries of rotations need absolute accuracy only.
+    joint_major = jnp.moveaxis(theta, -1, 0)
+    sin_cos = computed_once(jnp.stack([sin_alone(joint_major), cos_alone(joint_major)]))
     # Unbatched per-joint constants, materialised too (else fused and recomputed per element).
     ca, sa, a = jax.lax.optimization_barrier((jnp.cos(table.alpha), jnp.sin(table.alpha), table.a))
     batch, dtype = q.shape[:-1], q.dtype
