@@ -97,7 +97,7 @@ class RobotKind:
     default_mode: str
     build: Callable[[dict[str, Any]], Any]
     ik: Callable[..., tuple[Any, Any, Any]]  # (robot, Jet, mode) -> (q Jet, status, margin)
-    fk: Callable[..., tuple[Any, Any]]  # (robot, q Jet, tol) -> (p Jet, status)
+    fk: Callable[..., tuple[Any, Any]]  # (robot, q Jet) -> (p Jet, status)
     workspace: Callable[..., Any]  # (robot, mode, bounds, resolution, chunk, dtype, progress)
     extent: Callable[[Any], tuple[Bounds, float]]  # default box and resolution
 
@@ -117,13 +117,12 @@ def _scara_ik(robot: Any, d: Any, mode: int) -> tuple[Any, Any, Any]:
     return res.q, res.status, res.margin
 
 
-def _scara_fk(robot: Any, q: Any, tol: float) -> tuple[Any, Any]:
+def _scara_fk(robot: Any, q: Any) -> tuple[Any, Any]:
     import jax.numpy as jnp
 
     from . import scara
     from .status import Status
 
-    del tol
     p = scara.fk(robot, q)
     finite = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
     return p, jnp.where(finite, Status.OK, Status.INVALID_INPUT)
@@ -182,10 +181,10 @@ def _delta_ik(robot: Any, p: Any, branch: str) -> tuple[Any, Any, Any]:
     return res.theta, res.status, res.margin
 
 
-def _delta_fk(robot: Any, theta: Any, tol: float) -> tuple[Any, Any]:
+def _delta_fk(robot: Any, theta: Any) -> tuple[Any, Any]:
     from . import delta
 
-    res = delta.fk(robot, theta, tol=tol)
+    res = delta.fk(robot, theta)  # its default tolerance follows the dtype
     return res.p, res.status
 
 
@@ -235,8 +234,7 @@ def _arm_ik(robot: Any, p: Any, branch: str) -> tuple[Any, Any, Any]:
     return q, status, None
 
 
-def _arm_fk(robot: Any, q: Any, tol: float) -> tuple[Any, Any]:
-    del tol
+def _arm_fk(robot: Any, q: Any) -> tuple[Any, Any]:
     return _arm_fk_jit(robot, q)
 
 
@@ -515,13 +513,11 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     _warn_invalid(traj, valid)
     from .jet import Jet
 
-    tol = 1e-12 if dtype == np.float64 else 1e-6
-
     def solve(p, v, a):
         jet = Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
         if inverse:
             return kind.ik(robot, jet, mode)
-        return kind.fk(robot, jet, tol)
+        return kind.fk(robot, jet)
 
     desc = f"{kind.name} {'ik' if inverse else 'fk'}"
     outputs = solve_chunked(solve, (p, v, a), args.chunk_size, desc, args.quiet)

@@ -120,10 +120,10 @@ and gradients stay finite for the rest of the batch.
 
 Float32 (measured on 2,000 random workspace points of the paper's robot, see
 ``tests/test_delta.py::test_float32``): IK angles within 6e-7 rad of float64; closed-form FK
-within 1e-5 cm; Newton FK needs ``tol`` of at least ~1e-6 (the default 1e-12 is below float32
-resolution, so most elements report ``NOT_CONVERGED`` after ``max_iter``): with ``tol=1e-6`` all
-converge in <= 4 iterations to within 6e-5 cm (about 1e-6 of the robot's reach). The singular
-bands widen with ``sqrt(eps)`` (measure below ~0.02 in float32).
+within 1e-5 cm; Newton FK needs ``tol`` of at least ~1e-6 (1e-12 is below float32 resolution,
+so most elements would report ``NOT_CONVERGED`` after ``max_iter``), which is its float32
+default: all converge in <= 4 iterations to within 6e-5 cm (about 1e-6 of the robot's reach).
+The singular bands widen with ``sqrt(eps)`` (measure below ~0.02 in float32).
 """
 
 from __future__ import annotations
@@ -867,7 +867,7 @@ def fk(
     robot: Delta,
     theta: Jet | ArrayLike,
     guess: ArrayLike | None = None,
-    tol: float = 1e-12,
+    tol: float | None = None,
     max_iter: int = 30,
     method: str = "analytic",
 ) -> FKResult:
@@ -879,7 +879,8 @@ def fk(
         guess: initial platform positions, broadcastable to ``(..., 3)`` (warm start, e.g. the
             previous trajectory sample); ``None`` for the default guess below the elbows
             (module docstring), which converges to the lower (hanging) assembly.
-        tol: converged where ``max_i |r_i| <= tol * (l_arm + l_rod)``.
+        tol: converged where ``max_i |r_i| <= tol * (l_arm + l_rod)``; ``None`` for 1e-12 in
+            float64 and 1e-6 in float32 (~8 eps: 1e-12 is below float32 resolution).
         max_iter: maximum number of Newton updates.
         method: ``"analytic"`` rates (constraint Jacobians) or ``"autodiff"`` (``jaxkin.lift``
             through ``lax.custom_root``).
@@ -898,11 +899,13 @@ def fk(
         theta = _validate.as_jet(theta, "theta", coords=3)
     else:
         theta = Jet(_as_coords(theta, "theta"), None, None)
-    if not (isinstance(tol, int | float) and math.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a positive finite float, got {tol!r}")
+    if tol is not None and not (isinstance(tol, int | float) and math.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol must be a positive finite float or None, got {tol!r}")
     if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
         raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
     dtype = _dtype(theta.p)
+    if tol is None:
+        tol = 1e-12 if dtype == jnp.float64 else 1e-6
     if guess is not None:
         guess = jnp.asarray(guess, dtype)
         if guess.ndim == 0 or guess.shape[-1] != 3:
