@@ -709,7 +709,7 @@ def _fk_impl(
     ).astype(STATUS_DTYPE)
     ok = _rates_ok(status)
     if not rates:
-        p_jet = Jet(sol.x, None, None)  # at rest: fk() adds the zero rates
+        p_jet = Jet(sol.x, None, None)  # at rest: zero rates added by _fk_chunked or fk
     elif method == "analytic":
         p_jet = _fk_rates_analytic(robot, theta, sol.x, ok)
     else:
@@ -773,8 +773,16 @@ def _singularity_impl(robot: Delta, p: Array, theta: Array) -> SingularityResult
 
 
 def _fk_chunked(
-    robot: Delta, theta: Jet, guess, tol: float, max_iter: int, method: str, rates: bool
+    robot: Delta,
+    theta: Jet,
+    guess,
+    tol: float,
+    max_iter: int,
+    method: str,
+    rates: bool,
+    zero_rates: bool,
 ) -> FKResult:
+    """The FK kernel; ``zero_rates``: at rest, write the zero rates here (else ``fk`` adds them)."""
     # The whole kernel runs on cache-sized chunks (jaxkin._chunks): 1.6-1.8x at batch 1e6.
     batch = theta.p.shape[:-1]
     if guess is not None:
@@ -783,7 +791,17 @@ def _fk_chunked(
     def solve_chunk(chunk):
         return _fk_impl(robot, *chunk, tol, max_iter, method, rates)
 
-    return _chunks.map_chunks(solve_chunk, (theta, guess), batch)
+    result = _chunks.map_chunks(solve_chunk, (theta, guess), batch)
+    if rates or not zero_rates:
+        return result
+    return dataclasses.replace(result, p=Jet.constant(result.p.p))
+
+
+# At rest (plain angles), ``fk`` makes the zero rates itself above this batch size, as one
+# array shared by v and a: a kernel output cannot alias another, and writing both cost ~8 % of
+# the FK at batch 1e6. Below it the kernel writes them: the extra eager call cost more
+# (batch 1: 80 us per call in the kernel, 150 us outside; measured float64).
+_SHARED_ZEROS_MIN = 1 << 16
 
 
 def _frozen(robot: Delta) -> Delta | None:
@@ -817,7 +835,7 @@ def _jit(fn: Callable[..., Any], static_argnames: tuple[str, ...] = ()) -> Calla
 
 
 _ik_jit = _jit(_ik_impl, ("branch", "method", "rates"))
-_fk_jit = _jit(_fk_chunked, ("tol", "max_iter", "method", "rates"))
+_fk_jit = _jit(_fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"))
 _fk_closed_form_jit = _jit(_fk_closed_form_impl)
 _branch_jit = _jit(_branch_impl)
 _singularity_jit = _jit(_singularity_impl)
@@ -913,11 +931,10 @@ def fk(
         shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
         theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)), theta)
     theta = jax.tree.map(lambda x: x.astype(dtype), theta)
-    result = _fk_jit(robot, theta, guess, float(tol), max_iter, method, rates)
-    if rates:
+    zeros_here = not rates and math.prod(theta.shape[:-1]) >= _SHARED_ZEROS_MIN
+    result = _fk_jit(robot, theta, guess, float(tol), max_iter, method, rates, not zeros_here)
+    if not zeros_here:
         return result
-    # At rest: the zero rates are made here, outside the kernel, as one array shared by v and
-    # a (a kernel output cannot alias another; writing both cost ~8 % of the FK at 1e6).
     return dataclasses.replace(result, p=Jet.constant(result.p.p))
 
 

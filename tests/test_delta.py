@@ -199,10 +199,16 @@ def test_fk_of_ik_round_trip_and_closed_form():
     fk = delta.fk(ROBOT, theta)
     assert np.all(np.asarray(fk.status) == Status.OK)
     np.testing.assert_allclose(fk.p.p, p, atol=1e-10)
-    # plain angles are taken at rest: zero rates of the position's shape and dtype
-    for rate in (fk.p.v, fk.p.a):
-        assert rate.shape == fk.p.p.shape and rate.dtype == fk.p.p.dtype
-        assert not np.any(np.asarray(rate))
+    # plain angles are taken at rest: zero rates of the position's shape and dtype, written by
+    # the kernel for small batches and by fk itself from delta._SHARED_ZEROS_MIN elements on
+    big = delta.fk(ROBOT, np.repeat(theta[:4], delta._SHARED_ZEROS_MIN // 4, axis=0))
+    np.testing.assert_allclose(
+        np.asarray(big.p.p)[:: delta._SHARED_ZEROS_MIN // 4], fk.p.p[:4], atol=1e-12
+    )
+    for result in (fk, big):
+        for rate in (result.p.v, result.p.a):
+            assert rate.shape == result.p.p.shape and rate.dtype == result.p.p.dtype
+            assert not np.any(np.asarray(rate))
     closed = delta.fk_closed_form(ROBOT, theta)
     assert np.all(np.asarray(closed.status) == Status.OK)
     np.testing.assert_allclose(closed.p, p, atol=1e-10)
