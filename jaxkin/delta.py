@@ -121,8 +121,8 @@ and gradients stay finite for the rest of the batch.
 Float32 (measured on 2,000 random workspace points of the paper's robot, see
 ``tests/test_delta.py::test_float32``): IK angles within 6e-7 rad of float64; closed-form FK
 within 1e-5 cm; Newton FK needs ``tol`` of at least ~1e-6 (1e-12 is below float32 resolution,
-so most elements would report ``NOT_CONVERGED`` after ``max_iter``), which is its float32
-default: all converge in <= 4 iterations to within 6e-5 cm (about 1e-6 of the robot's reach).
+so most elements would report ``NOT_CONVERGED`` after ``max_iter``), and its float32 default is
+8 eps = 9.5e-7: all converge in <= 4 iterations to within 6e-5 cm (about 1e-6 of the reach).
 The singular bands widen with ``sqrt(eps)`` (measure below ~0.02 in float32).
 """
 
@@ -897,8 +897,9 @@ def fk(
         guess: initial platform positions, broadcastable to ``(..., 3)`` (warm start, e.g. the
             previous trajectory sample); ``None`` for the default guess below the elbows
             (module docstring), which converges to the lower (hanging) assembly.
-        tol: converged where ``max_i |r_i| <= tol * (l_arm + l_rod)``; ``None`` for 1e-12 in
-            float64 and 1e-6 in float32 (~8 eps: 1e-12 is below float32 resolution).
+        tol: converged where ``max_i |r_i| <= tol * (l_arm + l_rod)``; ``None`` for
+            ``max(1e-12, 8 eps(dtype))``: 1e-12 in float64, 9.5e-7 in float32 (1e-12 is below
+            float32 resolution).
         max_iter: maximum number of Newton updates.
         method: ``"analytic"`` rates (constraint Jacobians) or ``"autodiff"`` (``jaxkin.lift``
             through ``lax.custom_root``).
@@ -923,7 +924,7 @@ def fk(
         raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
     dtype = _dtype(theta.p)
     if tol is None:
-        tol = 1e-12 if dtype == jnp.float64 else 1e-6
+        tol = max(1e-12, 8.0 * float(jnp.finfo(dtype).eps))
     if guess is not None:
         guess = jnp.asarray(guess, dtype)
         if guess.ndim == 0 or guess.shape[-1] != 3:
