@@ -269,7 +269,10 @@ def _ik_impl(robot: Scara, d: Jet, mode: int, method: str) -> ScaraResult:
     lengths = (robot.l_oa, robot.l_ab, robot.l_bc)
     batch = jnp.broadcast_shapes(d.shape[:-1], *(jnp.shape(x) for x in lengths))
     d = d.map(lambda x: jnp.broadcast_to(x, (*batch, 3)))
-    l_oa, l_ab, l_bc = _broadcast_geometry(robot, batch)
+    # Scalar lengths stay scalars (terms built from them alone are computed once, see dyad).
+    if not all(jnp.ndim(x) == 0 for x in lengths):
+        lengths = _broadcast_geometry(robot, batch)
+    l_oa, l_ab, l_bc = lengths
 
     # Double-where, step 1: replace non-finite elements (including z, which the dyad never
     # sees) by a harmless reachable target before any arithmetic.
@@ -285,7 +288,10 @@ def _ik_impl(robot: Scara, d: Jet, mode: int, method: str) -> ScaraResult:
         jnp.where(vc, d.v, 0.0),
         jnp.where(vc, d.a, 0.0),
     )
-    l_oa, l_ab, l_bc = (jnp.where(valid, x, 1.0) for x in (l_oa, l_ab, l_bc))
+    if jnp.ndim(l_ab) == 0:
+        l_oa, l_ab, l_bc = (jnp.where(jnp.isfinite(x), x, 1.0) for x in (l_oa, l_ab, l_bc))
+    else:
+        l_oa, l_ab, l_bc = (jnp.where(valid, x, 1.0) for x in (l_oa, l_ab, l_bc))
     shoulder = jnp.zeros((*batch, 2), d.dtype)  # A projected on its plane: the origin, at rest
 
     if method == "analytic":
