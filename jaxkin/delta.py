@@ -340,25 +340,6 @@ class SingularityResult(SolverResult):
 # ------------------------------------------------------------------------------ position level
 
 
-def _chain_terms(robot: Delta, theta: Array, cos_sin: tuple[Array, Array] | None = None):
-    """Elbows and their derivatives: ``E, E', E''`` and the platform offsets, ``(..., 3, 3)``.
-
-    The second-to-last axis is the chain, the last the coordinates. ``cos_sin`` may pass
-    precomputed ``(cos theta, sin theta)`` (saves transcendental calls).
-    """
-    r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
-    ux, uy = _radial(theta.dtype)
-    c, s = (jnp.cos(theta), jnp.sin(theta)) if cos_sin is None else cos_sin
-    zeros = jnp.zeros_like(c)
-    radial = jnp.stack([ux + zeros, uy + zeros, zeros], axis=-1)  # u_i
-    up = jnp.stack([zeros, zeros, zeros + 1.0], axis=-1)  # e_z
-    arm = l_arm * (c[..., None] * radial - s[..., None] * up)  # E_i - A_i
-    elbow = r_base * radial + arm
-    d_elbow = -l_arm * (s[..., None] * radial + c[..., None] * up)  # E_i'
-    dd_elbow = -arm  # E_i''
-    return elbow, d_elbow, dd_elbow, r_platform * radial
-
-
 def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
     """Actuator angles, their cosines and sines, and the signed inverse measure, ``(..., 3)``."""
     dtype = p.dtype
@@ -447,32 +428,33 @@ def _reduced_residual(p, planes, rod: tuple[Array, Array]) -> tuple[Array, Array
     return r_1, r_2, r_3
 
 
-def _centres(robot: Delta, theta: Array) -> Array:
-    """Sphere centres ``C_i = E_i - r_platform u_i``: p is at distance l_rod from each."""
-    elbow, _, _, offset = _chain_terms(robot, theta)
-    return elbow - offset
+def _cos_sin(theta: Array) -> tuple[tuple[Array, ...], tuple[Array, ...]]:
+    """``(cos theta_i, sin theta_i)`` of the three actuators as components, computed once.
+
+    Stored once (``computed_once``): XLA would otherwise evaluate them in every loop that reads
+    them. A stored stack computes each row on its own, so the rows use ``cos_alone`` and
+    ``sin_alone`` (one polynomial each, absolute accuracy, which is what a centre needs).
+    Measured at batch 1e6, float64 (best of 21, interleaved): the Newton FK 1.12x faster than
+    with XLA's cos/sin and 1.2x than with ``sincos`` rows; the closed form 1.16x faster than
+    with ``sincos`` rows.
+    """
+    angles = [theta[..., i] for i in range(3)]
+    rows = computed_once(jnp.stack([cos_alone(t) for t in angles] + [sin_alone(t) for t in angles]))
+    return tuple(rows[:3]), tuple(rows[3:])
 
 
-def _centre_components(robot: Delta, theta: Array) -> tuple[tuple[Array, ...], ...]:
-    """The sphere centres as components ``C[i][k]`` (chain i, coordinate k), batch-shaped.
+def _centre_components(robot: Delta, theta: Array, cos_sin=None) -> tuple[tuple[Array, ...], ...]:
+    """The sphere centres ``C_i = E_i - r_platform u_i`` as components ``C[i][k]`` (chain i,
+    coordinate k), batch-shaped: ``p`` lies at distance ``l_rod`` from each.
 
-    Same values as ``_centres``, written elementwise for the fused Newton loop. The six
-    cos/sin are stored once (``computed_once``): XLA would otherwise evaluate them in every
-    loop that reads a centre. A stored stack computes each row on its own, so the rows use
-    ``cos_alone``/``sin_alone`` (one polynomial each, absolute accuracy, which is what a
-    centre needs). Measured at batch 1e6, float64 (best of 21, interleaved): the Newton FK
-    1.12x faster than with XLA's cos/sin and 1.2x than with ``sincos`` rows; the closed form
-    1.16x faster than with ``sincos`` rows.
+    ``cos_sin``: ``_cos_sin(theta)`` when the caller has it already.
     """
     r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
-    angles = [theta[..., i] for i in range(3)]
-    cos_sin = computed_once(
-        jnp.stack([cos_alone(t) for t in angles] + [sin_alone(t) for t in angles])
-    )
+    cos_theta, sin_theta = _cos_sin(theta) if cos_sin is None else cos_sin
     out = []
     for i in range(3):
-        radial = r_base - r_platform + l_arm * cos_sin[i]
-        out.append((radial * _UX[i], radial * _UY[i], -l_arm * cos_sin[3 + i]))
+        radial = r_base - r_platform + l_arm * cos_theta[i]
+        out.append((radial * _UX[i], radial * _UY[i], -l_arm * sin_theta[i]))
     return tuple(out)
 
 
@@ -491,7 +473,9 @@ def _default_guess(robot: Delta, centres: tuple[tuple[Array, ...], ...]) -> Arra
     return jnp.stack([mean[0], mean[1], mean[2] - drop], axis=-1)
 
 
-def _fk_newton(robot: Delta, theta: Array, guess: Array | None, tol: float, max_iter: int):
+def _fk_newton(
+    robot: Delta, theta: Array, guess: Array | None, tol: float, max_iter: int, cos_sin=None
+):
     """Newton on ``_reduced_residual``; every reported field refers to the original ``r``.
 
     The loop stops at ``max|r_reduced| <= tol * scale / 2``, which bounds the original
@@ -500,7 +484,7 @@ def _fk_newton(robot: Delta, theta: Array, guess: Array | None, tol: float, max_
     are then recomputed at the returned ``p`` for ``r`` itself.
     """
     dtype = theta.dtype
-    centres = _centre_components(robot, theta)
+    centres = _centre_components(robot, theta, cos_sin)
     if guess is None:
         guess = jax.lax.stop_gradient(_default_guess(robot, centres))
     scale = jnp.asarray(robot.l_arm, dtype) + jnp.asarray(robot.l_rod, dtype)
@@ -572,39 +556,76 @@ def _cross3(u, v):
 # ---------------------------------------------------------------------------------- rates
 
 
-def _constraint_jacobians(robot: Delta, p: Array, theta: Array, cos_sin=None):
-    """``d_i = D_i - E_i`` (rows of J_p), ``d_i . E_i'`` (diagonal of J_theta), E', E''."""
-    elbow, d_elbow, dd_elbow, offset = _chain_terms(robot, theta, cos_sin)
-    d = p[..., None, :] + offset - elbow
-    jt = jnp.sum(d * d_elbow, -1)
-    return d, jt, d_elbow, dd_elbow
+def _constraint_jacobians(robot: Delta, p, cos_theta, sin_theta):
+    """Per chain ``i``: ``d_i = D_i - E_i`` (row i of ``J_p``), ``d_i . E_i'`` (``J_theta``),
+    ``d_i . E_i''`` and ``E_i'``, all as components (batch-shaped arrays, see ``jaxkin.newton``).
+
+    ``p``: the platform position as three components; ``cos_theta``, ``sin_theta``: three each.
+    With ``R_i = r_base - r_platform + l_arm cos th_i`` (the module docstring's frame)::
+
+        d_i = p - R_i u_i + l_arm sin th_i e_z,
+        E_i' = -l_arm (sin th_i u_i + cos th_i e_z),   E_i'' = -(E_i - A_i),
+        d_i . E_i'  = -l_arm (sin th_i (d_i . u_i) + cos th_i d_iz),
+        d_i . E_i'' = -l_arm (cos th_i (d_i . u_i) - sin th_i d_iz).
+
+    Component form, not stacked ``(..., 3, 3)`` arrays: the stacked rates measured 3-4x the cost
+    of the positions at batch 1e6 (XLA on CPU runs small minor axes as slow strided loops).
+    """
+    r_base, r_platform, l_arm, _, _, _ = _params(robot, p[0].dtype)
+    d, jt, d_dd, d_elbow = [], [], [], []
+    for i in range(3):
+        c, s = cos_theta[i], sin_theta[i]
+        reach = r_base - r_platform + l_arm * c
+        d_i = (p[0] - reach * _UX[i], p[1] - reach * _UY[i], p[2] + l_arm * s)
+        radial = d_i[0] * _UX[i] + d_i[1] * _UY[i]  # d_i . u_i
+        d.append(d_i)
+        jt.append(-l_arm * (s * radial + c * d_i[2]))
+        d_dd.append(-l_arm * (c * radial - s * d_i[2]))
+        d_elbow.append((-l_arm * s * _UX[i], -l_arm * s * _UY[i], -l_arm * c))
+    return d, jt, d_dd, d_elbow
+
+
+def _components(x: Array) -> tuple[Array, Array, Array]:
+    return x[..., 0], x[..., 1], x[..., 2]
+
+
+def _dot3(u, v) -> Array:
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
 def _ik_rates_analytic(robot, p: Jet, theta: Array, cos_sin, ok: Array) -> Jet:
-    d, jt, d_elbow, dd_elbow = _constraint_jacobians(robot, p.p, theta, cos_sin)
-    jt_safe = jnp.where(ok[..., None], jt, 1.0)
-    theta_dot = jnp.sum(d * p.v[..., None, :], -1) / jt_safe  # J_p p_dot = J_theta theta_dot
-    d_dot = p.v[..., None, :] - d_elbow * theta_dot[..., None]
-    rhs = (
-        jnp.sum(d * p.a[..., None, :], -1)
-        + jnp.sum(d_dot * d_dot, -1)
-        - jnp.sum(d * dd_elbow, -1) * theta_dot * theta_dot
+    """``J_theta theta_dot = J_p p_dot`` row by row, and its time derivative for theta_ddot."""
+    d, jt, d_dd, d_elbow = _constraint_jacobians(
+        robot, _components(p.p), _components(cos_sin[0]), _components(cos_sin[1])
     )
-    theta_ddot = rhs / jt_safe
-    okc = ok[..., None]
-    return Jet(theta, jnp.where(okc, theta_dot, 0.0), jnp.where(okc, theta_ddot, 0.0))
+    p_dot, p_ddot = _components(p.v), _components(p.a)
+    theta_dot, theta_ddot = [], []
+    for i in range(3):
+        inv_jt = 1.0 / jnp.where(ok, jt[i], 1.0)
+        rate = _dot3(d[i], p_dot) * inv_jt
+        d_dot = [p_dot[k] - d_elbow[i][k] * rate for k in range(3)]
+        rhs = _dot3(d[i], p_ddot) + _dot3(d_dot, d_dot) - d_dd[i] * rate * rate
+        theta_dot.append(jnp.where(ok, rate, 0.0))
+        theta_ddot.append(jnp.where(ok, rhs * inv_jt, 0.0))
+    return Jet(theta, jnp.stack(theta_dot, -1), jnp.stack(theta_ddot, -1))
 
 
-def _fk_rates_analytic(robot, theta: Jet, p: Array, ok: Array) -> Jet:
-    d, jt, d_elbow, dd_elbow = _constraint_jacobians(robot, p, theta.p)
-    det = newton.det_small(d)
-    det = jnp.where(ok & (det != 0), det, 1.0)
-    p_dot = newton.solve_small(d, jt * theta.v, det)
-    d_dot = p_dot[..., None, :] - d_elbow * theta.v[..., None]
-    rhs = jt * theta.a + jnp.sum(d * dd_elbow, -1) * theta.v * theta.v - jnp.sum(d_dot * d_dot, -1)
-    p_ddot = newton.solve_small(d, rhs, det)
-    okc = ok[..., None]
-    return Jet(p, jnp.where(okc, p_dot, 0.0), jnp.where(okc, p_ddot, 0.0))
+def _fk_rates_analytic(robot, theta: Jet, p: Array, ok: Array, cos_sin) -> Jet:
+    """``J_p p_dot = J_theta theta_dot`` and its time derivative, solved per sample."""
+    d, jt, d_dd, d_elbow = _constraint_jacobians(robot, _components(p), *cos_sin)
+    theta_dot, theta_ddot = _components(theta.v), _components(theta.a)
+    p_dot = newton.solve_components(d, tuple(jt[i] * theta_dot[i] for i in range(3)))
+    # Read by the three p_ddot loops: stored once, not recomputed (a solve each) by each.
+    p_dot = tuple(computed_once(jnp.stack(p_dot)))
+    rhs = []
+    for i in range(3):
+        d_dot = [p_dot[k] - d_elbow[i][k] * theta_dot[i] for k in range(3)]
+        rhs.append(
+            jt[i] * theta_ddot[i] + d_dd[i] * theta_dot[i] * theta_dot[i] - _dot3(d_dot, d_dot)
+        )
+    p_ddot = newton.solve_components(d, tuple(rhs))
+    zero = [jnp.where(ok, v, 0.0) for v in (*p_dot, *p_ddot)]
+    return Jet(p, jnp.stack(zero[:3], -1), jnp.stack(zero[3:], -1))
 
 
 # -------------------------------------------------------------------------------- kernels
@@ -668,19 +689,20 @@ def _fk_impl(
 ) -> FKResult:
     dtype = theta.p.dtype
     theta, valid = _sanitise(theta, jnp.zeros((3,), dtype), rates)
+    cos_sin = _cos_sin(theta.p)  # shared by the guess, the Newton setup and the rates
     if guess is None:
         guess_valid = valid
     else:
         guess = jnp.broadcast_to(guess, theta.p.shape)
         guess_valid = all_finite(guess)
-        fallback = _default_guess(robot, _centre_components(robot, theta.p))
+        fallback = _default_guess(robot, _centre_components(robot, theta.p, cos_sin))
         guess = jax.lax.stop_gradient(jnp.where(guess_valid[..., None], guess, fallback))
 
     def position(th):
         return _fk_newton(robot, th, guess, tol, max_iter)
 
     if method == "analytic" or not rates:
-        sol = position(theta.p)
+        sol = _fk_newton(robot, theta.p, guess, tol, max_iter, cos_sin)
     else:
 
         def position_tuple(th):
@@ -711,7 +733,7 @@ def _fk_impl(
     if not rates:
         p_jet = Jet(sol.x, None, None)  # at rest: zero rates added by _fk_chunked or fk
     elif method == "analytic":
-        p_jet = _fk_rates_analytic(robot, theta, sol.x, ok)
+        p_jet = _fk_rates_analytic(robot, theta, sol.x, ok, cos_sin)
     else:
         okc = ok[..., None]
         x = sol.x
@@ -758,9 +780,10 @@ def _singularity_impl(robot: Delta, p: Array, theta: Array) -> SingularityResult
     p = jnp.where(valid[..., None], p, _home(robot, p.dtype))
     theta = jnp.where(valid[..., None], theta, 0.0)
     _, _, l_arm, l_rod, _, _ = _params(robot, p.dtype)
-    d, jt, _, _ = _constraint_jacobians(robot, p, theta)
-    inverse = jnp.min(jnp.abs(jt), axis=-1) / (l_arm * l_rod)
-    direct = jnp.abs(newton.det_small(d)) / (l_rod * l_rod * l_rod)
+    d, jt, _, _ = _constraint_jacobians(robot, _components(p), *_cos_sin(theta))
+    inverse = jnp.minimum(jnp.minimum(jnp.abs(jt[0]), jnp.abs(jt[1])), jnp.abs(jt[2]))
+    inverse = inverse / (l_arm * l_rod)
+    direct = jnp.abs(_dot3(d[0], _cross3(d[1], d[2]))) / (l_rod * l_rod * l_rod)
     rtol = singular_rtol(p.dtype)
     status = jnp.where(
         ~valid,

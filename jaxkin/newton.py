@@ -220,6 +220,16 @@ def _solve_components(
     return tuple(v * inv_det for v in adj_b), (det_sq, bound_sq)
 
 
+def solve_components(m: list[list[Array]], b: Components) -> Components:
+    """``m^{-1} b`` per sample, on components (``m[i][j]`` and ``b[i]`` batch-shaped arrays).
+
+    Cramer's rule for n <= 3. Where ``m`` is numerically singular (Hadamard ratio <=
+    ``sqrt(eps)``) the determinant is replaced by 1: finite, meaningless values that the
+    caller masks by its status.
+    """
+    return _solve_components(m, b)[0]
+
+
 def _ratio(det_sq: Array, bound_sq: Array) -> Array:
     positive = bound_sq > 0
     return jnp.sqrt(jnp.where(positive, det_sq / jnp.where(positive, bound_sq, 1.0), 0.0))

@@ -410,8 +410,8 @@ def test_chunked_batches_equal_small_batches():
     n = _chunks.CHUNK + 37  # two chunks, the last one padded
     p = random_workspace_points(n, seed=11)
     theta = np.array(delta.ik(ROBOT, p).theta.p)
-    theta[5] = np.nan  # invalid input in the first chunk, an unreachable one in the tail
-    theta[-1] = [3.0, -3.0, 2.5]
+    theta[5] = np.nan  # invalid input in the first chunk
+    theta[-1] = [np.pi, 0.0, 0.0]  # cannot be assembled (fk_closed_form: UNREACHABLE)
     whole = delta.fk(ROBOT, theta)
     half = n // 2
     parts = [delta.fk(ROBOT, theta[:half]), delta.fk(ROBOT, theta[half:])]

@@ -139,6 +139,15 @@ def test_small_solves_against_numpy():
         got = newton.hadamard_ratio_components(rows)
         np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(got, newton.hadamard_ratio(jnp.asarray(m)), atol=1e-15)
+        # the component solve: numpy's solve where regular, finite placeholders where singular
+        b = rng.normal(size=(7, n))
+        x = newton.solve_components(rows, tuple(jnp.asarray(b[:, i]) for i in range(n)))
+        x = np.stack([np.asarray(v) for v in x], axis=-1)
+        regular = slice(2, None)
+        np.testing.assert_allclose(
+            x[regular], np.linalg.solve(m[regular], b[regular][..., None])[..., 0], rtol=1e-10
+        )
+        assert np.all(np.isfinite(x))
 
 
 def test_bad_arguments_raise():
