@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import reference_delta as ref
 
-from jaxkin import delta
+from jaxkin import _threads, delta
 
 SIZES = [1_000, 100_000, 1_000_000]
 ROBOT = delta.Delta.paper()
@@ -76,6 +76,24 @@ def test_fk_cold_jaxkin(measure, n):
         max_iterations=int(iterations.max()),
         mean_iterations=float(iterations.mean()),
     )
+    assert np.abs(np.asarray(result) - p).max() < 1e-9
+
+
+@pytest.mark.parametrize("n", SIZES)
+def test_fk_cold_jaxkin_one_thread(measure, n):
+    """The same kernel, never split across host threads (``jaxkin._threads``): the gain."""
+    p, theta = data(n)
+    theta_dev = jnp.asarray(theta)
+    _threads.set_num_threads(1)
+    try:
+        result = measure(
+            lambda: delta.fk(ROBOT, theta_dev).p.p,
+            n,
+            kernel="delta.fk (default guess, one host thread)",
+            dtype="float64",
+        )
+    finally:
+        _threads.set_num_threads(None)
     assert np.abs(np.asarray(result) - p).max() < 1e-9
 
 

@@ -1,0 +1,161 @@
+"""jaxkin._threads: large batches split across host threads give the whole-batch answer.
+
+The reference is always the same kernel run once on the whole batch (``set_num_threads(1)``);
+parts are made small here (``MIN_PART`` patched) so the tests stay fast.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from helpers import tree_allfinite
+
+import jaxkin
+from jaxkin import Jet, Status, _threads, delta
+
+ROBOT = delta.Delta.paper()
+
+
+@pytest.fixture
+def small_parts(monkeypatch):
+    """Parts of at least 16 elements, two threads (whatever the machine has)."""
+    monkeypatch.setattr(_threads, "MIN_PART", 16)
+    _threads.set_num_threads(2)
+    yield
+    _threads.set_num_threads(None)
+
+
+def _whole(fn, *args, **kwargs):
+    _threads.set_num_threads(1)
+    try:
+        return fn(*args, **kwargs)
+    finally:
+        _threads.set_num_threads(2)
+
+
+@pytest.mark.parametrize(
+    ("size", "threads", "part", "starts"),
+    [
+        (31, 2, 31, [0]),  # fewer than 2 * MIN_PART elements: one part
+        (32, 2, 16, [0, 16]),
+        (33, 2, 17, [0, 16]),  # odd: the last part overlaps its neighbour by one element
+        (100, 3, 34, [0, 34, 66]),
+        (100, 8, 17, [0, 17, 34, 51, 68, 83]),  # at most size // MIN_PART parts
+    ],
+)
+def test_layout(small_parts, size, threads, part, starts):
+    assert _threads._layout(size, threads) == (part, starts)
+    covered = set()
+    for start in starts:
+        covered |= set(range(start, start + part))
+    assert covered == set(range(size)) and starts[-1] + part == size
+
+
+def _toy(x, y, scale, mode):
+    """Elementwise in the batch; ``scale`` is shared, ``mode`` static."""
+    norm = jnp.sqrt(jnp.sum(x * x, axis=-1))
+    return {"norm": norm * scale + mode * y, "scaled": x * y[..., None]}
+
+
+@pytest.mark.parametrize("batch", [(40,), (41,), (7, 9), (3, 4, 5)])
+@pytest.mark.parametrize("threads", [2, 3])
+def test_parts_equal_whole_batch(small_parts, batch, threads):
+    rng = np.random.default_rng(0)
+    x = jnp.asarray(rng.normal(size=(*batch, 3)))
+    y = jnp.asarray(rng.normal(size=batch))
+    kernel = _threads.PartsJit(_toy, ("mode",), ("x", "y"))
+    _threads.set_num_threads(threads)
+    parts = kernel(x, y, jnp.asarray(2.0), 3, batch=batch)
+    whole = kernel.whole(x, y, jnp.asarray(2.0), 3)
+    assert kernel._part._cache_size() == 1  # the parts ran (one shared compilation)
+    for key in whole:
+        assert parts[key].shape == whole[key].shape
+        np.testing.assert_array_equal(parts[key], whole[key])
+
+
+def test_parts_run_on_worker_threads(small_parts):
+    seen = set()
+
+    def kernel(x):
+        jax.debug.callback(lambda: seen.add(threading.current_thread().name))
+        return x * 2.0
+
+    split = _threads.PartsJit(kernel, (), ("x",))
+    np.testing.assert_array_equal(split(jnp.arange(64.0), batch=(64,)), 2.0 * np.arange(64.0))
+    assert len(seen) == 2 and all(name.startswith("jaxkin") for name in seen)
+
+
+def test_whole_batch_when_splitting_does_not_apply(small_parts):
+    calls = []
+
+    def kernel(x, y):
+        calls.append(x.shape)  # runs at trace time: one entry per compilation
+        return x + y
+
+    split = _threads.PartsJit(kernel, (), ("x", "y"))
+    x = jnp.ones((64, 2))
+    out = [
+        split(x, jnp.ones((1, 2)), batch=(64,)),  # y only broadcasts to the batch
+        jax.jit(lambda x: split(x, x, batch=(64,)))(x),  # tracers inside a user's jit
+    ]
+    _threads.set_num_threads(1)
+    out.append(split(x, x, batch=(64,)))  # one thread
+    for result in out:
+        np.testing.assert_array_equal(result, 2.0 * np.ones((64, 2)))
+    assert calls and all(shape == (64, 2) for shape in calls)
+    assert split._part._cache_size() == 0
+
+
+def test_errors_reach_the_caller(small_parts):
+    def kernel(x):
+        raise ValueError("bad part")
+
+    with pytest.raises(ValueError, match="bad part"):
+        _threads.PartsJit(kernel, (), ("x",))(jnp.ones(64), batch=(64,))
+
+
+def test_thread_count_setting(monkeypatch):
+    assert jaxkin.set_num_threads is _threads.set_num_threads  # the public names
+    assert jaxkin.num_threads is _threads.num_threads
+    monkeypatch.setenv("JAXKIN_NUM_THREADS", "3")
+    assert _threads.num_threads() == 3
+    _threads.set_num_threads(5)
+    assert _threads.num_threads() == 5
+    _threads.set_num_threads(None)
+    monkeypatch.setenv("JAXKIN_NUM_THREADS", "zero")
+    with pytest.raises(ValueError, match="JAXKIN_NUM_THREADS"):
+        _threads.num_threads()
+    monkeypatch.delenv("JAXKIN_NUM_THREADS")
+    assert _threads.num_threads() >= 1
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="positive int"):
+            _threads.set_num_threads(bad)
+
+
+def test_delta_fk_in_parts_equals_whole_batch(small_parts):
+    """The real kernel: Newton iterations, statuses, rates, a warm start, bad elements."""
+    rng = np.random.default_rng(3)
+    p = np.stack([rng.uniform(-8, 8, 101), rng.uniform(-8, 8, 101), rng.uniform(-38, -22, 101)], -1)
+    theta = np.array(delta.ik(ROBOT, p).theta.p)
+    theta[4] = np.nan
+    theta[-1] = [np.pi, 0.0, 0.0]  # cannot be assembled (fk_closed_form: UNREACHABLE)
+    jet = Jet.of(theta, rng.normal(size=theta.shape), rng.normal(size=theta.shape))
+    guess = p + rng.normal(scale=0.5, size=p.shape)
+    results = []
+    for args, kwargs in [((theta,), {}), ((jet,), {}), ((theta,), {"guess": guess})]:
+        before = delta._fk_jit._cache_size()
+        parts = delta.fk(ROBOT, *args, **kwargs)
+        assert delta._fk_jit._cache_size() > before  # the part kernel was compiled and used
+        whole = _whole(delta.fk, ROBOT, *args, **kwargs)
+        for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
+            assert a.shape == b.shape and a.dtype == b.dtype
+            np.testing.assert_array_equal(a, b)
+        results.append(parts)
+    status = np.asarray(results[0].status)
+    assert status[4] == Status.INVALID_INPUT and status[-1] == Status.NOT_CONVERGED
+    assert np.sum(status == Status.OK) >= 95
+    assert tree_allfinite(results)
