@@ -61,7 +61,7 @@ from . import _chunks, _validate
 from ._numerics import all_finite, computed_once, rsqrt, safe_sqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
-from .planar import angle_rates, length_rates
+from .planar import angle_rates, length_rates, link_end_rates
 from .result import SolverResult
 from .status import STATUS_DTYPE, Status
 
@@ -248,12 +248,9 @@ def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
     # (with the cos/sin barrier in _position, 1.25x faster at batch 1e6).
     phi_dot, phi_ddot = computed_once(jnp.stack([phi_dot, phi_ddot]))
 
-    cos_phi, sin_phi = pos.cos_phi, pos.sin_phi
-    c_dot_x = a[2] - l_ac * sin_phi * phi_dot  # eq. 7
-    c_dot_y = a[3] + l_ac * cos_phi * phi_dot
-    c_ddot_x = a[4] - l_ac * (cos_phi * phi_dot * phi_dot + sin_phi * phi_ddot)  # eq. 8
-    c_ddot_y = a[5] + l_ac * (cos_phi * phi_ddot - sin_phi * phi_dot * phi_dot)
-    rates = (c_dot_x, c_dot_y, c_ddot_x, c_ddot_y)
+    # Eqs. 7-8: C's rates are A's plus those of the turning link AC.
+    link = link_end_rates(l_ac, pos.cos_phi, pos.sin_phi, phi_dot, phi_ddot)
+    rates = tuple(a_rate + link_rate for a_rate, link_rate in zip(a[2:], link, strict=True))
     return (phi_dot, phi_ddot) + tuple(jnp.where(ok, r, 0.0) for r in rates)
 
 

@@ -73,6 +73,24 @@ def length_rates(
     return l, l_dot, l_ddot * inv_l
 
 
+def link_end_rates(
+    length: Array, cos_phi: Array, sin_phi: Array, phi_dot: Array, phi_ddot: Array
+) -> tuple[Array, Array, Array, Array]:
+    """Velocity and acceleration of ``length (cos phi, sin phi)``, a link of constant length
+    turning at ``phi_dot``, ``phi_ddot`` (seed 000 eqs. 7-8 without the base point's rates)::
+
+        v = length phi_dot (-sin phi, cos phi)
+        a = length (phi_ddot (-sin phi, cos phi) - phi_dot^2 (cos phi, sin phi))
+
+    Returns ``(v_x, v_y, a_x, a_y)``, component-wise like the inputs.
+    """
+    v_x = -(length * sin_phi * phi_dot)
+    v_y = length * cos_phi * phi_dot
+    a_x = -(length * (cos_phi * phi_dot * phi_dot + sin_phi * phi_ddot))
+    a_y = length * (cos_phi * phi_ddot - sin_phi * phi_dot * phi_dot)
+    return v_x, v_y, a_x, a_y
+
+
 def _components(jet: Jet) -> tuple[Array, ...]:
     return tuple(arr[..., k] for arr in (jet.p, jet.v, jet.a) for k in (0, 1))
 

@@ -98,3 +98,20 @@ def test_batched_shapes():
     out, defined = planar.angle(jet)
     assert out.shape == (3, 5) and defined.shape == (3, 5)
     np.testing.assert_allclose(out.p, np.arctan2(jet.p[..., 1], jet.p[..., 0]), rtol=1e-15)
+
+
+@pytest.mark.parametrize("phi_expr, t0", [(0.3 + 2 * t - t**2, 0.4), (sp.sin(3 * t) - 2.0, 1.3)])
+def test_link_end_rates_match_sympy(phi_expr, t0):
+    """Velocity and acceleration of length * (cos phi(t), sin phi(t)), differentiated by sympy."""
+    length = 1.7
+    end = [length * sp.cos(phi_expr), length * sp.sin(phi_expr)]
+    phi = _eval(phi_expr, t0)
+    got = planar.link_end_rates(
+        jnp.asarray(length),
+        jnp.cos(phi),
+        jnp.sin(phi),
+        jnp.asarray(_eval(sp.diff(phi_expr, t), t0)),
+        jnp.asarray(_eval(sp.diff(phi_expr, t, 2), t0)),
+    )
+    expected = [_eval(sp.diff(c, t, order), t0) for order in (1, 2) for c in end]
+    np.testing.assert_allclose(np.asarray(got), expected, rtol=1e-13, atol=1e-14)

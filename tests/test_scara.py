@@ -22,7 +22,7 @@ from helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jaxkin import Jet, Status, scara
+from jaxkin import Jet, Status, lift, scara
 
 L_OA, L_AB, L_BC = 150.0, 80.0, 50.0
 W = math.pi / 2.0
@@ -189,10 +189,13 @@ def test_round_trip_random(mode):
     d = random_reachable(rng, (N,))
     res = scara.ik(PAPER, d, mode=mode)
     assert np.all(np.asarray(res.status) == Status.OK)
-    # Positions: fk(ik(d)) == d; rates: FK lifted by autodiff reproduces D's v and a.
+    # Positions: fk(ik(d)) == d; rates: FK's link-rate formulas reproduce D's v and a, and
+    # agree with the position-level FK lifted by autodiff.
     np.testing.assert_allclose(scara.fk(PAPER, res.q.p), d.p, rtol=0, atol=1e-12 * 150)
     d_back = scara.fk(PAPER, res.q)
     assert_jet_close(d_back, d, rtol=1e-12)
+    lengths = [jnp.asarray(x) for x in (PAPER.l_oa, PAPER.l_ab, PAPER.l_bc)]
+    assert_jet_close(d_back, lift(scara._fk_position)(res.q, *lengths), rtol=1e-13)
     # FK with a plain array returns an array, with a Jet a Jet.
     assert isinstance(scara.fk(PAPER, res.q.p), jax.Array) and isinstance(d_back, Jet)
 
