@@ -91,17 +91,46 @@ def _executor(workers: int) -> ThreadPoolExecutor:
         return _pool
 
 
-def _layout(size: int, threads: int) -> tuple[int, list[int]]:
-    """``(part size, starts)`` of the parts of ``range(size)``; one part when not worth it.
+def overlapping_parts(size: int, n_parts: int, multiple: int = 1) -> tuple[int, list[int]]:
+    """``(part size, starts)``: parts of one size covering ``range(size)``, in order.
 
-    Parts have one size, ``ceil(size / n)``; the last one starts at ``size - part`` and so
-    overlaps its neighbour by ``n * part - size`` elements, which the join drops.
+    The size is ``ceil(size / n_parts)`` rounded up to a multiple of ``multiple`` (at most
+    ``size``); the last part starts at ``size - part``, so it overlaps its neighbour by
+    ``len(starts) * part - size`` elements, which ``join`` drops. One size means one
+    compilation for every part, and nothing is padded or gathered.
     """
+    part = -(-size // max(1, n_parts))
+    part = min(size, -(-part // multiple) * multiple)
+    count = -(-size // part)
+    return part, [k * part for k in range(count - 1)] + [size - part]
+
+
+def _layout(size: int, threads: int) -> tuple[int, list[int]]:
+    """The parts for ``threads`` threads; one part when there are too few elements."""
     parts = min(threads, size // MIN_PART)
     if parts < 2:
         return size, [0]
-    part = -(-size // parts)
-    return part, [k * part for k in range(parts - 1)] + [size - part]
+    return overlapping_parts(size, parts)
+
+
+def run_parts(run: Callable[[int], Any], starts: list[int]) -> list[Any]:
+    """``[run(start) for start in starts]``, on the worker threads when there are several.
+
+    ``run`` should return computed (not merely dispatched) arrays: a part's work happens on the
+    thread that waits for it. Called from inside a part, the parts run in turn.
+    """
+    threads = num_threads()
+    if threads < 2 or len(starts) < 2 or getattr(_in_worker, "active", False):
+        return [run(start) for start in starts]
+
+    def in_worker(start: int) -> Any:
+        _in_worker.active = True
+        try:
+            return jax.block_until_ready(run(start))
+        finally:
+            _in_worker.active = False
+
+    return list(_executor(threads).map(in_worker, starts))
 
 
 def _on_one_device(leaf: Any) -> bool:
@@ -134,7 +163,7 @@ def _take(tree: Any, batch: tuple[int, ...], start: Array, part: int) -> Any:
 
 
 @functools.partial(jax.jit, static_argnames=("batch", "overlap"))
-def _join(parts: list[Any], batch: tuple[int, ...], overlap: int) -> Any:
+def join(parts: list[Any], batch: tuple[int, ...], overlap: int) -> Any:
     """Concatenate the parts' outputs along the flat batch axis (dropping the last part's
     first ``overlap`` elements, computed twice); restore the batch shape."""
 
@@ -200,17 +229,10 @@ class PartsJit:
             return self.whole(*args, **kwargs)
         static = tuple((k, v) for k, v in bound.arguments.items() if k in self._static)
 
-        def run(start: int):
-            _in_worker.active = True
-            try:
-                result = self._part(dynamic, static, batch, start, part)
-                return jax.block_until_ready(result)
-            finally:
-                _in_worker.active = False
+        def run(start: int) -> Any:
+            return self._part(dynamic, static, batch, start, part)
 
-        futures = [_executor(threads).submit(run, start) for start in starts]
-        parts = [future.result() for future in futures]
-        return _join(parts, batch, len(starts) * part - size)
+        return join(run_parts(run, starts), batch, len(starts) * part - size)
 
     def _cache_size(self) -> int:
         """Compilations held (whole-batch and per-part), for recompilation tests."""

@@ -55,6 +55,21 @@ def test_layout(small_parts, size, threads, part, starts):
     assert covered == set(range(size)) and starts[-1] + part == size
 
 
+@pytest.mark.parametrize(
+    ("size", "n_parts", "multiple", "part", "starts"),
+    [
+        (10, 3, 1, 4, [0, 4, 6]),
+        (10, 3, 2, 4, [0, 4, 6]),
+        (10, 4, 4, 4, [0, 4, 6]),  # rounded up to the multiple: three parts are enough
+        (8, 1, 2, 8, [0]),
+        (8, 20, 2, 2, [0, 2, 4, 6]),  # never more parts than elements allow
+    ],
+)
+def test_overlapping_parts(size, n_parts, multiple, part, starts):
+    assert _threads.overlapping_parts(size, n_parts, multiple) == (part, starts)
+    assert part % multiple == 0 and starts[-1] + part == size
+
+
 def _toy(x, y, scale, mode):
     """Elementwise in the batch; ``scale`` is shared, ``mode`` static."""
     norm = jnp.sqrt(jnp.sum(x * x, axis=-1))
