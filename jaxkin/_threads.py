@@ -4,8 +4,10 @@ XLA on CPU spreads a fused loop over the cores only at the top level of a progra
 a ``while_loop`` (a Newton iteration, ``lax.map`` over cache-sized chunks) runs on one core.
 Two programs called from two host threads do run at the same time. Measured on the Delta
 Newton FK (2-core CPU, float64, batch 1e6): the two halves called from two threads and joined
-took 0.6x the time of one call on the whole batch; the same two halves dispatched from one
-thread, or as two independent loops inside one program, took as long as the whole batch.
+took 0.6-0.75x the time of one call on the whole batch; the same two halves dispatched from
+one thread, or as two independent loops inside one program, took as long as the whole batch.
+(The dyad, a loop-free kernel whose fused loops XLA already spreads over the cores, gained
+nothing once its outputs were joined.)
 
 ``PartsJit`` is ``jax.jit`` for such a kernel. A call with concrete inputs whose batch has at
 least ``MIN_PART`` elements per part runs the kernel on ``num_threads()`` contiguous parts of
@@ -17,6 +19,9 @@ Every other call (tracer inputs inside a user's ``jit``, small batches, one thre
 backend, arrays sharded over several devices, inputs that only broadcast to the batch, a call
 from inside a part) runs the kernel once on the whole batch.
 The kernels are elementwise in the batch, so both ways give the same values (tested).
+
+``overlapping_parts``, ``run_parts`` and ``join`` serve callers that loop over chunks on the
+host themselves (``jaxkin.plan.map_candidates``).
 
 Thread count: ``set_num_threads(n)``, else the environment variable ``JAXKIN_NUM_THREADS``,
 else the CPUs this process may run on; ``1`` turns the splitting off.
@@ -167,11 +172,11 @@ def join(parts: list[Any], batch: tuple[int, ...], overlap: int) -> Any:
     """Concatenate the parts' outputs along the flat batch axis (dropping the last part's
     first ``overlap`` elements, computed twice); restore the batch shape."""
 
-    def join(*leaves):
+    def join_leaf(*leaves):
         whole = jnp.concatenate([*leaves[:-1], leaves[-1][overlap:]], axis=0)
         return jnp.reshape(whole, (*batch, *whole.shape[1:]))
 
-    return jax.tree.map(join, *parts)
+    return jax.tree.map(join_leaf, *parts)
 
 
 class PartsJit:
