@@ -697,8 +697,10 @@ def _fk_impl(
     else:
         guess = jnp.broadcast_to(guess, theta.p.shape)
         guess_valid = all_finite(guess)
-        fallback = _default_guess(robot, _centre_components(robot, theta.p, cos_sin))
-        guess = jax.lax.stop_gradient(jnp.where(guess_valid[..., None], guess, fallback))
+        # A non-finite guess makes the element INVALID_INPUT (below): any finite start will do,
+        # and a constant one (the home pose) needs no per-element work.
+        home = _home(robot, dtype)
+        guess = jax.lax.stop_gradient(jnp.where(guess_valid[..., None], guess, home))
 
     def position(th):
         return _fk_newton(robot, th, guess, tol, max_iter)
