@@ -932,6 +932,9 @@ def fk(
 ) -> FKResult:
     """Platform position (and rates) from actuator angles by batched Newton-Raphson.
 
+    A large batch (two or more parts of 2^15 elements) called outside ``jit`` runs as one part
+    per host thread (``jaxkin.set_num_threads``; the same values, see ``jaxkin._threads``).
+
     Args:
         robot: the geometry.
         theta: actuator angles, shape ``(..., 3)``: a ``Jet`` or a plain array (at rest).
