@@ -46,7 +46,7 @@ from ._validate import is_concrete
 
 # Fewest elements per part: below this the per-part dispatch and the join cost about what the
 # second core saves (Delta FK, 2-core CPU, float64: split into two parts 1.07x faster at
-# 2^16 elements, 1.15-1.2x at 1.3e5-2.6e5, 1.3-1.45x at 1e6).
+# 2^16 elements, 1.15-1.2x at 1.3e5-2.6e5, 1.3-1.55x at 1e6).
 MIN_PART = 1 << 15
 
 _requested: int | None = None

@@ -45,7 +45,7 @@ is the identity, the platform does not rotate), residuals
 adjugate solve, per-element convergence in one ``lax.while_loop`` (``jaxkin.newton``) run on
 cache-sized chunks of the batch (``jaxkin._chunks``), and for large batches on one part of the
 batch per CPU core, each from its own host thread (``jaxkin._threads``: XLA runs a loop's body
-on one core; measured 1.3-1.45x faster at batch 1e6 on 2 cores); converged where
+on one core; measured 1.3-1.55x faster at batch 1e6 on 2 cores); converged where
 ``max|r| <= tol * (l_arm + l_rod)``. The loop solves the equivalent system
 ``(r_1, r_2 - r_1, r_3 - r_1)``, whose last two rows are linear in ``p`` (same Newton iterates,
 ~30 % fewer operations a trip); ``residual``, ``conditioning`` and ``status`` are evaluated for
