@@ -869,6 +869,7 @@ def _jit(
         return static(frozen, *args, **kwargs)
 
     call._cache_size = static._cache_size  # for tests (both jits share one cache)
+    call._static = static  # for tests: the concrete-geometry kernel (a PartsJit when split)
     return call
 
 
