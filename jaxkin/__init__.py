@@ -1,11 +1,13 @@
 """jaxkin: batched, differentiable robot kinematics on JAX.
 
-Modules: ``dyad`` (RRR dyad / Assur group), ``scara``, ``delta``, ``serial`` (DH, PoE, analytic
-and Newton IK), ``plan`` (planner backend), ``optimize`` (optax trajectory optimisation),
-``workspace`` (voxel sweeps), ``newton`` (batched Newton-Raphson), ``planar`` (angle and
-distance rates), ``fixedpoint`` (bit-width studies), ``splines``, ``io``, ``plot`` (needs the
-``plot`` extra; imported on demand). ``set_num_threads``/``num_threads``: the host threads a
-large batch of a loop-bound kernel (the Delta Newton FK) is split across (``jaxkin._threads``).
+The robot protocol (``jaxkin.robot``): ``ik(robot, target, branch=None)`` and
+``fk(robot, q)`` for every robot: ``scara.Scara``, ``delta.Delta``, the serial arms and chains
+of ``serial``. Kernels: ``dyad`` (the RRR dyad), ``scara``, ``delta``, ``serial`` (DH, PoE,
+analytic and Newton IK), ``newton`` (batched Newton-Raphson), ``planar`` (angle and distance
+rates). Built on them: ``plan`` (the planner backend), ``optimize`` (trajectory optimisation
+with optax), ``workspace`` (voxel sweeps), ``fixedpoint`` (bit-width studies), ``plot`` (needs
+the ``plot`` extra; imported on demand). ``set_num_threads``: the host threads a large batch of
+a loop-bound kernel is split across.
 """
 
 from . import delta as delta
@@ -15,22 +17,32 @@ from . import newton as newton
 from . import optimize as optimize
 from . import plan as plan
 from . import planar as planar
+from . import robot as robot
 from . import scara as scara
 from . import serial as serial
-from . import splines as splines
 from . import workspace as workspace
-from ._threads import num_threads as num_threads
-from ._threads import set_num_threads as set_num_threads
+from ._batching import num_threads as num_threads
+from ._batching import set_num_threads as set_num_threads
 from .jet import Jet as Jet
 from .jet import lift as lift
+from .result import FKResult as FKResult
+from .result import IKResult as IKResult
 from .result import SolverResult as SolverResult
+from .robot import JointLimits as JointLimits
+from .robot import Robot as Robot
+from .robot import fk as fk
+from .robot import ik as ik
 from .status import Status as Status
 from .status import describe as describe
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "FKResult",
+    "IKResult",
     "Jet",
+    "JointLimits",
+    "Robot",
     "SolverResult",
     "Status",
     "__version__",
@@ -38,15 +50,17 @@ __all__ = [
     "describe",
     "dyad",
     "fixedpoint",
+    "fk",
+    "ik",
     "lift",
     "newton",
     "num_threads",
     "optimize",
     "plan",
     "planar",
+    "robot",
     "scara",
     "serial",
     "set_num_threads",
-    "splines",
     "workspace",
 ]

@@ -34,9 +34,7 @@ def rsqrt(x: Array) -> Array:
     """``1 / sqrt(x)`` (``lax.rsqrt``) whose derivative rule has no division.
 
     ``d rsqrt(x) = -rsqrt(x)^3 / 2 dx``: JAX's own rule divides by ``x`` at every order of a
-    nested ``jvp``; this one multiplies. With ``safe_sqrt``'s rule below, the dyad's
-    second-order autodiff path went from ~18.5 to 22-25 M cases/s at batch 1e6 in float64
-    (divisions in its compiled HLO: 9 -> 4).
+    nested ``jvp``; this one multiplies (divisions are slow on CPU).
     """
     return jax.lax.rsqrt(x)
 
@@ -97,8 +95,49 @@ def computed_once(x: Array) -> Array:
     that reads it, so a value read by ten output loops is computed ten times.
     ``lax.optimization_barrier`` makes ``x`` a materialised input of its readers. Pass one
     stacked array (``jnp.stack([...])``, one loop computes it): a tuple of separate arrays
-    measured no effect. Use it where few shared values feed many outputs (measured at batch
-    1e6, float64: the dyad 1.25x faster, the Delta FK's cos/sin 6 instead of ~30 evaluations a
-    case); a barrier in front of the per-component Newton update measured slower.
+    has no effect. Use it where few shared values feed many outputs (``docs/performance.md``).
     """
     return jax.lax.optimization_barrier(x)
+
+
+def spd_det(g: Array) -> Array:
+    """Determinant of symmetric positive semi-definite ``(..., k, k)`` matrices, ``>= 0``.
+
+    The product of the pivots of an unrolled Cholesky (LDL^T) factorisation, each clamped at 0
+    (rounding can make a pivot of a singular matrix slightly negative): elementwise arithmetic
+    that fuses, where a batched ``jnp.linalg.det`` calls LAPACK per matrix.
+    """
+    k = g.shape[-1]
+    rows = [[g[..., i, j] for j in range(k)] for i in range(k)]
+    det = jnp.ones_like(rows[0][0])
+    for i in range(k):
+        pivot = jnp.maximum(rows[i][i], 0.0)
+        det = det * pivot
+        inv = jnp.where(pivot > 0, 1.0 / jnp.where(pivot > 0, pivot, 1.0), 0.0)
+        for r in range(i + 1, k):
+            factor = rows[r][i] * inv
+            for c in range(i + 1, k):
+                rows[r][c] = rows[r][c] - factor * rows[i][c]
+    return det
+
+
+def volume_ratio(jac: Array) -> Array:
+    """How far a Jacobian ``(..., m, n)`` is from singular, in [0, 1], shape ``(...)``.
+
+    With ``s_1 .. s_k`` its ``k = min(m, n)`` singular values: ``prod s_i / (mean s_i^2)^(k/2)``
+    (by the AM-GM inequality at most 1, with equality when every ``s_i`` is equal; 0 exactly
+    when the Jacobian loses rank). Computed from ``G = J J^T`` (or ``J^T J``) as
+    ``sqrt(det G) / (trace G / k)^(k/2)``; invariant to a common scale of ``J``, so scale rows and
+    columns to one set of units first (e.g. lengths divided by the robot's size).
+    """
+    m, n = jac.shape[-2:]
+    if m <= n:
+        g = jnp.einsum("...ik,...jk->...ij", jac, jac)
+    else:
+        g = jnp.einsum("...ki,...kj->...ij", jac, jac)
+    k = g.shape[-1]
+    mean_sq = jnp.trace(g, axis1=-2, axis2=-1) / k
+    det = spd_det(g)
+    positive = mean_sq > 0
+    ratio = safe_sqrt(det) / jnp.where(positive, mean_sq, 1.0) ** (0.5 * k)
+    return jnp.where(positive, jnp.minimum(ratio, 1.0), 0.0)

@@ -1,63 +1,28 @@
 """Fast ``sincos``, ``sin_alone``/``cos_alone`` and ``atan2``: vectorisable polynomial forms.
 
-Why. XLA on CPU evaluates ``cos``, ``sin`` and ``atan2`` slowly for our batches (measured at
-batch 1e6 on the 2-core CI class, after compilation: ``cos`` + ``sin`` of angles in [-4, 4]
-12 ms in float64, ``atan2`` 9 ms in float64 and 10 ms in float32, against 0.6 ms for an
-addition); the same algorithms written as plain elementwise arithmetic fuse into the callers'
-loops and vectorise: ``sincos`` 1.5 ms for both. Both are drop-in replacements; measured
-against NumPy's libm (tests/test_trig.py): ``sincos`` within 1 ulp, ``atan2`` within 2 ulp, in
-float64 and float32.
+XLA on CPU evaluates ``cos``, ``sin`` and ``atan2`` as slow opaque calls; the same fdlibm
+algorithms written as elementwise arithmetic fuse into their readers' loops and vectorise
+(timings in ``docs/performance.md``). Accuracy against libm (tests/test_trig.py): ``sincos``
+within 1 ulp, ``atan2`` within 2 ulp, ``sin_alone``/``cos_alone`` within ``eps`` absolute, in
+float64 and float32. Where to use them is decided per call site by measurement: XLA copies a
+cheap polynomial into every fused loop that reads it, so an angle feeding many outputs is
+either stored once (``computed_once``) or left to XLA's own function.
 
-Where to use them is measured per call site, not assumed. XLA keeps an opaque ``atan2``/``cos``
-in one loop, but copies these cheap-looking polynomials into every fused loop that reads their
-result: where an angle feeds many outputs, store it once (``computed_once``, as ``fk_dh`` and
-the PUMA IK do) or keep XLA's function. Kept on XLA's after measuring: ``delta.ik``'s angle
-(``plan.evaluate`` 1.5x slower with the polynomial), ``lie.so3_log``/``exp`` (``ik_newton``
-1.3x slower) and the arms' two-link ``atan2`` (anthropomorphic IK 1.1x slower).
+``sincos(x)``: one Cody-Waite reduction ``n = round(x 2/pi)``, ``r = x - n pi/2`` (pi/2 split
+in parts so every ``n * part`` is exact), polynomials for ``sin r``, ``cos r`` on
+``|r| <= pi/4``, then the quadrant of ``n mod 4``. Exact reduction for
+``|x| <= REDUCTION_LIMIT[dtype]`` (1e8 rad in float64, 5e4 in float32); beyond it ``r`` carries
+about half an ulp of ``x`` (the angle's own resolution) and values stay in [-1, 1].
 
-A stored stack (``computed_once(jnp.stack([...]))``) is one fused loop that computes each row
-on its own, so ``sincos``'s shared reduction and both kernels are paid for every row.
-``sin_alone``/``cos_alone`` are for that case: one polynomial each, accurate in the absolute
-sense (``|error| <= eps(dtype)``, which is what a coordinate built from an angle needs, not
-1 ulp of a tiny result)::
+``sin_alone``/``cos_alone``: one polynomial each, for stacked rows that are stored (a stored
+stack computes each row on its own): ``n = round(x / pi)`` (sin) or ``floor(x / pi)`` (cos),
+``r = x - k pi/2`` in [-pi/2, pi/2], ``+-S(r)`` with ``S(r) = r + r^3 P(r^2)``.
 
-    sin: n = round(x / pi),  k = 2n;   cos: n = floor(x / pi),  k = 2n + 1
-    r = x - k pi/2 in [-pi/2, pi/2]   (the parts of pi/2 below; no two-sums)
-    sin x = (-1)^n S(r),  cos x = -(-1)^n S(r),  S(r) = r + r^3 P(r^2) (``_SIN_HALF_TURN``)
-
-Same range rules as ``sincos``. Used where rows are stored, measured against ``sincos`` rows
-(batch 1e5-1e6, float64): the Delta's sphere centres (Newton FK 1.2x, closed form 1.16x
-faster) and ``fk_dh``'s joint angles (1.3x PUMA, 1.7x anthropomorphic); no gain measured for
-the PUMA IK's stored ``R_03`` angles (kept on ``sincos``).
-
-``sincos(x) -> (sin x, cos x)``, one argument reduction for both (fdlibm ``__kernel_sin``,
-``__kernel_cos`` and its medium-size Cody-Waite reduction)::
-
-    n = round(x * 2/pi),  r = x - n pi/2   (pi/2 split in parts: every n * part exact)
-    sin r, cos r by polynomials in r^2 on |r| <= pi/4 (with the reduction's tail)
-    (sin x, cos x) = (sin r, cos r), (cos r, -sin r), (-sin r, -cos r), (-cos r, sin r)
-                     for n mod 4 = 0, 1, 2, 3
-
-Range. The reduction is exact for ``|x| <= REDUCTION_LIMIT[dtype]`` (1e8 rad in float64, 5e4
-in float32): 1 ulp there. Beyond it ``n * part_1`` rounds, so ``r`` carries an error of
-about half an ulp of ``x``, i.e. the resolution of the angle itself (a float64 angle of 1e9
-rad is only known to 1.2e-7); the values stay within [-1, 1] for every finite ``x``
-(``jnp.sin`` would reduce exactly but is slow, and a per-batch ``lax.cond`` to it measured
-3x slower on three columns of a (1e6, 3) array: branches do not fuse with their readers).
-
-``atan2(y, x)``, fdlibm ``atan`` on the ratio of the smaller to the larger magnitude::
-
-    m = min(|x|, |y|),  M = max(|x|, |y|),  u = m / M in [0, 1]
-    atan(u) = atan(c) + atan(t):  u <= 7/16: c = 0,      t = m / M
-                                  u <= 11/16: c = 1/2,   t = (2m - M) / (2M + m)
-                                  else:       c = 1,     t = (m - M) / (m + M)
-    (one division; |t| < 7/16, where fdlibm's odd polynomial of degree 23 is accurate)
-    then pi/2 - a if |y| > |x|, pi - a if x < 0 (sign bit: x = -0 counts), sign of y.
-
-Special values follow C's ``atan2`` (``atan2(+-0, -0) = +-pi``, ``atan2(inf, inf) = pi/4``,
-NaN in, NaN out). Both functions carry the usual derivative rules (``custom_jvp``), so nested
-``jvp`` and ``grad`` see ``d sin = cos``, ``d atan2(y, x) = (x dy - y dx) / (x^2 + y^2)``,
-the same rule (and the same 0/0 at the origin) as ``jnp.arctan2``.
+``atan2(y, x)``: fdlibm ``atan`` of ``u = min(|x|, |y|) / max(|x|, |y|)`` split as
+``atan(c) + atan(t)`` (``c`` in {0, 1/2, 1}, ``|t| < 7/16``, one division), then the octant.
+Special values follow C's ``atan2`` (``atan2(+-0, -0) = +-pi``, NaN in, NaN out). All carry the
+usual derivative rules (``custom_jvp``): nested ``jvp`` and ``grad`` see ``d sin = cos`` and
+``d atan2(y, x) = (x dy - y dx) / (x^2 + y^2)``, as ``jnp.arctan2`` does.
 """
 
 from __future__ import annotations

@@ -1,49 +1,28 @@
-"""The planar RRR dyad (Assur group) of seed 000, section 2.
+"""The planar RRR dyad (Assur group) [Noriega, sec. 2]: position, velocity, acceleration.
 
-Known: points A and B (position, velocity, acceleration) and the link lengths ``l_ac`` and
-``l_bc``. Unknown: the middle joint C and the angle ``phi`` of link AC with the +X axis.
+Known: points A and B (Jets) and the link lengths ``l_ac`` and ``l_bc``. Unknown: the middle
+joint C and the angle ``phi`` of link AC with the +X axis. With ``theta`` the angle of A->B and
+``l = |AB|`` [Noriega, eqs. 1, 4-6, 9-10]::
 
-Position (eqs. 1, 6, 9, 10). With ``theta`` the angle of A->B and ``l = |AB|``::
+    A = l_ac^2 + l^2 - l_bc^2,   B = 2 l_ac l,   u = A / B = cos(beta)
+    phi = theta + mode * beta,   C = A_point + l_ac (cos phi, sin phi)
 
-    A = l_ac^2 + l^2 - l_bc^2,   B = 2 l_ac l,   u = A / B = cos(beta)          (eqs. 1, 4, 5)
-    phi = theta + mode * beta                                                   (eq. 9 / 10)
-    C = A_point + l_ac (cos phi, sin phi)                                       (eq. 6)
-
-The kernel builds ``cos phi`` and ``sin phi`` algebraically from ``(dx, dy) / l``, ``u`` and
+``cos phi`` and ``sin phi`` are built algebraically from ``(dx, dy) / l``, ``u`` and
 ``sin(beta) = sqrt(1 - u^2)``: the only transcendental call is one ``atan2`` for the output
-``phi`` (XLA on CPU is bound by transcendental functions, see DESIGN.md), and that one is
-``jaxkin._trig.atan2``, a vectorised polynomial (XLA's own ``atan2`` took ~9 ms per 1e6).
+``phi``. Rates: ``method="analytic"`` (eqs. 2-10, with the corrections of ``docs/errata.md``)
+or ``"autodiff"`` (``jaxkin.lift``); they agree to 1e-10 in float64 (tested).
 
-Angle convention: ``theta`` is in (-pi, pi] (Fig. 2), ``beta`` in [0, pi], and ``phi`` is the
-paper's *unwrapped* sum ``theta + mode * beta``, so ``phi`` lies in (-2 pi, 2 pi): mode +1 gives
-phi in (-pi, 2 pi), mode -1 gives phi in (-2 pi, pi]. ``mode = +1`` puts C to the left of
-A->B (counter-clockwise from AB by beta), ``mode = -1`` to the right.
+Angles: ``theta`` in (-pi, pi] (Fig. 2), ``beta`` in [0, pi], ``phi`` the paper's *unwrapped*
+sum (mode +1: (-pi, 2 pi), mode -1: (-2 pi, pi]); ``mode = +1`` puts C to the left of A->B.
 
-Statuses (``jaxkin.Status``), with ``tol = sqrt(eps(dtype)) * (l_ac + l_bc)`` a length
-tolerance (1.5e-8 relative in float64, 3.5e-4 in float32):
-
-* ``INVALID_INPUT``: a NaN or inf anywhere in this element's A, B (p, v, a) or lengths.
-* ``SINGULAR_COINCIDENT``: ``l <= tol`` and ``|l_ac - l_bc| <= tol``: C undefined.
-* ``UNREACHABLE``: ``l > l_ac + l_bc + tol`` or ``l < |l_ac - l_bc| - tol`` (``|A/B| > 1``).
-* ``SINGULAR_EXTENDED``: beta = 0, i.e. ``|l - (l_ac + l_bc)| <= tol`` (C between A and B), or
-  ``|l - (l_ac - l_bc)| <= tol`` with ``l_ac > l_bc`` (B between A and C).
-* ``SINGULAR_FOLDED``: beta = pi, i.e. ``|l - (l_bc - l_ac)| <= tol`` with ``l_bc > l_ac``.
-* ``OK`` otherwise.
-
-Placeholders (finite, documented): velocities and accelerations of C and phi are 0 wherever
-the status is not OK. At a singular configuration the position is valid (beta = 0 or pi). Where
-the dyad cannot be assembled, C is the nearest aligned configuration (``u`` clamped to [-1, 1]);
-for coincident joints or non-finite input, C is computed from a placeholder direction.
-
-``margin`` is ``1 - (A/B)^2 = sin(beta)^2``: 1 at beta = pi/2, 0 at the singularities,
-negative where the dyad cannot be assembled (clipped to [-1, 1]); 0 for coincident joints and
--1 for invalid input. It is continuous in the inputs, so planners can use it as a barrier.
-
-Float32: errors grow like ``eps / sin(beta)^k``. Measured on 1e5 random dyads with
-sin(beta) > 0.05, relative to the batch's largest magnitude: position 1.2e-6, velocity 4e-5,
-acceleration 1e-4 (tests/test_dyad.py::test_float32_accuracy asserts 3e-6, 2e-4, 5e-4). The
-float32 singular band (3.5e-4 of the reach) is wider, so ~0.1 % of random cases near the
-boundary get a singular/unreachable status in float32 and OK in float64.
+Statuses, with the length tolerance ``tol = sqrt(eps(dtype)) * (l_ac + l_bc)``:
+``INVALID_INPUT`` (NaN/inf in A, B or the lengths), ``SINGULAR_COINCIDENT`` (``l <= tol`` with
+``|l_ac - l_bc| <= tol``: C undefined), ``UNREACHABLE`` (``|A/B| > 1`` beyond tol),
+``SINGULAR_EXTENDED`` (beta = 0), ``SINGULAR_FOLDED`` (beta = pi), ``OK``. Where not OK the
+rates are 0; at a singularity the position is valid; where the dyad cannot be assembled C is
+the nearest aligned configuration. ``margin = 1 - (A/B)^2 = sin(beta)^2`` (0 at singularities,
+negative where unreachable, -1 for invalid input): a continuous barrier for planners. Float32
+accuracy: ``docs/performance.md``.
 """
 
 from __future__ import annotations
@@ -57,13 +36,22 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _chunks, _validate
+from . import _batching, _validate
 from ._numerics import all_finite, computed_once, rsqrt, safe_sqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
 from .planar import angle_rates, length_rates, link_end_rates
 from .result import SolverResult
 from .status import STATUS_DTYPE, Status
+
+__all__ = [
+    "DyadPosition",
+    "DyadResult",
+    "METHODS",
+    "MODES",
+    "position",
+    "solve",
+]
 
 MODES = (1, -1)
 METHODS = ("analytic", "autodiff")
@@ -143,9 +131,8 @@ def _position(
 ) -> _Position:
     """Position of C from components; ``valid`` marks elements whose raw input was finite.
 
-    ``store_cos_sin``: compute cos/sin of phi once for all readers (``computed_once``); this
-    made the analytic path 1.2x faster but the autodiff path 2x slower in float32 (measured at
-    batch 1e6), so only the analytic path asks for it.
+    ``store_cos_sin``: compute cos/sin of phi once for all readers (``computed_once``): faster
+    for the analytic path, slower for the autodiff path (measured), so only the first asks.
     """
     dx, dy = b_x - a_x, b_y - a_y
     r2 = dx * dx + dy * dy
@@ -222,9 +209,11 @@ def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
     ok = pos.status == Status.OK
     rel = [bk - ak for ak, bk in zip(a, b, strict=True)]  # the vector A->B and its rates
     inv_l = pos.inv_l
-    theta_dot, theta_ddot = angle_rates(*rel, inv_r2=inv_l * inv_l)  # Fig. 2 (ERRATA 1-3)
+    theta_dot, theta_ddot = angle_rates(
+        *rel, inv_r2=inv_l * inv_l
+    )  # Fig. 2 (corrected, docs/errata.md)
     l, l_dot, l_ddot = length_rates(*rel, inv_l=inv_l)  # Fig. 3
-    # Eq. 4 (A_ddot corrected, ERRATA seed 000 item 4) and eq. 5. B and sin(beta) are replaced
+    # Eq. 4 (A_ddot corrected, docs/errata.md) and eq. 5. B and sin(beta) are replaced
     # by 1 where the status is not OK so no division below can make an inf (double-where).
     a_term = l_ac * l_ac + l * l - l_bc * l_bc
     a_dot = 2.0 * l * l_dot
@@ -245,7 +234,6 @@ def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
     phi_dot = jnp.where(ok, theta_dot + mode * beta_dot, 0.0)  # eq. 9 / 10
     phi_ddot = jnp.where(ok, theta_ddot + mode * beta_ddot, 0.0)  # eq. 3 above, then 9 / 10
     # Read by the four rate outputs of C: stored once instead of recomputed by each
-    # (with the cos/sin barrier in _position, 1.25x faster at batch 1e6).
     phi_dot, phi_ddot = computed_once(jnp.stack([phi_dot, phi_ddot]))
 
     # Eqs. 7-8: C's rates are A's plus those of the turning link AC.
@@ -279,8 +267,7 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
     # Double-where, step 1: replace non-finite elements by a harmless dyad (A = 0, B = (1, 0),
     # unit links) before any math, so neither values nor gradients can become NaN. The mask is
     # a reduction on purpose: XLA keeps it as one loop that the others read, whereas an
-    # elementwise mask would be recomputed from all 14 inputs in each of the ~20 loops XLA
-    # splits this kernel into (measured 4x slower at batch 1e6).
+    # elementwise mask would be recomputed from all 14 inputs in each of the kernel's loops.
     valid = all_finite(jnp.concatenate(columns, axis=-1))
     if lengths_are_scalars:
         valid = valid & lengths_finite
@@ -303,12 +290,6 @@ def _position_impl(a: Array, b: Array, l_ac: Array, l_bc: Array, mode: int) -> D
 
 
 _position_jit = jax.jit(_position_impl, static_argnames=("mode",))
-
-
-# The autodiff path runs as two independent halves of the batch above this size: measured
-# 1.25x faster at batch 1e6 (float64 23 -> 28-29 M cases/s, float32 60 -> 71-75 M/s, 2-core
-# CPU); the analytic path measured no gain (so it runs whole), and 4 or 8 parts no more than 2.
-_HALVES_MIN_SIZE = 1 << 17
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
@@ -339,10 +320,9 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
         )
         return DyadResult(Jet.stack([c_x, c_y]), phi, status, margin.p)
 
+    # Large batches as two halves: faster for this path (not the analytic one), measured.
     parts = (a_comps, b_comps, l_ac, l_bc, valid)
-    if valid.size < _HALVES_MIN_SIZE:
-        return autodiff_part(*parts)
-    return _chunks.in_two_halves(autodiff_part, parts, valid.shape)
+    return _batching.in_two_halves(autodiff_part, parts, valid.shape)
 
 
 _solve_jit = jax.jit(_solve_impl, static_argnames=("mode", "method"))
@@ -366,8 +346,8 @@ def position(
 
     The position part of ``solve`` (same kernel, same values, statuses and margin), for
     callers that need no velocities or accelerations, e.g. feasibility sweeps and linkage
-    simulation: no rate arrays are built or written (measured 8x the throughput of ``solve``
-    on the same plain arrays in a 1,000 x 360 four-bar sweep, float64, ``make bench-peers``).
+    simulation: no rate arrays are built or written, so it runs several times faster than
+    ``solve`` (``docs/performance.md``).
 
     Args:
         a: the known joint A, shape ``(..., 2)``.

@@ -1,41 +1,26 @@
 """Fixed-point (bit-width) accuracy study of the anthropomorphic arm's inverse kinematics.
 
-Seed 001 evaluates its IK equations "in fixed point": inputs and every intermediate value are
-truncated to ``n`` fractional bits (``n = 1 .. 40``) and the RMS error of the joint angles and
-of the followed path is plotted against ``n``; it concludes that 10 bits suffice. This module
-emulates that arithmetic in floating point:
+[Lopez-Villagomez] evaluates its IK "in fixed point": inputs and every intermediate value are
+truncated to ``n`` fractional bits (``n = 1 .. 40``) and the RMS errors of the joint angles and
+of the followed path are plotted against ``n``; it concludes that 10 bits suffice. This module
+emulates that arithmetic in floating point with ``Q_n(x) = floor(x 2^n) / 2^n``
+(``rounding="floor"``, the paper's truncation) or ``round(x 2^n) / 2^n`` (``"nearest"``),
+applied to the inputs and after every elementary operation of [Lopez-Villagomez, eqs. 10-14]
+(with the corrections of ``docs/errata.md``: two-argument ``atan2``, the second shoulder
+branch, the missing ``theta2``)::
 
-    Q_n(x) = floor(x 2^n) / 2^n          (rounding="floor": truncation toward -inf, the paper's)
-    Q_n(x) = round(x 2^n) / 2^n          (rounding="nearest": round half to even)
+    theta1 = Q(atan2(py, px)) [+ pi];  A = Q(px c1) + Q(py s1);  B = pz - l1   eqs. 10, 12, 13
+    C = Q((Q(l3^2) - Q(l2^2) - Q(A^2) - Q(B^2)) / (-2 l2));  rho = Q(sqrt(Q(A^2) + Q(B^2)))
+    theta2 = Q(Q(atan2(B, A)) +- Q(acos(clip(Q(C / rho), -1, 1))))                 eq. 14
+    theta3 = Q(atan2(Q(B c2) - Q(A s2), Q(A c2) + Q(B s2) - l2))                     eq. 11
 
-applied to the inputs (target ``px, py, pz`` and lengths ``l1, l2, l3``) and after every
-elementary operation of the paper's equations (seed 001 eqs. 10-14, corrected per ERRATA):
-each product, quotient, square root and transcendental result (``atan2``, ``acos``, ``cos``,
-``sin`` are assumed to return a correctly rounded value that is then truncated, as a lookup
-table or CORDIC of ``n`` fractional bits would). Sums of quantised values are exact in fixed
-point and are not re-quantised. The sequence, per branch::
-
-    theta1 = Q(atan2(py, px))                   eq. 10 (two-argument, ERRATA); back: +pi
-    c1, s1 = Q(cos theta1), Q(sin theta1)
-    A = Q(px c1) + Q(py s1)                     eq. 12
-    B = pz - l1                                 eq. 13
-    C = Q((Q(l3^2) - Q(l2^2) - Q(A^2) - Q(B^2)) / (-2 l2))     eq. 14
-    rho = Q(sqrt(Q(A^2) + Q(B^2)))
-    theta2 = Q(Q(atan2(B, A)) +- Q(acos(clip(Q(C / rho), -1, 1))))   (ERRATA: not printed)
-    c2, s2 = Q(cos theta2), Q(sin theta2)
-    theta3 = Q(atan2(Q(B c2) - Q(A s2), Q(A c2) + Q(B s2) - l2))    eq. 11 (two-argument)
-
-Branch order and names are those of ``jaxkin.serial.Anthropomorphic`` (``front_up``,
-``front_down``, ``back_up``, ``back_down``; ``+ acos`` is "up" for the front shoulder). The
-``acos`` argument saturates to ``[-1, 1]`` (a fixed-point ``acos`` table would) and a division
-by a value quantised to 0 returns 0, so every bit width gives finite angles.
-
-Float64 is required for a faithful emulation: a value of magnitude ``< 2^k`` keeps ``52 - k``
-fractional bits, so 40 fractional bits are exact for ``|x| < 2^12``. (The library never enables
-x64; pass float64 arrays with x64 on, as the example does.) With ``bits=None`` no quantisation
-is applied and the result equals ``jaxkin.serial.ik`` (a test checks 1e-12).
-
-Quantisation is piecewise constant: gradients through ``quantize`` are zero almost everywhere.
+Transcendental results are assumed correctly rounded then truncated (a table or CORDIC of
+``n`` bits); sums of quantised values are exact. Branch order and names are those of
+``jaxkin.serial.Anthropomorphic``. The ``acos`` argument saturates and a division by a value
+quantised to 0 returns 0, so every width gives finite angles. Float64 is required for a
+faithful emulation (40 fractional bits are exact for ``|x| < 2^12``); with ``bits=None`` no
+quantisation is applied and the result equals ``jaxkin.serial.ik``. Gradients through
+``quantize`` are zero almost everywhere.
 """
 
 from __future__ import annotations
@@ -104,7 +89,7 @@ def quantize(x: ArrayLike, bits: ArrayLike, rounding: str = "floor") -> Array:
     Args:
         x: values, any shape (floating).
         bits: integer bit widths in ``[1, 40]``, broadcastable against ``x``.
-        rounding: ``"floor"`` (truncation toward -inf, seed 001) or ``"nearest"``.
+        rounding: ``"floor"`` (truncation toward -inf, [Lopez-Villagomez]) or ``"nearest"``.
 
     Returns:
         The quantised values, broadcast shape, dtype of ``x``.
@@ -119,12 +104,12 @@ def quantize(x: ArrayLike, bits: ArrayLike, rounding: str = "floor") -> Array:
 
 
 def _paper_ik(lengths: Array, p: Array, qz: Callable[[Array], Array]) -> Array:
-    """Seed 001 eqs. 10-14 with every intermediate passed through ``qz``; ``(..., 4, 3)``."""
+    """[Lopez-Villagomez, eqs. 10-14], every intermediate through ``qz``: ``(..., 4, 3)``."""
     batch = p.shape[:-1]
     l1, l2, l3 = (qz(jnp.broadcast_to(lengths[i], batch)) for i in range(3))
     px, py, pz = qz(p[..., 0]), qz(p[..., 1]), qz(p[..., 2])
     pi_q = qz(jnp.full(batch, _PI, p.dtype))
-    theta1 = qz(jnp.arctan2(py, px))  # eq. 10, two-argument (ERRATA)
+    theta1 = qz(jnp.arctan2(py, px))  # eq. 10, two-argument (corrected, docs/errata.md)
     back = theta1 + pi_q
     back = jnp.where(back > pi_q, back - 2.0 * pi_q, back)
     theta1 = jnp.stack([theta1, back], axis=-1)  # (..., 2) shoulders
@@ -170,7 +155,7 @@ def anthropomorphic_ik(
     bits: ArrayLike | None = None,
     rounding: str = "floor",
 ) -> Array:
-    """Seed 001's IK of the anthropomorphic arm in emulated fixed point (module docstring).
+    """The anthropomorphic arm's IK in emulated fixed point (module docstring).
 
     Args:
         robot: ``jaxkin.serial.Anthropomorphic(l1, l2, l3)``.
@@ -233,7 +218,7 @@ def accuracy_study(
     branch: str = "front_up",
     rounding: str = "floor",
 ) -> AccuracyStudy:
-    """Seed 001's experiment: RMS joint and Cartesian errors of the fixed-point IK per width.
+    """[Lopez-Villagomez]'s experiment: RMS joint and Cartesian errors of the IK per width.
 
     The reference is the unquantised solution of the same branch; joint errors are wrapped to
     ``[-pi, pi]``; the Cartesian error is the distance between the exact forward kinematics
@@ -261,7 +246,7 @@ def accuracy_study(
     dq = q - q_ref
     dq = dq - 2.0 * _PI * jnp.round(dq / (2.0 * _PI))
     joint_rms = jnp.sqrt(jnp.mean(dq * dq, axis=1))
-    reached = fk(robot, q)[..., :3, 3]
+    reached = fk(robot, q).x.p
     dist = jnp.linalg.norm(reached - path, axis=-1)
     return AccuracyStudy(
         bits=bits,

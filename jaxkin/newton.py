@@ -1,44 +1,26 @@
 """Batched Newton-Raphson for small square systems, with implicit differentiation.
 
-A residual ``r(x, args, shared)`` couples the ``n`` unknowns of each sample but never two samples
-(``n`` small, 1-6). It is written on *components*: ``x`` is a tuple of ``n`` arrays, each of the
-batch shape, and the residual returns a sequence of ``n`` arrays of the batch shape, using
-elementwise operations only (e.g. ``d0 = x[0] - c0; r0 = d0 * d0 + ...``). This "structure of
-arrays" form is what XLA on CPU fuses into one vectorised loop: the same Newton iteration on
-stacked ``(N, 3)`` or ``(3, N)`` arrays (a ``vmap`` of a per-sample solver, or reductions over a
-size-3 axis) measured 5-40x slower on a 2-core CPU. ``solve`` takes and returns the usual
-``(..., n)`` arrays and splits them itself; ``args`` and ``shared`` reach the residual untouched
-(pass components there too). For each sample::
+A residual ``r(x, args, shared)`` couples the ``n`` unknowns of a sample (``n`` small, 1-6) but
+never two samples. It is written on *components*: ``x`` is a tuple of ``n`` batch-shaped arrays
+and the residual returns ``n`` batch-shaped arrays from elementwise operations only, the
+"structure of arrays" form that XLA on CPU fuses into one vectorised loop (stacked ``(N, 3)``
+arrays run many times slower). ``solve`` takes and returns ``(..., n)`` arrays and splits them
+itself. For each sample::
 
-    J_k = dr/dx (x_k)                (forward-mode autodiff, one pass per unknown x_j with the
-                                      other unknowns held constant; exact because samples are
-                                      independent)
-    x_{k+1} = x_k - J_k^{-1} r(x_k)  (explicit adjugate/Cramer solve for n <= 3, LU otherwise)
+    J_k = dr/dx (x_k)                  forward mode, one pass per unknown (samples independent)
+    x_{k+1} = x_k - J_k^{-1} r(x_k)    explicit adjugate solve for n <= 3, LU otherwise
 
-Each element converges on its own inside one ``lax.while_loop`` over the batch: the loop runs
-while any element is active, and an element that has stopped is frozen (its ``x`` and iteration
-count no longer change), so every element reports its own iteration count. Each trip steps the
-active elements and then applies the stopping rule at their new ``x``.
+Each element converges on its own inside one ``lax.while_loop`` (a stopped element is frozen
+and reports its own iteration count). It stops when ``max|r| <= tol * scale`` (converged), when
+its Jacobian is numerically singular (``conditioning <= sqrt(eps(dtype))``), when ``x`` stops
+being finite, or after ``max_iter`` updates. ``conditioning`` is the Hadamard ratio
+``|det J| / prod_i |J_i|`` in [0, 1], invariant to the scaling of each equation.
 
-Stopping rule: an element stops when ``max|r(x_k)| <= tol * scale`` (converged), when its
-Jacobian is numerically singular (``conditioning <= singular_rtol(dtype)``, see below), when
-``x_k`` stops being finite, or after ``max_iter`` updates. ``iterations`` counts the Newton
-updates applied (0 when the guess already satisfies the tolerance).
-
-``conditioning`` is the Hadamard ratio ``|det J| / prod_i |J_i|`` (``J_i`` the rows), in
-[0, 1]: 1 for orthogonal rows, 0 for a singular Jacobian; it is invariant to the scaling of each
-equation, so one threshold (``sqrt(eps(dtype))``) serves every problem.
-
-Differentiation: the solution is wrapped in ``jax.lax.custom_root``, so derivatives with respect
-to ``args`` and ``shared`` come from the implicit function theorem
-(``dx*/dm = -J^{-1} dr/dm``), never from the unrolled iterations. Nested ``jax.jvp`` through
-``custom_root`` works, so ``jaxkin.lift`` of a Newton-based solver gives velocity *and*
-acceleration; reverse mode (``jax.grad``) works as well. Where the Jacobian at the returned point
-is singular the tangent solve uses a placeholder determinant of 1 (finite, meaningless
-derivatives): callers must mask rates by the status.
-
-Failure is data: the returned ``x`` is always finite (the guess where the iteration produced
-non-finite values), with ``status`` ``OK``, ``NOT_CONVERGED`` or ``SINGULAR`` per element.
+Derivatives come from the implicit function theorem (``jax.lax.custom_root``), never from the
+unrolled iterations; nested ``jax.jvp`` works, so ``jaxkin.lift`` of a Newton-based solver gives
+velocity and acceleration, and ``jax.grad`` works too. Where the Jacobian is singular the
+tangent solve uses a placeholder determinant of 1: callers mask rates by the status. The
+returned ``x`` is always finite, with ``status`` ``OK``, ``NOT_CONVERGED`` or ``SINGULAR``.
 """
 
 from __future__ import annotations
@@ -56,6 +38,8 @@ from jax.typing import ArrayLike
 
 from ._numerics import singular_rtol
 from .result import SolverResult
+
+__all__ = ["NewtonResult", "hadamard_ratio_components", "solve", "solve_components"]
 from .status import STATUS_DTYPE, Status
 
 Residual = Callable[[tuple[Array, ...], Any, Any], Any]
@@ -81,56 +65,6 @@ class NewtonResult(SolverResult):
     residual: Array
     conditioning: Array
     status: Array
-
-
-def det_small(m: Array) -> Array:
-    """Determinant of ``(..., n, n)`` matrices: explicit formulas for n <= 3, LU otherwise."""
-    n = m.shape[-1]
-    if n == 1:
-        return m[..., 0, 0]
-    if n == 2:
-        return m[..., 0, 0] * m[..., 1, 1] - m[..., 0, 1] * m[..., 1, 0]
-    if n == 3:
-        return jnp.sum(m[..., 0, :] * jnp.cross(m[..., 1, :], m[..., 2, :]), axis=-1)
-    return jnp.linalg.det(m)
-
-
-def solve_small(m: Array, b: Array, det: Array | None = None) -> Array:
-    """Solve ``m x = b`` for small systems, shapes ``(..., n, n)`` and ``(..., n)``.
-
-    For n <= 3 by Cramer's rule / the adjugate (batched tiny ``linalg`` calls are 3-10x slower
-    on XLA CPU); otherwise ``jnp.linalg.solve``. ``det`` (shape ``(...)``) may be passed, e.g.
-    with a placeholder where the matrix is singular (the caller owns the double-where); it is
-    used only for n <= 3.
-    """
-    n = m.shape[-1]
-    if n > 3:
-        return jnp.linalg.solve(m, b[..., None])[..., 0]
-    if det is None:
-        det = det_small(m)
-    if n == 1:
-        return b / det[..., None]
-    if n == 2:
-        x0 = m[..., 1, 1] * b[..., 0] - m[..., 0, 1] * b[..., 1]
-        x1 = m[..., 0, 0] * b[..., 1] - m[..., 1, 0] * b[..., 0]
-        return jnp.stack([x0, x1], axis=-1) / det[..., None]
-    # x = adj(m) b / det; the adjugate's columns are cross products of the rows of m.
-    r0, r1, r2 = m[..., 0, :], m[..., 1, :], m[..., 2, :]
-    adj_b = (
-        jnp.cross(r1, r2) * b[..., 0:1]
-        + jnp.cross(r2, r0) * b[..., 1:2]
-        + jnp.cross(r0, r1) * b[..., 2:3]
-    )
-    return adj_b / det[..., None]
-
-
-def hadamard_ratio(m: Array, det: Array | None = None) -> Array:
-    """``|det m| / prod_i |m_i|`` (``m_i`` the rows), shape ``(...)``: 1 orthogonal, 0 singular."""
-    if det is None:
-        det = det_small(m)
-    bound = jnp.prod(jnp.sqrt(jnp.sum(m * m, axis=-1)), axis=-1)
-    positive = bound > 0
-    return jnp.where(positive, jnp.abs(det) / jnp.where(positive, bound, 1.0), 0.0)
 
 
 Components = tuple[Array, ...]
@@ -236,10 +170,9 @@ def _ratio(det_sq: Array, bound_sq: Array) -> Array:
 
 
 def hadamard_ratio_components(m: list[list[Array]]) -> Array:
-    """``hadamard_ratio`` of a per-sample matrix given as components ``m[i][j]`` (batch arrays).
+    """The Hadamard ratio ``|det m| / prod_i |m_i|`` of per-sample matrices ``m[i][j]``.
 
-    Elementwise only, so it fuses into one loop: the stacked ``hadamard_ratio`` in the Delta
-    FK's diagnostics made the whole FK ~25 % slower at batch 1e6 (measured).
+    Elementwise only, so it fuses into one loop with its producers.
     """
     _, ratio_sq = _solve_components(m, tuple(m[0]))  # the solve itself is dead code
     return _ratio(*ratio_sq)

@@ -35,9 +35,26 @@ import optax
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate, plan
+from . import plan
+from ._progress import bar, is_active
 from .jet import Jet
-from .progress import bar, is_active
+from .robot import as_robot, ik
+
+__all__ = [
+    "DEFAULT_COST",
+    "OptimizationResult",
+    "TrajectorySample",
+    "acceleration",
+    "bezier_basis",
+    "bezier_path",
+    "compose",
+    "jerk",
+    "limit_penalty",
+    "optimize",
+    "singularity_barrier",
+    "straight_line_guess",
+    "unreachable_penalty",
+]
 
 PROGRESS_BLOCK = 50  # optimiser steps per compiled block when a progress bar is shown
 
@@ -144,7 +161,7 @@ def bezier_basis(n_ctrl: int, n_samples: int) -> np.ndarray:
 
 def _full_controls(interior: Array, start: Array, goal: Array, rest_to_rest: bool) -> Array:
     batch = interior.shape[:-2]
-    ends = [jnp.broadcast_to(x, (*batch, 1, 3)) for x in (start, goal)]
+    ends = [jnp.broadcast_to(x, (*batch, 1, x.shape[-1])) for x in (start, goal)]
     if rest_to_rest:
         ends = [jnp.concatenate([e, e], axis=-2) for e in ends]
     return jnp.concatenate([ends[0], interior, ends[1]], axis=-2)
@@ -180,12 +197,12 @@ class OptimizationResult:
 def straight_line_guess(
     start: ArrayLike, goal: ArrayLike, n_interior: int, n_guesses: int = 1, noise=0.0, seed=0
 ) -> np.ndarray:
-    """Interior control points on the segment start-goal, plus Gaussian noise: (B, K-2, 3)."""
+    """Interior control points on the segment start-goal, plus Gaussian noise: (B, K-2, d)."""
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     s = np.linspace(0.0, 1.0, n_interior + 2)[1:-1, None]
     line = start + s * (goal - start)
     rng = np.random.default_rng(seed)
-    return line + noise * rng.normal(size=(n_guesses, n_interior, 3))
+    return line + noise * rng.normal(size=(n_guesses, n_interior, start.shape[-1]))
 
 
 def optimize(
@@ -198,7 +215,7 @@ def optimize(
     optimizer: optax.GradientTransformation | None = None,
     steps: int = 200,
     cost: CostTerm = DEFAULT_COST,
-    mode: Any = 1,
+    branch: Any = None,
     limits: plan.Limits | None = None,
     rest_to_rest: bool = False,
     progress: bool | None = None,
@@ -206,15 +223,16 @@ def optimize(
     """Optimise B trajectories from ``start`` to ``goal`` at once.
 
     Args:
-        robot: a ``Scara`` or ``Delta`` (anything ``plan.evaluate`` accepts).
-        start, goal: end-effector positions, shape ``(3,)``: fixed.
-        interior: initial interior control points, shape ``(B, K', 3)`` or ``(K', 3)``.
+        robot: any robot of the protocol whose targets are points (``robot.target``).
+        start, goal: end-effector positions, shape ``robot.target.shape``: fixed.
+        interior: initial interior control points, shape ``(B, K', d)`` or ``(K', d)``.
         duration: motion time; ``n_samples`` samples are taken uniformly in [0, duration].
         optimizer: any optax transformation (default ``optax.adam(1e-2 * scale)`` with
             ``scale = |goal - start|``).
         steps: optimiser steps, all inside one jitted ``lax.scan``.
         cost: ``cost(TrajectorySample) -> (B,)``; default ``DEFAULT_COST``.
-        mode: the fixed assembly mode/branch (as in ``plan.evaluate``, not ``"best"``).
+        branch: the branch held along the path (one of ``robot.branches``; None for the
+            default).
         limits: ``plan.Limits`` for limit penalties and the final evaluation.
         rest_to_rest: also fix the second and second-to-last control points.
         progress: show a progress bar (default: only when stderr is a terminal; False never,
@@ -223,26 +241,32 @@ def optimize(
     Returns:
         ``OptimizationResult``.
     """
-    branches = plan._branches(robot)
-    _validate.choice(mode, "mode", branches)
+    robot = as_robot(robot)
+    if not robot.target.is_point:
+        raise ValueError(
+            f"optimize needs a robot whose targets are points; {type(robot).__name__}'s are "
+            f"{robot.target.name}s"
+        )
+    mode = robot.check_branch(branch)
+    dims = robot.target.shape[0]
     start = jnp.asarray(start, float)
     goal = jnp.asarray(goal, float)
     for name, x in (("start", start), ("goal", goal)):
-        if x.shape != (3,):
-            raise ValueError(f"{name}: expected shape (3,), got {x.shape}")
+        if x.shape != (dims,):
+            raise ValueError(f"{name}: expected shape ({dims},), got {x.shape}")
     interior = jnp.asarray(interior, float)
     if interior.ndim == 2:
         interior = interior[None]
-    if interior.ndim != 3 or interior.shape[-1] != 3 or interior.shape[1] < 1:
-        raise ValueError(f"interior: expected shape (B, K', 3) with K' >= 1, got {interior.shape}")
+    if interior.ndim != 3 or interior.shape[-1] != dims or interior.shape[1] < 1:
+        raise ValueError(
+            f"interior: expected shape (B, K', {dims}) with K' >= 1, got {interior.shape}"
+        )
     if not (duration > 0 and n_samples >= 3 and steps >= 0):
         raise ValueError("need duration > 0, n_samples >= 3 and steps >= 0")
     n_ctrl = interior.shape[1] + 2 + (2 if rest_to_rest else 0)
     basis = jnp.asarray(bezier_basis(n_ctrl, n_samples), interior.dtype)
     dt = duration / (n_samples - 1)
-    if limits is None:
-        limits = plan.Limits.create(3)
-    limits = limits.tightened(*plan._robot_position_limits(robot, 3))
+    limits = plan.robot_limits(robot, limits)
     if optimizer is None:
         optimizer = optax.adam(1e-2 * float(jnp.linalg.norm(goal - start)))
     # The steps run as jitted lax.scan blocks; between blocks a progress bar is updated
@@ -263,13 +287,13 @@ def optimize(
     history = jnp.concatenate([*histories, final[None]], axis=0)
     controls = _full_controls(ctrl, start, goal, rest_to_rest)
     path = bezier_path(controls, basis, duration)
-    evaluation = plan.evaluate(robot, path, limits=limits, mode=mode, dt=dt)
+    evaluation = plan.evaluate(robot, path, limits=limits, branch=mode, dt=dt)
     return OptimizationResult(controls, path, history, evaluation)
 
 
 def _sample(robot, controls, basis, duration, dt, limits, mode) -> TrajectorySample:
-    q, status, margin = plan._solve(robot, bezier_path(controls, basis, duration), mode)
-    return TrajectorySample(q, status, margin, jnp.asarray(dt, controls.dtype), limits)
+    res = ik(robot, bezier_path(controls, basis, duration), mode)
+    return TrajectorySample(res.q, res.status, res.margin, jnp.asarray(dt, controls.dtype), limits)
 
 
 def _per_candidate(params, robot, start, goal, basis, duration, dt, limits, cost, mode, rest):

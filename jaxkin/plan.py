@@ -1,8 +1,10 @@
-"""Planner backend: evaluate N candidate end-effector trajectories in one call, and rank them.
+"""Planner backend: evaluate N candidate trajectories of any robot in one call, and rank them.
 
-A planner hands ``evaluate`` a ``Jet`` of end-effector paths, shape ``(N, T, 3)`` (N candidates,
-T samples at a fixed time step ``dt``) and gets back, per candidate, the joint trajectories,
-feasibility, the first failing sample, the smallest singularity margin and costs.
+A planner hands ``evaluate`` a ``Jet`` of end-effector paths of shape ``(N, T, *target)`` (N
+candidates, T samples at a fixed time step ``dt``; ``target`` the robot's target shape, e.g.
+``(3,)`` for a point, ``(4, 4)`` for a pose) and gets back, per candidate, the joint
+trajectories, feasibility, the first failing sample, the smallest singularity margin and
+costs. The robot is anything implementing the robot protocol (``jaxkin.robot``).
 
 Costs, per candidate (joint units: rad for revolute joints, the length unit for prismatic ones;
 sums run over joints and samples, ``dt`` is the sample spacing)::
@@ -17,48 +19,48 @@ sums run over joints and samples, ``dt`` is the sample spacing)::
     limit_violation         sum_t sum_j of how far q, |q_dot|, |q_ddot| exceed their limits
     total                   integrated_acceleration where feasible, +inf otherwise
 
-``total`` is the documented ranking cost used by ``best`` and by ``mode="best"``: the smoothest
-feasible joint motion wins. Jerk is the only finite difference here (of the exact
-accelerations); positions, velocities and accelerations come from the kernels.
+``total`` ranks candidates in ``best`` and ``branch="best"``: the smoothest feasible joint
+motion wins. Jerk is the only finite difference (of the exact accelerations). Feasible means
+every sample's status is ``OK``: solved, regular, within every position, speed and acceleration
+limit (``OUT_OF_LIMITS`` otherwise). A candidate keeps one branch from start to end: a path that
+would need a switch passes through a singularity, which the kernel reports.
 
-Feasible means every sample's status is ``OK``: the IK solved it (reachable, not singular, not
-invalid) and no position, velocity or acceleration limit is violated (``OUT_OF_LIMITS``
-otherwise). A candidate keeps one assembly mode/branch from start to end: a path that would
-need a switch passes through a singularity, which the kernel reports, so it is infeasible.
-
-Scale: when JAX sees more than one device the candidate axis is sharded across all of them
-(``jax.sharding.NamedSharding``); huge N is processed in chunks of ``chunk_size`` candidates
-(default: ``DEFAULT_CHUNK_SAMPLES // T``, i.e. about 2**17 samples per call, a hundred MB or
-so of intermediates in float64), so memory stays bounded besides the returned arrays; on one
-device the chunks run concurrently on the host threads (``jaxkin.set_num_threads``).
+Scale: huge N is processed in chunks of about ``jaxkin._batching.PLAN_CHUNK_SAMPLES`` samples,
+so memory stays bounded besides the returned arrays; with several JAX devices each chunk is
+sharded over all of them, with one the chunks run on the host threads
+(``jaxkin._batching.map_candidates``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
 from jax.typing import ArrayLike
 
-from . import _threads, _validate, delta, scara, splines
-from ._numerics import computed_once, safe_div, safe_norm, safe_sqrt
+from . import _batching, _splines, _validate
+from ._numerics import computed_once, safe_norm
 from .jet import Jet
 from .result import SolverResult
-from .serial import arms
+from .robot import Robot, as_robot, ik
 from .status import STATUS_DTYPE, Status
 
-# Samples per planner call. Smaller calls keep the intermediates small: XLA maps a large
-# temporary buffer afresh on every call (page faults), and two chunks run on two threads.
-# Measured with N = 1e4, T = 100, float64 (2-core CPU): 2**17 per call, two threads, 1.8-2x
-# the throughput of 2**18 per call one after the other; 2**16 no better than 2**17.
-DEFAULT_CHUNK_SAMPLES = 2**17
+__all__ = [
+    "Costs",
+    "Evaluation",
+    "Limits",
+    "best",
+    "evaluate",
+    "jerk",
+    "limit_excess",
+    "path_from_samples",
+    "trajectory_costs",
+]
 
 
 @jax.tree_util.register_dataclass
@@ -165,59 +167,18 @@ class Evaluation(SolverResult):
     branches: tuple = dataclasses.field(metadata=dict(static=True), default=())
 
 
-# ------------------------------------------------------------------ robot adapters
-def _is_point_arm(robot: Any) -> bool:
-    return isinstance(robot, arms.ARMS) and robot.TARGET_SHAPE == (3,)
-
-
-def _branches(robot: Any) -> tuple:
-    if isinstance(robot, scara.Scara):
-        return scara.MODES
-    if isinstance(robot, delta.Delta):
-        return delta.BRANCHES
-    if _is_point_arm(robot):
-        return robot.BRANCHES
-    raise ValueError(
-        "robot must be a jaxkin.scara.Scara, a jaxkin.delta.Delta or a serial arm with a 3-D "
-        f"point target (Anthropomorphic, Cylindrical, Spherical), got {type(robot).__name__}"
-    )
-
-
-def _n_joints(robot: Any) -> int:
-    return 3  # every supported robot has three joints
-
-
-def _arm_margin(robot: Any, q: Array) -> Array:
-    """Normalised Jacobian determinant ``|det J| / (|J|_F / sqrt(3))^3`` of the wrist position,
-    in [0, 1]: 1 for a scaled rotation, 0 at a singularity (dimensionless for 3R arms)."""
-
-    def position(joints):
-        return arms.fk(robot, joints)[..., :3, 3]
-
-    jac = jnp.vectorize(jax.jacfwd(position), signature="(n)->(m,n)")(q)
-    det = jnp.linalg.det(jac)
-    scale = jnp.sum(jac * jac, axis=(-2, -1)) / 3.0
-    return jnp.abs(det) * safe_div(1.0, scale * safe_sqrt(scale))
-
-
-def _solve(robot: Any, path: Jet, branch: Any) -> tuple[Jet, Array, Array]:
-    """Joint Jet, status and margin of one branch (inside jit: tracers skip host checks)."""
-    if isinstance(robot, scara.Scara):
-        res = scara.ik(robot, path, mode=branch)
-        return res.q, res.status, res.margin
-    if isinstance(robot, delta.Delta):
-        res = delta.ik(robot, path, branch=branch)
-        return res.theta, res.status, res.margin
-    q, status = arms.ik_jet(robot, path, branch)
-    return q, status, _arm_margin(robot, q.p)
-
-
-def _robot_position_limits(robot: Any, n: int) -> tuple[Any, Any]:
-    if isinstance(robot, scara.Scara) and robot.limits is not None:
-        return robot.limits.lower, robot.limits.upper
-    if isinstance(robot, delta.Delta):
-        return jnp.full(n, robot.theta_min, float), jnp.full(n, robot.theta_max, float)
-    return jnp.full(n, -jnp.inf), jnp.full(n, jnp.inf)
+def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
+    """``limits`` (None: none) checked against the robot's joints and tightened by its own
+    position limits."""
+    n = robot.n_joints
+    if limits is None:
+        limits = Limits.create(n)
+    elif not isinstance(limits, Limits) or tuple(jnp.shape(limits.q_min)) != (n,):
+        raise ValueError(
+            f"limits must be a Limits for {n} joints (Limits.create({n}, ...)), got {limits!r}"
+        )
+    own = robot.joint_limits()
+    return limits.tightened(own.lower, own.upper)
 
 
 # ------------------------------------------------------------------ costs (reused by optimize)
@@ -266,11 +227,11 @@ def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Cost
 
 # ------------------------------------------------------------------ the kernel
 def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: int) -> Evaluation:
-    branches = _branches(robot)
-    q, status, margin = _solve(robot, path, branches[branch_index])
+    branches = robot.branches
+    res = ik(robot, path, branches[branch_index])
+    q, status, margin = res.q, res.status, res.margin
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
-    # IK work into them (measured: SCARA 84k -> 141k, Delta 31k -> 35k candidates/s, 1e3 x 100
-    # samples, float64).
+    # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
     violated = limit_excess(q, limits) > 0
     status = jnp.where(
@@ -301,10 +262,10 @@ def _pick(better: Array, a: Evaluation, b: Evaluation) -> Evaluation:
     return jax.tree.map(choose, a, b)
 
 
-def _evaluate_impl(robot, path: Jet, limits: Limits, dt, mode: Any) -> Evaluation:
-    branches = _branches(robot)
-    if mode != "best":
-        return _evaluate_branch(robot, path, limits, dt, branches.index(mode))
+def _evaluate_impl(robot, path: Jet, limits: Limits, dt, branch: Any) -> Evaluation:
+    branches = robot.branches
+    if branch != "best":
+        return _evaluate_branch(robot, path, limits, dt, branches.index(branch))
     best = _evaluate_branch(robot, path, limits, dt, 0)
     for index in range(1, len(branches)):
         other = _evaluate_branch(robot, path, limits, dt, index)
@@ -315,108 +276,63 @@ def _evaluate_impl(robot, path: Jet, limits: Limits, dt, mode: Any) -> Evaluatio
     return best
 
 
-_evaluate_jit = jax.jit(_evaluate_impl, static_argnames=("mode",))
-
-
-# ------------------------------------------------------------------ sharding and chunking
-def _candidate_sharding(n_devices: int) -> NamedSharding | None:
-    if n_devices == 1:
-        return None
-    mesh = Mesh(np.asarray(jax.devices()), ("candidates",))
-    return NamedSharding(mesh, PartitionSpec("candidates"))
-
-
-def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int) -> Any:
-    """Apply ``fn`` to a pytree whose leaves share a leading candidate axis N, in chunks.
-
-    The chunks have one size, at most ``chunk_size`` candidates (the last one overlaps its
-    neighbour rather than being padded: ``jaxkin._threads.overlapping_parts``), so one
-    compilation serves them all. With several devices each chunk is sharded across all of them;
-    with one, chunks run on the host threads concurrently (``jaxkin._threads``). The results
-    are joined back to N candidates.
-    """
-    n = jax.tree.leaves(tree)[0].shape[0]
-    n_devices = jax.device_count()
-    # Sharded chunks need a multiple of the device count: repeat the last candidate.
-    pad = (-n) % n_devices
-    if pad:
-        tree = jax.tree.map(lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, 0)]), tree)
-    size = n + pad
-    chunk, starts = _threads.overlapping_parts(
-        size, math.ceil(size / max(1, min(chunk_size, size))), multiple=n_devices
-    )
-    sharding = _candidate_sharding(n_devices)
-
-    def run(start: int) -> Any:
-        part = tree if chunk == size else jax.tree.map(lambda x: x[start : start + chunk], tree)
-        if sharding is not None:
-            part = jax.device_put(part, sharding)
-        return fn(part)
-
-    if sharding is not None:  # the devices share the work: one chunk at a time
-        outputs = [run(start) for start in starts]
-    else:
-        outputs = _threads.run_parts(run, starts)
-    result = (
-        outputs[0]
-        if len(outputs) == 1
-        else _threads.join(outputs, (size,), len(starts) * chunk - size)
-    )
-    return jax.tree.map(lambda x: x[:n], result) if pad else result
+_evaluate_jit = jax.jit(_evaluate_impl, static_argnames=("branch",))
 
 
 # ------------------------------------------------------------------ public API
 def evaluate(
-    robot: Any,
+    robot: Robot,
     path: Jet | ArrayLike,
     limits: Limits | None = None,
-    mode: Any = 1,
+    branch: Any = None,
     dt: float = 1.0,
     chunk_size: int | None = None,
 ) -> Evaluation:
     """Evaluate N candidate end-effector trajectories (see the module docstring).
 
     Args:
-        robot: a ``jaxkin.scara.Scara``, a ``jaxkin.delta.Delta``, or a serial arm whose IK
-            target is a 3-D point (``Anthropomorphic``, ``Cylindrical``, ``Spherical``; their
-            margin is the normalised Jacobian determinant, see ``_arm_margin``).
-        path: Jet (or plain positions, at rest) of shape ``(N, T, 3)``; build one from
-            sampled positions with ``path_from_samples``.
+        robot: any robot of the protocol (``jaxkin.robot``).
+        path: Jet (or plain targets, at rest) of shape ``(N, T, *robot.target.shape)``; build
+            one from sampled points with ``path_from_samples``.
         limits: joint ``Limits``; the robot's own position limits always apply too.
-        mode: the assembly mode/branch held along every candidate (``+1``/``-1`` for a SCARA,
-            ``"out"``/``"in"`` for a Delta, a branch name such as ``"front_up"`` for an arm),
-            or ``"best"``: every branch is evaluated and, per
+        branch: the branch held along every candidate (one of ``robot.branches``; None for
+            ``robot.default_branch``), or ``"best"``: every branch is evaluated and, per
             candidate, the feasible one with the lowest ``costs.total`` is kept.
         dt: sample spacing in time (for the integrated costs and jerk).
-        chunk_size: candidates per call (default ``DEFAULT_CHUNK_SAMPLES // T``).
+        chunk_size: candidates per call (default ``PLAN_CHUNK_SAMPLES // T``).
 
     Returns:
-        An ``Evaluation``; ``branch`` tells which branch each candidate used.
+        An ``Evaluation``; ``branch`` tells which branch each candidate used. Zero candidates
+        give empty arrays.
 
     Raises:
-        ValueError: unsupported robot, path not of shape ``(N, T, 3)`` with T >= 2, unknown
-            mode, non-positive dt, or limits of the wrong size.
+        ValueError: not a robot, a path not of shape ``(N, T, *target)`` with T >= 2, an
+            unknown branch, a non-positive dt, or limits of the wrong size.
     """
-    branches = _branches(robot)
-    if mode != "best":
-        _validate.choice(mode, "mode", branches)
-    path = _validate.as_jet(path, "path", coords=3)
-    if path.p.ndim != 3 or path.p.shape[1] < 2:
-        raise ValueError(f"path: expected shape (N, T, 3) with T >= 2, got {path.shape}")
-    if not (isinstance(dt, int | float) and dt > 0 and math.isfinite(dt)):
+    robot = as_robot(robot)
+    if branch != "best":
+        branch = robot.check_branch(branch)
+    target = robot.target.shape
+    path = _validate.as_jet(path, "path", coords=None)
+    if path.p.ndim != 2 + len(target) or path.shape[2:] != target or path.shape[1] < 2:
+        raise ValueError(
+            f"path: expected shape (N, T, {', '.join(map(str, target))}) with T >= 2 for "
+            f"{type(robot).__name__} ({robot.target.name} targets), got {path.shape}"
+        )
+    if isinstance(dt, bool) or not (isinstance(dt, int | float) and dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be a positive finite number, got {dt!r}")
-    n_joints = _n_joints(robot)
-    if limits is None:
-        limits = Limits.create(n_joints)
-    elif not isinstance(limits, Limits) or limits.q_min.shape != (n_joints,):
-        raise ValueError(f"limits must be a Limits for {n_joints} joints (Limits.create)")
-    limits = limits.tightened(*_robot_position_limits(robot, n_joints))
+    limits = robot_limits(robot, limits)
+    n, t = path.shape[:2]
     if chunk_size is None:
-        chunk_size = max(1, DEFAULT_CHUNK_SAMPLES // path.shape[1])
-    elif not (isinstance(chunk_size, int) and chunk_size >= 1):
+        chunk_size = max(1, _batching.PLAN_CHUNK_SAMPLES // t)
+    elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    return map_candidates(
-        lambda chunk: _evaluate_jit(robot, chunk, limits, float(dt), mode), path, chunk_size
+    if n == 0:  # the kernel's shapes from one placeholder candidate, then none of it
+        placeholder = jax.tree.map(lambda x: jnp.zeros((1, *x.shape[1:]), x.dtype), path)
+        one = _evaluate_jit(robot, placeholder, limits, float(dt), branch)
+        return jax.tree.map(lambda x: x[:0], one)
+    return _batching.map_candidates(
+        lambda chunk: _evaluate_jit(robot, chunk, limits, float(dt), branch), path, chunk_size
     )
 
 
@@ -424,7 +340,7 @@ def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") 
     """Jet of paths sampled at a fixed time step, rates from a cubic spline (host side).
 
     Each coordinate of each candidate is interpolated by a cubic spline through its samples
-    (``jaxkin.splines.derivatives``; ``"not-a-knot"`` ends reproduce any cubic exactly) and
+    (``"not-a-knot"`` ends reproduce any cubic exactly) and
     the spline's exact first and second derivatives at the samples are the velocity and
     acceleration: no finite differences.
 
@@ -441,7 +357,7 @@ def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") 
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be a positive finite number, got {dt!r}")
     t = np.broadcast_to(np.arange(positions.shape[-2]) * float(dt), positions.shape[:-1])
-    velocity, acceleration = splines.derivatives(t, positions, end=end)
+    velocity, acceleration = _splines.derivatives(t, positions, end=end)
     return Jet.of(positions, velocity, acceleration)
 
 

@@ -1,4 +1,4 @@
-"""Angle and distance of planar vectors with their time derivatives (seed 000, Figs. 2-3).
+"""Angle and distance of planar vectors with their time derivatives [Noriega, Figs. 2-3].
 
 The public functions take ``Jet``s of shape ``(..., 2)`` and return a scalar ``Jet`` (batch
 shape) and a boolean ``defined`` mask. Where the quantity is undefined (zero vector, coincident
@@ -18,6 +18,14 @@ from ._numerics import safe_div, safe_sqrt
 from ._trig import atan2
 from .jet import Jet
 
+__all__ = [
+    "angle",
+    "angle_rates",
+    "distance",
+    "length_rates",
+    "link_end_rates",
+]
+
 
 def angle_rates(
     x: Array,
@@ -32,7 +40,7 @@ def angle_rates(
 
     ``inv_r2``: ``1 / (x^2 + y^2)`` (0 for the zero vector) when the caller already has it.
 
-    Seed 000 Fig. 2, corrected (ERRATA seed 000 items 1-3), one formula for every quadrant::
+    [Noriega, Fig. 2], corrected (docs/errata.md), one formula for every quadrant::
 
         theta_dot  = (x y' - y x') / r2                                   r2 = x^2 + y^2
         theta_ddot = ((x y'' - y x'') r2 - (x y' - y x') 2 (x x' + y y')) / r2^2
@@ -57,7 +65,7 @@ def length_rates(
 
     ``inv_l``: ``1 / l`` (0 where ``l = 0``) when the caller already has it.
 
-    Seed 000 Fig. 3 (correct as printed), with ``d = (x, y)``::
+    [Noriega, Fig. 3] (correct as printed), with ``d = (x, y)``::
 
         l_dot  = (d . d') / l
         l_ddot = ((d' . d' + d . d'') l - (d . d') l_dot) / l^2
@@ -77,7 +85,7 @@ def link_end_rates(
     length: Array, cos_phi: Array, sin_phi: Array, phi_dot: Array, phi_ddot: Array
 ) -> tuple[Array, Array, Array, Array]:
     """Velocity and acceleration of ``length (cos phi, sin phi)``, a link of constant length
-    turning at ``phi_dot``, ``phi_ddot`` (seed 000 eqs. 7-8 without the base point's rates)::
+    turning at ``phi_dot``, ``phi_ddot`` [Noriega, eqs. 7-8 without the base point's rates]::
 
         v = length phi_dot (-sin phi, cos phi)
         a = length (phi_ddot (-sin phi, cos phi) - phi_dot^2 (cos phi, sin phi))

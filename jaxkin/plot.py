@@ -2,7 +2,7 @@
 
 Every function builds a ``matplotlib.figure.Figure`` directly (no ``pyplot`` global state, no
 GUI: rendering uses the Agg canvas, so it works headless, in threads and in notebooks), returns
-it, and with ``path=`` also saves it (atomically, through ``jaxkin.io.atomic_write``). The saved
+it, and with ``path=`` also saves it (atomically: ``jaxkin.cli.files.atomic_write``). The saved
 image is ``figsize * dpi`` pixels (no tight bounding box).
 
 * ``joint_trajectories``: joint positions, velocities and accelerations against time, one
@@ -22,7 +22,21 @@ from typing import Any
 
 import numpy as np
 
-from . import io as kio
+from .cli import files as kio
+
+__all__ = [
+    "INSTALL_HINT",
+    "cost_curves",
+    "delta_points",
+    "delta_pose",
+    "joint_trajectories",
+    "require_matplotlib",
+    "save",
+    "scara_pose",
+    "workspace_cloud",
+    "workspace_overview",
+    "workspace_slices",
+]
 
 INSTALL_HINT = "jaxkin.plot needs matplotlib: pip install 'jaxkin[plot]'"
 _STATUS_COLOURS = {
@@ -204,7 +218,7 @@ def scara_pose(
     from . import scara
 
     q = np.asarray(_arrays(q), float).reshape(3)
-    d = np.asarray(scara.fk(robot, q), float)
+    d = np.asarray(scara.fk(robot, q).x.p, float)
     l_oa, l_ab = float(robot.l_oa), float(robot.l_ab)
     b = l_ab * np.array([np.cos(q[0]), np.sin(q[0])])
     fig = _figure(figsize, dpi)
@@ -272,7 +286,7 @@ def delta_pose(
 
     theta = np.asarray(_arrays(theta), float).reshape(3)
     if p is None:
-        p = np.asarray(delta.fk(robot, theta).p.p, float)
+        p = np.asarray(delta.fk(robot, theta).x.p, float)
     pts = delta_points(robot, theta, p)
     fig = _figure(figsize, dpi)
     ax = fig.add_subplot(projection="3d")

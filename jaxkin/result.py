@@ -1,11 +1,22 @@
-"""Base class for solver results: ``.ok`` and a host-side ``raise_if_failed``."""
+"""Result types shared by every solver: per-element statuses, ``.ok`` and ``raise_if_failed``.
+
+``IKResult`` and ``FKResult`` are what the robot protocol returns (``jaxkin.ik``,
+``jaxkin.fk``); a solver may return a subclass with more fields (the SCARA's elbow, the Newton
+FK's iterations and residual).
+"""
 
 from __future__ import annotations
 
+import dataclasses
+
+import jax
 import numpy as np
 from jax import Array
 
+from .jet import Jet
 from .status import Status, describe
+
+__all__ = ["FKResult", "IKResult", "SolverResult"]
 
 
 class SolverResult:
@@ -35,3 +46,37 @@ class SolverResult:
         if more > 0:
             lines.append(f"  ... and {more} more")
         raise RuntimeError(f"{len(failing)} of {status.size} elements failed:\n" + "\n".join(lines))
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class IKResult(SolverResult):
+    """Inverse kinematics of a batch for one branch.
+
+    Attributes:
+        q: Jet of the joint coordinates, shape ``(..., n_joints)`` (rad for revolute joints,
+            the length unit for prismatic ones).
+        status: ``int8`` codes of ``jaxkin.Status``, shape ``(...)``.
+        margin: distance to a singularity, shape ``(...)``: in (0, 1] where solved and
+            regular, 0 at a singularity, negative where the target cannot be reached, -1 for
+            invalid input (each robot documents its measure).
+    """
+
+    q: Jet
+    status: Array
+    margin: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class FKResult(SolverResult):
+    """Forward kinematics of a batch.
+
+    Attributes:
+        x: Jet of the end-effector in the form of the robot's targets (``robot.target``),
+            shape ``(..., *robot.target.shape)``.
+        status: ``int8`` codes of ``jaxkin.Status``, shape ``(...)``.
+    """
+
+    x: Jet
+    status: Array

@@ -13,6 +13,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
+__all__ = [
+    "STATUS_DTYPE",
+    "Status",
+    "describe",
+    "status_names",
+]
+
 STATUS_DTYPE = jnp.int8
 
 

@@ -1,23 +1,22 @@
-"""Chunked voxel sweeps of a robot's reachable workspace.
+"""Voxel sweeps of the reachable workspace of any robot whose targets are points.
 
-``sweep(status_of, bounds, resolution)`` evaluates a regular grid of points (voxel centres)
-``x_k = lo + k * resolution`` for ``k = 0 .. floor((hi - lo) / resolution)`` on each axis (both
-ends included when ``hi - lo`` is a multiple of the resolution, as in the Delta paper's
-101 x 101 x 91 grid). ``status_of(points (N, 3)) -> status (N,)`` is any robot's IK status
-(e.g. ``lambda pts: scara.ik(robot, pts).status``); a point is reachable where its status is in
-``reachable`` (default: ``Status.OK``).
+``sweep(robot)`` evaluates the robot's inverse kinematics (``jaxkin.ik``, one branch) on a
+regular grid of voxel centres ``x_k = lo + k * resolution``, ``k = 0 .. floor((hi - lo) /
+resolution)`` per axis (both ends included when ``hi - lo`` is a multiple of the resolution,
+as in the 101 x 101 x 91 grid of [Cardona, sec. V]); a voxel is reachable where its status is
+one of ``robot.reachable`` (solved positions, the singular boundary included). Planar robots
+get a 2-D grid, 3-D point robots a 3-D one; robots whose targets are poses have no voxel
+workspace.
 
-Memory is bounded: points are generated on the host chunk by chunk (``chunk_size`` points, the
-last chunk padded so every call has the same shape and compiles once), and only the boolean
-mask is kept. A progress bar (``jaxkin.progress.bar``) is shown when stderr is a terminal
-(``progress=None``); ``progress=False`` silences it, ``progress=True`` forces it.
+Memory is bounded: points are made on the host chunk by chunk (``jaxkin._batching.host_chunks``,
+one compiled shape for every chunk) and only the boolean mask is kept. A progress bar is
+shown when stderr is a terminal (``progress=None``); ``False`` silences it, ``True`` forces it.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Iterable
 from typing import Any
 
 import jax
@@ -25,10 +24,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .progress import bar
-from .status import Status
+from . import _batching
+from ._progress import bar
+from .robot import Robot, as_robot, ik
 
-Bounds = tuple[tuple[float, float], tuple[float, float], tuple[float, float]]
+__all__ = ["WorkspaceResult", "grid_axes", "sweep"]
+
+Bounds = tuple[tuple[float, float], ...]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,17 +38,19 @@ class WorkspaceResult:
     """Result of a voxel sweep (host-side NumPy arrays).
 
     Attributes:
-        mask: reachable voxels, ``bool``, shape ``(nx, ny, nz)`` (index order x, y, z).
-        axes: the grid coordinates ``(x (nx,), y (ny,), z (nz,))``.
+        mask: reachable voxels, ``bool``, shape ``(nx, ny, nz)`` (``(nx, ny)`` for a planar
+            robot; index order x, y, z).
+        axes: the grid coordinates per axis, ``(x (nx,), y (ny,)[, z (nz,)])``.
         resolution: voxel edge length.
-        n_evaluated: number of voxels evaluated, ``nx * ny * nz``.
+        n_evaluated: number of voxels evaluated.
         n_reachable: number of reachable voxels.
-        volume: ``n_reachable * resolution^3``.
-        slice_areas: reachable area of each z slice, ``(nz,)`` (``count * resolution^2``).
+        volume: ``n_reachable * resolution^d`` (an area for a planar robot).
+        slice_areas: reachable area of each z slice, ``(nz,)`` (``count * resolution^2``); for
+            a planar robot the one area, ``(1,)``.
     """
 
     mask: np.ndarray
-    axes: tuple[np.ndarray, np.ndarray, np.ndarray]
+    axes: tuple[np.ndarray, ...]
     resolution: float
     n_evaluated: int
     n_reachable: int
@@ -54,80 +58,110 @@ class WorkspaceResult:
     slice_areas: np.ndarray
 
 
-def grid_axes(bounds: Bounds, resolution: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def grid_axes(bounds: Bounds, resolution: float) -> tuple[np.ndarray, ...]:
     """The voxel-centre coordinates on each axis (see the module docstring)."""
     axes = []
-    for name, (lo, hi) in zip("xyz", bounds, strict=True):
+    for name, (lo, hi) in zip("xyz", bounds, strict=False):
         lo, hi = float(lo), float(hi)
         if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
             raise ValueError(f"bounds[{name!r}] must be finite with lo <= hi, got {(lo, hi)}")
         count = int(math.floor((hi - lo) / resolution + 1e-9)) + 1
         axes.append(lo + resolution * np.arange(count))
-    return axes[0], axes[1], axes[2]
+    return tuple(axes)
 
 
-def sweep(
-    status_of: Callable[[Array], Array],
-    bounds: Bounds,
-    resolution: float,
-    *,
-    chunk_size: int = 1 << 18,
-    dtype: Any = None,
-    progress: bool | None = None,
-    reachable: Iterable[int] = (Status.OK,),
-) -> WorkspaceResult:
-    """Evaluate ``status_of`` on a voxel grid in chunks; return the reachable mask and volume.
-
-    Args:
-        status_of: ``points (N, 3) -> status (N,)``, jit-able (it is wrapped in ``jax.jit``).
-        bounds: ``((x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi))``.
-        resolution: voxel edge length (> 0).
-        chunk_size: points per call (memory bound; the last chunk is padded).
-        dtype: float dtype of the points (default: JAX's default float, float64 under x64).
-        progress: progress bar policy (see the module docstring).
-        reachable: status codes that count as reachable.
-
-    Raises:
-        ValueError: non-positive resolution or chunk size, malformed bounds.
-    """
+def _check_box(robot: Robot, bounds: Any, resolution: Any) -> tuple[Bounds, float]:
+    dims = robot.target.shape[0]
+    if bounds is None:
+        bounds, default_resolution = robot.workspace_box()
+        resolution = default_resolution if resolution is None else resolution
+    try:
+        bounds = tuple((float(lo), float(hi)) for lo, hi in bounds)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"bounds must be {dims} (lo, hi) pairs of numbers, got {bounds!r}"
+        ) from None
+    if len(bounds) != dims:
+        raise ValueError(
+            f"bounds must be {dims} (lo, hi) pairs (one per coordinate), got {bounds!r}"
+        )
+    if resolution is None:
+        resolution = max(hi - lo for lo, hi in bounds) / 50.0
+    if isinstance(resolution, bool) or not isinstance(resolution, int | float | np.number):
+        raise ValueError(f"resolution must be a positive number, got {resolution!r}")
     resolution = float(resolution)
     if not (math.isfinite(resolution) and resolution > 0):
         raise ValueError(f"resolution must be positive and finite, got {resolution}")
+    return bounds, resolution
+
+
+def sweep(
+    robot: Robot,
+    bounds: Bounds | None = None,
+    resolution: float | None = None,
+    *,
+    branch: Any = None,
+    chunk_size: int = _batching.SWEEP_CHUNK,
+    dtype: Any = None,
+    progress: bool | None = None,
+) -> WorkspaceResult:
+    """Sweep a voxel grid with the robot's inverse kinematics; the reachable mask and volume.
+
+    Args:
+        robot: any robot whose targets are points (``robot.target.is_point``).
+        bounds: one ``(lo, hi)`` pair per target coordinate; None for
+            ``robot.workspace_box()``.
+        resolution: voxel edge (> 0); None for the box's default (with explicit ``bounds``:
+            the longest side / 50).
+        branch: the IK branch evaluated (None: ``robot.default_branch``).
+        chunk_size: voxels per call (memory bound; every call has one shape).
+        dtype: float dtype of the points (default: JAX's default float, float64 under x64).
+        progress: progress bar policy (module docstring).
+
+    Raises:
+        ValueError: a robot whose targets are not points, malformed bounds, a non-positive
+            resolution or chunk size, an unknown branch.
+    """
+    robot = as_robot(robot)
+    if not robot.target.is_point:
+        raise ValueError(
+            f"{type(robot).__name__}'s targets are {robot.target.name}s: a voxel workspace "
+            "sweep needs a robot whose targets are points"
+        )
+    branch = robot.check_branch(branch)
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
         raise ValueError(f"chunk_size must be a positive int, got {chunk_size!r}")
-    if len(bounds) != 3 or any(len(b) != 2 for b in bounds):
-        raise ValueError(f"bounds must be three (lo, hi) pairs, got {bounds!r}")
-    xs, ys, zs = grid_axes(bounds, resolution)
-    shape = (len(xs), len(ys), len(zs))
-    total = shape[0] * shape[1] * shape[2]
+    bounds, resolution = _check_box(robot, bounds, resolution)
+    axes = grid_axes(bounds, resolution)
+    shape = tuple(len(a) for a in axes)
+    total = math.prod(shape)
     dtype = jnp.result_type(float) if dtype is None else jnp.dtype(dtype)
-    accept = jnp.asarray(sorted(int(s) for s in reachable), jnp.int32)
-    chunk = min(chunk_size, total)
+    accept = jnp.asarray(sorted(int(s) for s in robot.reachable), jnp.int32)
 
     @jax.jit
-    def evaluate(points: Array) -> Array:
-        status = jnp.asarray(status_of(points)).astype(jnp.int32)
+    def reachable(points: Array) -> Array:
+        status = ik(robot, points, branch).status.astype(jnp.int32)
         return jnp.any(status[:, None] == accept[None, :], axis=-1)
 
     flat = np.zeros(total, dtype=bool)
     with bar(total, "workspace", enabled=progress) as meter:
-        for start in range(0, total, chunk):
-            stop = min(start + chunk, total)
-            index = np.arange(start, start + chunk)
-            index[stop - start :] = 0  # pad with a valid voxel, discarded below
-            i, rest = np.divmod(index, shape[1] * shape[2])
-            j, k = np.divmod(rest, shape[2])
-            points = np.stack([xs[i], ys[j], zs[k]], axis=-1).astype(dtype)
-            flat[start:stop] = np.asarray(evaluate(points))[: stop - start]
+        for start, stop, index in _batching.host_chunks(total, chunk_size):
+            coords = np.unravel_index(index, shape)
+            points = np.stack([a[i] for a, i in zip(axes, coords, strict=True)], -1)
+            flat[start:stop] = np.asarray(reachable(points.astype(dtype)))[: stop - start]
             meter.update(stop - start)
     mask = flat.reshape(shape)
     n_reachable = int(mask.sum())
+    if len(shape) == 3:
+        slice_areas = mask.sum(axis=(0, 1)) * resolution**2
+    else:
+        slice_areas = np.array([n_reachable * resolution**2])
     return WorkspaceResult(
         mask=mask,
-        axes=(xs, ys, zs),
+        axes=axes,
         resolution=resolution,
         n_evaluated=total,
         n_reachable=n_reachable,
-        volume=n_reachable * resolution**3,
-        slice_areas=mask.sum(axis=(0, 1)) * resolution**2,
+        volume=n_reachable * resolution ** len(shape),
+        slice_areas=slice_areas,
     )

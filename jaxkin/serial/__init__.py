@@ -1,11 +1,16 @@
 """Serial arms: DH and product-of-exponentials kinematics, analytic and numerical IK.
 
-* ``DHTable``, ``fk_dh``: standard Denavit-Hartenberg forward kinematics (seed 001 eq. 2).
-* ``PoEChain``, ``fk_poe``, ``chain_fk``, ``space_jacobian``, ``body_jacobian``,
-  ``poe_from_dh``, ``change_frame``: product of exponentials (seed 003); ``lie``: SO(3)/SE(3).
-* ``ik_newton``: Newton-Raphson IK with body/space twists (seed 003), per-element convergence.
-* ``fk``, ``ik``, ``ik_jet`` and the arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``,
-  ``Cylindrical``, ``Spherical``, ``Puma560``, ``Stanford``: analytic IK, every branch.
+Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk``).
+
+* ``DHTable``, ``fk_dh``: standard Denavit-Hartenberg forward kinematics
+  [Lopez-Villagomez, eq. 2].
+* ``PoEChain``, ``fk_poe``, ``chain_fk``, ``fk_chain``, ``space_jacobian``, ``body_jacobian``,
+  ``poe_from_dh``, ``change_frame``: product of exponentials [Pineiro]; ``lie``: SO(3)/SE(3).
+* ``ik_newton``: Newton-Raphson IK with body/space twists [Pineiro], per-element convergence
+  from given seeds; ``ik_chain``: the protocol's IK of a chain (restarts, rates, margin).
+* The analytic arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``, ``Cylindrical``,
+  ``Spherical``, ``Puma560``, ``Stanford``: ``ik`` (every branch at once), ``ik_jet`` (one
+  branch with rates and a margin) and ``fk`` (in the form of the targets).
 """
 
 from . import lie as lie
@@ -25,11 +30,13 @@ from .dh import DHTable as DHTable
 from .dh import dh_transform as dh_transform
 from .dh import fk_dh as fk_dh
 from .newton_ik import NewtonIKResult as NewtonIKResult
+from .newton_ik import ik_chain as ik_chain
 from .newton_ik import ik_newton as ik_newton
 from .poe import PoEChain as PoEChain
 from .poe import body_jacobian as body_jacobian
 from .poe import chain_fk as chain_fk
 from .poe import change_frame as change_frame
+from .poe import fk_chain as fk_chain
 from .poe import fk_poe as fk_poe
 from .poe import poe_from_dh as poe_from_dh
 from .poe import space_jacobian as space_jacobian
@@ -52,9 +59,11 @@ __all__ = [
     "change_frame",
     "dh_transform",
     "fk",
+    "fk_chain",
     "fk_dh",
     "fk_poe",
     "ik",
+    "ik_chain",
     "ik_jet",
     "ik_newton",
     "lie",

@@ -1,6 +1,6 @@
-"""Shared pieces of the analytic arm solvers (``jaxkin.serial.arms``): result type, geometry base
-class with host-side validation, the planar two-link sub-problem, the ZYZ spherical wrist and
-the generic jitted ``fk`` / ``ik`` drivers.
+"""Shared pieces of the analytic arm solvers (``jaxkin.serial.arms``): the result type, the ``Arm``
+base class (the robot protocol), the planar two-link sub-problem, the ZYZ spherical wrist and
+the generic jitted drivers.
 
 Conventions shared by every arm:
 
@@ -30,8 +30,9 @@ from jax.typing import ArrayLike
 from .. import _validate
 from .._numerics import safe_sqrt, singular_rtol
 from ..result import SolverResult
+from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
-from .dh import DHTable, fk_dh
+from .dh import DHTable
 
 PI = float(np.pi)
 TWO_PI = 2.0 * PI
@@ -62,81 +63,31 @@ class ArmIKResult(SolverResult):
         return ArmIKResult(self.q[..., i, :], self.valid[..., i], self.status[..., i], (name,))
 
 
-def register_arm(cls: type) -> type:
-    """Register an arm dataclass as a pytree (every field a leaf) whose unflatten skips
-    ``__init__``: validation runs when a user builds an arm, never when JAX rebuilds one from
-    tracers, abstract values or cotangents (a gradient w.r.t. a length may be negative).
-    """
-    names = tuple(f.name for f in dataclasses.fields(cls))
+class Arm(Robot):
+    """Base class of the analytic arms: the robot protocol and the per-arm IK kernel.
 
-    def flatten_with_keys(arm):
-        return [(jax.tree_util.GetAttrKey(n), getattr(arm, n)) for n in names], None
-
-    def flatten(arm):
-        return [getattr(arm, n) for n in names], None
-
-    def unflatten(_aux, children):
-        arm = object.__new__(cls)
-        for name, value in zip(names, children, strict=True):
-            object.__setattr__(arm, name, value)
-        return arm
-
-    jax.tree_util.register_pytree_with_keys(cls, flatten_with_keys, unflatten, flatten)
-    return cls
-
-
-def _is_number(value: Any) -> bool:
-    """A value to validate: anything but a tracer (an arm built inside ``jit``) or ``None``."""
-    return value is not None and _validate.is_concrete(value)
-
-
-class Arm:
-    """Base class of the arm geometries: validation of concrete fields and the common API.
-
-    Subclasses are frozen dataclasses registered with ``register_arm`` (pytrees whose fields
-    are scalar lengths).
-    Field metadata ``kind`` is ``"positive"`` (default: > 0), ``"nonnegative"`` (>= 0) or
-    ``"real"`` (any finite value). Validation runs in ``__post_init__`` only when the values
-    are concrete numbers (never on tracers); JAX's unflattening bypasses it.
+    Subclasses are ``@geometry`` dataclasses whose fields are scalar lengths (``number``) and
+    set ``N_JOINTS``, ``JOINT_TYPES``, ``BRANCHES``, ``TARGET_SHAPE`` and ``target``.
     """
 
     N_JOINTS: ClassVar[int]
     JOINT_TYPES: ClassVar[str]
     BRANCHES: ClassVar[tuple[str, ...]]
     TARGET_SHAPE: ClassVar[tuple[int, ...]]
+    reachable: ClassVar = (Status.OK, Status.SINGULAR)
 
-    def __post_init__(self) -> None:
-        for field in dataclasses.fields(self):  # type: ignore[arg-type]
-            value = getattr(self, field.name)
-            if not _is_number(value):
-                continue
-            try:
-                arr = jnp.asarray(value)
-            except TypeError:
-                raise ValueError(
-                    f"{type(self).__name__}.{field.name}: expected a scalar length, got {value!r}"
-                ) from None
-            if not jnp.issubdtype(arr.dtype, jnp.inexact):
-                arr = arr.astype(jnp.result_type(float))
-            if arr.ndim != 0:
-                raise ValueError(
-                    f"{field.name}: expected a scalar length (vmap over arms for a batch of "
-                    f"geometries), got shape {tuple(arr.shape)}"
-                )
-            v = float(arr)
-            kind = field.metadata.get("kind", "positive")
-            bad = (
-                not np.isfinite(v)
-                or (kind == "positive" and v <= 0)
-                or (kind == "nonnegative" and v < 0)
-            )
-            if bad:
-                expected = {"positive": "positive and finite", "nonnegative": ">= 0 and finite"}
-                raise ValueError(
-                    f"{type(self).__name__}.{field.name} must be "
-                    f"{expected.get(kind, 'finite')}, got {v}"
-                )
-            object.__setattr__(self, field.name, arr)
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "BRANCHES" in cls.__dict__:
+            cls.branches = cls.BRANCHES
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(f"q{i + 1}" for i in range(self.N_JOINTS))
+
+    @property
+    def joint_types(self) -> str:
+        return self.JOINT_TYPES
 
     def lengths(self, dtype) -> tuple[Array, ...]:
         """Every field cast to ``dtype`` (in field order)."""
@@ -144,6 +95,18 @@ class Arm:
             jnp.asarray(getattr(self, f.name)).astype(dtype)
             for f in dataclasses.fields(self)  # type: ignore[arg-type]
         )
+
+    def length_scale(self) -> Any:
+        """The sum of the absolute values of the arm's lengths."""
+        return sum(jnp.abs(x) for x in self.lengths(jnp.result_type(float)))
+
+    def workspace_box(self) -> tuple[tuple[tuple[float, float], ...], float]:
+        """A cube (square for planar arms) of half-side the arm's length scale around the base;
+        voxel edge a 25th of it."""
+        if not self.target.is_point:
+            return super().workspace_box()
+        reach = float(self.length_scale())
+        return ((-reach, reach),) * self.target.shape[0], reach / 25.0
 
     def dh_table(self, dtype=None) -> DHTable:  # pragma: no cover - overridden
         raise NotImplementedError
@@ -157,6 +120,16 @@ class Arm:
         if self.TARGET_SHAPE == (4, 4):
             return jnp.eye(4, dtype=dtype)
         return jnp.zeros(self.TARGET_SHAPE, dtype)
+
+    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
+        from .arms import ik_jet
+
+        return ik_jet(self, target, branch, **options)
+
+    def _fk(self, q: Any, **options: Any) -> Any:
+        from .arms import fk
+
+        return fk(self, q, **options)
 
 
 # --------------------------------------------------------------------------- small math
@@ -197,7 +170,7 @@ class TwoLinkSolution:
 
 
 def two_link(x: Array, y: Array, l1: Array, l2: Array, elbow: ArrayLike) -> TwoLinkSolution:
-    """Planar two-link inverse kinematics (seed 003, 2R; seed 001 eqs. 11-14 corrected).
+    """Planar two-link inverse kinematics ([Pineiro], 2R; [Lopez-Villagomez, eqs. 11-14] corrected).
 
     Solves ``x = l1 cos q1 + l2 cos(q1 + q2)``, ``y = l1 sin q1 + l2 sin(q1 + q2)``::
 
@@ -208,7 +181,7 @@ def two_link(x: Array, y: Array, l1: Array, l2: Array, elbow: ArrayLike) -> TwoL
 
     ``elbow = -1`` puts the elbow to the left of the ray origin->target (``q2 <= 0``: "elbow
     up" when the target lies along +x), ``+1`` to the right. The reach test is on
-    ``r = sqrt(x^2 + y^2)`` (ERRATA seed 003): unreachable when ``r > l1 + l2 + tol`` or
+    ``r = sqrt(x^2 + y^2)`` (docs/errata.md): unreachable when ``r > l1 + l2 + tol`` or
     ``r < |l1 - l2| - tol``; singular (both elbows coincide, ``c2 = +-1`` exactly) when ``r``
     is within ``tol = sqrt(eps) (l1 + l2)`` of either bound; at ``r <= tol`` (only reachable
     when ``l1 = l2``) ``q1`` is free and set to 0. Unreachable targets get the clamped, aligned
@@ -342,22 +315,6 @@ def ik_arm(robot: Arm, target: ArrayLike) -> ArmIKResult:
             f"got {tuple(target.shape)}"
         )
     return _ik_jit(robot, target)
-
-
-def fk_arm(robot: Arm, q: ArrayLike) -> Array:
-    """``fk_dh(robot.dh_table(), q)`` after checking ``q``'s last axis."""
-    q = _as_float(q)
-    if q.ndim == 0 or q.shape[-1] != robot.N_JOINTS:
-        raise ValueError(
-            f"q: {type(robot).__name__} expects shape (..., {robot.N_JOINTS}), got {tuple(q.shape)}"
-        )
-    return _fk_arm_jit(robot, q)
-
-
-@jax.jit
-def _fk_arm_jit(robot: Arm, q: Array) -> Array:
-    # The DH table is built inside jit: on the host it costs ~0.5 ms of small dispatches.
-    return fk_dh(robot.dh_table(q.dtype), q)
 
 
 def dh(dtype, a: list, alpha: list, d: list, theta: list, joint_types: str) -> DHTable:

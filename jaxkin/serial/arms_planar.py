@@ -4,18 +4,18 @@ Both arms move in the base xy-plane; joint axes are parallel to z and the DH tab
 ``a = (l1, l2[, l3])``, ``alpha = d = theta = 0``. ``fk`` returns the 4x4 transform of the last
 DH frame: rotation ``Rz(q1 + q2 [+ q3])``, translation ``(x, y, 0)``.
 
-**Planar2R(l1, l2)**, target ``(..., 2)`` = ``(x, y)`` (seed 003, 2R; seed 004 ex. 2)::
+**Planar2R(l1, l2)**, target ``(..., 2)`` = ``(x, y)`` ([Pineiro], 2R; [UANL, ex. 2])::
 
     x = l1 cos q1 + l2 cos(q1 + q2),   y = l1 sin q1 + l2 sin(q1 + q2)
     cos q2 = (x^2 + y^2 - l1^2 - l2^2) / (2 l1 l2),  q2 = atan2(+-sqrt(1 - cos^2 q2), cos q2)
     q1 = atan2(y, x) - atan2(l2 sin q2, l1 + l2 cos q2)
 
 Branches ``("elbow_up", "elbow_down")``: ``q2 <= 0`` (elbow to the left of the ray
-base->target, i.e. above it for a target on +x) and ``q2 >= 0``. Seed 003 writes the same
+base->target, i.e. above it for a target on +x) and ``q2 >= 0``. [Pineiro] writes the same
 pair as ``theta1 = gamma +- alpha, theta2 = -+(pi - beta)``.
 
 **Planar3R(l1, l2, l3)**, target ``(..., 3)`` = ``(x, y, phi)`` with ``phi`` the end
-orientation (seed 004 ex. 3, Asada eqs. 4.1.1-4.1.3): the wrist
+orientation ([UANL, ex. 3], Asada eqs. 4.1.1-4.1.3): the wrist
 ``(x - l3 cos phi, y - l3 sin phi)`` is solved as a 2R, then ``q3 = phi - q1 - q2`` wrapped to
 ``[-pi, pi]``. Same two branches.
 
@@ -30,12 +30,13 @@ Float32: see ``jaxkin.serial.arms`` (measured round-trip accuracy of every arm).
 
 from __future__ import annotations
 
-import dataclasses
 from typing import ClassVar
 
 import jax.numpy as jnp
 from jax import Array
 
+from .._geometry import LENGTH, geometry, number
+from ..robot import PLANAR_POINT, PLANAR_POSE
 from . import _arms_common as common
 from .dh import DHTable
 
@@ -44,8 +45,7 @@ __all__ = ["Planar2R", "Planar3R"]
 _ELBOWS = (-1.0, 1.0)  # elbow_up (q2 <= 0), elbow_down (q2 >= 0)
 
 
-@common.register_arm
-@dataclasses.dataclass(frozen=True)
+@geometry
 class Planar2R(common.Arm):
     """Planar two-link arm (revolute, revolute).
 
@@ -54,13 +54,14 @@ class Planar2R(common.Arm):
         l2: length of link 2 (elbow to tip), positive scalar.
     """
 
-    l1: Array
-    l2: Array
+    l1: Array = number(LENGTH)
+    l2: Array = number(LENGTH)
 
     N_JOINTS: ClassVar[int] = 2
     JOINT_TYPES: ClassVar[str] = "RR"
     BRANCHES: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
     TARGET_SHAPE: ClassVar[tuple[int, ...]] = (2,)
+    target: ClassVar = PLANAR_POINT
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
@@ -75,8 +76,7 @@ class Planar2R(common.Arm):
         return q, common.status_from(sol.unreachable, sol.singular)
 
 
-@common.register_arm
-@dataclasses.dataclass(frozen=True)
+@geometry
 class Planar3R(common.Arm):
     """Planar three-link arm with end orientation (revolute x 3).
 
@@ -86,14 +86,15 @@ class Planar3R(common.Arm):
         l3: link 3 length (wrist joint to end point), positive scalar.
     """
 
-    l1: Array
-    l2: Array
-    l3: Array
+    l1: Array = number(LENGTH)
+    l2: Array = number(LENGTH)
+    l3: Array = number(LENGTH)
 
     N_JOINTS: ClassVar[int] = 3
     JOINT_TYPES: ClassVar[str] = "RRR"
     BRANCHES: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
     TARGET_SHAPE: ClassVar[tuple[int, ...]] = (3,)
+    target: ClassVar = PLANAR_POSE
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)

@@ -1,43 +1,27 @@
-"""Standard Denavit-Hartenberg tables and their forward kinematics (seed 001, eqs. 2-6).
+"""Standard Denavit-Hartenberg tables and their forward kinematics [Lopez-Villagomez, eqs. 2-6].
 
-Joint ``i`` (1-based, as in seed 001 Table 1) is described by four parameters: ``a_i`` (link
-length along ``x_i``), ``alpha_i`` (twist about ``x_i``, from ``z_{i-1}`` to ``z_i``), ``d_i``
-(offset along ``z_{i-1}``) and ``theta_i`` (angle about ``z_{i-1}``, from ``x_{i-1}`` to
-``x_i``). The transform from frame ``i-1`` to frame ``i`` is the *standard* (distal) DH
-convention::
+Joint ``i`` has four parameters: ``a_i`` (link length along ``x_i``), ``alpha_i`` (twist about
+``x_i``), ``d_i`` (offset along ``z_{i-1}``) and ``theta_i`` (angle about ``z_{i-1}``). The
+transform from frame ``i-1`` to frame ``i`` is the *standard* (distal) convention
+[Lopez-Villagomez, eq. 2]::
 
     T_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)
+        = [[ct, -ca st, sa st, a ct], [st, ca ct, -sa ct, a st], [0, sa, ca, d], [0, 0, 0, 1]]
 
-        = [[ct, -ca st,  sa st, a ct],
-           [st,  ca ct, -sa ct, a st],
-           [ 0,     sa,     ca,    d],
-           [ 0,      0,      0,    1]]          (ct = cos theta_i, sa = sin alpha_i, ...)
+and the chain's transform is ``T = T_1 T_2 ... T_n`` (eq. 6; tests check both against sympy).
+Joint variables add to the offsets: a revolute joint (``'R'``) uses ``theta_i + q_i``, a
+prismatic one (``'P'``) ``d_i + q_i``. A ``DHTable`` is a robot of the protocol whose targets
+are poses. Lengths in the caller's unit, angles in radians. FK has no failure cases: NaN or inf
+in ``q`` reaches only the affected elements (``fk_chain`` flags them ``INVALID_INPUT``).
 
-which is seed 001 eq. 2 exactly (checked entry by entry against the seed text and, in
-tests/test_serial_fk.py, against the product of elementary transforms built with sympy). The
-chain's transform is ``T = T_1 T_2 ... T_n`` (seed 001 eq. 6).
-
-Joint variables ``q`` add to the table's offsets: a revolute joint (``'R'``) uses
-``theta_i + q_i``, a prismatic one (``'P'``) uses ``d_i + q_i``. Seed 001's arm is
-``DHTable.create(a=[0, L2, L3], alpha=[pi/2, 0, 0], d=[L1, 0, 0], theta=[0, 0, 0],
-joint_types="RRR")``.
-
-Units: lengths in the caller's unit (the output translation uses the same), angles in radians.
-FK is a smooth closed-form map: it has no failure cases and no status; NaN or inf in ``q``
-propagates only to the affected batch elements (the solvers built on it, such as
-``jaxkin.serial.newton_ik``, flag such elements ``INVALID_INPUT``). Float32 tables and ``q``
-give float32 transforms, accurate to ~1e-6 absolute for metre-scale arms (tested).
-
-Implementation note: the kernel multiplies the link transforms entry by entry (a rotation is
-a nested list of batch arrays, see ``lie.compose_soa``) with ``cos``/``sin`` of all joints
-materialised once behind ``lax.optimization_barrier``; measured 3-6x faster than stacked 4x4
-products on CPU.
+The kernel multiplies the link transforms entry by entry (a rotation is a nested list of
+batch arrays, see ``lie``) with the joints' ``cos``/``sin`` materialised once.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -46,8 +30,11 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate
+from .._geometry import REAL, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
+from ..robot import POSE, Robot
+from ..status import Status
 from . import lie
 
 __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]
@@ -55,28 +42,67 @@ __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]
 JOINT_TYPES = ("R", "P")
 
 
-@dataclasses.dataclass(frozen=True)
-class DHTable:
+def _common_floats(obj: Any, names: tuple[str, ...]) -> None:
+    """Cast the named array fields of a geometry to their common floating dtype."""
+    arrays = [getattr(obj, n) for n in names]
+    if not all(_validate.is_concrete(x) for x in arrays):
+        return
+    dtype = jnp.result_type(*arrays, float)
+    for name, arr in zip(names, arrays, strict=True):
+        object.__setattr__(obj, name, jnp.asarray(arr, dtype))
+
+
+@geometry
+class DHTable(Robot):
     """A serial chain given by its standard Denavit-Hartenberg table (one row per joint).
 
-    Build it with ``DHTable.create(...)``, which validates the values; the plain constructor
-    does no checking (it is also called by JAX when unflattening the pytree).
+    A robot of the protocol whose targets are poses (``jaxkin.ik`` solves it by Newton with
+    restarts, ``jaxkin.serial.newton_ik.ik_chain``). The constructor validates every field
+    (a ``ValueError`` naming it); ``create`` is the same with keyword defaults.
 
     Attributes:
         a: link lengths ``a_i``, shape ``(n,)``.
         alpha: link twists ``alpha_i`` in radians, shape ``(n,)``.
         d: link offsets ``d_i`` (for a prismatic joint, the offset at ``q_i = 0``), ``(n,)``.
         theta: joint angles ``theta_i`` at ``q = 0`` (for a revolute joint, the angle offset),
-            radians, shape ``(n,)``.
+            radians, shape ``(n,)``; None for zeros.
         joint_types: static tuple of ``'R'`` (revolute: ``q_i`` adds to ``theta_i``) or
-            ``'P'`` (prismatic: ``q_i`` adds to ``d_i``), length ``n``.
+            ``'P'`` (prismatic: ``q_i`` adds to ``d_i``), length ``n``; a string such as
+            ``"RRP"`` is accepted; None for all revolute.
     """
 
-    a: Array
-    alpha: Array
-    d: Array
-    theta: Array
-    joint_types: tuple[str, ...]
+    a: Array = number(REAL, (-1,))
+    alpha: Array = number(REAL, (-1,))
+    d: Array = number(REAL, (-1,))
+    theta: Array = number(REAL, (-1,), default=None)
+    joint_types: tuple[str, ...] = static(default=None)
+
+    target: ClassVar = POSE
+    branches: ClassVar = ("newton",)
+    reachable: ClassVar = (Status.OK,)
+
+    def _validate(self) -> None:
+        if self.theta is None and _validate.is_concrete(self.a):
+            object.__setattr__(self, "theta", np.zeros(np.shape(self.a)))
+        super()._validate()
+        n = int(jnp.shape(self.a)[0])
+        if n < 1:
+            raise ValueError("DHTable.a: a DH table needs at least one joint, got 0 rows")
+        for name in ("alpha", "d", "theta"):
+            size = int(jnp.shape(getattr(self, name))[0])
+            if size != n:
+                raise ValueError(
+                    f"DHTable.{name}: expected {n} entries (the length of a), got {size}"
+                )
+        kinds = self.joint_types
+        kinds = ("R",) * n if kinds is None else tuple(kinds)
+        if len(kinds) != n or any(k not in JOINT_TYPES for k in kinds):
+            raise ValueError(
+                f"DHTable.joint_types: expected {n} entries, each 'R' or 'P', "
+                f"got {self.joint_types!r}"
+            )
+        object.__setattr__(self, "joint_types", kinds)
+        _common_floats(self, ("a", "alpha", "d", "theta"))
 
     @classmethod
     def create(
@@ -87,61 +113,8 @@ class DHTable:
         theta: ArrayLike | None = None,
         joint_types: str | Sequence[str] | None = None,
     ) -> DHTable:
-        """Validated constructor.
-
-        Args:
-            a, alpha, d, theta: 1-D sequences of one length ``n >= 1`` (``theta`` defaults to
-                zeros). Values must be finite when concrete.
-            joint_types: a string such as ``"RRP"`` or a sequence of ``'R'``/``'P'`` of length
-                ``n``; defaults to all revolute.
-
-        Raises:
-            ValueError: naming the argument, for wrong shapes, mismatched lengths, non-finite
-                values or unknown joint types.
-        """
-        arrays = {}
-        for name, value in (("a", a), ("alpha", alpha), ("d", d), ("theta", theta)):
-            if value is None:
-                continue
-            arr = jnp.asarray(value)
-            if not jnp.issubdtype(arr.dtype, jnp.inexact):
-                arr = arr.astype(jnp.result_type(float))
-            if arr.ndim != 1:
-                raise ValueError(
-                    f"{name}: expected a 1-D array of per-joint values (n,), got shape "
-                    f"{tuple(arr.shape)}"
-                )
-            if _validate.is_concrete(value) and not np.all(np.isfinite(np.asarray(arr))):
-                raise ValueError(f"{name} must be finite, got {np.asarray(arr)}")
-            arrays[name] = arr
-        n = arrays["a"].shape[0]
-        if n < 1:
-            raise ValueError("a: a DH table needs at least one joint, got 0 rows")
-        for name, arr in arrays.items():
-            if arr.shape[0] != n:
-                raise ValueError(
-                    f"{name}: expected {n} entries (the length of a), got {arr.shape[0]}"
-                )
-        if "theta" not in arrays:
-            arrays["theta"] = jnp.zeros_like(arrays["a"])
-        if joint_types is None:
-            joint_types = ("R",) * n
-        if isinstance(joint_types, str):
-            joint_types = tuple(joint_types)
-        joint_types = tuple(joint_types)
-        if len(joint_types) != n:
-            raise ValueError(f"joint_types: expected {n} entries, got {len(joint_types)}")
-        for kind in joint_types:
-            if kind not in JOINT_TYPES:
-                raise ValueError(f"joint_types: each entry must be 'R' or 'P', got {joint_types!r}")
-        dtype = jnp.result_type(*arrays.values())
-        return cls(
-            arrays["a"].astype(dtype),
-            arrays["alpha"].astype(dtype),
-            arrays["d"].astype(dtype),
-            arrays["theta"].astype(dtype),
-            joint_types,
-        )
+        """The constructor with keyword defaults (``theta`` zeros, every joint revolute)."""
+        return cls(a, alpha, d, theta, joint_types)
 
     @property
     def n_joints(self) -> int:
@@ -149,16 +122,30 @@ class DHTable:
 
     @property
     def dtype(self):
-        return self.a.dtype
+        return jnp.asarray(self.a).dtype
 
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(f"q{i + 1}" for i in range(self.n_joints))
 
-jax.tree_util.register_dataclass(
-    DHTable, data_fields=["a", "alpha", "d", "theta"], meta_fields=["joint_types"]
-)
+    def length_scale(self) -> Any:
+        """``sum |a_i| + sum |d_i|`` (1 for a table of zero lengths)."""
+        total = jnp.sum(jnp.abs(self.a)) + jnp.sum(jnp.abs(self.d))
+        return jnp.where(total > 0, total, 1.0)
+
+    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
+        from .newton_ik import ik_chain
+
+        return ik_chain(self, target, branch, **options)
+
+    def _fk(self, q: Any, **options: Any) -> Any:
+        from .poe import fk_chain
+
+        return fk_chain(self, q, **options)
 
 
 def dh_transform(a: ArrayLike, alpha: ArrayLike, d: ArrayLike, theta: ArrayLike) -> Array:
-    """Standard DH link transform ``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` (seed 001 eq. 2).
+    """Standard DH link transform ``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` [Lopez-Villagomez, eq. 2].
 
     Args:
         a, alpha, d, theta: arrays broadcastable to one batch shape ``(...)``.
@@ -182,7 +169,7 @@ def dh_transform(a: ArrayLike, alpha: ArrayLike, d: ArrayLike, theta: ArrayLike)
 
 
 def _link(ct: Array, st: Array, ca: Array, sa: Array, a: Array, d: Array):
-    """Seed 001 eq. 2 in the list representation of ``lie`` (structural zero ``None``)."""
+    """[Lopez-Villagomez, eq. 2] as nested lists (``lie``; structural zero ``None``)."""
     rot = [[ct, -ca * st, sa * st], [st, ca * ct, -sa * ct], [None, sa, ca]]
     return rot, [a * ct, a * st, d]
 
@@ -199,13 +186,10 @@ def _joint_parameters(table: DHTable, q: Array) -> tuple[Array, Array, Array, Ar
 
 def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
     _, _, d, theta = _joint_parameters(table, q)
-    # Materialise sin/cos once (one stacked array, see computed_once): without it XLA's CPU
-    # fusion recomputes them in every output loop (measured 3x slower for a 6R arm).
-    # Joint-major (n, ...) layout: each joint's sin/cos is then a contiguous row for the
-    # loops that read it (strided (..., n) columns measured 1.7x slower for the PUMA at 1e4).
-    # Each stored row is its own loop, so sin_alone/cos_alone (one polynomial each) rather
-    # than sincos (both kernels per row): 1.3x (PUMA) to 1.7x (anthropomorphic) faster at
-    # batch 1e5, float64; entries of rotations need absolute accuracy only.
+    # Materialise sin/cos once (one stacked array, see computed_once): XLA's CPU fusion would
+    # recompute them in every output loop. Joint-major (n, ...): each joint's row is contiguous
+    # for its readers. Each stored row is its own loop, so sin_alone/cos_alone (one polynomial
+    # each) rather than sincos; rotation entries need absolute accuracy only.
     joint_major = jnp.moveaxis(theta, -1, 0)
     sin_cos = computed_once(jnp.stack([sin_alone(joint_major), cos_alone(joint_major)]))
     # Unbatched per-joint constants, materialised too (else fused and recomputed per element).
@@ -216,8 +200,8 @@ def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
     for i in range(table.n_joints):
         link = _link(sin_cos[1, i], sin_cos[0, i], ca[i], sa[i], a[i], d[..., i])
         pose = link if pose is None else lie.compose_soa(pose, link)
-        # Stored every 3 joints (for a 6R arm: the shoulder's T_3): 1.4x faster at batch 1e4
-        # than no barrier, 1.5x faster than one after every joint (PUMA 560, float64).
+        # Stored every 3 joints (for a 6R arm: the shoulder's T_3): fastest of the spacings
+        # measured (docs/performance.md).
         if i % 3 == 2 and i < table.n_joints - 1:
             pose = lie.computed_once_soa(pose, batch)
         if all_frames or i == table.n_joints - 1:
@@ -247,7 +231,7 @@ def check_q(q: ArrayLike, n: int, dtype) -> Array:
 
 
 def fk_dh(table: DHTable, q: ArrayLike, all_frames: bool = False) -> Array:
-    """Forward kinematics of a DH chain: ``T = T_1(q_1) ... T_n(q_n)`` (seed 001 eq. 6).
+    """Forward kinematics of a DH chain: ``T = T_1(q_1) ... T_n(q_n)`` [Lopez-Villagomez, eq. 6].
 
     Args:
         table: the chain (``DHTable.create``).

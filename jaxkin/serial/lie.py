@@ -1,39 +1,22 @@
 """SO(3) and SE(3) helpers: hat, vee, exp, log, inverse, adjoint (written once, used everywhere).
 
-Conventions (Lynch & Park, "Modern Robotics", the convention of seed 003):
-
-* A rotation vector ``omega`` (..., 3) has angle ``theta = |omega|`` and unit axis
-  ``omega / theta``; ``hat(omega)`` is the 3x3 skew matrix with ``hat(a) b = a x b``.
-* A twist ``xi`` (..., 6) is ordered ``(omega, v)``: angular part first, linear part second.
-  ``se3_hat(xi)`` is the 4x4 matrix ``[[hat(omega), v], [0, 0]]``.
-* Transforms are 4x4 homogeneous matrices ``[[R, p], [0, 1]]`` with leading batch axes.
-* ``adjoint(T)`` is the 6x6 matrix ``[[R, 0], [hat(p) R, R]]`` acting on ``(omega, v)``
-  twists: ``se3_hat(adjoint(T) xi) = T se3_hat(xi) T^-1``.
-
-Formulas::
+Conventions (Lynch & Park, "Modern Robotics", as in [Pineiro]): a rotation vector ``omega``
+(..., 3) has angle ``t = |omega|``; ``hat(a) b = a x b``; a twist ``xi`` (..., 6) is ordered
+``(omega, v)``; transforms are 4x4 ``[[R, p], [0, 1]]``; ``adjoint(T) = [[R, 0], [hat(p) R, R]]``
+so that ``se3_hat(adjoint(T) xi) = T se3_hat(xi) T^-1``. Formulas::
 
     so3_exp(omega) = I + A hat(omega) + B hat(omega)^2                     (Rodrigues)
     se3_exp(omega, v) = [[so3_exp(omega), G v], [0, 1]],  G = I + B hat(omega) + C hat(omega)^2
-    A = sin(t)/t,  B = (1 - cos t)/t^2,  C = (t - sin t)/t^3,  t = |omega|
+    A = sin(t)/t,  B = (1 - cos t)/t^2,  C = (t - sin t)/t^3
     so3_log(R): t = atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2) in [0, pi]
-    se3_log(T): omega = so3_log(R), v = G^-1 p,
-                G^-1 = I - hat(omega)/2 + D hat(omega)^2,  D = (1 - (t/2) cot(t/2)) / t^2
-                cot(t/2) = sin t / (1 - cos t), sin t and cos t read from R (no extra sin/cos)
+    se3_log(T): v = G^-1 p,  G^-1 = I - hat(omega)/2 + D hat(omega)^2,
+                D = (1 - (t/2) cot(t/2)) / t^2
 
-Singular points, handled with the double-where trick (as jaxlie's ``SO3.exp``): the ratios A,
-B, C, D are 0/0 at ``t = 0``. Below ``t = 5 eps^(1/8)`` (0.055 in float64, 0.68 in float32)
-their Taylor series in ``t^2`` (three terms, truncation error ~ t^6 / 9! ~ eps) are used, and
-the exact formula is evaluated on a substituted safe angle, so values *and gradients* are
-finite at and near ``t = 0``. In ``so3_log`` the axis read from ``R - R^T`` is ill-conditioned
-near ``t = pi`` (``sin t -> 0``); for ``t > pi / 2`` the axis is read instead from the
-symmetric part ``(R + R^T)/2 - cos(t) I = (1 - cos t) u u^T`` (largest diagonal entry), with
-its sign taken from ``R - R^T``. At exactly ``t = pi`` both ``+u pi`` and ``-u pi`` are valid
-logarithms; the one whose largest component (in absolute value) is positive is returned,
-unless rounding in ``R - R^T`` selects the other. ``D`` diverges at ``t = 2 pi`` only, which
-``so3_log`` never returns.
-
-Everything is batched over leading axes, jit-able, and follows the input dtype (Python float
-constants only).
+The ratios A, B, C, D are 0/0 at ``t = 0``: below ``t = 5 eps^(1/8)`` their Taylor series are
+used, on a substituted safe angle (double-where), so values and gradients stay finite. Near
+``t = pi`` the axis is read from the symmetric part ``(R + R^T)/2 - cos(t) I`` instead of
+``R - R^T``. Everything is batched over leading axes, jit-able and follows the input dtype.
+The ``*_soa`` helpers work on rotations as nested lists of batch arrays (for fused kernels).
 """
 
 from __future__ import annotations
@@ -275,8 +258,8 @@ def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
     s2 = safe_sqrt(anti[0] * anti[0] + anti[1] * anti[1] + anti[2] * anti[2])  # 2 sin t
     cos_t = jnp.clip(0.5 * (rot[0][0] + rot[1][1] + rot[2][2] - 1.0), -1.0, 1.0)
     sin_t = 0.5 * s2
-    # XLA's atan2 here: jaxkin._trig.atan2 made ik_newton 1.3x slower (its theta feeds every
-    # output loop, and XLA duplicates the cheap polynomial into each; measured at 1e5).
+    # XLA's atan2 here: theta feeds every output loop, and XLA would copy jaxkin._trig's
+    # cheap-looking polynomial into each (measured slower in ik_newton).
     theta = jnp.arctan2(sin_t, cos_t)
     dtype = theta.dtype
 

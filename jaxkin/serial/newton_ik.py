@@ -1,71 +1,28 @@
-"""Newton-Raphson inverse kinematics of serial chains (seed 003, "Cinemática Inversa Numérica").
+"""Newton-Raphson inverse kinematics of serial chains [Pineiro, "Cinemática Inversa Numérica"].
 
-Given a desired end-effector pose ``T_sd`` and a seed ``q^0``, iterate (seed 003's algorithm)::
+Given a desired pose ``T_sd`` and a start ``q^0``, iterate [Pineiro]'s algorithm::
 
-    T_sb = T(q^k)                                     forward kinematics (jaxkin.serial.poe)
-    V_b  = log(T_sb^-1 T_sd)                          body twist to the target, (omega, v)
-    body frame:   V = V_b,              J = J_b(q^k)
-    space frame:  V = Ad(T_sb) V_b,     J = J_s(q^k)
-    stop when |omega| <= eps_omega and |v| <= eps_v   (the twist V of the update frame)
-    q^{k+1} = q^k + J^+ V                             (pseudo-inverse step)
+    V_b = log(T(q^k)^-1 T_sd)            body twist to the target, rows (omega, v)
+    body frame: V = V_b, J = J_b(q^k);   space frame: V = Ad(T(q^k)) V_b, J = J_s(q^k)
+    q^{k+1} = q^k + J^+ V                until |omega| <= eps_omega and |v| <= eps_v
 
-The two frames take different paths; seed 003's 2R iteration table is the body-frame one
-(ERRATA seed 003). ``frame`` defaults to the chain's own frame (``'space'`` for a chain built
-from a ``DHTable``).
+The frames take different paths; [Pineiro]'s 2R table is the body-frame one (docs/errata.md).
+The step solves ``(J^T J + mu I) dq = J^T V`` (``n <= 6``) or ``dq = J^T (J J^T + mu I)^-1 V``
+with an unrolled Cholesky, ``mu = damping^2 + sqrt(eps) trace(J^T J)``: the pseudo-inverse
+step with a soft cut-off of singular directions (``damping > 0``: damped least squares). A step
+is scaled, direction kept, so no revolute joint moves more than ``max_step`` (default 1 rad):
+long steps far from the solution or near singular poses otherwise make iterates wander off.
+With ``limits`` every iterate is clamped into the box (projected Newton).
 
-Step. ``J`` is ``6 x n``. The step solves the (damped) normal equations with an explicit
-Cholesky factorisation unrolled over the ``m = min(n, 6)`` rows (no batched LAPACK call)::
+Every element iterates on its own inside one jitted ``lax.scan``; a converged element is
+frozen, and the remaining steps are skipped once all have converged. Statuses: ``OK``,
+``NOT_CONVERGED`` (``q`` the last iterate, finite), ``INVALID_INPUT`` (NaN/inf in ``target`` or
+``q0``: ``q`` is the start with non-finite entries replaced by 0). Gradients flow through the
+unrolled scan.
 
-    n <= 6:  (J^T J + mu I) dq = J^T V
-    n > 6:   dq = J^T y,  (J J^T + mu I) y = V
-    mu = damping^2 + sqrt(eps(dtype)) * trace(J^T J)
-
-With ``damping = 0`` this is the pseudo-inverse step ``J^+ V`` with a soft cut-off: along a
-singular direction of ``J`` with singular value ``s`` the step is ``s / (s^2 + mu)`` times the
-twist component instead of ``1 / s``, equal to the pseudo-inverse to a relative
-``mu / s^2``, i.e. to ~1e-7 for well-conditioned arms in float64 (tests compare against
-``numpy.linalg.pinv``), while singular values below ``eps^(1/4) |J|`` (exactly or nearly
-singular poses) are suppressed as ``pinv`` suppresses zero ones. The ``sqrt(eps)`` floor
-(``jaxkin._numerics.singular_rtol``) is what makes the suppression reliable: with a smaller
-floor the rounding error of the Gram matrix leaves an O(1) spurious step along the null
-direction. Convergence is still quadratic down to ~1e-7 relative error, then at least
-linear with ratio ~1e-7. ``damping > 0`` gives damped least squares (Levenberg-Marquardt
-style, ``|dq|`` bounded by ``|V| / (2 damping)``), slower near the solution but robust near
-singularities.
-
-Step limit. Far from the solution, or where ``J`` is nearly singular on the way, a full
-Newton step can be many radians long and the iterates then wander off (measured on the
-PUMA 560 from seeds within +-0.3 rad of a solution: 0.5 % of 10,000 targets ended
-``NOT_CONVERGED`` with joints at hundreds of radians). With ``max_step`` (default 1.0 rad) the
-step is scaled, direction kept, so that no revolute joint moves more than ``max_step`` in one
-iteration::
-
-    dq <- dq * min(1, max_step / max_i |dq_i|)      (i over revolute joints, |omega_i| = 1)
-
-Prismatic joints are left out of the maximum (their units are the chain's lengths). Near the
-solution steps are far below 1 rad, so quadratic convergence is untouched; on the PUMA
-benchmark every one of 10,000 targets converged, in 13 iterations or fewer (20 before), which
-also makes the batch stop sooner. ``max_step=None`` gives the unlimited step of seed 003.
-
-Joint limits. With ``limits=(lower, upper)`` the seed is clamped into the box and every
-iterate is clamped after its step (projected Newton); an element whose target is only
-reachable outside the box ends ``NOT_CONVERGED``.
-
-Batching. ``target`` (..., 4, 4) and ``q0`` (..., n) broadcast. Every element iterates on its
-own inside one jitted ``lax.scan`` over ``max_iter`` steps: once an element satisfies the
-tolerances its ``q`` is frozen, so ``history`` (max_iter + 1, ..., n) repeats its last value
-from then on. When every element of the batch has converged the remaining steps are skipped
-(``lax.cond``; under an outer ``vmap`` both branches run, with the same result).
-
-Statuses: ``OK`` (converged), ``NOT_CONVERGED`` (tolerances not met after ``max_iter`` steps:
-unreachable targets, poor seeds, limits in the way; ``q`` is then the last iterate, finite),
-``INVALID_INPUT`` (NaN/inf in this element's ``target`` or ``q0``: ``q`` is the seed with
-non-finite entries replaced by 0 and no step is taken). Rotations in ``target`` are assumed
-orthonormal (not checked per element).
-
-Differentiation: gradients flow through the unrolled ``lax.scan`` (no implicit
-differentiation). Float32 works but the default tolerances (1e-3 rad, 1e-4 length units) are
-near float32's attainable accuracy for long arms; loosen them for float32 if needed.
+``ik_chain`` is the robot protocol's IK of a chain (``jaxkin.ik``): the body frame, tolerances
+relative to the chain's size, restarts from fixed starts when no ``q0`` is given, joint rates
+from the target's body twist, and a Jacobian-based margin.
 """
 
 from __future__ import annotations
@@ -79,14 +36,15 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate
-from .._numerics import all_finite, safe_sqrt, singular_rtol
-from ..result import SolverResult
+from .._numerics import all_finite, eps, safe_sqrt, singular_rtol, volume_ratio
+from ..jet import Jet
+from ..result import IKResult, SolverResult
 from ..status import STATUS_DTYPE, Status
 from . import dh as _dh
 from . import lie
 from . import poe as _poe
 
-__all__ = ["NewtonIKResult", "ik_newton"]
+__all__ = ["NewtonIKResult", "ik_chain", "ik_newton"]
 
 
 @jax.tree_util.register_dataclass
@@ -98,7 +56,7 @@ class NewtonIKResult(SolverResult):
         q: final joint values, shape ``(..., n)``.
         converged: both tolerances met, shape ``(...)``.
         iterations: number of Newton updates applied (0 if the seed already met the
-            tolerances), ``int32``, shape ``(...)``. Seed 003's table of 4 rows = 3 updates.
+            tolerances), ``int32``, shape ``(...)`` ([Pineiro]'s table of 4 rows = 3 updates).
         error: ``(|omega|, |v|)`` of the twist ``V`` (update frame) at ``q``, ``(..., 2)``.
         history: the iterates ``q^0 ... q^max_iter``, ``(max_iter + 1, ..., n)``, held
             constant after convergence.
@@ -143,16 +101,20 @@ def _dot(u: list[Array], v: list[Array]) -> Array:
     return sum((a * b for a, b in zip(u[1:], v[1:], strict=True)), u[0] * v[0])
 
 
-def _newton_step_soa(columns: list[list[Array]], twist: list[Array], damping: Array):
+def _newton_step_soa(
+    columns: list[list[Array]], twist: list[Array], damping: Array, floor: float | None = None
+):
     """``dq = (J^T J + mu I)^-1 J^T V`` (n <= 6) or ``J^T (J J^T + mu I)^-1 V`` (n > 6).
 
-    ``columns``: the ``n`` columns of ``J``, each 6 arrays; ``twist``: 6 arrays.
+    ``columns``: the ``n`` columns of ``J``, each 6 arrays; ``twist``: 6 arrays;
+    ``mu = damping^2 + floor * trace(J^T J)`` with ``floor`` ``sqrt(eps)`` by default.
     """
     n = len(columns)
     gram = [[_dot(columns[i], columns[j]) if j <= i else None for j in range(n)] for i in range(n)]
     trace = sum(gram[i][i] for i in range(1, n)) if n > 1 else 0.0
     trace = gram[0][0] + trace
-    mu = damping * damping + singular_rtol(trace.dtype) * trace
+    floor = singular_rtol(trace.dtype) if floor is None else floor
+    mu = damping * damping + floor * trace
     if n <= 6:
         for i in range(n):
             gram[i][i] = gram[i][i] + mu
@@ -165,13 +127,13 @@ def _newton_step_soa(columns: list[list[Array]], twist: list[Array], damping: Ar
     return [_dot(col, y) for col in columns]
 
 
-def _newton_step(jac: Array, twist: Array, damping) -> Array:
+def _newton_step(jac: Array, twist: Array, damping, floor: float | None = None) -> Array:
     """Array front end of ``_newton_step_soa``: ``jac`` (..., 6, n), ``twist`` (..., 6)."""
     batch = jnp.broadcast_shapes(jac.shape[:-2], twist.shape[:-1])
     columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
     twist_list = [twist[..., k] for k in range(6)]
     damping = jnp.asarray(damping, jac.dtype)
-    dq = _newton_step_soa(columns, twist_list, damping)
+    dq = _newton_step_soa(columns, twist_list, damping, floor)
     return jnp.stack([jnp.broadcast_to(x, batch) for x in dq], axis=-1)
 
 
@@ -207,6 +169,7 @@ def _ik_impl(
     upper: Array,
     max_iter: int,
     frame: str,
+    keep_history: bool = True,
 ) -> NewtonIKResult:
     batch = jnp.broadcast_shapes(target.shape[:-2], q0.shape[:-1])
     n = chain.n_joints
@@ -246,11 +209,11 @@ def _ik_impl(
         q, iterations, now_done = jax.lax.cond(
             all_done, lambda c: (*c, jnp.array(True)), do_step, (q, iterations)
         )
-        return (q, iterations, now_done), q
+        return (q, iterations, now_done), (q if keep_history else None)
 
     init = (q0, jnp.zeros(batch, jnp.int32), jnp.array(False))
     (q, iterations, _), steps = jax.lax.scan(body, init, None, length=max_iter)
-    history = jnp.concatenate([q0[None], steps], axis=0)
+    history = jnp.concatenate([q0[None], steps], axis=0) if keep_history else q0[None]
     _, _, err, done = errors(q)
     converged = done & valid
     status = jnp.where(
@@ -284,7 +247,7 @@ def ik_newton(
     limits: tuple[ArrayLike, ArrayLike] | None = None,
     frame: str | None = None,
 ) -> NewtonIKResult:
-    """Newton-Raphson IK (seed 003), batched, each element converging on its own.
+    """Newton-Raphson IK [Pineiro], batched, each element converging on its own.
 
     Args:
         chain: a ``PoEChain`` or a ``DHTable`` (converted to its space-frame PoE chain).
@@ -367,3 +330,167 @@ def ik_newton(
         int(max_iter),
         frame,
     )
+
+
+# ------------------------------------------------------------------ the robot protocol
+
+
+def _restart_seeds(chain: _poe.PoEChain, restarts: int, dtype) -> Array:
+    """``(restarts, n)`` starts: zeros, then revolute joints uniform in [-pi, pi] (prismatic
+    joints at 0), from a fixed generator (the same starts every call)."""
+    uniform = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(restarts, chain.n_joints))
+    uniform[0] = 0.0
+    revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)  # traceable: the chain may be
+    return jnp.where(revolute, jnp.asarray(uniform, dtype), 0.0)
+
+
+def _skew_parts(m: Array) -> Array:
+    """``vee`` of the (skew) rotation block of ``(..., 4, 4)``: ``(..., 3)``."""
+    return jnp.stack([m[..., 2, 1], m[..., 0, 2], m[..., 1, 0]], axis=-1)
+
+
+def _body_twists(target: Jet) -> tuple[Array, Array]:
+    """The target's body twist ``V = vee(T^-1 T_dot)`` and its time derivative
+    ``vee(T^-1 T_ddot - (T^-1 T_dot)^2)``, rows ``(omega, v)``, each ``(..., 6)``."""
+    rot, p = target.p[..., :3, :3], target.p[..., :3, 3]
+    rot_t = jnp.swapaxes(rot, -1, -2)
+    inverse = jnp.concatenate(
+        [
+            jnp.concatenate([rot_t, -jnp.einsum("...ij,...j->...i", rot_t, p)[..., None]], -1),
+            jnp.broadcast_to(jnp.eye(4, dtype=p.dtype)[3:], (*p.shape[:-1], 1, 4)),
+        ],
+        axis=-2,
+    )
+    x = inverse @ target.v
+    y = inverse @ target.a - x @ x
+    twist = jnp.concatenate([_skew_parts(x), x[..., :3, 3]], axis=-1)
+    rate = jnp.concatenate([_skew_parts(y), y[..., :3, 3]], axis=-1)
+    return twist, rate
+
+
+def _scaled(jac: Array, revolute: Array, scale: Array) -> Array:
+    """A body Jacobian in units of the chain's size: ``v`` rows / scale, prismatic columns *
+    scale."""
+    rows = jnp.concatenate([jac[..., :3, :], jac[..., 3:, :] / scale[..., None, None]], axis=-2)
+    return rows * jnp.where(revolute, 1.0, scale[..., None])[..., None, :]
+
+
+def _ik_chain_core(
+    chain: _poe.PoEChain, target: Jet, seeds: Array, tol: Array, max_iter: int, rates: bool
+) -> IKResult:
+    dtype = target.dtype
+    batch = target.shape[:-2]
+    scale = jnp.asarray(chain.length_scale(), dtype)
+    revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)
+    n = chain.n_joints
+    lower = jnp.full((n,), -jnp.inf, dtype)
+    upper = jnp.full((n,), jnp.inf, dtype)
+    sol = _ik_impl(
+        chain,
+        target.p[..., None, :, :],
+        seeds,
+        tol,
+        tol * scale,
+        jnp.asarray(0.0, dtype),
+        jnp.asarray(1.0, dtype),
+        lower,
+        upper,
+        max_iter,
+        "body",
+        keep_history=False,
+    )
+    # Per target: the converged restart with the smallest error, else the smallest error.
+    score = sol.error[..., 0] + sol.error[..., 1] / scale
+    score = jnp.where(sol.converged, score, score + 1e30)
+    best = jnp.argmin(score, axis=-1)
+
+    def pick(x):
+        index = best.reshape(best.shape + (1,) * (x.ndim - best.ndim))
+        return jnp.squeeze(jnp.take_along_axis(x, index, axis=best.ndim), axis=best.ndim)
+
+    q, status = pick(sol.q), pick(sol.status)
+    ok = status == Status.OK
+    _, _, jac = _poe._fk_and_jacobian(chain, q, "body")
+    if rates:
+        twist, twist_rate = _body_twists(target)
+        floor = eps(dtype)
+        q_dot = _newton_step(jac, twist, 0.0, floor)
+        jac_rate = jax.jvp(lambda x: _poe._fk_and_jacobian(chain, x, "body")[2], (q,), (q_dot,))[1]
+        drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
+        q_ddot = _newton_step(jac, twist_rate - drift, 0.0, floor)
+        okc = ok[..., None]
+        q_jet = Jet(q, jnp.where(okc, q_dot, 0.0), jnp.where(okc, q_ddot, 0.0))
+    else:
+        q_jet = Jet.constant(q)
+    margin = volume_ratio(_scaled(jac, revolute, jnp.broadcast_to(scale, batch)))
+    margin = jnp.where(
+        status == Status.INVALID_INPUT,
+        -1.0,
+        jnp.where(ok, margin, -jnp.minimum(pick(score), 1.0)),
+    )
+    return IKResult(q_jet, status, margin.astype(dtype))
+
+
+_ik_chain_jit = jax.jit(_ik_chain_core, static_argnames=("max_iter", "rates"))
+
+
+def ik_chain(
+    chain: _poe.PoEChain | _dh.DHTable,
+    target: Jet | ArrayLike,
+    branch: str | None = None,
+    q0: ArrayLike | None = None,
+    restarts: int = 8,
+    tol: float | None = None,
+    max_iter: int = 50,
+) -> IKResult:
+    """Inverse kinematics of a chain as the robot protocol has it (``jaxkin.ik``).
+
+    Newton-Raphson in the body frame (``ik_newton``, 1 rad step limit), from ``q0`` or, without
+    one, from ``restarts`` fixed seeds (zeros, then random revolute angles) run as one batch;
+    per target the converged run with the smallest error is kept. Converged means a body
+    twist to the target below ``tol`` (rad) and ``tol * chain.length_scale()`` (length). Joint
+    rates of a target Jet (4x4 matrices and their time derivatives) come from the body twist:
+    ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot - J_b_dot q_dot)`` (minimum-norm for a
+    redundant chain).
+
+    Args:
+        chain: a ``PoEChain`` or a ``DHTable``.
+        target: Jet (or array, at rest) of 4x4 transforms ``(..., 4, 4)``.
+        branch: ``"newton"`` (the only branch) or None.
+        q0: seeds ``(..., n)`` broadcast against the targets; None for the restarts.
+        restarts: number of seeds without ``q0`` (>= 1).
+        tol: None for ``max(1e-10, 1000 eps(dtype))``.
+        max_iter: Newton updates at most.
+
+    Returns:
+        ``IKResult``: ``q`` (Jet ``(..., n)``), ``status`` (``OK``, ``NOT_CONVERGED``,
+        ``INVALID_INPUT``), ``margin`` (the scaled body Jacobian's volume ratio in [0, 1] where
+        converged; minus the remaining error, at most 1, where not; -1 for invalid input).
+    """
+    if branch not in (None, "newton"):
+        raise ValueError(f"branch must be 'newton' (or None) for a chain, got {branch!r}")
+    poe_chain = _poe.as_poe(chain)
+    n = poe_chain.n_joints
+    rates = isinstance(target, Jet)
+    target = _validate.as_jet(target, "target", coords=None)
+    if target.p.ndim < 2 or target.shape[-2:] != (4, 4):
+        raise ValueError(f"target: expected shape (..., 4, 4), got {target.shape}")
+    for name, value, low in (("restarts", restarts, 1), ("max_iter", max_iter, 1)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
+    dtype = jnp.result_type(target.dtype, poe_chain.dtype)
+    if tol is None:
+        tol = max(1e-10, 1e3 * eps(dtype))
+    _positive(tol, "tol")
+    if q0 is None:
+        seeds = _restart_seeds(poe_chain, restarts, dtype)
+    else:
+        q0 = jnp.asarray(q0, dtype)
+        if q0.ndim == 0 or q0.shape[-1] != n:
+            raise ValueError(f"q0: expected shape (..., {n}), got {tuple(q0.shape)}")
+        _validate.batch_shape({"target": target.shape[:-2], "q0": q0.shape[:-1]})
+        seeds = q0[..., None, :]
+    batch = tuple(jnp.broadcast_shapes(target.shape[:-2], seeds.shape[:-2]))
+    target = target.map(lambda x: jnp.broadcast_to(x.astype(dtype), (*batch, 4, 4)))
+    body = _poe.change_frame(_validate.cast_leaves(poe_chain, dtype), "body")
+    return _ik_chain_jit(body, target, seeds, jnp.asarray(tol, dtype), max_iter, rates)

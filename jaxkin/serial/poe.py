@@ -1,10 +1,10 @@
-"""Product-of-exponentials (PoE) chains: forward kinematics and Jacobians (seed 003).
+"""Product-of-exponentials (PoE) chains: forward kinematics and Jacobians [Pineiro].
 
 A chain of ``n`` joints is given by its screw axes and its home configuration ``M`` (the
 end-effector transform at ``q = 0``). Screw rows are ordered ``(omega, v)`` (``lie`` module
 convention). For a revolute joint ``omega`` is the unit axis and ``v = -omega x r`` for a point
 ``r`` on the axis (plus ``h omega`` for a screw of pitch ``h``); for a prismatic joint
-``omega = 0`` and ``v`` is the unit direction. Two frames (seed 003, "Introducción")::
+``omega = 0`` and ``v`` is the unit direction. Two frames ([Pineiro], "Introducción")::
 
     space:  T(q) = exp([S_1] q_1) ... exp([S_n] q_n) M          (S_i in the base frame {s})
     body:   T(q) = M exp([B_1] q_1) ... exp([B_n] q_n)          (B_i in the end frame {b})
@@ -32,7 +32,7 @@ inputs give float32 outputs (~1e-6 absolute for metre-scale arms).
 
 from __future__ import annotations
 
-import dataclasses
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -41,13 +41,19 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate
+from .._geometry import REAL, geometry, number, static
 from .._trig import sincos
+from ..jet import Jet, lift
+from ..result import FKResult
+from ..robot import POSE, Robot
+from ..status import STATUS_DTYPE, Status
 from . import dh as _dh
 from . import lie
 
 __all__ = [
     "FRAMES",
     "PoEChain",
+    "fk_chain",
     "body_jacobian",
     "chain_fk",
     "change_frame",
@@ -60,78 +66,67 @@ FRAMES = ("space", "body")
 _UNIT_TOL = 1e-6  # tolerance on |omega| = 1 (revolute) or |v| = 1 with omega = 0 (prismatic)
 
 
-@dataclasses.dataclass(frozen=True)
-class PoEChain:
-    """A serial chain in product-of-exponentials form.
+@geometry
+class PoEChain(Robot):
+    """A serial chain in product-of-exponentials form; a robot of the protocol (pose targets).
 
-    Build it with ``PoEChain.create(...)`` (validating); the plain constructor does no checks.
+    The constructor validates every field (a ``ValueError`` naming it); ``create`` is the same.
 
     Attributes:
         screws: unit screw axes, one row per joint ordered ``(omega, v)``, shape ``(n, 6)``;
             expressed in the base frame when ``frame == 'space'`` (``S_i``), in the home
-            end-effector frame when ``frame == 'body'`` (``B_i``).
-        home: end-effector transform at ``q = 0`` (``M``), shape ``(4, 4)``.
+            end-effector frame when ``frame == 'body'`` (``B_i``). A row is a unit screw when
+            ``|omega| = 1`` (revolute) or ``omega = 0`` and ``|v| = 1`` (prismatic), within 1e-6.
+        home: end-effector transform at ``q = 0`` (``M``), a rigid ``(4, 4)`` transform.
         frame: static, ``'space'`` or ``'body'``.
     """
 
-    screws: Array
-    home: Array
-    frame: str = "space"
+    screws: Array = number(REAL, (-1, 6))
+    home: Array = number(REAL, (4, 4))
+    frame: str = static(default="space")
+
+    target: ClassVar = POSE
+    branches: ClassVar = ("newton",)
+    reachable: ClassVar = (Status.OK,)
+
+    def _validate(self) -> None:
+        _validate.choice(self.frame, "PoEChain.frame", FRAMES)
+        super()._validate()
+        if not (_validate.is_concrete(self.screws) and _validate.is_concrete(self.home)):
+            return
+        values = np.asarray(self.screws, dtype=np.float64)
+        if values.shape[0] < 1:
+            raise ValueError("PoEChain.screws: expected shape (n, 6) with n >= 1, got (0, 6)")
+        w_norm = np.linalg.norm(values[:, :3], axis=1)
+        v_norm = np.linalg.norm(values[:, 3:], axis=1)
+        revolute = np.abs(w_norm - 1.0) <= _UNIT_TOL
+        prismatic = (w_norm <= _UNIT_TOL) & (np.abs(v_norm - 1.0) <= _UNIT_TOL)
+        bad = np.flatnonzero(~(revolute | prismatic))
+        if bad.size:
+            raise ValueError(
+                f"PoEChain.screws: rows {bad.tolist()} are not unit screws (need |omega| = 1 for "
+                "a revolute joint, or omega = 0 and |v| = 1 for a prismatic joint); got "
+                f"|omega| = {w_norm[bad]}, |v| = {v_norm[bad]}"
+            )
+        m = np.asarray(self.home, dtype=np.float64)
+        rot = m[:3, :3]
+        if (
+            np.max(np.abs(m[3] - np.array([0.0, 0.0, 0.0, 1.0]))) > _UNIT_TOL
+            or np.max(np.abs(rot.T @ rot - np.eye(3))) > _UNIT_TOL
+            or np.linalg.det(rot) < 0.0
+        ):
+            raise ValueError(
+                "PoEChain.home: expected a rigid transform [[R, p], [0, 0, 0, 1]] with R a "
+                f"rotation (R^T R = I, det R = +1), got {m}"
+            )
+        dtype = jnp.result_type(self.screws, self.home, float)
+        object.__setattr__(self, "screws", jnp.asarray(self.screws, dtype))
+        object.__setattr__(self, "home", jnp.asarray(self.home, dtype))
 
     @classmethod
     def create(cls, screws: ArrayLike, home: ArrayLike, frame: str = "space") -> PoEChain:
-        """Validated constructor.
-
-        Raises:
-            ValueError: naming the argument: ``screws`` not ``(n, 6)`` with ``n >= 1``, not
-                finite, or a row that is not a unit screw (``|omega| = 1``, or ``omega = 0``
-                and ``|v| = 1``, within 1e-6); ``home`` not a finite ``(4, 4)`` rigid
-                transform (orthonormal ``R`` with det +1 and last row ``(0, 0, 0, 1)``, within
-                1e-6); ``frame`` not ``'space'``/``'body'``.
-        """
-        frame = _validate.choice(frame, "frame", FRAMES)
-        screws_arr = jnp.asarray(screws)
-        home_arr = jnp.asarray(home)
-        dtype = jnp.result_type(screws_arr, home_arr, float)
-        screws_arr = screws_arr.astype(dtype)
-        home_arr = home_arr.astype(dtype)
-        if screws_arr.ndim != 2 or screws_arr.shape[-1] != 6 or screws_arr.shape[0] < 1:
-            raise ValueError(
-                "screws: expected shape (n, 6) with one (omega, v) row per joint, n >= 1, got "
-                f"{tuple(screws_arr.shape)}"
-            )
-        if home_arr.shape != (4, 4):
-            raise ValueError(f"home: expected a (4, 4) transform, got {tuple(home_arr.shape)}")
-        if _validate.is_concrete(screws):
-            values = np.asarray(screws_arr, dtype=np.float64)
-            if not np.all(np.isfinite(values)):
-                raise ValueError(f"screws must be finite, got {values}")
-            w_norm = np.linalg.norm(values[:, :3], axis=1)
-            v_norm = np.linalg.norm(values[:, 3:], axis=1)
-            revolute = np.abs(w_norm - 1.0) <= _UNIT_TOL
-            prismatic = (w_norm <= _UNIT_TOL) & (np.abs(v_norm - 1.0) <= _UNIT_TOL)
-            bad = np.flatnonzero(~(revolute | prismatic))
-            if bad.size:
-                raise ValueError(
-                    f"screws: rows {bad.tolist()} are not unit screws (need |omega| = 1 for a "
-                    "revolute joint, or omega = 0 and |v| = 1 for a prismatic joint); got "
-                    f"|omega| = {w_norm[bad]}, |v| = {v_norm[bad]}"
-                )
-        if _validate.is_concrete(home):
-            m = np.asarray(home_arr, dtype=np.float64)
-            if not np.all(np.isfinite(m)):
-                raise ValueError(f"home must be finite, got {m}")
-            rot = m[:3, :3]
-            if (
-                np.max(np.abs(m[3] - np.array([0.0, 0.0, 0.0, 1.0]))) > _UNIT_TOL
-                or np.max(np.abs(rot.T @ rot - np.eye(3))) > _UNIT_TOL
-                or np.linalg.det(rot) < 0.0
-            ):
-                raise ValueError(
-                    "home: expected a rigid transform [[R, p], [0, 0, 0, 1]] with R a rotation "
-                    f"(R^T R = I, det R = +1), got {m}"
-                )
-        return cls(screws_arr, home_arr, frame)
+        """The same as the constructor."""
+        return cls(screws, home, frame)
 
     @property
     def n_joints(self) -> int:
@@ -141,15 +136,38 @@ class PoEChain:
     def dtype(self):
         return self.screws.dtype
 
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(f"q{i + 1}" for i in range(self.n_joints))
 
-jax.tree_util.register_dataclass(PoEChain, data_fields=["screws", "home"], meta_fields=["frame"])
+    @property
+    def joint_types(self) -> str:
+        """``"R"`` where a screw has a rotation part, ``"P"`` elsewhere (host side)."""
+        rotating = np.any(np.asarray(self.screws)[:, :3] != 0, axis=-1)
+        return "".join("R" if r else "P" for r in rotating)
+
+    def length_scale(self) -> Any:
+        """``|p_home|`` plus the distances of the joint axes from the origin (``|v_i|`` of the
+        revolute screws); 1 when all are zero."""
+        rotating = jnp.any(self.screws[:, :3] != 0, axis=-1)
+        offsets = jnp.where(rotating, jnp.linalg.norm(self.screws[:, 3:], axis=-1), 0.0)
+        total = jnp.linalg.norm(self.home[:3, 3]) + jnp.sum(offsets)
+        return jnp.where(total > 0, total, 1.0)
+
+    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
+        from .newton_ik import ik_chain
+
+        return ik_chain(self, target, branch, **options)
+
+    def _fk(self, q: Any, **options: Any) -> Any:
+        return fk_chain(self, q, **options)
 
 
 # ----------------------------------------------------------------------------------------------
 # Kernels on (R, p) pairs: R (..., 3, 3), p (..., 3). Small batched matrix products (XLA dot
 # ops) materialise every intermediate pose; an elementwise structure-of-arrays version of the
-# same products was measured 10-20x slower on CPU for 6 joints (XLA fused the whole product
-# tree into a few loops and recomputed shared sub-expressions per output).
+# same products was many times slower on CPU for 6 joints (XLA fused the whole product tree
+# into a few loops and recomputed shared sub-expressions per output).
 
 
 def _mat_vec(rot: Array, x: Array) -> Array:
@@ -348,7 +366,7 @@ def chain_fk(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
 
 
 def fk_poe(screws: ArrayLike, home: ArrayLike, q: ArrayLike, frame: str = "space") -> Array:
-    """Product-of-exponentials forward kinematics (seed 003).
+    """Product-of-exponentials forward kinematics [Pineiro].
 
     Args:
         screws: unit screw axes ``(n, 6)``, rows ``(omega, v)``, in the ``frame`` given.
@@ -376,3 +394,43 @@ def body_jacobian(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
     """Body Jacobian ``J_b`` (..., 6, n): ``V_b = J_b q_dot`` with ``[V_b] = T^-1 T_dot``."""
     chain, q = _prepare(chain, q)
     return _jacobian_jit(chain, q, "body")
+
+
+def _fk_chain_core(chain: PoEChain | _dh.DHTable, q: Jet, rates: bool) -> FKResult:
+    valid = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
+    safe = q.map(lambda x: jnp.where(valid[..., None], x, 0.0))
+
+    def pose(joints):
+        if isinstance(chain, _dh.DHTable):
+            return _dh._fk_dh_impl(chain, joints, False)
+        return _chain_fk_impl(chain, joints)
+
+    x = lift(pose)(safe) if rates else Jet.constant(pose(safe.p))
+    mask = valid[..., None, None]
+    x = Jet(x.p, jnp.where(mask, x.v, 0.0), jnp.where(mask, x.a, 0.0))
+    status = jnp.where(valid, Status.OK, Status.INVALID_INPUT).astype(STATUS_DTYPE)
+    return FKResult(x, status)
+
+
+_fk_chain_jit = jax.jit(_fk_chain_core, static_argnames="rates")
+
+
+def fk_chain(chain: PoEChain | _dh.DHTable, q: Jet | ArrayLike) -> FKResult:
+    """Forward kinematics of a chain as the robot protocol has it (``jaxkin.fk``).
+
+    Args:
+        chain: a ``PoEChain`` or a ``DHTable``.
+        q: joint coordinates ``(..., n)``: a Jet (the pose's rates by ``jaxkin.lift``) or an
+            array (at rest).
+
+    Returns:
+        ``FKResult``: ``x`` (Jet of 4x4 transforms ``(..., 4, 4)`` with their time
+        derivatives) and ``status`` (``INVALID_INPUT`` for NaN/inf in ``q``: ``x`` is then the
+        home pose, else ``OK``).
+    """
+    if not isinstance(chain, PoEChain | _dh.DHTable):
+        raise ValueError(f"chain: expected a PoEChain or a DHTable, got {type(chain).__name__}")
+    rates = isinstance(q, Jet)
+    q = _validate.as_jet(q, "q", coords=chain.n_joints)
+    dtype = jnp.result_type(q.dtype, chain.dtype)
+    return _fk_chain_jit(_validate.cast_leaves(chain, dtype), q.astype(dtype), rates)

@@ -1,4 +1,4 @@
-"""Trajectory files for the ``jaxkin`` command: CSV and NPZ reading and atomic writing.
+"""Trajectory files of the ``jaxkin`` command: CSV and NPZ reading, rates, atomic writing.
 
 Formats (one row per sample; the two formats hold the same columns):
 
@@ -11,11 +11,12 @@ Formats (one row per sample; the two formats hold the same columns):
 * **NPZ**: a NumPy ``.npz`` archive with one 1-D array per column, all of one length
   (``numpy.savez(path, t=t, x=x, ...)``), read without pickle.
 
-Trajectory columns (``read_trajectory``): ``t`` and the position columns are required
-(``x, y, z`` for a Cartesian point; joint names such as ``theta1, theta2, l3`` for joint
-trajectories); ``candidate`` (integer label of independent trajectories, default one
+Trajectory columns (``read_trajectory``): ``t`` and the position columns are required (the
+robot's target coordinates, e.g. ``x, y, z``, or its joint names such as
+``theta1, theta2, l3``); ``candidate`` (integer label of independent trajectories, default one
 trajectory) and the rate columns are optional. Rates come as whole sets: ``vx, vy, vz`` and
-``ax, ay, az`` for Cartesian points, ``<name>_dot`` and ``<name>_ddot`` for joints.
+``ax, ay, az`` for Cartesian coordinates, ``<name>_dot`` and ``<name>_ddot`` otherwise. Rates a
+file does not give are computed by a cubic spline in ``t`` per candidate (``complete_rates``).
 
 Writing (``write_table``) is atomic: the file is written to a temporary file in the target's
 directory and renamed over the target (``os.replace``) only when complete, so an existing
@@ -35,15 +36,35 @@ import os
 import sys
 import tempfile
 import zipfile
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
+import jax
 import numpy as np
 
+from .. import _batching, _splines
+from .._progress import bar
+
+__all__ = [
+    "CARTESIAN",
+    "InputError",
+    "Table",
+    "Trajectory",
+    "atomic_write",
+    "check_output_path",
+    "complete_rates",
+    "file_format",
+    "rate_names",
+    "read_table",
+    "read_trajectory",
+    "solve_in_chunks",
+    "trajectory_columns",
+    "write_csv",
+    "write_table",
+]
+
 CARTESIAN = ("x", "y", "z")
-CARTESIAN_VELOCITY = ("vx", "vy", "vz")
-CARTESIAN_ACCELERATION = ("ax", "ay", "az")
 
 
 class InputError(ValueError):
@@ -53,12 +74,12 @@ class InputError(ValueError):
 def rate_names(names: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """Velocity and acceleration column names for position columns ``names``.
 
-    ``("x", "y", "z")`` -> ``("vx", "vy", "vz"), ("ax", "ay", "az")``; any other names ``n`` ->
-    ``n_dot`` and ``n_ddot``.
+    Cartesian coordinates get a prefix (``("x", "y", "z")`` -> ``("vx", "vy", "vz"),
+    ("ax", "ay", "az")``); any other names ``n`` get ``n_dot`` and ``n_ddot``.
     """
     names = tuple(names)
-    if names == CARTESIAN:
-        return CARTESIAN_VELOCITY, CARTESIAN_ACCELERATION
+    if all(n in CARTESIAN for n in names):
+        return tuple(f"v{n}" for n in names), tuple(f"a{n}" for n in names)
     return tuple(f"{n}_dot" for n in names), tuple(f"{n}_ddot" for n in names)
 
 
@@ -423,3 +444,54 @@ def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray]) -> N
     else:
         with atomic_write(path, "w") as f:
             write_csv(f, columns)
+
+
+# ------------------------------------------------------------------------------------ solving
+
+
+def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
+    """Positions, velocities, accelerations (``(N, k)``) and the valid-row mask ``(N,)``.
+
+    Rates missing from the file come from a cubic spline in ``t`` over the valid rows of each
+    candidate (``end``: ``"not-a-knot"`` or ``"natural"``); invalid rows (NaN/inf) get NaN
+    rates, hence status ``INVALID_INPUT``.
+
+    Raises:
+        InputError: ``t`` not strictly increasing within a candidate when rates are needed.
+    """
+    valid = traj.valid
+    if traj.v is not None and traj.a is not None:
+        return traj.p, traj.v, traj.a, valid
+    group = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
+    for label in np.unique(group[valid]):
+        rows = np.flatnonzero(valid & (group == label))
+        bad = np.flatnonzero(np.diff(traj.t[rows]) <= 0)
+        if bad.size:
+            row = rows[bad[0] + 1]
+            name = f"candidate {label}: " if traj.candidate is not None else ""
+            raise InputError(
+                f"{traj.table.where(row)}: {name}t must increase strictly to compute rates "
+                f"(t = {traj.t[row]:g} after {traj.t[rows[bad[0]]]:g}); or give the rate columns"
+            )
+    v, a = _splines.by_group(traj.t, traj.p, group, end=end, valid=valid)
+    return traj.p, traj.v if traj.v is not None else v, traj.a if traj.a is not None else a, valid
+
+
+def solve_in_chunks(
+    fn: Callable[..., Any],
+    arrays: Sequence[np.ndarray],
+    chunk: int,
+    desc: str,
+    quiet: bool,
+) -> list[np.ndarray]:
+    """Apply ``fn`` to row chunks of ``arrays`` and concatenate its outputs (a pytree of
+    arrays, flattened to host arrays). Every chunk has one shape
+    (``jaxkin._batching.host_chunks``), so ``fn`` compiles once per file."""
+    n = len(arrays[0])
+    parts: list[list[np.ndarray]] = []
+    with bar(n, desc, enabled=False if quiet else None) as meter:
+        for start, stop, index in _batching.host_chunks(n, chunk):
+            out = fn(*(x[index] for x in arrays))
+            parts.append([np.asarray(x)[: stop - start] for x in jax.tree.leaves(out)])
+            meter.update(stop - start)
+    return [np.concatenate(column) for column in zip(*parts, strict=True)]

@@ -1,43 +1,20 @@
 """Velocity and acceleration of sampled trajectories by cubic splines (host-side NumPy).
 
-Used by the ``jaxkin`` command when a trajectory file gives positions only: each coordinate
-of each candidate trajectory is interpolated by a cubic spline ``s(t)`` through its samples
-``(t_i, y_i)``, ``i = 0 .. n-1`` (``t`` strictly increasing, spacing may vary), and the
-velocity and acceleration at the samples are ``s'(t_i)`` and ``s''(t_i)``.
-
-Method (slope form, as in de Boor, *A Practical Guide to Splines*, ch. IV, and SciPy's
-``CubicSpline``). With ``h_i = t_{i+1} - t_i`` and ``d_i = (y_{i+1} - y_i) / h_i``, the slopes
-``m_i = s'(t_i)`` solve the tridiagonal system (C2 continuity at the interior knots)::
+Each coordinate of each trajectory is interpolated by a cubic spline ``s(t)`` through its
+samples ``(t_i, y_i)`` (``t`` strictly increasing, spacing may vary); the rates at the samples
+are ``s'(t_i)`` and ``s''(t_i)``. Slope form (de Boor, *A Practical Guide to Splines*, ch. IV,
+as SciPy's ``CubicSpline``): with ``h_i = t_{i+1} - t_i`` and ``d_i = (y_{i+1} - y_i) / h_i``
+the slopes ``m_i = s'(t_i)`` solve the tridiagonal system (C2 continuity)::
 
     h_i m_{i-1} + 2 (h_{i-1} + h_i) m_i + h_{i-1} m_{i+1} = 3 (h_i d_{i-1} + h_{i-1} d_i)
 
-closed by one of two end conditions:
-
-* ``"not-a-knot"`` (default): the third derivative is continuous at ``t_1`` and ``t_{n-2}``
-  (the first two and the last two pieces are one cubic); first row
-  ``h_1 m_0 + (h_0 + h_1) m_1 = ((h_0 + 2 (h_0 + h_1)) h_1 d_0 + h_0^2 d_1) / (h_0 + h_1)``
-  and its mirror image for the last row. It reproduces any cubic polynomial exactly
-  (n >= 4), so rates are accurate to O(h^4) / O(h^3) / O(h^2) in position / velocity /
-  acceleration for smooth data, including at the ends.
-* ``"natural"``: ``s'' = 0`` at both ends (``2 m_0 + m_1 = 3 d_0``, mirror at the end). Exact
-  only for straight lines; it forces zero acceleration at the first and last samples, which is
-  right only for a trajectory that starts and ends with zero acceleration.
-
-The second derivative at a knot follows from the piece to its right (the last knot from the
-piece to its left); they agree by C2 continuity::
-
-    s''(t_i)     = (6 d_i - 4 m_i - 2 m_{i+1}) / h_i                 (i < n - 1)
-    s''(t_{n-1}) = (2 m_{n-2} + 4 m_{n-1} - 6 d_{n-2}) / h_{n-2}
-
-Few samples: ``n = 1`` gives zero rates (a point at rest); ``n = 2`` the straight line (velocity
-``d_0``, zero acceleration) for both end conditions; ``n = 3`` with ``"not-a-knot"`` the parabola
-through the three samples.
-
-Batched: every leading axis of ``t`` and ``y`` is a separate spline (e.g. candidates of equal
-length); the tridiagonal system is solved by the Thomas algorithm (no pivoting: the matrices
-are diagonally dominant for the natural condition and well behaved for not-a-knot, as in
-SciPy), looping over the ``n`` samples and vectorised over the batch. ``by_group`` handles
-candidates of different lengths and skips non-finite samples.
+closed by ``"not-a-knot"`` (default: the first two and the last two pieces are one cubic,
+first row ``h_1 m_0 + (h_0 + h_1) m_1 = ((h_0 + 2 (h_0 + h_1)) h_1 d_0 + h_0^2 d_1) / (h_0 +
+h_1)``; exact for any cubic) or ``"natural"`` (``s'' = 0`` at both ends: ``2 m_0 + m_1 = 3 d_0``).
+Then ``s''(t_i) = (6 d_i - 4 m_i - 2 m_{i+1}) / h_i`` (the last knot from its left piece).
+``n = 1`` gives zero rates, ``n = 2`` the straight line, ``n = 3`` (not-a-knot) the parabola.
+Every leading axis is a separate spline, solved by the Thomas algorithm vectorised over the
+batch; ``by_group`` handles candidates of different lengths and skips non-finite samples.
 """
 
 from __future__ import annotations

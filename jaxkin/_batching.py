@@ -1,0 +1,403 @@
+"""Every way jaxkin splits a batch, and every size threshold, in one place.
+
+* **Chunks inside a kernel** (``map_chunks``): an iterative kernel (a Newton ``while_loop``)
+  runs on cache-sized slices of the flattened batch with ``lax.map``, so its state stays in
+  cache and each chunk stops as soon as its own elements have converged.
+* **Two halves** (``in_two_halves``): two independent top-level computations on the halves of
+  the batch, for kernels XLA runs faster on halves than on the whole (the dyad's autodiff path).
+* **Host parts on threads** (``PartsJit``, ``run_parts``, ``overlapping_parts``, ``join``): XLA
+  on CPU runs the body of a ``while_loop`` on one core, but two programs called from two host
+  threads run at the same time. A large concrete batch is split into one part per thread, each
+  part slicing its inputs inside the kernel, and the parts are joined.
+* **Candidate chunks** (``map_candidates``): the planner's N candidates in equal chunks, each
+  sharded over the devices when there are several, else run on the host threads.
+* **Host chunks** (``host_chunks``): a host-side loop over fixed-size, padded chunks (files of
+  the command line, voxels of a workspace sweep), so one compilation serves every chunk.
+
+Every split gives the same values as the whole batch: the kernels are elementwise in the batch
+(tested). Thread count: ``set_num_threads(n)``, else ``JAXKIN_NUM_THREADS``, else the CPUs this
+process may run on; ``1`` turns host parts off. How the thresholds below were measured is in
+``docs/performance.md``.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+import math
+import os
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+from ._validate import is_concrete
+
+# ------------------------------------------------------------------------------- thresholds
+# Tuned on a 2-core x86-64 CPU, float64, JAX 0.10 (docs/performance.md has the measurements).
+
+# Elements per chunk of map_chunks: ~20 loop arrays of 8192 float64 stay in L2 (Delta Newton
+# FK at 1e6: 2048-32768 within 15 %; the whole batch is bandwidth-bound).
+CHUNK = 8192
+# The dyad's autodiff path runs as two halves from this many elements (dyad at 1e6).
+HALVES_MIN = 1 << 17
+# Fewest elements per host-thread part (Delta Newton FK: below it dispatch and join cost what
+# the second core saves).
+MIN_PART = 1 << 15
+# Planner samples (candidates x T) per call (N = 1e4, T = 100: larger calls map their
+# temporaries afresh every call, smaller ones gain nothing).
+PLAN_CHUNK_SAMPLES = 1 << 17
+# delta.fk at rest writes its zero rates outside the kernel from this many elements (the
+# extra eager call costs more than the kernel's writes below it).
+SHARED_ZEROS_MIN = 1 << 16
+# Rows per call of the command line (files) and voxels per call of a workspace sweep: memory
+# bounds (a few tens of MB of intermediates per call in float64).
+HOST_CHUNK = 1 << 16
+SWEEP_CHUNK = 1 << 18
+
+# ------------------------------------------------------------------ chunks in a kernel
+
+
+def _chunk_layout(size: int) -> tuple[int, int]:
+    """``(n_chunks, chunk)`` for a flat batch of ``size > CHUNK`` elements.
+
+    Prefers a chunk that divides ``size`` (between CHUNK/2 and CHUNK, e.g. 8000 for 10^6): then
+    neither the input nor the output is copied to add or drop padding, and the stacked loop
+    output is the result itself.
+    """
+    for chunk in range(CHUNK, CHUNK // 2, -1):
+        if size % chunk == 0:
+            return size // chunk, chunk
+    n_chunks = math.ceil(size / CHUNK)
+    return n_chunks, math.ceil(size / n_chunks)
+
+
+def map_chunks(fn: Callable[[Any], Any], tree: Any, batch: tuple[int, ...]) -> Any:
+    """``fn(tree)`` computed chunk by chunk over the flattened batch.
+
+    Args:
+        fn: elementwise in the batch (element ``i`` of the output depends only on element
+            ``i`` of the input); takes and returns pytrees of arrays of shape ``(chunk, ...)``.
+        tree: pytree whose leaves have shape ``(*batch, ...)``.
+        batch: the batch shape (static).
+
+    Returns:
+        ``fn``'s output with leaves reshaped to ``(*batch, ...)``. Batches of at most ``CHUNK``
+        elements are passed to ``fn`` whole. Otherwise the batch is split into equal chunks of
+        at most ``CHUNK`` elements (``_chunk_layout``: a divisor of the batch size when there is one
+        above ``CHUNK / 2``; else the last chunk is padded by repeating the final element, the
+        padding computed and dropped), so the loop body compiles once.
+    """
+    size = math.prod(batch)
+    if size <= CHUNK:
+        return fn(tree)
+    n_chunks, chunk = _chunk_layout(size)
+    padded = n_chunks * chunk
+
+    def split(x):
+        flat = x.reshape((size, *x.shape[len(batch) :]))
+        if padded > size:
+            tail = jnp.broadcast_to(flat[-1:], (padded - size, *flat.shape[1:]))
+            flat = jnp.concatenate([flat, tail])
+        return flat.reshape((n_chunks, chunk, *flat.shape[1:]))
+
+    def join(y):
+        flat = y.reshape((padded, *y.shape[2:]))[:size]
+        return flat.reshape((*batch, *flat.shape[1:]))
+
+    out = jax.lax.map(fn, jax.tree.map(split, tree))
+    return jax.tree.map(join, out)
+
+
+def in_two_halves(fn: Callable[..., Any], args: tuple[Any, ...], batch: tuple[int, ...]) -> Any:
+    """``fn(*args)`` computed on the two halves of the flattened batch, then joined.
+
+    ``args``' leaves have shape ``(*batch, ...)`` or are scalars (passed to both halves);
+    ``fn`` is elementwise in the batch. Two top-level computations, not a loop (``map_chunks``
+    is for iterative kernels), for kernels that XLA runs faster on two independent halves than
+    on the whole batch. Below ``HALVES_MIN`` elements ``fn`` runs once on the whole batch. Odd
+    sizes give halves of unequal length.
+    """
+    size = math.prod(batch)
+    if size < HALVES_MIN:
+        return fn(*args)
+    half = size // 2
+
+    def part(x, lo, hi):
+        if jnp.ndim(x) == 0:
+            return x
+        return x.reshape((size, *x.shape[len(batch) :]))[lo:hi]
+
+    first = fn(*jax.tree.map(lambda x: part(x, 0, half), args))
+    second = fn(*jax.tree.map(lambda x: part(x, half, size), args))
+
+    def join(x, y):
+        joined = jnp.concatenate([x, y], axis=0)
+        return joined.reshape((*batch, *joined.shape[1:]))
+
+    return jax.tree.map(join, first, second)
+
+
+# ------------------------------------------------------------------ host threads
+
+_requested: int | None = None
+_pool: ThreadPoolExecutor | None = None
+_pool_workers = 0
+_pool_pid = 0  # a forked child inherits the pool object but not its threads
+_pool_lock = threading.Lock()
+_in_worker = threading.local()
+
+
+def num_threads() -> int:
+    """Host threads a large batch is split across (>= 1)."""
+    if _requested is not None:
+        return _requested
+    env = os.environ.get("JAXKIN_NUM_THREADS", "").strip()
+    if env:
+        try:
+            value = int(env)
+        except ValueError:
+            value = 0
+        if value < 1:
+            raise ValueError(f"JAXKIN_NUM_THREADS must be a positive integer, got {env!r}")
+        return value
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def set_num_threads(n: int | None) -> None:
+    """Split large batches across ``n`` host threads (1: never split; None: the default)."""
+    global _requested
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+        raise ValueError(f"n must be a positive int or None, got {n!r}")
+    _requested = n
+
+
+def _executor(workers: int) -> ThreadPoolExecutor:
+    """The shared worker pool, grown to ``workers`` threads when needed."""
+    global _pool, _pool_workers, _pool_pid
+    with _pool_lock:
+        if _pool is None or _pool_workers < workers or _pool_pid != os.getpid():
+            if _pool is not None and _pool_pid == os.getpid():
+                _pool.shutdown(wait=False)  # its running parts finish; new ones go to the new pool
+            _pool = ThreadPoolExecutor(workers, thread_name_prefix="jaxkin")
+            _pool_workers, _pool_pid = workers, os.getpid()
+        return _pool
+
+
+def overlapping_parts(size: int, n_parts: int, multiple: int = 1) -> tuple[int, list[int]]:
+    """``(part size, starts)``: parts of one size covering ``range(size)``, in order.
+
+    The size is ``ceil(size / n_parts)`` rounded up to a multiple of ``multiple`` (at most
+    ``size``); the last part starts at ``size - part``, so it overlaps its neighbour by
+    ``len(starts) * part - size`` elements, which ``join`` drops. One size means one
+    compilation for every part, and nothing is padded or gathered.
+    """
+    part = -(-size // max(1, n_parts))
+    part = min(size, -(-part // multiple) * multiple)
+    count = -(-size // part)
+    return part, [k * part for k in range(count - 1)] + [size - part]
+
+
+def _layout(size: int, threads: int) -> tuple[int, list[int]]:
+    """The parts for ``threads`` threads; one part when there are too few elements."""
+    parts = min(threads, size // MIN_PART)
+    if parts < 2:
+        return size, [0]
+    return overlapping_parts(size, parts)
+
+
+def run_parts(run: Callable[[int], Any], starts: list[int]) -> list[Any]:
+    """``[run(start) for start in starts]``, on the worker threads when there are several.
+
+    ``run`` should return computed (not merely dispatched) arrays: a part's work happens on the
+    thread that waits for it. Called from inside a part, the parts run in turn.
+    """
+    threads = num_threads()
+    if threads < 2 or len(starts) < 2 or getattr(_in_worker, "active", False):
+        return [run(start) for start in starts]
+
+    def in_worker(start: int) -> Any:
+        _in_worker.active = True
+        try:
+            return jax.block_until_ready(run(start))
+        finally:
+            _in_worker.active = False
+
+    return list(_executor(threads).map(in_worker, starts))
+
+
+def _on_one_device(leaf: Any) -> bool:
+    """A concrete value on (at most) one device: tracers and sharded arrays are not split."""
+    if not is_concrete(leaf):
+        return False
+    return not isinstance(leaf, jax.Array) or len(leaf.sharding.device_set) == 1
+
+
+def _splittable(tree: Any, batch: tuple[int, ...]) -> bool:
+    """True when every leaf is a scalar (shared) or has the whole batch as leading axes."""
+    return all(
+        jnp.ndim(leaf) == 0 or tuple(jnp.shape(leaf)[: len(batch)]) == batch
+        for leaf in jax.tree.leaves(tree)
+    )
+
+
+def _take(tree: Any, batch: tuple[int, ...], start: Array, part: int) -> Any:
+    """Elements ``[start, start + part)`` of the flattened batch of the batched leaves."""
+    size = math.prod(batch)
+
+    def take(leaf):
+        if jnp.ndim(leaf) == 0:
+            return leaf
+        rest = jnp.shape(leaf)[len(batch) :]
+        flat = jnp.reshape(leaf, (size, *rest))
+        return jax.lax.dynamic_slice_in_dim(flat, start, part, axis=0)
+
+    return jax.tree.map(take, tree)
+
+
+@functools.partial(jax.jit, static_argnames=("batch", "overlap"))
+def join(parts: list[Any], batch: tuple[int, ...], overlap: int) -> Any:
+    """Concatenate the parts' outputs along the flat batch axis (dropping the last part's
+    first ``overlap`` elements, computed twice); restore the batch shape."""
+
+    def join_leaf(*leaves):
+        whole = jnp.concatenate([*leaves[:-1], leaves[-1][overlap:]], axis=0)
+        return jnp.reshape(whole, (*batch, *whole.shape[1:]))
+
+    return jax.tree.map(join_leaf, *parts)
+
+
+class PartsJit:
+    """``jax.jit(impl, static_argnames)`` that splits large batches across host threads.
+
+    Args:
+        impl: the kernel, elementwise in the batch: element ``i`` of every output depends only
+            on element ``i`` of the batched arguments; every output leaf has the batch as its
+            leading axes.
+        static_argnames: as for ``jax.jit``.
+        batched_argnames: arguments whose array leaves carry the batch as leading axes (leaves
+            of rank 0 are shared by the whole batch); the others are passed to every part.
+
+    Call it as the kernel, with the batch shape as the keyword ``batch``.
+    """
+
+    def __init__(
+        self,
+        impl: Callable[..., Any],
+        static_argnames: Iterable[str] = (),
+        batched_argnames: Iterable[str] = (),
+    ) -> None:
+        self._impl = impl
+        self._signature = inspect.signature(impl)
+        self._static = tuple(static_argnames)
+        self._batched = tuple(batched_argnames)
+        self.whole = jax.jit(impl, static_argnames=self._static)
+        self._part = jax.jit(self._part_impl, static_argnames=("static", "batch", "part"))
+        functools.update_wrapper(self, impl)
+
+    def _part_impl(self, dynamic: dict[str, Any], static: tuple, batch, start: Array, part: int):
+        arguments = dict(static)
+        for name, value in dynamic.items():
+            if name in self._batched:
+                value = _take(value, batch, start, part)
+            arguments[name] = value
+        return self._impl(**arguments)
+
+    def __call__(self, *args: Any, batch: tuple[int, ...], **kwargs: Any) -> Any:
+        batch = tuple(int(d) for d in batch)
+        threads = num_threads()
+        size = math.prod(batch)
+        part, starts = _layout(size, threads)
+        if (
+            len(starts) < 2
+            or getattr(_in_worker, "active", False)
+            or jax.default_backend() != "cpu"
+            or not all(_on_one_device(leaf) for leaf in jax.tree.leaves((args, kwargs)))
+        ):
+            return self.whole(*args, **kwargs)
+        bound = self._signature.bind(*args, **kwargs)
+        bound.apply_defaults()
+        dynamic = {k: v for k, v in bound.arguments.items() if k not in self._static}
+        if not _splittable([dynamic[name] for name in self._batched], batch):
+            return self.whole(*args, **kwargs)
+        static = tuple((k, v) for k, v in bound.arguments.items() if k in self._static)
+
+        def run(start: int) -> Any:
+            return self._part(dynamic, static, batch, start, part)
+
+        return join(run_parts(run, starts), batch, len(starts) * part - size)
+
+    def _cache_size(self) -> int:
+        """Compilations held (whole-batch and per-part), for recompilation tests."""
+        return self.whole._cache_size() + self._part._cache_size()
+
+
+# ------------------------------------------------------------------ candidates and devices
+
+
+def _candidate_sharding(n_devices: int) -> NamedSharding | None:
+    if n_devices == 1:
+        return None
+    mesh = Mesh(np.asarray(jax.devices()), ("candidates",))
+    return NamedSharding(mesh, PartitionSpec("candidates"))
+
+
+def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int) -> Any:
+    """Apply ``fn`` to a pytree whose leaves share a leading candidate axis N, in chunks.
+
+    The chunks have one size, at most ``chunk_size`` candidates (the last one overlaps its
+    neighbour rather than being padded: ``overlapping_parts``), so one compilation serves them
+    all. With several devices each chunk is sharded across all of them; with one, chunks run
+    on the host threads concurrently. The results are joined back to N candidates.
+    """
+    n = jax.tree.leaves(tree)[0].shape[0]
+    n_devices = jax.device_count()
+    # Sharded chunks need a multiple of the device count: repeat the last candidate.
+    pad = (-n) % n_devices
+    if pad:
+        tree = jax.tree.map(lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, 0)]), tree)
+    size = n + pad
+    chunk, starts = overlapping_parts(
+        size, math.ceil(size / max(1, min(chunk_size, size))), multiple=n_devices
+    )
+    sharding = _candidate_sharding(n_devices)
+
+    def run(start: int) -> Any:
+        part = tree if chunk == size else jax.tree.map(lambda x: x[start : start + chunk], tree)
+        if sharding is not None:
+            part = jax.device_put(part, sharding)
+        return fn(part)
+
+    if sharding is not None:  # the devices share the work: one chunk at a time
+        outputs = [run(start) for start in starts]
+    else:
+        outputs = run_parts(run, starts)
+    result = outputs[0] if len(outputs) == 1 else join(outputs, (size,), len(starts) * chunk - size)
+    return jax.tree.map(lambda x: x[:n], result) if pad else result
+
+
+# ------------------------------------------------------------------ host chunks
+
+
+def host_chunks(n: int, chunk: int) -> Iterator[tuple[int, int, np.ndarray]]:
+    """``(start, stop, index)`` over ``range(n)`` in chunks of one size.
+
+    ``index`` always has the same length (``chunk``, or the next power of two at or above
+    ``n`` when that is smaller, so inputs of similar sizes share one compilation); past
+    ``stop`` it repeats ``start`` (a real element, computed and dropped by the caller).
+    """
+    chunk = max(1, min(chunk, 1 << max(n - 1, 0).bit_length()))
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
+        index = np.arange(start, start + chunk)
+        index[stop - start :] = start
+        yield start, stop, index

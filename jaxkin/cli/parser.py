@@ -1,0 +1,172 @@
+"""The ``jaxkin`` command line: subcommands, options and help."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from .. import __version__, _splines
+from .robots import ROBOTS, CliError, option
+
+__all__ = ["build_parser"]
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (raised, so ``main`` prints them and returns 2)."""
+
+    def error(self, message: str) -> Any:  # type: ignore[override]
+        raise CliError(f"{message} (see '{self.prog} --help')")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def _add_robot_options(parser: argparse.ArgumentParser, with_branch: bool = True) -> None:
+    names = ", ".join(ROBOTS)
+    parser.add_argument("kind", metavar="ROBOT", choices=list(ROBOTS), help=names)
+    geometry = parser.add_argument_group(
+        "geometry", "--robot paper|FILE.toml|FILE.json, and/or the lengths (they override it)"
+    )
+    geometry.add_argument("--robot", metavar="SPEC", help="'paper' or a TOML/JSON file")
+    users: dict[str, list[str]] = {}
+    for entry in ROBOTS.values():
+        for key in entry.fields:
+            users.setdefault(key, []).append(entry.name)
+    for key, robots in users.items():
+        geometry.add_argument(
+            option(key), dest=key, type=float, metavar="L", help=f"{'/'.join(robots)}: {key}"
+        )
+    if with_branch:
+        parser.add_argument(
+            "--branch",
+            "--mode",
+            dest="branch",
+            help="the IK branch: scara +1 (default) or -1; delta out (default) or in; "
+            "anthropomorphic front_up (default), front_down, back_up or back_down; ...",
+        )
+    parser.add_argument(
+        "--dtype",
+        choices=("float64", "float32"),
+        default="float64",
+        help="floating precision of the solve (default float64)",
+    )
+    parser.add_argument(
+        "--chunk-size",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="rows (voxels) per batched call (default 65536 rows, 262144 voxels)",
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or notes")
+
+
+_FILE_HELP = (
+    "Input: CSV with a header row, or .npz; columns t, the positions, optional candidate and "
+    "rates (missing rates are computed by a cubic spline in t per candidate). Output: the "
+    "same layout with the solved columns and a status name per row."
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``jaxkin`` argument parser."""
+    from . import commands, demo
+
+    parser = _Parser(
+        prog="jaxkin",
+        description="Batched robot kinematics from the command line.",
+        epilog="Run 'jaxkin SUBCOMMAND --help' for details; 'jaxkin demo --list' for examples.",
+    )
+    parser.add_argument("--version", action="version", version=f"jaxkin {__version__}")
+    parser.add_argument("--traceback", action="store_true", help=argparse.SUPPRESS)
+    sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND", parser_class=_Parser)
+    sub.required = True
+
+    run = sub.add_parser(
+        "demo",
+        help="the main demo (a planner on 10,000 candidate paths) and the examples",
+        description=(
+            f"Run the main demo ({demo.DEFAULT}: thousands of candidate trajectories evaluated "
+            "in one call, the best picked and plotted) or an example by name; --list shows "
+            "them. Files go to the current directory (or --output-dir)."
+        ),
+        epilog="example: jaxkin demo delta-workspace --resolution 2",
+    )
+    run.add_argument("name", nargs="?", metavar="NAME", help=f"example (default {demo.DEFAULT})")
+    run.add_argument("--list", action="store_true", help="list the examples and exit")
+    run.add_argument(
+        "--output-dir", metavar="DIR", default=".", help="where files go (default: here)"
+    )
+    run.add_argument(
+        "args", nargs=argparse.REMAINDER, metavar="...", help="passed on to the example"
+    )
+    run.add_argument("-q", "--quiet", action="store_true", help="no notes")
+    run.set_defaults(func=demo.cmd_demo)
+
+    for name, func, what, example in (
+        (
+            "ik",
+            commands.cmd_ik,
+            "joint trajectories from end-point trajectories (t,x,y,z[,candidate])",
+            "jaxkin ik scara --robot paper -i spiral.csv -o joints.csv --plot joints.png",
+        ),
+        (
+            "fk",
+            commands.cmd_fk,
+            "end-point trajectories from joint trajectories",
+            "jaxkin fk scara --robot paper -i joints.csv -o check.csv",
+        ),
+    ):
+        p = sub.add_parser(
+            name, help=what, description=f"{what}. " + _FILE_HELP, epilog=f"example: {example}"
+        )
+        _add_robot_options(p, with_branch=name == "ik")
+        p.add_argument("-i", "--input", required=True, metavar="FILE", help="CSV or .npz")
+        p.add_argument(
+            "-o",
+            "--output",
+            required=True,
+            metavar="FILE",
+            help="CSV (or .npz by suffix; '-' for CSV on stdout), written atomically",
+        )
+        p.add_argument(
+            "--spline",
+            choices=_splines.END_CONDITIONS,
+            default="not-a-knot",
+            help="end condition of the cubic spline for missing rates (default not-a-knot)",
+        )
+        p.add_argument("--plot", metavar="FILE.png", help="also plot the result (needs matplotlib)")
+        p.set_defaults(func=func, branch=None)
+
+    ws = sub.add_parser(
+        "workspace",
+        help="voxel sweep of the reachable workspace",
+        description="Chunked voxel sweep of the reachable workspace; prints its volume "
+        "(voxels whose IK is solved, the boundary included) in the geometry's length unit cubed.",
+        epilog="example: jaxkin workspace delta --robot paper --plot ws.png --output ws.npz",
+    )
+    _add_robot_options(ws)
+    ws.add_argument(
+        "--resolution",
+        type=float,
+        metavar="H",
+        help="voxel edge (default: the robot's, e.g. 1 cm for the paper's Delta)",
+    )
+    ws.add_argument(
+        "--bounds",
+        type=float,
+        nargs="+",
+        metavar="LO HI",
+        help="box to sweep, lo hi per axis: XMIN XMAX YMIN YMAX [ZMIN ZMAX] (default: the "
+        "robot's reach)",
+    )
+    ws.add_argument("-o", "--output", metavar="FILE.npz", help="save the mask and grid (atomic)")
+    ws.add_argument("--plot", metavar="FILE.png", help="slices and point cloud (needs matplotlib)")
+    ws.set_defaults(func=commands.cmd_workspace)
+    return parser

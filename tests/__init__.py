@@ -1,0 +1,1 @@
+"""jaxkin's test suite (a package, so tests and benchmarks import ``tests.references``)."""
