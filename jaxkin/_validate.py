@@ -53,7 +53,10 @@ def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> j
     as ``INVALID_INPUT``); zero and negative values always raise.
     """
     if is_concrete(x):
-        values = np.asarray(x, dtype=float)
+        raw = None if isinstance(x, bool | str | bytes) or x is None else np.asarray(x)
+        if raw is None or raw.dtype.kind not in "fiu":
+            raise ValueError(f"{name} must be a positive length (a real number), got {x!r}")
+        values = raw.astype(float)
         finite = np.isfinite(values)
         if np.any(values[finite] <= 0) or not (allow_nonfinite or np.all(finite)):
             raise ValueError(f"{name} must be positive and finite, got {values}")

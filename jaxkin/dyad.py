@@ -135,6 +135,17 @@ def _position(
     for the analytic path, slower for the autodiff path (measured), so only the first asks.
     """
     dx, dy = b_x - a_x, b_y - a_y
+    # Work in units of the reach l_ac + l_bc (= 1 here, see _sanitized): beyond 4 the dyad
+    # cannot assemble, so the direction alone is kept (no square can overflow, and an
+    # overflowed difference of two finite points still counts as far).
+    big = jnp.maximum(jnp.abs(dx), jnp.abs(dy))
+    far = ~(big <= 4.0)
+    finite = jnp.isfinite(big)
+    denominator = jnp.where(far & finite, big, 1.0)  # double-where: no inf / inf
+    dx, dy = (
+        jnp.where(far, 4.0 * jnp.where(finite, d / denominator, jnp.sign(d) * jnp.isinf(d)), d)
+        for d in (dx, dy)
+    )
     r2 = dx * dx + dy * dy
     # One rsqrt for both |AB| and its reciprocal (double-where at A = B); fewer divisions
     # also keep the autodiff path's nested jvp cheap.
@@ -280,25 +291,35 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
     length_valid = lengths_finite if lengths_are_scalars else valid
     l_ac = jnp.where(length_valid, l_ac, 1.0)
     l_bc = jnp.where(length_valid, l_bc, 1.0)
-    return a_comps, b_comps, l_ac, l_bc, valid
+    # Units of the reach: the kernel sees lengths that sum to 1, whatever the scale of the
+    # input (no square, cube or product of rates over- or underflows); outputs are scaled back.
+    scale = l_ac + l_bc
+    inv_scale = 1.0 / scale
+    a_comps = tuple(x * inv_scale for x in a_comps)
+    b_comps = tuple(x * inv_scale for x in b_comps)
+    return a_comps, b_comps, l_ac * inv_scale, l_bc * inv_scale, valid, scale
 
 
 def _position_impl(a: Array, b: Array, l_ac: Array, l_bc: Array, mode: int) -> DyadPosition:
-    a_comps, b_comps, l_ac, l_bc, valid = _sanitized([a], [b], l_ac, l_bc)
+    a_comps, b_comps, l_ac, l_bc, valid, scale = _sanitized([a], [b], l_ac, l_bc)
     pos = _position(*a_comps, *b_comps, l_ac, l_bc, valid, mode)
-    return DyadPosition(jnp.stack([pos.c_x, pos.c_y], axis=-1), pos.phi, pos.status, pos.margin)
+    c = jnp.stack([pos.c_x * scale, pos.c_y * scale], axis=-1)
+    return DyadPosition(c, pos.phi, pos.status, pos.margin)
 
 
 _position_jit = jax.jit(_position_impl, static_argnames=("mode",))
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
-    a_comps, b_comps, l_ac, l_bc, valid = _sanitized([a.p, a.v, a.a], [b.p, b.v, b.a], l_ac, l_bc)
+    parts = _sanitized([a.p, a.v, a.a], [b.p, b.v, b.a], l_ac, l_bc)
+    a_comps, b_comps, l_ac, l_bc, valid, scale = parts
 
     if method == "analytic":
         pos = _position(*a_comps[:2], *b_comps[:2], l_ac, l_bc, valid, mode, store_cos_sin=True)
         phi_dot, phi_ddot, *c_rates = _analytic_rates(a_comps, b_comps, l_ac, l_bc, pos, mode)
-        c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = pos.c_x, pos.c_y, *c_rates
+        c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = (
+            x * scale for x in (pos.c_x, pos.c_y, *c_rates)
+        )
         c = Jet(
             jnp.stack([c_x, c_y], axis=-1),
             jnp.stack([c_v_x, c_v_y], axis=-1),
@@ -306,10 +327,10 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
         )
         return DyadResult(c, Jet(pos.phi, phi_dot, phi_ddot), pos.status, pos.margin)
 
-    def autodiff_part(a_comps, b_comps, l_ac, l_bc, valid):
+    def autodiff_part(a_comps, b_comps, l_ac, l_bc, valid, scale):
         def position(a_x, a_y, b_x, b_y):
             pos = _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode)
-            return pos.c_x, pos.c_y, pos.phi, pos.status, pos.margin
+            return pos.c_x * scale, pos.c_y * scale, pos.phi, pos.status, pos.margin
 
         c_x, c_y, phi, status, margin = lift(position)(
             *(Jet(*comps[k::2]) for comps in (a_comps, b_comps) for k in (0, 1))
@@ -321,7 +342,6 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
         return DyadResult(Jet.stack([c_x, c_y]), phi, status, margin.p)
 
     # Large batches as two halves: faster for this path (not the analytic one), measured.
-    parts = (a_comps, b_comps, l_ac, l_bc, valid)
     return _batching.in_two_halves(autodiff_part, parts, valid.shape)
 
 
@@ -393,9 +413,13 @@ def solve(
         A ``DyadResult`` with ``c``, ``phi``, ``status`` and ``margin``; batch shape is the
         broadcast of the inputs' batch shapes. Output dtype follows the inputs.
 
+    Non-finite lengths are data, not errors: a NaN or inf length (a scalar, or one entry of a
+    per-element array) marks the elements it applies to ``INVALID_INPUT`` (every element for
+    a scalar), with finite placeholders.
+
     Raises:
-        ValueError: non-positive or non-finite lengths (when concrete), shapes whose last axis
-            is not 2, batch shapes that do not broadcast, or an unknown ``mode``/``method``.
+        ValueError: a zero or negative length (when concrete), shapes whose last axis is not
+            2, batch shapes that do not broadcast, or an unknown ``mode``/``method``.
     """
     mode = _validate.choice(mode, "mode", MODES)
     method = _validate.choice(method, "method", METHODS)

@@ -225,7 +225,8 @@ def optimize(
     Args:
         robot: any robot of the protocol whose targets are points (``robot.target``).
         start, goal: end-effector positions, shape ``robot.target.shape``: fixed.
-        interior: initial interior control points, shape ``(B, K', d)`` or ``(K', d)``.
+        interior: initial interior control points, shape ``(B, K', d)`` or ``(K', d)``; every
+            guess must be finite (a ``ValueError`` names the guesses that are not).
         duration: motion time; ``n_samples`` samples are taken uniformly in [0, duration].
         optimizer: any optax transformation (default ``optax.adam(1e-2 * scale)`` with
             ``scale = |goal - start|``).
@@ -260,6 +261,15 @@ def optimize(
     if interior.ndim != 3 or interior.shape[-1] != dims or interior.shape[1] < 1:
         raise ValueError(
             f"interior: expected shape (B, K', {dims}) with K' >= 1, got {interior.shape}"
+        )
+    for name, x in (("start", start), ("goal", goal)):
+        if not bool(jnp.all(jnp.isfinite(x))):
+            raise ValueError(f"{name} must be finite, got {np.asarray(x)}")
+    bad = np.flatnonzero(~np.all(np.isfinite(np.asarray(interior)), axis=(1, 2)))
+    if bad.size:
+        raise ValueError(
+            f"interior: initial guess(es) {bad.tolist()} hold NaN or inf (every guess must be "
+            "finite: a NaN would come back as NaN controls)"
         )
     if not (duration > 0 and n_samples >= 3 and steps >= 0):
         raise ValueError("need duration > 0, n_samples >= 3 and steps >= 0")

@@ -345,7 +345,9 @@ def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") 
     acceleration: no finite differences.
 
     Args:
-        positions: shape ``(N, T, 3)`` (any leading dims), samples ``dt`` apart.
+        positions: shape ``(N, T, d)`` (any leading dims), samples ``dt`` apart. A candidate
+            with a NaN or inf sample gets NaN rates: its samples are ``INVALID_INPUT`` in
+            ``evaluate``, and the other candidates are unaffected.
         dt: the time step (positive).
         end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
     """
@@ -357,7 +359,11 @@ def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") 
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be a positive finite number, got {dt!r}")
     t = np.broadcast_to(np.arange(positions.shape[-2]) * float(dt), positions.shape[:-1])
-    velocity, acceleration = _splines.derivatives(t, positions, end=end)
+    # A candidate with a NaN/inf sample has no spline: its rates are NaN (every sample then
+    # INVALID_INPUT in the kernels), and the other candidates are splined as usual.
+    finite = np.all(np.isfinite(positions), axis=(-2, -1))[..., None, None]
+    velocity, acceleration = _splines.derivatives(t, np.where(finite, positions, 0.0), end=end)
+    velocity, acceleration = (np.where(finite, x, np.nan) for x in (velocity, acceleration))
     return Jet.of(positions, velocity, acceleration)
 
 

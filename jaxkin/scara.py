@@ -222,6 +222,11 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
         l_oa, l_ab, l_bc = (jnp.where(jnp.isfinite(x), x, 1.0) for x in (l_oa, l_ab, l_bc))
     else:
         l_oa, l_ab, l_bc = (jnp.where(valid, x, 1.0) for x in (l_oa, l_ab, l_bc))
+    # Units of the arm's reach: no square or product of rates over- or underflows at any scale.
+    scale = jnp.asarray(l_ab + l_bc)
+    inv_scale = 1.0 / scale
+    d = d.map(lambda x: x * inv_scale[..., None])
+    l_oa, l_ab, l_bc = (x * inv_scale for x in (l_oa, l_ab, l_bc))
     shoulder = jnp.zeros((*batch, 2), d.dtype)  # A projected on its plane: the origin, at rest
 
     if method == "analytic":
@@ -254,8 +259,10 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
         ok = dyad_status == Status.OK
 
     okc = ok[..., None]
-    q = Jet(q.p, jnp.where(okc, q.v, 0.0), jnp.where(okc, q.a, 0.0))
-    elbow = Jet(elbow.p, jnp.where(okc, elbow.v, 0.0), jnp.where(okc, elbow.a, 0.0))
+    units = jnp.stack(jnp.broadcast_arrays(jnp.ones_like(scale), jnp.ones_like(scale), scale), -1)
+    q = Jet(q.p * units, jnp.where(okc, q.v * units, 0.0), jnp.where(okc, q.a * units, 0.0))
+    s2 = scale[..., None]
+    elbow = Jet(elbow.p * s2, jnp.where(okc, elbow.v * s2, 0.0), jnp.where(okc, elbow.a * s2, 0.0))
 
     has_solution = valid & (
         ok | (dyad_status == Status.SINGULAR_EXTENDED) | (dyad_status == Status.SINGULAR_FOLDED)

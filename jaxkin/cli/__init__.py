@@ -13,20 +13,25 @@ joint and target columns, default workspace box) comes from the robot protocol.
 Errors: bad input prints one line ``jaxkin: error: ...`` on stderr and exits with status 2,
 never a traceback (``--traceback`` shows it). Rows with NaN/inf get status
 ``INVALID_INPUT`` and the rest is solved. Outputs are written atomically: a failed or
-interrupted run leaves an existing output file untouched. Ctrl-C exits with status 130.
+interrupted run leaves an existing output file untouched, and an output that names the input
+file (through any spelling or symlink) is refused before anything is written. Ctrl-C exits
+with status 130; a closed output pipe (``-o - | head``) ends quietly with status 141.
 ``--dtype float64`` (default) turns on JAX's 64-bit mode in this process (an application's
 choice; the library itself never changes JAX's configuration).
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 from collections.abc import Sequence
 
-__all__ = ["EXIT_ERROR", "EXIT_INTERRUPTED", "main"]
+__all__ = ["EXIT_BROKEN_PIPE", "EXIT_ERROR", "EXIT_INTERRUPTED", "main"]
 
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -44,6 +49,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             for note in args.notes:
                 print(note, file=sys.stderr)
         return code
+    except BrokenPipeError:
+        # The reader closed the pipe (``jaxkin ... -o - | head``): end quietly, with the usual
+        # status of a process killed by SIGPIPE, and keep the interpreter's final flush quiet.
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
         print("jaxkin: interrupted (existing output files are unchanged)", file=sys.stderr)
         return EXIT_INTERRUPTED

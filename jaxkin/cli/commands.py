@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -63,9 +65,24 @@ def _warn_invalid(traj: files.Trajectory, valid: np.ndarray) -> None:
         )
 
 
-def _check_output(path: str, what: str = "--output") -> None:
+def _same_file(first: str, second: str) -> bool:
+    """True when two spellings name one file (symlinks, ``./``, ``..`` included)."""
+    a, b = Path(first), Path(second)
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+        return a.resolve() == b.resolve()
+    except OSError:
+        return False
+
+
+def _check_output(path: str, what: str = "--output", source: str | None = None) -> None:
     if path == "-":
         return
+    if source is not None and _same_file(source, path):
+        raise CliError(
+            f"{what} {path} is the input file {source}: it would be overwritten; choose another"
+        )
     try:  # fail before solving, with the checks atomic_write applies at the end
         files.check_output_path(path)
     except files.InputError as exc:
@@ -77,9 +94,9 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     if not robot.target.is_point:
         raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
     branch = parse_branch(robot, args.branch) if inverse else None
-    _check_output(args.output)
+    _check_output(args.output, source=args.input)
     if args.plot:
-        _check_output(args.plot, "--plot")
+        _check_output(args.plot, "--plot", source=args.input)
         from .. import plot
 
         plot.require_matplotlib()

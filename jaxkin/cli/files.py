@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import dataclasses
+import math
 import os
 import sys
 import tempfile
@@ -69,6 +70,22 @@ CARTESIAN = ("x", "y", "z")
 
 class InputError(ValueError):
     """A file that cannot be used; the message is one line, naming the file (and line)."""
+
+
+class _Given(type(Path())):  # type: ignore[misc]
+    """A path that prints as the user spelled it (``./a.csv``, not ``a.csv``)."""
+
+    _given: str | None = None
+
+    def __str__(self) -> str:
+        return self._given if self._given is not None else super().__str__()
+
+
+def given(path: str | os.PathLike) -> Path:
+    """``Path(path)`` that keeps the user's spelling for messages."""
+    result = _Given(path)
+    result._given = os.fspath(path)
+    return result
 
 
 def rate_names(names: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -127,7 +144,7 @@ def read_table(path: str | os.PathLike, wanted: Sequence[str]) -> Table:
     Raises:
         InputError: the file is missing or unreadable, or a used cell is not a number.
     """
-    path = Path(path)
+    path = given(path)
     if not path.exists():
         raise InputError(f"{path}: no such file")
     if path.is_dir():
@@ -364,7 +381,7 @@ def check_output_path(path: str | Path) -> Path:
     Raises:
         InputError: ``path`` is a directory, or its directory does not exist.
     """
-    path = Path(path)
+    path = given(path)
     directory = path.parent if str(path.parent) else Path(".")
     if path.is_dir():
         raise InputError(f"{path}: is a directory, expected an output file name")
@@ -384,7 +401,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
     Raises:
         InputError: the directory does not exist or ``path`` is a directory.
     """
-    path = Path(path)
+    path = given(path)
     directory = check_output_path(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
@@ -413,7 +430,8 @@ def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
 def _format_column(values: np.ndarray) -> list[str]:
     values = np.asarray(values)
     if values.dtype.kind == "f":
-        return [repr(x) for x in values.astype(np.float64).tolist()]
+        # An empty cell where there is no value (a row whose status explains it), never "nan".
+        return [repr(x) if math.isfinite(x) else "" for x in values.astype(np.float64).tolist()]
     if values.dtype.kind == "b":
         return ["1" if x else "0" for x in values.tolist()]
     return [str(x) for x in values.tolist()]

@@ -55,6 +55,7 @@ from .geometry import (
     check_robot,
     compiled,
     float_dtype,
+    in_own_units,
 )
 from .rates import _fk_rates_analytic
 
@@ -197,6 +198,10 @@ def _fk_impl(
     robot, theta: Jet, guess, tol: float, max_iter: int, method: str, rates: bool
 ) -> NewtonFKResult:
     dtype = theta.p.dtype
+    robot, scale = in_own_units(robot)
+    scale = jnp.asarray(scale, dtype)
+    if guess is not None:
+        guess = guess * (1.0 / scale)
     theta, valid = _sanitise(theta, jnp.zeros((3,), dtype), rates)
     cos_sin = _cos_sin(theta.p)  # shared by the guess, the Newton setup and the rates
     if guess is None:
@@ -249,8 +254,9 @@ def _fk_impl(
         okc = ok[..., None]
         x = sol.x
         p_jet = Jet(x.p, jnp.where(okc, x.v, 0.0), jnp.where(okc, x.a, 0.0))
+    p_jet = Jet(*(None if x is None else x * scale for x in (p_jet.p, p_jet.v, p_jet.a)))
     return NewtonFKResult(
-        p_jet, status, sol.converged, sol.iterations, sol.residual, sol.conditioning
+        p_jet, status, sol.converged, sol.iterations, sol.residual * scale, sol.conditioning
     )
 
 
@@ -287,9 +293,12 @@ def _sphere_intersection(robot: Delta, theta: Array):
 
 
 def _fk_closed_form_impl(robot: Delta, theta: Array) -> ClosedFormFKResult:
+    robot, scale = in_own_units(robot)
     valid = _finite3(theta)
     theta = jnp.where(valid[..., None], theta, 0.0)
     lower, upper, centre, _, w, collinear = _sphere_intersection(robot, theta)
+    scale = jnp.asarray(scale, theta.dtype)
+    lower, upper = lower * scale, upper * scale
     rtol = singular_rtol(theta.dtype)
     _, _, _, _, lo, hi = _params(robot, theta.dtype)
     out_of_limits = _any3((theta < lo) | (theta > hi))
@@ -315,6 +324,8 @@ def _fk_closed_form_impl(robot: Delta, theta: Array) -> ClosedFormFKResult:
 
 
 def _branch_impl(robot: Delta, theta: Array, p: Array) -> Array:
+    robot, scale = in_own_units(robot)
+    p = p * (1.0 / jnp.asarray(scale, p.dtype))
     _, _, centre, n, _, _ = _sphere_intersection(robot, theta)
     side = jnp.sum((p - centre) * n, -1)  # n points downward
     return jnp.where(side >= 0, LOWER, UPPER).astype(STATUS_DTYPE)

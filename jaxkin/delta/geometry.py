@@ -205,6 +205,29 @@ def _home(robot: Delta, dtype) -> Array:
     return jnp.stack([0.0 * z, 0.0 * z, jnp.where(z < 0, z, -l_rod)])
 
 
+def in_own_units(robot: Delta) -> tuple[Delta, Any]:
+    """The robot with its lengths divided by ``l_arm + l_rod``, and that scale.
+
+    The kernels work in these units, so no square or product of rates over- or underflows
+    whatever the scale of the robot and its targets; lengths are scaled back on output.
+    """
+    scale = robot.l_arm + robot.l_rod
+    lengths = [robot.r_base, robot.r_platform, robot.l_arm, robot.l_rod]
+    fields = [x / scale for x in lengths] + [robot.theta_min, robot.theta_max]
+    return jax.tree.unflatten(jax.tree.structure(robot), fields), scale
+
+
+# Beyond this many robot sizes from the base a point is unreachable: tested before any square.
+FAR = 1e6
+
+
+def far_away(p: Array) -> Array:
+    """True where a point (in the robot's own units, ``(..., 3)``) is beyond ``FAR``."""
+    return ~(
+        (jnp.abs(p[..., 0]) <= FAR) & (jnp.abs(p[..., 1]) <= FAR) & (jnp.abs(p[..., 2]) <= FAR)
+    )
+
+
 def _rates_ok(status: Array) -> Array:
     # Rates are defined where the position is solved and the relevant Jacobian is regular.
     return (status == Status.OK) | (status == Status.OUT_OF_LIMITS)

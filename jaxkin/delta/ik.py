@@ -44,7 +44,9 @@ from .geometry import (
     as_coords,
     check_robot,
     compiled,
+    far_away,
     float_dtype,
+    in_own_units,
 )
 from .rates import _ik_rates_analytic
 
@@ -114,11 +116,24 @@ def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array
 
 
 def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+    robot, scale = in_own_units(robot)
+    inv_scale = 1.0 / jnp.asarray(scale, p.p.dtype)
+    p = Jet(*(None if x is None else x * inv_scale for x in (p.p, p.v, p.a)))
     p, valid = _sanitise(p, _home(robot, p.p.dtype), rates)
+    far = far_away(p.p)  # certainly unreachable: solved at the home pose instead, then flagged
+    p = Jet(
+        *(
+            None if x is None else jnp.where(far[..., None], home, x)
+            for x, home in zip((p.p, p.v, p.a), (_home(robot, p.p.dtype), 0.0, 0.0), strict=True)
+        )
+    )
+
+    def checked(status):
+        return jnp.where(far & valid, jnp.int8(Status.UNREACHABLE), status)
 
     if method == "analytic" or not rates:
         theta, cos_theta, sin_theta, signed = _ik_position(robot, p.p, branch)
-        status = _ik_status(robot, theta, signed, valid)
+        status = checked(_ik_status(robot, theta, signed, valid))
         if rates:
             ok = _rates_ok(status)
             theta_jet = _ik_rates_analytic(robot, p, theta, (cos_theta, sin_theta), ok)
@@ -131,11 +146,12 @@ def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKR
             return theta, signed
 
         theta_j, signed_j = lift(position)(p)
-        status = _ik_status(robot, theta_j.p, signed_j.p, valid)
+        status = checked(_ik_status(robot, theta_j.p, signed_j.p, valid))
         okc = _rates_ok(status)[..., None]
         theta_jet = Jet(theta_j.p, jnp.where(okc, theta_j.v, 0.0), jnp.where(okc, theta_j.a, 0.0))
         signed = signed_j.p
-    margin = jnp.where(valid, jnp.clip(jnp.min(signed, axis=-1), -1.0, 1.0), -1.0)
+    margin = jnp.clip(jnp.min(signed, axis=-1), -1.0, 1.0)
+    margin = jnp.where(valid & ~far, margin, -1.0)
     return IKResult(theta_jet, status, margin)
 
 

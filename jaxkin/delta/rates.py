@@ -44,6 +44,7 @@ from .geometry import (
     check_robot,
     compiled,
     float_dtype,
+    in_own_units,
 )
 
 __all__ = ["SingularityResult", "singularity"]
@@ -131,6 +132,8 @@ def _fk_rates_analytic(robot, theta: Jet, p: Array, ok: Array, cos_sin) -> Jet:
 
 
 def _singularity_impl(robot: Delta, p: Array, theta: Array) -> SingularityResult:
+    robot, scale = in_own_units(robot)
+    p = p * (1.0 / jnp.asarray(scale, p.dtype))
     valid = all_finite(p) & all_finite(theta)
     p = jnp.where(valid[..., None], p, _home(robot, p.dtype))
     theta = jnp.where(valid[..., None], theta, 0.0)

@@ -272,17 +272,50 @@ def zyz_wrist(rot: Array, sign: float, branch: ArrayLike) -> tuple[Array, Array,
 # --------------------------------------------------------------------------- drivers
 
 
+# Beyond this many robot sizes from the base a target is reported unreachable (tested before
+# any square; an arm's prismatic strokes are unbounded in the kernels, but not in practice).
+FAR = 1e6
+
+
+def _split_target(robot: Arm, target: Array) -> tuple[Array, Array | None]:
+    """The length coordinates of a target, and its angular rest (None for a point)."""
+    if robot.TARGET_SHAPE == (4, 4):
+        return target[..., :3, 3], target
+    if robot.target.name == "planar pose":
+        return target[..., :2], target
+    return target, None
+
+
+def _join_target(robot: Arm, lengths: Array, target: Array | None) -> Array:
+    if robot.TARGET_SHAPE == (4, 4):
+        return target.at[..., :3, 3].set(lengths)
+    if robot.target.name == "planar pose":
+        return jnp.concatenate([lengths, target[..., 2:]], axis=-1)
+    return lengths
+
+
 def _ik_impl(robot: Arm, target: Array) -> ArmIKResult:
+    """Every branch, in units of the arm's size (no overflow or underflow at any scale)."""
     dtype = target.dtype
     n_target = len(robot.TARGET_SHAPE)
     axes = tuple(range(-n_target, 0))
     lengths = jnp.stack([jnp.asarray(x, dtype) for x in robot.lengths(dtype)])
     valid_in = jnp.all(jnp.isfinite(target), axis=axes) & jnp.all(jnp.isfinite(lengths))
-    mask = valid_in.reshape(valid_in.shape + (1,) * n_target)
+    scale = jnp.sum(jnp.where(jnp.isfinite(lengths), jnp.abs(lengths), 0.0))
+    scale = jnp.where(scale > 0, scale, 1.0)
+    point, rest = _split_target(robot, target)
+    point = point / scale
+    far = ~jnp.all(jnp.abs(point) <= FAR, axis=-1)
+    target = _join_target(robot, point, rest)
+    unit = jax.tree.map(lambda x: jnp.asarray(x, dtype) / scale, robot)
+    mask = (valid_in & ~far).reshape(valid_in.shape + (1,) * n_target)
     safe_target = jnp.where(mask, target, robot._placeholder_target(dtype))
-    q, status = robot._ik_kernel(safe_target)
+    q, status = unit._ik_kernel(safe_target)
     status = jnp.broadcast_to(status, q.shape[:-1])
+    status = jnp.where(far[..., None], Status.UNREACHABLE, status)
     status = jnp.where(valid_in[..., None], status, Status.INVALID_INPUT).astype(STATUS_DTYPE)
+    prismatic = jnp.asarray([kind == "P" for kind in robot.JOINT_TYPES])
+    q = q * jnp.where(prismatic, scale, 1.0)
     q = jnp.where(valid_in[..., None, None], q, 0.0)
     valid = (status == Status.OK) | (status == Status.SINGULAR)
     return ArmIKResult(q, valid, status, robot.BRANCHES)

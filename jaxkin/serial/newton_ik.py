@@ -175,6 +175,26 @@ def _ik_impl(
     n = chain.n_joints
     target = jnp.broadcast_to(target, (*batch, 4, 4))
     q0 = jnp.broadcast_to(q0, (*batch, n))
+    # Units of the chain's size: the twist's two halves stay comparable (the normal equations
+    # well conditioned) and nothing over- or underflows at any scale; q's prismatic joints and
+    # the length error are scaled back on output.
+    scale = jnp.asarray(chain.length_scale(), target.dtype)
+    prismatic = ~jnp.any(chain.screws[:, :3] != 0, axis=-1)
+    to_unit = jnp.where(prismatic, 1.0 / scale, 1.0)
+    chain = _poe.PoEChain(
+        jnp.concatenate(
+            [
+                chain.screws[:, :3],
+                chain.screws[:, 3:] * jnp.where(prismatic, 1.0, 1.0 / scale)[:, None],
+            ],
+            axis=-1,
+        ),
+        chain.home.at[:3, 3].divide(scale),
+        chain.frame,
+    )
+    target = target.at[..., :3, 3].divide(scale)
+    q0, lower, upper = q0 * to_unit, lower * to_unit, upper * to_unit
+    eps_v = eps_v / scale
     # Double-where, step 1: replace non-finite elements before any arithmetic.
     valid = all_finite(target.reshape(*batch, 16)) & all_finite(q0)
     target = jnp.where(valid[..., None, None], target, jnp.eye(4, dtype=target.dtype))
@@ -215,6 +235,8 @@ def _ik_impl(
     (q, iterations, _), steps = jax.lax.scan(body, init, None, length=max_iter)
     history = jnp.concatenate([q0[None], steps], axis=0) if keep_history else q0[None]
     _, _, err, done = errors(q)
+    history, q = history / to_unit, q / to_unit
+    err = err * jnp.stack([jnp.ones_like(scale), scale])
     converged = done & valid
     status = jnp.where(
         ~valid, Status.INVALID_INPUT, jnp.where(converged, Status.OK, Status.NOT_CONVERGED)
@@ -368,18 +390,10 @@ def _body_twists(target: Jet) -> tuple[Array, Array]:
     return twist, rate
 
 
-def _scaled(jac: Array, revolute: Array, scale: Array) -> Array:
-    """A body Jacobian in units of the chain's size: ``v`` rows / scale, prismatic columns *
-    scale."""
-    rows = jnp.concatenate([jac[..., :3, :], jac[..., 3:, :] / scale[..., None, None]], axis=-2)
-    return rows * jnp.where(revolute, 1.0, scale[..., None])[..., None, :]
-
-
 def _ik_chain_core(
     chain: _poe.PoEChain, target: Jet, seeds: Array, tol: Array, max_iter: int, rates: bool
 ) -> IKResult:
     dtype = target.dtype
-    batch = target.shape[:-2]
     scale = jnp.asarray(chain.length_scale(), dtype)
     revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)
     n = chain.n_joints
@@ -411,18 +425,23 @@ def _ik_chain_core(
     q, status = pick(sol.q), pick(sol.status)
     ok = status == Status.OK
     _, _, jac = _poe._fk_and_jacobian(chain, q, "body")
+    # The body Jacobian in units of the chain's size (v rows / scale, prismatic columns *
+    # scale): the least-squares solves below stay well conditioned at any scale.
+    rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
+    columns = jnp.where(revolute, 1.0, scale)
+    unit_jac = jac * rows[:, None] * columns
     if rates:
         twist, twist_rate = _body_twists(target)
         floor = eps(dtype)
-        q_dot = _newton_step(jac, twist, 0.0, floor)
+        q_dot = _newton_step(unit_jac, twist * rows, 0.0, floor) * columns
         jac_rate = jax.jvp(lambda x: _poe._fk_and_jacobian(chain, x, "body")[2], (q,), (q_dot,))[1]
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _newton_step(jac, twist_rate - drift, 0.0, floor)
+        q_ddot = _newton_step(unit_jac, (twist_rate - drift) * rows, 0.0, floor) * columns
         okc = ok[..., None]
         q_jet = Jet(q, jnp.where(okc, q_dot, 0.0), jnp.where(okc, q_ddot, 0.0))
     else:
         q_jet = Jet.constant(q)
-    margin = volume_ratio(_scaled(jac, revolute, jnp.broadcast_to(scale, batch)))
+    margin = volume_ratio(unit_jac)
     margin = jnp.where(
         status == Status.INVALID_INPUT,
         -1.0,
