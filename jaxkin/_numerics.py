@@ -121,14 +121,15 @@ def spd_det(g: Array) -> Array:
     return det
 
 
-def volume_ratio(jac: Array) -> Array:
+def isotropy(jac: Array) -> Array:
     """How far a Jacobian ``(..., m, n)`` is from singular, in [0, 1], shape ``(...)``.
 
-    With ``s_1 .. s_k`` its ``k = min(m, n)`` singular values: ``prod s_i / (mean s_i^2)^(k/2)``
-    (by the AM-GM inequality at most 1, with equality when every ``s_i`` is equal; 0 exactly
-    when the Jacobian loses rank). Computed from ``G = J J^T`` (or ``J^T J``) as
-    ``sqrt(det G) / (trace G / k)^(k/2)``; invariant to a common scale of ``J``, so scale rows and
-    columns to one set of units first (e.g. lengths divided by the robot's size).
+    With ``s_1 .. s_k`` its ``k = min(m, n)`` singular values: their geometric mean over their
+    root mean square, ``(prod s_i)^(1/k) / sqrt(mean s_i^2)`` (at most 1 by the AM-GM
+    inequality, 1 when every ``s_i`` is equal, 0 exactly when the Jacobian loses rank). Computed
+    from ``G = J J^T`` (or ``J^T J``) as ``det(G)^(1/2k) / sqrt(trace(G) / k)``; invariant to a
+    common scale of ``J``, so scale rows and columns to one set of units first (e.g. lengths
+    divided by the robot's size).
     """
     m, n = jac.shape[-2:]
     if m <= n:
@@ -138,6 +139,7 @@ def volume_ratio(jac: Array) -> Array:
     k = g.shape[-1]
     mean_sq = jnp.trace(g, axis1=-2, axis2=-1) / k
     det = spd_det(g)
-    positive = mean_sq > 0
-    ratio = safe_sqrt(det) / jnp.where(positive, mean_sq, 1.0) ** (0.5 * k)
-    return jnp.where(positive, jnp.minimum(ratio, 1.0), 0.0)
+    positive = (mean_sq > 0) & (det > 0)
+    ratio = det / jnp.where(positive, mean_sq, 1.0) ** k  # in [0, 1]
+    root = jnp.exp(jnp.log(jnp.where(positive, ratio, 1.0)) / (2 * k))
+    return jnp.where(positive, jnp.minimum(root, 1.0), 0.0)

@@ -317,9 +317,7 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     if method == "analytic":
         pos = _position(*a_comps[:2], *b_comps[:2], l_ac, l_bc, valid, mode, store_cos_sin=True)
         phi_dot, phi_ddot, *c_rates = _analytic_rates(a_comps, b_comps, l_ac, l_bc, pos, mode)
-        c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = (
-            x * scale for x in (pos.c_x, pos.c_y, *c_rates)
-        )
+        c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = (x * scale for x in (pos.c_x, pos.c_y, *c_rates))
         c = Jet(
             jnp.stack([c_x, c_y], axis=-1),
             jnp.stack([c_v_x, c_v_y], axis=-1),

@@ -1,23 +1,24 @@
-"""Gradient-based trajectory optimisation through the IK kernels, with optax.
+"""Trajectory optimisation through the IK kernels: per-guess L-BFGS (or any optax method).
 
-A trajectory is a Bezier curve in end-effector space: ``p(s) = sum_i B_i(s) P_i`` with
-Bernstein polynomials ``B_i`` of degree ``K - 1`` and ``s = t / duration`` in [0, 1]. The end
-control points ``P_0 = start`` and ``P_{K-1} = goal`` are fixed (the curve interpolates them);
-the interior points are the parameters. With ``rest_to_rest=True`` ``P_1 = start`` and
-``P_{K-2} = goal`` are fixed too, so the path starts and ends with zero velocity. The path's
-velocity and acceleration are exact (derivatives of the basis, no finite differences), so
-the IK kernels receive an exact ``Jet``.
+A trajectory is a Bezier curve in task space: ``p(s) = sum_i B_i(s) P_i`` with Bernstein
+polynomials ``B_i`` of degree ``K - 1`` and ``s = t / duration``. The end control points are
+``start`` and ``goal`` (with ``rest_to_rest`` the second and second-to-last too, so the path
+starts and ends at rest); the interior points are the parameters. Rates are exact derivatives
+of the basis, so the IK kernels receive an exact ``Jet``.
 
-The cost is user-composable: a callable ``cost(sample) -> (B,)`` where ``sample`` is a
-``TrajectorySample`` (joint Jet, status, margin, dt, limits); ``compose`` sums weighted terms.
-Terms provided: ``acceleration``, ``jerk``, ``singularity_barrier``, ``limit_penalty``,
-``unreachable_penalty``. Gradients flow through the kernels' closed forms; at non-OK samples
-the kernels return finite placeholders with finite gradients, and the margin-based penalties
-pull the path back into the workspace.
+Every guess is optimised on its own (``jax.vmap`` of one guess's update): each has its own
+L-BFGS history and line search (the default, ``LBFGS()``, optax's ``lbfgs`` with a zoom line
+search), or its own Adam moments. The loop runs compiled (``lax.while_loop``) until every guess
+has stopped: its gradient norm is below ``gtol * (1 + |f|)`` or its cost changed by less than
+``ftol`` relatively in a step (``converged``), or ``steps`` were taken. The parameters are the
+interior points in units of the robot's size.
 
-Many initial guesses are optimised at once (a leading batch axis B); each one's cost is
-independent, so one optax step on their sum updates each as if alone (for per-coordinate
-optimisers such as SGD, Adam, RMSProp).
+Costs are ``cost(TrajectorySample) -> (B,)``. Terms: ``acceleration``, ``jerk``,
+``limit_penalty``, ``unreachable_penalty``, ``SingularityBarrier(threshold)`` and
+``Obstacles(...)`` (spheres and boxes kept clear of the robot's links by a safety distance);
+``compose`` weighs them. Costs and methods are described by value (frozen dataclasses; a
+cost's weights, thresholds and obstacle positions are array data), so a new start, goal,
+guess, weight or obstacle position reuses the compilation; only a new *structure* compiles.
 """
 
 from __future__ import annotations
@@ -36,13 +37,19 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import plan
+from ._numerics import safe_norm
 from ._progress import bar, is_active
 from .jet import Jet
-from .robot import as_robot, ik
+from .robot import Robot, as_robot, fk, ik
 
 __all__ = [
     "DEFAULT_COST",
+    "LBFGS",
+    "Adam",
+    "Obstacles",
     "OptimizationResult",
+    "SingularityBarrier",
+    "Sum",
     "TrajectorySample",
     "acceleration",
     "bezier_basis",
@@ -56,7 +63,7 @@ __all__ = [
     "unreachable_penalty",
 ]
 
-PROGRESS_BLOCK = 50  # optimiser steps per compiled block when a progress bar is shown
+PROGRESS_BLOCK = 50  # optimiser steps per compiled call when a progress bar is shown
 
 
 @jax.tree_util.register_dataclass
@@ -70,6 +77,8 @@ class TrajectorySample:
         margin: singularity margin, shape ``(B, T)``.
         dt: sample spacing (scalar).
         limits: ``plan.Limits``.
+        path: Jet of the end-effector path, shape ``(B, T, d)``.
+        robot: the robot (for terms that need its links).
     """
 
     q: Jet
@@ -77,6 +86,8 @@ class TrajectorySample:
     margin: Array
     dt: Array
     limits: plan.Limits
+    path: Jet
+    robot: Any
 
 
 CostTerm = Callable[[TrajectorySample], Array]
@@ -92,17 +103,6 @@ def jerk(sample: TrajectorySample) -> Array:
     return jnp.sum(plan.jerk(sample.q, sample.dt) ** 2, axis=(-2, -1)) * sample.dt
 
 
-def singularity_barrier(threshold: float) -> CostTerm:
-    """Quadratic barrier ``sum_t (max(0, threshold - margin) / threshold)^2``."""
-    if not threshold > 0:
-        raise ValueError(f"threshold must be positive, got {threshold!r}")
-
-    def term(sample: TrajectorySample) -> Array:
-        return jnp.sum((jax.nn.relu(threshold - sample.margin) / threshold) ** 2, axis=-1)
-
-    return term
-
-
 def limit_penalty(sample: TrajectorySample) -> Array:
     """``sum_t excess^2`` where ``excess`` is how far q, |q_dot|, |q_ddot| pass their limits."""
     return jnp.sum(plan.limit_excess(sample.q, sample.limits) ** 2, axis=-1)
@@ -113,24 +113,201 @@ def unreachable_penalty(sample: TrajectorySample) -> Array:
     return jnp.sum(jax.nn.relu(-sample.margin) ** 2, axis=-1)
 
 
-def compose(*weighted_terms: tuple[float, CostTerm]) -> CostTerm:
-    """Sum of ``weight * term(sample)`` over ``(weight, term)`` pairs."""
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class SingularityBarrier:
+    """``sum_t (max(0, threshold - margin) / threshold)^2`` per candidate.
 
-    def cost(sample: TrajectorySample) -> Array:
-        return sum(w * term(sample) for w, term in weighted_terms)
+    Attributes:
+        threshold: the margin below which the barrier acts (> 0; array data).
+    """
 
-    return cost
+    threshold: Any
+
+    def __call__(self, sample: TrajectorySample) -> Array:
+        threshold = jnp.asarray(self.threshold, sample.margin.dtype)
+        return jnp.sum((jax.nn.relu(threshold - sample.margin) / threshold) ** 2, axis=-1)
+
+
+def singularity_barrier(threshold: float) -> SingularityBarrier:
+    """``SingularityBarrier(threshold)``, checking ``threshold > 0``."""
+    if not (isinstance(threshold, int | float) and threshold > 0 and math.isfinite(threshold)):
+        raise ValueError(f"threshold must be a positive finite number, got {threshold!r}")
+    return SingularityBarrier(float(threshold))
+
+
+def _box_distance(points: Array, centres: Array, half: Array) -> Array:
+    """Signed distance from points ``(..., d)`` to axis-aligned boxes ``(m, d)``: ``(..., m)``."""
+    offset = jnp.abs(points[..., None, :] - centres) - half
+    outside = safe_norm(jnp.maximum(offset, 0.0))
+    inside = jnp.minimum(jnp.max(offset, axis=-1), 0.0)
+    return outside + inside
+
+
+def _segment_sphere_distance(a: Array, b: Array, centres: Array, radii: Array) -> Array:
+    """Distance from segments ``a -> b`` ``(..., d)`` to spheres minus their radii: ``(..., m)``."""
+    ab = (b - a)[..., None, :]
+    ac = centres - a[..., None, :]
+    length_sq = jnp.sum(ab * ab, axis=-1)
+    t = jnp.clip(jnp.sum(ac * ab, -1) / jnp.where(length_sq > 0, length_sq, 1.0), 0.0, 1.0)
+    nearest = a[..., None, :] + t[..., None] * ab
+    return safe_norm(nearest - centres) - radii
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Obstacles:
+    """Spheres and axis-aligned boxes to keep the robot's links clear of, as a cost term.
+
+    Per candidate: ``sum_t sum_links sum_obstacles (max(0, safety - distance) / safety)^2``,
+    where ``distance`` is the signed distance from a link segment (``robot.link_segments``:
+    capsules along the links, the end point included) to an obstacle's surface: exact for
+    spheres, and over ``box_samples`` points along each segment for boxes. Every field is
+    array data, so obstacles can move between calls without a new compilation.
+
+    Attributes:
+        sphere_centres: ``(S, d)`` (``d`` the target's position dimension); ``(0, d)`` for none.
+        sphere_radii: ``(S,)``.
+        box_centres: ``(Bx, d)``.
+        box_half_extents: ``(Bx, d)`` (half the box's side lengths).
+        safety: the clearance sought, in length units (> 0).
+    """
+
+    sphere_centres: Any
+    sphere_radii: Any
+    box_centres: Any
+    box_half_extents: Any
+    safety: Any
+    box_samples: int = dataclasses.field(default=8, metadata=dict(static=True))
+
+    @classmethod
+    def create(
+        cls,
+        spheres: tuple[ArrayLike, ArrayLike] | None = None,
+        boxes: tuple[ArrayLike, ArrayLike] | None = None,
+        safety: float = 1.0,
+        dims: int = 3,
+    ) -> Obstacles:
+        """``spheres=(centres (S, d), radii (S,))``, ``boxes=(centres (Bx, d), half_extents
+        (Bx, d))``, ``safety`` in length units.
+
+        Raises:
+            ValueError: shapes that do not match, non-finite values, radii or half extents
+                that are negative, or a safety distance that is not positive.
+        """
+        if not (isinstance(safety, int | float) and safety > 0 and math.isfinite(safety)):
+            raise ValueError(f"safety must be a positive finite number, got {safety!r}")
+        arrays = []
+        for name, pair, size_shape in (("spheres", spheres, ()), ("boxes", boxes, (dims,))):
+            if pair is None:
+                centres, sizes = np.zeros((0, dims)), np.zeros((0, *size_shape))
+            else:
+                centres, sizes = (np.asarray(x, dtype=float) for x in pair)
+            if centres.ndim != 2 or centres.shape[1] != dims:
+                raise ValueError(
+                    f"{name}: centres must have shape (m, {dims}), got {centres.shape}"
+                )
+            want = (centres.shape[0], *size_shape)
+            if sizes.shape != want:
+                raise ValueError(f"{name}: sizes must have shape {want}, got {sizes.shape}")
+            if not (np.all(np.isfinite(centres)) and np.all(np.isfinite(sizes))):
+                raise ValueError(f"{name}: centres and sizes must be finite")
+            if np.any(sizes < 0):
+                raise ValueError(f"{name}: sizes must be >= 0, got {sizes}")
+            arrays += [centres, sizes]
+        return cls(*(jnp.asarray(x) for x in arrays), jnp.asarray(float(safety)))
+
+    def distances(self, segments: Array) -> Array:
+        """Signed distances ``(..., S + Bx)`` from segments ``(..., 2, d)`` to every obstacle."""
+        a, b = segments[..., 0, :], segments[..., 1, :]
+        dtype = segments.dtype
+        spheres = _segment_sphere_distance(
+            a, b, self.sphere_centres.astype(dtype), self.sphere_radii.astype(dtype)
+        )
+        t = jnp.linspace(0.0, 1.0, self.box_samples, dtype=dtype)[:, None]
+        points = a[..., None, :] + t * (b - a)[..., None, :]
+        boxes = jnp.min(
+            _box_distance(
+                points, self.box_centres.astype(dtype), self.box_half_extents.astype(dtype)
+            ),
+            axis=-2,
+        )
+        return jnp.concatenate([spheres, boxes], axis=-1)
+
+    def __call__(self, sample: TrajectorySample) -> Array:
+        segments = sample.robot.link_segments(sample.q.p, sample.path.p)
+        safety = jnp.asarray(self.safety, segments.dtype)
+        gap = jax.nn.relu(safety - self.distances(segments)) / safety
+        return jnp.sum(gap * gap, axis=(-3, -2, -1))
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Sum:
+    """``sum_i weights[i] * terms[i](sample)``; the weights are array data, the terms static
+    (plain functions, or pytrees such as ``SingularityBarrier`` and ``Obstacles`` whose own
+    fields are data: pass those in ``data_terms``)."""
+
+    weights: tuple
+    data_terms: tuple
+    terms: tuple = dataclasses.field(metadata=dict(static=True))
+
+    def __call__(self, sample: TrajectorySample) -> Array:
+        total = 0.0
+        data = iter(self.data_terms)
+        for weight, term in zip(self.weights, self.terms, strict=True):
+            fn = next(data) if term is None else term
+            total = total + jnp.asarray(weight, sample.margin.dtype) * fn(sample)
+        return total
+
+
+def compose(*weighted_terms: tuple[float, CostTerm]) -> Sum:
+    """The weighted sum of ``(weight, term)`` pairs, described by value (a new weight or
+    threshold reuses the compilation)."""
+    weights, data_terms, terms = [], [], []
+    for weight, term in weighted_terms:
+        if not (isinstance(weight, int | float) and math.isfinite(weight)):
+            raise ValueError(f"compose: weights must be finite numbers, got {weight!r}")
+        weights.append(jnp.asarray(float(weight)))
+        if jax.tree_util.all_leaves([term]):
+            terms.append(term)  # a plain function: part of the structure
+        else:
+            data_terms.append(term)
+            terms.append(None)
+    return Sum(tuple(weights), tuple(data_terms), tuple(terms))
 
 
 DEFAULT_COST = compose(
-    (1.0, acceleration), (100.0, singularity_barrier(0.05)), (1e6, unreachable_penalty)
+    (1.0, acceleration), (100.0, SingularityBarrier(0.05)), (1e6, unreachable_penalty)
 )
-"""Smooth joint motion, kept away from singularities, and (dominant) inside the workspace.
+"""Smooth joint motion, kept away from singularities, and (dominant) inside the workspace."""
 
-The weights suit joint units of rad and mm and motions of about a second: near the workspace
-boundary joint accelerations grow like ``1 / sin(beta)^3``, so the unreachable penalty must
-dominate or the optimiser can settle with samples outside (where rates are 0 placeholders).
-"""
+
+# ------------------------------------------------------------------ methods
+@dataclasses.dataclass(frozen=True)
+class LBFGS:
+    """L-BFGS per guess (``optax.lbfgs``: ``memory`` pairs, a zoom line search of at most
+    ``linesearch_steps`` evaluations). The default method."""
+
+    memory: int = 10
+    linesearch_steps: int = 20
+
+    def transformation(self) -> optax.GradientTransformationExtraArgs:
+        # A quasi-Newton step starts its line search at 1 ("one"), not at the last step length.
+        search = optax.scale_by_zoom_linesearch(
+            max_linesearch_steps=self.linesearch_steps, initial_guess_strategy="one"
+        )
+        return optax.lbfgs(memory_size=self.memory, linesearch=search)
+
+
+@dataclasses.dataclass(frozen=True)
+class Adam:
+    """Adam per guess with a step of ``learning_rate`` (in units of the robot's size)."""
+
+    learning_rate: float = 1e-2
+
+    def transformation(self) -> optax.GradientTransformationExtraArgs:
+        return optax.with_extra_args_support(optax.adam(self.learning_rate))
 
 
 # ------------------------------------------------------------------ the path
@@ -147,7 +324,6 @@ def bezier_basis(n_ctrl: int, n_samples: int) -> np.ndarray:
         return coef * s[:, None] ** i * (1.0 - s[:, None]) ** (degree - i)
 
     def derivative(values: np.ndarray, degree: int) -> np.ndarray:
-        # values: basis of degree - 1 (n_samples, degree); result (n_samples, degree + 1)
         padded = np.pad(values, ((0, 0), (1, 1)))
         return degree * (padded[:, :-1] - padded[:, 1:])
 
@@ -168,30 +344,11 @@ def _full_controls(interior: Array, start: Array, goal: Array, rest_to_rest: boo
 
 
 def bezier_path(controls: Array, basis: Array, duration: float) -> Jet:
-    """Jet of the Bezier path, shape ``(..., T, 3)``, from controls ``(..., K, 3)``."""
+    """Jet of the Bezier path, shape ``(..., T, d)``, from controls ``(..., K, d)``."""
     p = jnp.einsum("tk,...kc->...tc", basis[0], controls)
     v = jnp.einsum("tk,...kc->...tc", basis[1], controls) / duration
     a = jnp.einsum("tk,...kc->...tc", basis[2], controls) / duration**2
     return Jet(p, v, a)
-
-
-@jax.tree_util.register_dataclass
-@dataclasses.dataclass(frozen=True)
-class OptimizationResult:
-    """Result of ``optimize``.
-
-    Attributes:
-        controls: all Bezier control points (ends included), shape ``(B, K, 3)``.
-        path: Jet of the optimised paths, shape ``(B, T, 3)``.
-        history: cost of every candidate before each step and after the last, shape
-            ``(steps + 1, B)``.
-        evaluation: ``plan.Evaluation`` of the optimised paths.
-    """
-
-    controls: Array
-    path: Jet
-    history: Array
-    evaluation: plan.Evaluation
 
 
 def straight_line_guess(
@@ -205,42 +362,188 @@ def straight_line_guess(
     return line + noise * rng.normal(size=(n_guesses, n_interior, start.shape[-1]))
 
 
+# ------------------------------------------------------------------ the result
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class OptimizationResult:
+    """Result of ``optimize``.
+
+    Attributes:
+        controls: all Bezier control points (ends included), shape ``(B, K, d)``.
+        path: Jet of the optimised paths, shape ``(B, T, d)``.
+        cost: the final cost of each guess, shape ``(B,)``.
+        history: the cost of each guess before every step and after the last, ``(steps + 1,
+            B)`` (held constant once a guess has stopped).
+        converged: each guess met a stopping rule (gradient norm or cost change), ``(B,)``.
+        iterations: steps taken by each guess, ``(B,)``.
+        grad_norm: the final gradient norm (with respect to the interior points in units of the
+            robot's size), ``(B,)``.
+        best: the index of the best guess: the feasible one of least cost (or of least cost if
+            none is feasible), an ``int32`` scalar.
+        evaluation: ``plan.Evaluation`` of the optimised paths.
+    """
+
+    controls: Array
+    path: Jet
+    cost: Array
+    history: Array
+    converged: Array
+    iterations: Array
+    grad_norm: Array
+    best: Array
+    evaluation: plan.Evaluation
+
+
+def _sample(robot, controls, basis, duration, dt, limits, branch) -> TrajectorySample:
+    path = bezier_path(controls, basis, duration)
+    res = ik(robot, path, branch)
+    dt = jnp.asarray(dt, controls.dtype)
+    return TrajectorySample(res.q, res.status, res.margin, dt, limits, path, robot)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Static:
+    """Everything that shapes the compiled loop (hashable)."""
+
+    method: Any
+    cost: Any  # the cost itself when it is not array data, else None
+    cost_treedef: Any
+    branch: Any
+    rest_to_rest: bool
+    steps: int
+
+
+def _objective(x: Array, data: dict, static: _Static) -> Array:
+    """One guess's cost at interior points ``x`` ``(K', d)`` in units of the robot's size."""
+    cost = static.cost
+    if cost is None:
+        cost = jax.tree.unflatten(static.cost_treedef, data["cost"])
+    interior = (x * data["scale"])[None]
+    controls = _full_controls(interior, data["start"], data["goal"], static.rest_to_rest)
+    sample = _sample(
+        data["robot"],
+        controls,
+        data["basis"],
+        data["duration"],
+        data["dt"],
+        data["limits"],
+        static.branch,
+    )
+    return cost(sample)[0]
+
+
+def _transformation(method: Any) -> Any:
+    if isinstance(method, LBFGS | Adam):
+        return method.transformation()
+    return optax.with_extra_args_support(method)
+
+
+@functools.partial(jax.jit, static_argnames="static")
+def _start(x: Array, data: dict, static: _Static):
+    """The loop's initial carry for guesses ``x`` ``(B, K', d)``."""
+    value_and_grad = jax.value_and_grad(_objective)
+    f, g = jax.vmap(lambda xb: value_and_grad(xb, data, static))(x)
+    state = jax.vmap(_transformation(static.method).init)(x)
+    batch = x.shape[0]
+    history = jnp.broadcast_to(f, (static.steps + 1, batch))
+    done = ~jnp.isfinite(f)
+    zeros = jnp.zeros(batch, jnp.int32)
+    return (x, state, f, g, done, jnp.zeros(batch, bool), zeros, jnp.int32(0), history)
+
+
+@functools.partial(jax.jit, static_argnames="static")
+def _run(carry, data: dict, stop: Array, static: _Static):
+    """Steps until every guess has stopped, ``static.steps`` were taken, or step ``stop``."""
+    tx = _transformation(static.method)
+    value_and_grad = jax.value_and_grad(_objective)
+    gtol, ftol = data["gtol"], data["ftol"]
+
+    def one_step(x, state, f, g):
+        def value_fn(y):
+            return _objective(y, data, static)
+
+        updates, state = tx.update(g, state, x, value=f, grad=g, value_fn=value_fn)
+        x = optax.apply_updates(x, updates)
+        f_new, g_new = value_and_grad(x, data, static)
+        return x, state, f_new, g_new
+
+    def cond(carry):
+        done, step = carry[4], carry[7]
+        return (step < jnp.minimum(stop, static.steps)) & ~jnp.all(done)
+
+    def body(carry):
+        x, state, f, g, done, converged, iterations, step, history = carry
+        x_new, state_new, f_new, g_new = jax.vmap(one_step)(x, state, f, g)
+        good = jnp.isfinite(f_new) & jnp.all(jnp.isfinite(g_new), axis=(-2, -1))
+        take = ~done & good
+
+        def choose(new, old):
+            mask = take.reshape(take.shape + (1,) * (jnp.ndim(new) - 1))
+            return jnp.where(mask, new, old)
+
+        x, state, f_next, g = jax.tree.map(
+            choose, (x_new, state_new, f_new, g_new), (x, state, f, g)
+        )
+        grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
+        change = jnp.abs(f - f_next) <= ftol * jnp.maximum(jnp.abs(f), jnp.abs(f_next))
+        met = take & ((grad_norm <= gtol * (1.0 + jnp.abs(f_next))) | change)
+        iterations = iterations + take.astype(jnp.int32)
+        converged = converged | met
+        done = done | met | ~good
+        history = history.at[step + 1].set(f_next)
+        return (x, state, f_next, g, done, converged, iterations, step + 1, history)
+
+    carry = jax.lax.while_loop(cond, body, carry)
+    return carry
+
+
 def optimize(
-    robot: Any,
+    robot: Robot,
     start: ArrayLike,
     goal: ArrayLike,
     interior: ArrayLike,
     duration: float = 1.0,
     n_samples: int = 100,
-    optimizer: optax.GradientTransformation | None = None,
-    steps: int = 200,
+    optimizer: Any = None,
+    steps: int = 500,
     cost: CostTerm = DEFAULT_COST,
     branch: Any = None,
     limits: plan.Limits | None = None,
     rest_to_rest: bool = False,
+    space: str = "task",
+    gtol: float | None = None,
+    ftol: float | None = None,
     progress: bool | None = None,
 ) -> OptimizationResult:
-    """Optimise B trajectories from ``start`` to ``goal`` at once.
+    """Optimise B trajectories from ``start`` to ``goal`` at once, each guess on its own.
 
     Args:
         robot: any robot of the protocol whose targets are points (``robot.target``).
-        start, goal: end-effector positions, shape ``robot.target.shape``: fixed.
+        start, goal: end points, shape ``robot.target.shape`` (``space="task"``), or joint
+            vectors ``(n_joints,)`` (``space="joint"``: their forward kinematics).
         interior: initial interior control points, shape ``(B, K', d)`` or ``(K', d)``; every
             guess must be finite (a ``ValueError`` names the guesses that are not).
         duration: motion time; ``n_samples`` samples are taken uniformly in [0, duration].
-        optimizer: any optax transformation (default ``optax.adam(1e-2 * scale)`` with
-            ``scale = |goal - start|``).
-        steps: optimiser steps, all inside one jitted ``lax.scan``.
-        cost: ``cost(TrajectorySample) -> (B,)``; default ``DEFAULT_COST``.
-        branch: the branch held along the path (one of ``robot.branches``; None for the
-            default).
+        optimizer: ``LBFGS()`` (default) or ``Adam(...)`` (described by value: no new
+            compilation), or any optax transformation (a new object compiles anew: keep one).
+        steps: the most steps a guess takes.
+        cost: ``cost(TrajectorySample) -> (B,)``; default ``DEFAULT_COST``. A ``compose``-d
+            cost's weights, thresholds and obstacles are data; a plain function is static.
+        branch: the branch held along the path (None: the default).
         limits: ``plan.Limits`` for limit penalties and the final evaluation.
         rest_to_rest: also fix the second and second-to-last control points.
-        progress: show a progress bar (default: only when stderr is a terminal; False never,
-            and then all steps run in a single compiled scan).
+        space: ``"task"`` or ``"joint"`` (the meaning of ``start`` and ``goal``).
+        gtol, ftol: stopping rules per guess: ``|grad| <= gtol (1 + |f|)`` or a relative cost
+            change ``<= ftol`` in one step; None for ``max(1e-9, 1000 eps)`` and
+            ``max(1e-13, 8 eps)`` (float64: 1e-9 and 1e-13; float32: 1.2e-4 and 9.5e-7).
+        progress: show a progress bar (default: only when stderr is a terminal).
 
     Returns:
         ``OptimizationResult``.
+
+    Raises:
+        ValueError: a robot whose targets are not points, shapes that do not match, non-finite
+            start, goal or guesses, or bad numeric options (each named).
     """
     robot = as_robot(robot)
     if not robot.target.is_point:
@@ -248,13 +551,20 @@ def optimize(
             f"optimize needs a robot whose targets are points; {type(robot).__name__}'s are "
             f"{robot.target.name}s"
         )
-    mode = robot.check_branch(branch)
+    branch = robot.check_branch(branch)
     dims = robot.target.shape[0]
+    if space not in ("task", "joint"):
+        raise ValueError(f"space must be 'task' or 'joint', got {space!r}")
     start = jnp.asarray(start, float)
     goal = jnp.asarray(goal, float)
+    want = (robot.n_joints,) if space == "joint" else (dims,)
     for name, x in (("start", start), ("goal", goal)):
-        if x.shape != (dims,):
-            raise ValueError(f"{name}: expected shape ({dims},), got {x.shape}")
+        if x.shape != want:
+            raise ValueError(f"{name}: expected shape {want} ({space} space), got {x.shape}")
+        if not bool(jnp.all(jnp.isfinite(x))):
+            raise ValueError(f"{name} must be finite, got {np.asarray(x)}")
+    if space == "joint":
+        start, goal = (fk(robot, x).x.p for x in (start, goal))
     interior = jnp.asarray(interior, float)
     if interior.ndim == 2:
         interior = interior[None]
@@ -262,100 +572,80 @@ def optimize(
         raise ValueError(
             f"interior: expected shape (B, K', {dims}) with K' >= 1, got {interior.shape}"
         )
-    for name, x in (("start", start), ("goal", goal)):
-        if not bool(jnp.all(jnp.isfinite(x))):
-            raise ValueError(f"{name} must be finite, got {np.asarray(x)}")
     bad = np.flatnonzero(~np.all(np.isfinite(np.asarray(interior)), axis=(1, 2)))
     if bad.size:
         raise ValueError(
             f"interior: initial guess(es) {bad.tolist()} hold NaN or inf (every guess must be "
             "finite: a NaN would come back as NaN controls)"
         )
-    if not (duration > 0 and n_samples >= 3 and steps >= 0):
-        raise ValueError("need duration > 0, n_samples >= 3 and steps >= 0")
+    for name, value, low in (("n_samples", n_samples, 3), ("steps", steps, 0)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
+    epsilon = float(jnp.finfo(interior.dtype).eps)
+    gtol = max(1e-9, 1000 * epsilon) if gtol is None else gtol
+    ftol = max(1e-13, 8 * epsilon) if ftol is None else ftol
+    for name, value in (("duration", duration), ("gtol", gtol), ("ftol", ftol)):
+        if isinstance(value, bool) or not (isinstance(value, int | float) and value >= 0):
+            raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+    if not duration > 0:
+        raise ValueError(f"duration must be positive, got {duration!r}")
+    method = LBFGS() if optimizer is None else optimizer
     n_ctrl = interior.shape[1] + 2 + (2 if rest_to_rest else 0)
-    basis = jnp.asarray(bezier_basis(n_ctrl, n_samples), interior.dtype)
+    dtype = interior.dtype
+    basis = jnp.asarray(bezier_basis(n_ctrl, n_samples), dtype)
     dt = duration / (n_samples - 1)
     limits = plan.robot_limits(robot, limits)
-    if optimizer is None:
-        optimizer = optax.adam(1e-2 * float(jnp.linalg.norm(goal - start)))
-    # The steps run as jitted lax.scan blocks; between blocks a progress bar is updated
-    # (drawn only on a terminal). Blocks of one size share one compilation.
-    args = (robot, start, goal, basis, duration, dt, limits, optimizer, cost, mode, rest_to_rest)
-    ctrl, opt_state = interior, optimizer.init(interior)
-    histories = []
+    leaves, treedef = jax.tree.flatten(cost)
+    is_data = all(isinstance(leaf, jax.Array | np.ndarray | float | int) for leaf in leaves)
+    static = _Static(
+        method,
+        None if is_data else cost,
+        treedef if is_data else None,
+        branch,
+        bool(rest_to_rest),
+        steps,
+    )
+    scale = jnp.asarray(robot.length_scale(), dtype)
+    data = dict(
+        robot=robot,
+        start=start.astype(dtype),
+        goal=goal.astype(dtype),
+        basis=basis,
+        duration=jnp.asarray(duration, dtype),
+        dt=jnp.asarray(dt, dtype),
+        limits=limits,
+        cost=[jnp.asarray(leaf, dtype) for leaf in leaves] if is_data else [],
+        scale=scale,
+        gtol=jnp.asarray(gtol, dtype),
+        ftol=jnp.asarray(ftol, dtype),
+    )
+    carry = _start(interior / scale, data, static)
     block = min(steps, PROGRESS_BLOCK) if is_active(progress) else steps
     with bar(steps, "optimize", enabled=progress) as meter:
-        done = 0
-        while done < steps:
-            n = min(block, steps - done)
-            ctrl, opt_state, values = _run(ctrl, opt_state, *args, steps=n)
-            histories.append(values)
-            done += n
-            meter.update(n)
-    final = _final_cost(ctrl, *args)
-    history = jnp.concatenate([*histories, final[None]], axis=0)
-    controls = _full_controls(ctrl, start, goal, rest_to_rest)
+        done_steps = 0
+        while done_steps < steps:
+            carry = _run(carry, data, jnp.int32(done_steps + block), static)
+            reached = int(carry[7])
+            meter.update(reached - done_steps)
+            if reached < done_steps + block:  # every guess has stopped
+                break
+            done_steps = reached
+    x, _, f, g, _, converged, iterations, step, history = carry
+    history = jnp.where(jnp.arange(steps + 1)[:, None] > step, f, history)
+    controls = _full_controls(x * scale, data["start"], data["goal"], rest_to_rest)
     path = bezier_path(controls, basis, duration)
-    evaluation = plan.evaluate(robot, path, limits=limits, branch=mode, dt=dt)
-    return OptimizationResult(controls, path, history, evaluation)
-
-
-def _sample(robot, controls, basis, duration, dt, limits, mode) -> TrajectorySample:
-    res = ik(robot, bezier_path(controls, basis, duration), mode)
-    return TrajectorySample(res.q, res.status, res.margin, jnp.asarray(dt, controls.dtype), limits)
-
-
-def _per_candidate(params, robot, start, goal, basis, duration, dt, limits, cost, mode, rest):
-    controls = _full_controls(params, start, goal, rest)
-    return cost(_sample(robot, controls, basis, duration, dt, limits, mode))
-
-
-_STATIC = ("optimizer", "cost", "mode", "rest_to_rest")
-
-
-@functools.partial(jax.jit, static_argnames=(*_STATIC, "steps"))
-def _run(
-    params,
-    opt_state,
-    robot,
-    start,
-    goal,
-    basis,
-    duration,
-    dt,
-    limits,
-    optimizer,
-    cost,
-    mode,
-    rest_to_rest,
-    steps,
-):
-    """``steps`` optimiser steps in one ``lax.scan``; returns the costs before each step."""
-
-    def total(p):
-        values = _per_candidate(
-            p, robot, start, goal, basis, duration, dt, limits, cost, mode, rest_to_rest
-        )
-        return jnp.sum(values), values
-
-    grad_fn = jax.value_and_grad(total, has_aux=True)
-
-    def step(carry, _):
-        p, state = carry
-        (_, values), grads = grad_fn(p)
-        updates, state = optimizer.update(grads, state, p)
-        return (optax.apply_updates(p, updates), state), values
-
-    (params, opt_state), history = jax.lax.scan(step, (params, opt_state), None, length=steps)
-    return params, opt_state, history
-
-
-@functools.partial(jax.jit, static_argnames=_STATIC)
-def _final_cost(
-    params, robot, start, goal, basis, duration, dt, limits, optimizer, cost, mode, rest_to_rest
-):
-    del optimizer
-    return _per_candidate(
-        params, robot, start, goal, basis, duration, dt, limits, cost, mode, rest_to_rest
+    evaluation = plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt)
+    ranked = jnp.where(evaluation.feasible, f, jnp.inf)
+    best = jnp.where(jnp.any(evaluation.feasible), jnp.argmin(ranked), jnp.argmin(f))
+    grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
+    return OptimizationResult(
+        controls,
+        path,
+        f,
+        history,
+        converged,
+        iterations,
+        grad_norm,
+        best.astype(jnp.int32),
+        evaluation,
     )

@@ -13,8 +13,9 @@ command line are written against this interface alone and never ask which robot 
 * ``robot.joint_names`` (hence ``n_joints``), ``robot.joint_types`` (``"R"``/``"P"`` per joint)
   and ``robot.joint_limits()``;
 * ``robot.reachable``: the statuses that count as reachable in a workspace sweep;
-* ``robot.length_scale()``: a characteristic length (the robot's size), and
-  ``robot.workspace_box()``: the default box and voxel edge of a sweep.
+* ``robot.length_scale()``: a characteristic length (the robot's size),
+  ``robot.workspace_box()``: the default box and voxel edge of a sweep, and
+  ``robot.link_segments(q, x)``: the links as segments, for collision costs.
 
 ``ik(robot, target, branch=None)`` returns an ``IKResult`` (``q``: a ``Jet`` of joint
 coordinates ``(..., n_joints)``, ``status``, ``margin``) for the default branch when ``branch``
@@ -192,6 +193,16 @@ class Robot(Geometry):
         raise ValueError(
             f"{type(self).__name__} has no default workspace box: give bounds and a resolution"
         )
+
+    def link_segments(self, q: Array, x: Array) -> Array:
+        """The robot's links as segments ``(..., S, 2, d)`` (start and end points, in the
+        coordinates of the target's position) at joints ``q`` ``(..., n)`` whose end point is
+        ``x`` (the target, known to the caller), for collision costs. By default the end point
+        alone, as one segment of zero length."""
+        point = x[..., :3, 3] if self.target.shape == (4, 4) else x[..., : self.target.shape[0]]
+        if self.target.name == "planar pose":
+            point = x[..., :2]
+        return jnp.stack([point, point], axis=-2)[..., None, :, :]
 
     def check_branch(self, branch: Any) -> Any:
         """``branch``, or the default branch for None; ``ValueError`` naming the choices."""

@@ -152,6 +152,19 @@ class Scara(Robot):
             hi = high if jnp.isfinite(high) else l_oa
         return ((-reach, reach), (-reach, reach), (l_oa - hi, l_oa - lo)), reach / 50.0
 
+    def link_segments(self, q: Array, x: Array) -> Array:
+        """Column top A -> elbow B -> wrist C -> end point D as segments, ``(..., 3, 2, 3)``."""
+        theta1, theta2, l3 = q[..., 0], q[..., 1], q[..., 2]
+        l_oa = jnp.broadcast_to(jnp.asarray(self.l_oa, q.dtype), theta1.shape)
+        zero = jnp.zeros_like(theta1)
+        a = jnp.stack([zero, zero, l_oa], -1)
+        b = a + self.l_ab * jnp.stack([jnp.cos(theta1), jnp.sin(theta1), zero], -1)
+        c = b + self.l_bc * jnp.stack(
+            [jnp.cos(theta1 - theta2), jnp.sin(theta1 - theta2), zero], -1
+        )
+        d = c - jnp.stack([zero, zero, l3], -1)
+        return jnp.stack([jnp.stack([a, b], -2), jnp.stack([b, c], -2), jnp.stack([c, d], -2)], -3)
+
     def _ik(self, target: Any, branch: Any, **options: Any) -> IKResult:
         return ik(self, target, branch=branch, **options)
 

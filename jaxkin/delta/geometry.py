@@ -126,6 +126,20 @@ class Delta(Robot):
         reach += float(self.l_rod)
         return ((-reach, reach), (-reach, reach), (-0.9 * reach, 0.9 * reach)), reach / 50.0
 
+    def link_segments(self, q: Array, x: Array) -> Array:
+        """Per chain the arm ``A_i -> E_i`` and the rod's centre line ``E_i -> D_i``, at
+        actuator angles ``q`` with the platform at ``x``: ``(..., 6, 2, 3)``."""
+        segments = []
+        for i in range(3):
+            u = jnp.asarray([_UX[i], _UY[i], 0.0], q.dtype)
+            axis = self.r_base * u
+            cos_t, sin_t = jnp.cos(q[..., i, None]), jnp.sin(q[..., i, None])
+            elbow = axis + self.l_arm * (cos_t * u - sin_t * jnp.asarray([0.0, 0.0, 1.0], q.dtype))
+            joint = x + self.r_platform * u
+            axis = jnp.broadcast_to(axis, elbow.shape)
+            segments += [jnp.stack([axis, elbow], -2), jnp.stack([elbow, joint], -2)]
+        return jnp.stack(segments, -3)
+
     def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
         from .ik import ik
 

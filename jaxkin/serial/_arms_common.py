@@ -32,7 +32,7 @@ from .._numerics import safe_sqrt, singular_rtol
 from ..result import SolverResult
 from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
-from .dh import DHTable
+from .dh import DHTable, fk_dh
 
 PI = float(np.pi)
 TWO_PI = 2.0 * PI
@@ -120,6 +120,15 @@ class Arm(Robot):
         if self.TARGET_SHAPE == (4, 4):
             return jnp.eye(4, dtype=dtype)
         return jnp.zeros(self.TARGET_SHAPE, dtype)
+
+    def link_segments(self, q: Array, x: Array) -> Array:
+        """Base -> the origin of each DH frame in turn, ``(..., n, 2, d)``."""
+        frames = fk_dh(self.dh_table(q.dtype), q, all_frames=True)[..., :3, 3]
+        points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
+        points = points[
+            ..., : 2 if self.target.shape == (2,) or self.target.name == "planar pose" else 3
+        ]
+        return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
 
     def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
         from .arms import ik_jet

@@ -23,7 +23,7 @@ Statuses per branch: ``OK``; ``SINGULAR`` (the target is reproduced but a joint 
 branches coincide: the documented choice is returned); ``UNREACHABLE`` (``q`` is the clamped,
 aligned placeholder); ``INVALID_INPUT`` (NaN/inf in the target: ``q = 0``). Rates are 0 where
 not OK; everything is finite and so are gradients of status-masked losses (double-where).
-The margin is the volume ratio (``jaxkin._numerics.volume_ratio``) of the task Jacobian in
+The margin is the isotropy (``jaxkin._numerics.isotropy``) of the task Jacobian in
 units of the arm's size: in [0, 1], 0 at a singularity; minus the distance to the target in
 units of that size where unreachable; -1 for invalid input. Accuracy in float64 and float32:
 ``docs/performance.md``; formulas: ``docs/serial.md``.
@@ -37,7 +37,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate
-from .._numerics import safe_norm, volume_ratio
+from .._numerics import isotropy, safe_norm
 from ..jet import Jet, lift
 from ..result import FKResult, IKResult
 from ..robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
@@ -123,14 +123,14 @@ def _scaled_jacobian(robot: Arm, q: Array, scale: Array) -> tuple[Array, Array]:
 
 
 def _margin(robot: Arm, q: Array, target: Array, status: Array) -> Array:
-    """``volume_ratio`` of the scaled task Jacobian where solved (0 at a singularity); where the
+    """``isotropy`` of the scaled task Jacobian where solved (0 at a singularity); where the
     target is unreachable minus the distance from the placeholder's end point to the target in
     units of the arm's size (at most 1); -1 for invalid input."""
     dtype = q.dtype
     scale = jnp.broadcast_to(jnp.asarray(robot.length_scale(), dtype), status.shape)
     scale = jnp.where(scale > 0, scale, 1.0)
     jac, end = _scaled_jacobian(robot, q, scale)
-    ratio = volume_ratio(jac)
+    ratio = isotropy(jac)
     dims = _position(target, robot).shape[-1]
     error = safe_norm(end[..., :dims] - _position(target, robot)) / scale
     return jnp.where(
@@ -198,7 +198,7 @@ def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IK
 
     Returns:
         ``IKResult``: ``q`` (Jet ``(..., n_joints)``), ``status`` and ``margin`` (``(...)``;
-        see ``_margin``: the Jacobian's volume ratio in [0, 1] where solved, negative outside
+        see ``_margin``: the Jacobian's isotropy in [0, 1] where solved, negative outside
         the workspace, -1 for invalid input).
     """
     check_robot(robot, ARMS)

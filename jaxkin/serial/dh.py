@@ -133,6 +133,12 @@ class DHTable(Robot):
         total = jnp.sum(jnp.abs(self.a)) + jnp.sum(jnp.abs(self.d))
         return jnp.where(total > 0, total, 1.0)
 
+    def link_segments(self, q: Array, x: Array) -> Array:
+        """Base -> the origin of each DH frame in turn, ``(..., n, 2, 3)``."""
+        frames = _fk_dh_impl(_validate.cast_leaves(self, q.dtype), q, True)[..., :3, 3]
+        points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
+        return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
+
     def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
         from .newton_ik import ik_chain
 

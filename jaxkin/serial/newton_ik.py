@@ -20,7 +20,9 @@ frozen, and the remaining steps are skipped once all have converged. Statuses: `
 ``q0``: ``q`` is the start with non-finite entries replaced by 0). Gradients flow through the
 unrolled scan.
 
-``ik_chain`` is the robot protocol's IK of a chain (``jaxkin.ik``): the body frame, tolerances
+``ik_chain`` is the robot protocol's IK of a chain (``jaxkin.ik``): the body frame,
+Levenberg-Marquardt damping ``mu = |V|`` (Yamashita and Fukushima: quadratic convergence also
+near singular poses, where the fixed ``sqrt(eps)`` floor converges linearly), tolerances
 relative to the chain's size, restarts from fixed starts when no ``q0`` is given, joint rates
 from the target's body twist, and a Jacobian-based margin.
 """
@@ -36,7 +38,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate
-from .._numerics import all_finite, eps, safe_sqrt, singular_rtol, volume_ratio
+from .._numerics import all_finite, eps, isotropy, safe_sqrt, singular_rtol
 from ..jet import Jet
 from ..result import IKResult, SolverResult
 from ..status import STATUS_DTYPE, Status
@@ -170,6 +172,7 @@ def _ik_impl(
     max_iter: int,
     frame: str,
     keep_history: bool = True,
+    adaptive: bool = False,
 ) -> NewtonIKResult:
     batch = jnp.broadcast_shapes(target.shape[:-2], q0.shape[:-1])
     n = chain.n_joints
@@ -222,7 +225,16 @@ def _ik_impl(
         def do_step(c):
             q_c, it_c = c
             twist, columns, _, done = errors(q_c)
-            dq = limited(jnp.stack(_newton_step_soa(columns, twist, damping), axis=-1))
+            if adaptive:
+                # Levenberg-Marquardt damping after Yamashita and Fukushima: it grows with the
+                # squared error far from a solution and vanishes at it (quadratic convergence,
+                # also where J is nearly singular); the floor 16 eps trace keeps it defined.
+                error_sq = sum(t * t for t in twist)
+                mu, floor = jnp.sqrt(damping * damping + error_sq), 16 * eps(q_c.dtype)
+            else:
+                mu, floor = damping, None
+            step = _newton_step_soa(columns, twist, mu, floor)
+            dq = limited(jnp.stack(step, axis=-1))
             q_new = jnp.where(done[..., None], q_c, jnp.clip(q_c + dq, lower, upper))
             return q_new, it_c + (~done).astype(it_c.dtype), jnp.all(done)
 
@@ -412,6 +424,7 @@ def _ik_chain_core(
         max_iter,
         "body",
         keep_history=False,
+        adaptive=True,
     )
     # Per target: the converged restart with the smallest error, else the smallest error.
     score = sol.error[..., 0] + sol.error[..., 1] / scale
@@ -441,7 +454,7 @@ def _ik_chain_core(
         q_jet = Jet(q, jnp.where(okc, q_dot, 0.0), jnp.where(okc, q_ddot, 0.0))
     else:
         q_jet = Jet.constant(q)
-    margin = volume_ratio(unit_jac)
+    margin = isotropy(unit_jac)
     margin = jnp.where(
         status == Status.INVALID_INPUT,
         -1.0,
@@ -483,7 +496,7 @@ def ik_chain(
 
     Returns:
         ``IKResult``: ``q`` (Jet ``(..., n)``), ``status`` (``OK``, ``NOT_CONVERGED``,
-        ``INVALID_INPUT``), ``margin`` (the scaled body Jacobian's volume ratio in [0, 1] where
+        ``INVALID_INPUT``), ``margin`` (the scaled body Jacobian's isotropy in [0, 1] where
         converged; minus the remaining error, at most 1, where not; -1 for invalid input).
     """
     if branch not in (None, "newton"):
