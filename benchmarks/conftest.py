@@ -1,6 +1,6 @@
 """Benchmark configuration: float64 available (each benchmark states the dtype it uses).
 
-Timing rules (DESIGN.md): compile and warm up outside the timer; time
+Timing rules: compile and warm up outside the timer; time
 ``jax.block_until_ready(f(...))`` on the result; record batch size, dtype and throughput
 (cases per second) in ``benchmark.extra_info``.
 """

@@ -35,8 +35,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from reference_delta import PAPER, UX, UY, fk_closed_form_numpy
-from reference_serial import PUMA, fk_dh_numpy
+
+from tests.references.delta import PAPER, UX, UY, fk_closed_form_numpy
+from tests.references.serial import PUMA, fk_dh_numpy
 
 REL_TOL = 1e-6
 

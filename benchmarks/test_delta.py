@@ -16,8 +16,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-import reference_delta as ref
 
+import tests.references.delta as ref
 from jaxkin import _threads, delta
 
 SIZES = [1_000, 100_000, 1_000_000]

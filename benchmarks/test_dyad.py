@@ -7,9 +7,9 @@ cases/s in ``extra_info``; compare ratios within one run (absolute times are noi
 
 import numpy as np
 import pytest
-from reference_dyad import dyad_numpy, make_numba_dyad, random_dyads
 
 from jaxkin import Jet, dyad
+from tests.references.dyad import dyad_numpy, make_numba_dyad, random_dyads
 
 SIZES = [1_000, 100_000, 1_000_000]
 

@@ -1,7 +1,7 @@
 """The paper's Fig. 4: the RRR dyad (position, velocity, acceleration) solved three ways.
 
-Seed 000 reports, for one solve in Matlab, the Assur closed form taking 17 % of the natural-
-coordinates time and 45 % of the relative-coordinates time. Here each formulation is batched
+[Noriega, Fig. 4] reports, for one solve in Matlab, the Assur closed form taking 17 % of the
+natural-coordinates time and 45 % of the relative-coordinates time. Here each formulation is batched
 in JAX (batch 1e5) and also timed at batch 1 (per-call latency, which is what the paper timed).
 Read the ratios from ``extra_info`` (``make bench`` writes them to the results table).
 """
@@ -9,10 +9,10 @@ Read the ratios from ``extra_info`` (``make bench`` writes them to the results t
 import jax
 import numpy as np
 import pytest
-from formulations import natural, relative
-from reference_dyad import random_dyads
 
 from jaxkin import Jet, dyad
+from tests.references.dyad import random_dyads
+from tests.references.formulations import natural, relative
 
 METHODS = ["assur", "relative", "natural"]
 

@@ -1,4 +1,4 @@
-"""Issue 7's goal ratios, measured as they are judged: one process, rounds interleaved.
+"""The goal ratios, measured as they are judged: one process, rounds interleaved.
 
 jaxkin's dyad (analytic and autodiff paths) and Delta FK (Newton and closed form) run beside
 the fused Numba and NumPy references on the same float64 inputs at batch 1e6; each round calls
@@ -15,15 +15,15 @@ import time
 import jax
 import jax.numpy as jnp
 import pytest
-import reference_delta as ref_delta
-from reference_dyad import dyad_numpy, make_numba_dyad, random_dyads
 from test_delta import ROBOT, data
 
+import tests.references.delta as ref_delta
 from jaxkin import Jet, delta, dyad
+from tests.references.dyad import dyad_numpy, make_numba_dyad, random_dyads
 
 N = 1_000_000
 ROUNDS = 9
-# Issue 7, "Deliver" 1: (numerator, denominator, goal) in throughput; the autodiff goal is a
+# The goals: (numerator, denominator, goal) in throughput; the autodiff goal is a
 # time ratio (<= 1.25x the analytic time), i.e. a throughput ratio >= 0.8.
 GOALS = {
     "dyad analytic / numba": ("dyad analytic", "dyad numba", 0.9),
@@ -34,7 +34,7 @@ GOALS = {
 }
 
 
-def test_issue7_goal_ratios(benchmark):
+def test_goal_ratios(benchmark):
     pytest.importorskip("numba")
     arrays, l_ac, l_bc = random_dyads(N)
     a, b = Jet.of(*arrays[:3]), Jet.of(*arrays[3:])
@@ -62,7 +62,7 @@ def test_issue7_goal_ratios(benchmark):
             best[name] = min(best[name], time.perf_counter() - start)
     rate = {name: N / seconds for name, seconds in best.items()}
     ratios = {goal: rate[num] / rate[den] for goal, (num, den, _) in GOALS.items()}
-    benchmark.extra_info.update(kernel="issue 7 goal ratios, interleaved", dtype="float64")
+    benchmark.extra_info.update(kernel="goal ratios, interleaved", dtype="float64")
     benchmark.extra_info["n_cases"] = N
     benchmark.extra_info.update({f"{name} (cases/s)": round(r) for name, r in rate.items()})
     benchmark.extra_info.update({goal: round(r, 2) for goal, r in ratios.items()})

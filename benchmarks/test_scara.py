@@ -9,18 +9,13 @@ reference (benchmarks/reference_scara.py) and, when numba is installed, its fuse
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from jaxkin import Jet, scara
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from reference_scara import ik_numpy, make_numba_ik  # noqa: E402
+from tests.references.scara import ik_numpy, make_numba_ik
 
 N_TRAJ, N_SAMPLES = 1000, 1000
 N_CASES = N_TRAJ * N_SAMPLES

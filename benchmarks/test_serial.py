@@ -1,6 +1,6 @@
 """Throughput of serial-arm FK and Newton IK beside NumPy references (float64).
 
-Arms: planar 2R (links 1 m), seed 001's anthropomorphic RRR (L = 0.5, 0.4, 0.3 m) and a
+Arms: planar 2R (links 1 m), [Lopez-Villagomez]'s anthropomorphic RRR (L = 0.5, 0.4, 0.3 m) and a
 PUMA-560-type 6R (standard DH). FK: ``fk_dh`` and the PoE ``chain_fk`` of the same arm. IK:
 ``ik_newton`` (space frame, pseudo-inverse step, default tolerances 1e-3 rad / 1e-4 m,
 max_iter 20) on reachable targets ``fk(q_true)`` from seeds ``q_true + U(-0.3, 0.3)`` rad; the
@@ -11,9 +11,9 @@ success fraction and mean iterations are recorded in ``extra_info``.
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from reference_serial import ARMS, fk_dh_numpy, ik_newton_numpy, random_problems
 
 from jaxkin.serial import dh, newton_ik, poe
+from tests.references.serial import ARMS, fk_dh_numpy, ik_newton_numpy, random_problems
 
 SIZES = [1_000, 100_000]
 

@@ -1,15 +1,15 @@
-"""The Delta robot's ideal workspace (seed 002, section V, Figs. 7 and 8).
+"""The Delta robot's ideal workspace [Cardona, sec. V, Figs. 7 and 8].
 
 Sweeps a 1 cm voxel grid over x, y in [-50, 50] cm and z in [-45, 45] cm (101 x 101 x 91 =
 928,291 voxels, the count the paper reports as evaluated) with the paper's robot (base 7 cm,
 platform 2.5 cm, arm 15.5 cm, parallelogram 30 cm), classifies each voxel with the closed-form
 IK, and prints the reachable voxel count and volume, and the area of horizontal slices, which
 shrinks as z becomes more negative (the paper's Fig. 8). With matplotlib it writes
-``examples/output/delta_workspace_3d.png`` (Fig. 7: the intersection of three tori) and
-``examples/output/delta_workspace_slices.png`` (Fig. 8).
+``delta_workspace_3d.png`` (Fig. 7: the intersection of three tori) and
+``delta_workspace_slices.png`` (Fig. 8) into ``--output-dir`` (default: the current directory).
 
-Usage: ``python examples/delta_workspace.py [--resolution CM]`` (default 1.0; tests use a
-coarse grid).
+Usage: ``python examples/delta_workspace.py [--resolution CM] [--output-dir DIR]`` (default
+1.0 cm; tests use a coarse grid).
 """
 
 from __future__ import annotations
@@ -25,13 +25,13 @@ jax.config.update("jax_enable_x64", True)  # an application choice; the library 
 
 from jaxkin import delta  # noqa: E402
 
-OUTPUT = Path(__file__).resolve().parent / "output"
 
-
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--resolution", type=float, default=1.0, help="voxel size in cm")
-    args = parser.parse_args()
+    parser.add_argument("--output-dir", type=Path, default=Path("."), help="where files go")
+    args = parser.parse_args(argv)
+    output = args.output_dir
 
     robot = delta.Delta.paper()
     bounds = ((-50.0, 50.0), (-50.0, 50.0), (-45.0, 45.0))
@@ -69,8 +69,7 @@ def main() -> None:
         import matplotlib.pyplot as plt
     except ImportError:
         print("matplotlib not installed: no PNGs (pip install jaxkin[plot])")
-        return
-    OUTPUT.mkdir(exist_ok=True)
+        return 0
     xs, ys, _ = ws.axes
     mask = ws.mask
     # Fig. 7: boundary voxels of the reachable set (a voxel with an unreachable neighbour).
@@ -87,7 +86,7 @@ def main() -> None:
     ax.scatter(xs[i[keep]], ys[j[keep]], zs[k[keep]], s=1, c=zs[k[keep]], cmap="viridis")
     ax.set(xlabel="x [cm]", ylabel="y [cm]", zlabel="z [cm]")
     ax.set_title(f"Delta ideal workspace: {ws.n_reachable:,} voxels ({ws.volume / 1e3:.1f} l)")
-    path3d = OUTPUT / "delta_workspace_3d.png"
+    path3d = output / "delta_workspace_3d.png"
     fig.savefig(path3d, dpi=110)
     plt.close(fig)
     # Fig. 8: horizontal slices at decreasing z.
@@ -107,11 +106,12 @@ def main() -> None:
         ax.set(xlabel="x [cm]", ylabel="y [cm]")
     fig.suptitle("Delta workspace slices (shrinking with depth)")
     fig.tight_layout()
-    path_slices = OUTPUT / "delta_workspace_slices.png"
+    path_slices = output / "delta_workspace_slices.png"
     fig.savefig(path_slices, dpi=110)
     plt.close(fig)
     print(f"wrote {path3d} and {path_slices}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

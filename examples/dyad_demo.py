@@ -1,12 +1,13 @@
-"""Solve a batch of RRR dyads (seed 000, section 2) and print a short summary.
+"""Solve a batch of RRR dyads [Noriega, sec. 2] and print a short summary.
 
 A swinging crank drives point B around a circle while A stays at the origin; for 10,000
 instants and both assembly modes jaxkin returns C, the angle phi of link AC and their rates,
-with a status per instant. Run: ``python examples/dyad_demo.py``.
+with a status per instant. Writes no files. Run: ``python examples/dyad_demo.py``.
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 
 import jax
@@ -26,7 +27,10 @@ def crank_path(t: np.ndarray, radius: float = 1.2, omega: float = 2.0) -> Jet:
     return Jet.of(p, v, -(omega**2) * (p - np.array([1.0, 0.0])))
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--output-dir", help="accepted for uniformity: this example writes nothing")
+    parser.parse_args(argv)
     t = np.linspace(0.0, np.pi, 10_000)
     a = Jet.constant(np.zeros((t.size, 2)))
     b = crank_path(t)
@@ -58,7 +62,8 @@ def main() -> None:
         assert np.allclose(np.linalg.norm(res.c.p[ok] - b.p[ok], axis=-1), l_bc)
     bad = dyad.solve(jnp.zeros((3, 2)), jnp.array([[2.0, 0], [9.0, 0], [jnp.nan, 0]]), 1.0, 1.0)
     print("\nfailure is data:", [Status(int(s)).name for s in bad.status])
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -1,6 +1,6 @@
-"""Seed 001's fixed-point accuracy study of the anthropomorphic arm, on a triangle path.
+"""A fixed-point accuracy study of the anthropomorphic arm on a triangle path ([Lopez-Villagomez]).
 
-The paper gives neither link lengths nor the triangle (ERRATA seed 001); this script chooses:
+The paper gives neither link lengths nor the triangle (``docs/errata.md``); this script chooses:
 
 * arm ``Anthropomorphic(l1=0.30, l2=0.25, l3=0.20)`` (metres; shoulder height, upper arm,
   forearm), branch ``front_up``;
@@ -13,14 +13,15 @@ The paper gives neither link lengths nor the triangle (ERRATA seed 001); this sc
 It prints, per width, the RMS joint-angle error (per joint and overall, radians) and the RMS
 and maximum Cartesian error (the exact forward kinematics of the fixed-point angles against
 the path), then the smallest width that keeps the RMS Cartesian error under the tolerance,
-and writes ``examples/output/fixed_point_accuracy.csv`` and, when matplotlib is installed,
-``examples/output/fixed_point_accuracy.png``.
+and writes ``fixed_point_accuracy.csv`` and, when matplotlib is installed,
+``fixed_point_accuracy.png`` into ``--output-dir`` (default: the current directory).
 
-Run: ``python examples/fixed_point_accuracy.py`` (a few seconds).
+Run: ``jaxkin demo fixed-point-accuracy`` or ``python examples/fixed_point_accuracy.py``.
 """
 
 from __future__ import annotations
 
+import argparse
 import pathlib
 
 import jax
@@ -32,7 +33,6 @@ import numpy as np  # noqa: E402
 from jaxkin import fixedpoint  # noqa: E402
 from jaxkin.serial.arms import Anthropomorphic  # noqa: E402
 
-OUTPUT = pathlib.Path(__file__).resolve().parent / "output"
 LENGTHS = (0.30, 0.25, 0.20)
 TRIANGLE = np.array([[0.25, -0.10, 0.30], [0.25, 0.10, 0.30], [0.30, 0.00, 0.45]])
 POINTS_PER_EDGE = 100
@@ -48,7 +48,8 @@ def triangle_path(vertices: np.ndarray, per_edge: int) -> np.ndarray:
     return np.concatenate(edges)
 
 
-def main() -> dict:
+def study(output: pathlib.Path) -> dict:
+    """Run the study, print it, write its files into ``output``; the key numbers."""
     robot = Anthropomorphic(*LENGTHS)
     path = triangle_path(TRIANGLE, POINTS_PER_EDGE)
     studies = {
@@ -85,10 +86,9 @@ def main() -> dict:
         f"for this geometry and tolerance we {verdict} with the paper's 10-bit claim."
     )
 
-    OUTPUT.mkdir(parents=True, exist_ok=True)
     table = np.column_stack([BITS, joint_rms, floor.joint_rms_all, cart_rms, cart_max, nearest_rms])
     np.savetxt(
-        OUTPUT / "fixed_point_accuracy.csv",
+        output / "fixed_point_accuracy.csv",
         table,
         delimiter=",",
         header="bits,rms_q1,rms_q2,rms_q3,rms_q,rms_xyz,max_xyz,rms_xyz_nearest",
@@ -123,11 +123,18 @@ def main() -> dict:
         )
         ax_x.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(OUTPUT / "fixed_point_accuracy.png", dpi=110)
+        fig.savefig(output / "fixed_point_accuracy.png", dpi=110)
         plt.close(fig)
-        print(f"wrote {OUTPUT / 'fixed_point_accuracy.png'}")
+        print(f"wrote {output / 'fixed_point_accuracy.png'}")
     return {"width": width, "width_nearest": width_nearest, "rms_at_10": float(at_paper)}
 
 
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--output-dir", type=pathlib.Path, default=pathlib.Path("."))
+    study(parser.parse_args(argv).output_dir)
+    return 0
+
+
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

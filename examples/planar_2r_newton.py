@@ -1,18 +1,19 @@
-"""Seed 003's worked Newton-Raphson example: a planar 2R arm, body-frame update.
+"""A worked Newton-Raphson example: a planar 2R arm, body-frame update ([Pineiro]).
 
 Links of 1 m; home M = Trans(2, 0, 0); body screws B1 = (0, 0, 1, 0, 2, 0) and
 B2 = (0, 0, 1, 0, 1, 0); target (x, y) = (0.366, 1.366) m with the end-effector x axis at
 120 degrees; seed theta0 = (0, 30 deg); tolerances eps_omega = 1e-3 rad, eps_v = 1e-4 m.
 
 The script runs ``jaxkin.serial.newton_ik`` and prints every iterate (joint angles, end
-position, body twist V_b = log(T_sb^-1 T_sd)) beside the table printed in the seed. As the
-errata note, the table is that of the body-frame update theta += J_b^+ V_b, and its 4 rows are
-3 updates. Outputs: examples/output/planar_2r_newton.csv and, with matplotlib installed,
-examples/output/planar_2r_newton.png. Run: ``python examples/planar_2r_newton.py``.
+position, body twist V_b = log(T_sb^-1 T_sd)) beside the table printed in the source. As
+``docs/errata.md`` notes, the table is that of the body-frame update theta += J_b^+ V_b, and its
+4 rows are 3 updates. Writes ``planar_2r_newton.csv`` and, with matplotlib installed,
+``planar_2r_newton.png`` into ``--output-dir``. Run: ``jaxkin demo planar-2r-newton``.
 """
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 import jax
@@ -22,9 +23,7 @@ from jaxkin.serial import lie, newton_ik, poe
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never sets it
 
-OUTPUT = Path(__file__).resolve().parent / "output"
-
-# Seed 003, table of the 2R example (transcribed): i, theta1, theta2 [deg], x, y [m],
+# [Pineiro]'s table of the 2R example (transcribed): i, theta1, theta2 [deg], x, y [m],
 # V_b = (omega_zb, v_xb, v_yb). Printed precision: 2 decimals for angles, 3 for the rest.
 PAPER_TABLE = np.array(
     [
@@ -82,9 +81,12 @@ def _fmt(row: np.ndarray) -> str:
     )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--output-dir", type=Path, default=Path("."), help="where files go")
+    output = parser.parse_args(argv).output_dir
     rows, result = run()
-    print("Seed 003 planar 2R Newton-Raphson example (body frame), jaxkin vs the paper")
+    print("Planar 2R Newton-Raphson example (body frame), jaxkin vs the paper")
     print(" i  (theta1, theta2) deg   (x, y) m          V_b = (w_zb, v_xb, v_yb)")
     for i in range(max(len(rows), len(PAPER_TABLE))):
         if i < len(rows):
@@ -104,9 +106,8 @@ def main() -> None:
     print(f"final theta = ({rows[-1, 1]:.4f}, {rows[-1, 2]:.4f}) deg; exact solution (30, 90) deg")
     print(f"largest difference from the paper after rounding: {worst:.0f} unit(s) of last digit")
 
-    OUTPUT.mkdir(exist_ok=True)
     np.savetxt(
-        OUTPUT / "planar_2r_newton.csv", rows, delimiter=",", header=",".join(COLUMNS),
+        output / "planar_2r_newton.csv", rows, delimiter=",", header=",".join(COLUMNS),
         comments="", fmt="%.10g",
     )  # fmt: skip
     try:
@@ -115,7 +116,7 @@ def main() -> None:
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        return
+        return 0
     fig, ax = plt.subplots(figsize=(5, 5))
     for row in rows:
         t1, t2 = np.radians(row[1]), np.radians(row[2])
@@ -126,11 +127,12 @@ def main() -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title("Seed 003: planar 2R Newton-Raphson (body frame)")
+    ax.set_title("Planar 2R Newton-Raphson (body frame)")
     ax.legend()
-    fig.savefig(OUTPUT / "planar_2r_newton.png", dpi=100)
+    fig.savefig(output / "planar_2r_newton.png", dpi=100)
     plt.close(fig)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

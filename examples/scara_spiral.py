@@ -1,4 +1,4 @@
-"""SCARA inverse kinematics along the paper's spiral (seed 000, section 4, eq. 16, Fig. 6).
+"""SCARA inverse kinematics along a spiral, both branches, with rates ([Noriega, eq. 16, Fig. 6]).
 
 Robot: l_OA = 150 mm (column), l_AB = 80 mm (arm), l_BC = 50 mm (forearm). The end point D
 follows the helix of eq. 16 for t in [0, 8] s::
@@ -6,22 +6,23 @@ follows the helix of eq. 16 for t in [0, 8] s::
     x_D = 100 + 20 sin(pi t / 2),   y_D = -20 cos(pi t / 2),   z_D = 50 + 10 t     (mm)
 
 sampled at 1,001 instants, with velocity and acceleration from the exact derivatives of eq. 16.
-Both assembly modes are solved in one batched call each (``jaxkin.scara.ik``). Writes
-``examples/output/scara_spiral.csv`` (t, theta1, theta1_dot, theta1_ddot, theta2, theta2_dot,
-theta2_ddot, l3, l3_dot, l3_ddot, status, mode; angles in rad, lengths in mm, time in s) and,
-when matplotlib is installed, ``examples/output/scara_spiral.png`` in the spirit of the paper's
+Both branches (the dyad's assembly modes +1 and -1) are solved in one batched call each
+(``jaxkin.scara.ik``). Writes ``scara_spiral.csv`` (t, theta1, theta1_dot, theta1_ddot, theta2,
+theta2_dot, theta2_ddot, l3, l3_dot, l3_ddot, status, branch; angles in rad, lengths in mm, time
+in s) and, when matplotlib is installed, ``scara_spiral.png`` in the spirit of the paper's
 Fig. 6: the robot at the final instant, theta1 and its two derivatives, and the singularity
 indicator (the dyad's margin sin(beta)^2 and whether any sample was singular).
 
-theta2 follows eq. 15 (theta1 - theta_BC: the negative of the usual relative elbow angle).
-ERRATA seed 000 item 4 says the corrected formulas give theta1_ddot(0) = 0.309 rad/s^2; this
-script prints the value for both modes (it is mode +1's).
+theta2 follows [Noriega, eq. 15] (theta1 - theta_BC: the negative of the usual relative elbow
+angle). With the printed acceleration formulas corrected (``docs/errata.md``), theta1_ddot(0) =
+0.309 rad/s^2 on branch +1; the script prints it for both branches.
 
-Run: ``python examples/scara_spiral.py`` (a few seconds).
+Run: ``jaxkin demo scara-spiral`` or ``python examples/scara_spiral.py [--output-dir DIR]``.
 """
 
 from __future__ import annotations
 
+import argparse
 import csv
 import time
 from pathlib import Path
@@ -38,7 +39,6 @@ jax.config.update("jax_enable_x64", True)
 
 L_OA, L_AB, L_BC = 150.0, 80.0, 50.0
 T_END, N_SAMPLES = 8.0, 1001
-OUTPUT = Path(__file__).resolve().parent / "output"
 COLUMNS = [
     "t",
     "theta1",
@@ -51,7 +51,7 @@ COLUMNS = [
     "l3_dot",
     "l3_ddot",
     "status",
-    "mode",
+    "branch",
 ]
 
 
@@ -65,25 +65,25 @@ def spiral(t: np.ndarray) -> Jet:
     return Jet.of(p, v, a)
 
 
-def solve(robot: scara.Scara, d: Jet) -> dict[int, scara.ScaraResult]:
-    return {mode: scara.ik(robot, d, mode=mode) for mode in scara.MODES}
+def solve(robot: scara.Scara, d: Jet) -> dict[int, scara.ScaraIKResult]:
+    return {branch: scara.ik(robot, d, branch=branch) for branch in robot.branches}
 
 
-def write_csv(path: Path, t: np.ndarray, results: dict[int, scara.ScaraResult]) -> None:
+def write_csv(path: Path, t: np.ndarray, results: dict[int, scara.ScaraIKResult]) -> None:
     with path.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(COLUMNS)
-        for mode, res in results.items():
+        for branch, res in results.items():
             q, qd, qdd = (np.asarray(x) for x in (res.q.p, res.q.v, res.q.a))
             names = status_names(res.status)
             for i in range(len(t)):
                 row = [t[i]]
                 for j in range(3):
                     row += [q[i, j], qd[i, j], qdd[i, j]]
-                writer.writerow([f"{x:.17g}" for x in row] + [names[i], mode])
+                writer.writerow([f"{x:.17g}" for x in row] + [names[i], branch])
 
 
-def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.ScaraResult]) -> bool:
+def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.ScaraIKResult]) -> bool:
     try:
         import matplotlib
 
@@ -96,14 +96,14 @@ def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.Scara
     p = np.asarray(robot_d.p)
     ax = axes[0, 0]  # plan view: path and the robot at the final instant
     ax.plot(p[:, 0], p[:, 1], "k-", lw=0.8, label="path of D (eq. 16)")
-    for mode, res in results.items():
+    for branch, res in results.items():
         b = np.asarray(res.elbow.p[-1])
         ax.plot(
             [0, b[0], p[-1, 0]],
             [0, b[1], p[-1, 1]],
             "o-",
-            color=colours[mode],
-            label=f"mode {mode:+d} at t = {t[-1]:g} s",
+            color=colours[branch],
+            label=f"branch {branch:+d} at t = {t[-1]:g} s",
         )
     ax.set_aspect("equal")
     ax.set_xlabel("x (mm)")
@@ -111,14 +111,14 @@ def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.Scara
     ax.set_title("Plan view")
     ax.legend(fontsize=7)
     ax = axes[1, 0]  # side view at the final instant
-    for mode, res in results.items():
+    for branch, res in results.items():
         b = np.asarray(res.elbow.p[-1])
         ax.plot(
             [0, 0, b[0], p[-1, 0], p[-1, 0]],
             [0, L_OA, L_OA, L_OA, p[-1, 2]],
             "o-",
-            color=colours[mode],
-            label=f"mode {mode:+d}",
+            color=colours[branch],
+            label=f"branch {branch:+d}",
         )
     ax.plot(p[:, 0], p[:, 2], "k-", lw=0.8)
     ax.set_xlabel("x (mm)")
@@ -131,43 +131,49 @@ def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.Scara
         (axes[1, 1], "a", r"$\ddot\theta_1$ (rad/s$^2$)"),
     ]
     for ax, field, label in panels:
-        for mode, res in results.items():
+        for branch, res in results.items():
             ax.plot(
                 t,
                 np.asarray(getattr(res.q, field))[:, 0],
-                color=colours[mode],
-                label=f"mode {mode:+d}",
+                color=colours[branch],
+                label=f"branch {branch:+d}",
             )
         ax.set_xlabel("t (s)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     ax = axes[1, 2]  # singularity indicator
-    for mode, res in results.items():
+    for branch, res in results.items():
         ax.plot(
-            t, np.asarray(res.margin), color=colours[mode], label=f"margin sin²β, mode {mode:+d}"
+            t,
+            np.asarray(res.margin),
+            color=colours[branch],
+            label=f"margin sin²β, branch {branch:+d}",
         )
         singular = np.asarray(res.status) != Status.OK
         ax.plot(
             t,
             singular.astype(float),
             "--",
-            color=colours[mode],
-            label=f"singular/failed, mode {mode:+d}",
+            color=colours[branch],
+            label=f"singular/failed, branch {branch:+d}",
         )
     ax.set_ylim(-0.05, 1.05)
     ax.set_xlabel("t (s)")
     ax.set_title("Singularity indicator")
     ax.legend(fontsize=7)
-    fig.suptitle("SCARA on the spiral of eq. 16 (seed 000, Fig. 6)")
+    fig.suptitle("SCARA on the spiral of eq. 16 ([Noriega, Fig. 6])")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
 
 
-def main() -> None:
-    robot = scara.Scara.create(L_OA, L_AB, L_BC)
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--output-dir", type=Path, default=Path("."), help="where files go")
+    output = parser.parse_args(argv).output_dir
+    robot = scara.Scara(L_OA, L_AB, L_BC)
     t = np.linspace(0.0, T_END, N_SAMPLES)
     d = spiral(t)
     solve(robot, d)  # compile once, so the timing below is the solve itself
@@ -177,23 +183,22 @@ def main() -> None:
         res.q.p.block_until_ready()
     elapsed = time.perf_counter() - start
 
-    OUTPUT.mkdir(parents=True, exist_ok=True)
-    csv_path = OUTPUT / "scara_spiral.csv"
+    csv_path = output / "scara_spiral.csv"
     write_csv(csv_path, t, results)
-    png_path = OUTPUT / "scara_spiral.png"
+    png_path = output / "scara_spiral.png"
     plotted = plot(png_path, d, t, results)
 
     print(
         f"SCARA spiral (eq. 16): l_OA={L_OA:g}, l_AB={L_AB:g}, l_BC={L_BC:g} mm, "
         f"t in [0, {T_END:g}] s, {N_SAMPLES} samples"
     )
-    print(f"solved both modes with velocities and accelerations in {elapsed * 1e3:.1f} ms")
-    for mode, res in results.items():
+    print(f"solved both branches with velocities and accelerations in {elapsed * 1e3:.1f} ms")
+    for branch, res in results.items():
         q, qd, qdd = (np.asarray(x) for x in (res.q.p, res.q.v, res.q.a))
         names, counts = np.unique(status_names(res.status), return_counts=True)
         statuses = ", ".join(f"{n} x{c}" for n, c in zip(names, counts, strict=True))
         print(
-            f"mode {mode:+d}: status {statuses}; min margin sin^2(beta) = "
+            f"branch {branch:+d}: status {statuses}; min margin sin^2(beta) = "
             f"{float(jnp.min(res.margin)):.3f}"
         )
         for j, name in enumerate(("theta1", "theta2", "l3")):
@@ -204,12 +209,13 @@ def main() -> None:
             )
         print(f"  theta1_ddot(t=0) = {qdd[0, 0]:.4f} rad/s^2")
     print(
-        "ERRATA seed 000 item 4 quotes theta1_ddot(0) = 0.309 rad/s^2 for the corrected "
-        f"formulas: that is mode +1 (here {float(results[1].q.a[0, 0]):.4f})."
+        "with the corrected acceleration formulas theta1_ddot(0) = 0.309 rad/s^2 on branch +1 "
+        f"(here {float(results[1].q.a[0, 0]):.4f}; see docs/errata.md)"
     )
     print(f"wrote {csv_path}")
     print(f"wrote {png_path}" if plotted else "matplotlib not installed: no PNG")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

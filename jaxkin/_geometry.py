@@ -38,10 +38,10 @@ REAL = "real"
 BOUND = "bound"
 
 _EXPECTED = {
-    LENGTH: "a positive finite length",
-    NONNEGATIVE: "a finite number >= 0",
-    REAL: "a finite real number",
-    BOUND: "a real number or +-inf (not NaN)",
+    LENGTH: ("a positive finite length", "positive finite lengths"),
+    NONNEGATIVE: ("a finite number >= 0", "finite numbers >= 0"),
+    REAL: ("a finite real number", "finite real numbers"),
+    BOUND: ("a real number or +-inf (not NaN)", "real numbers or +-inf (not NaN)"),
 }
 
 # A field's shape: () a scalar; a tuple with -1 for "any size" on that axis; None any shape
@@ -76,8 +76,8 @@ def check_number(value: Any, name: str, kind: str = LENGTH, shape: Shape = ()) -
     """One validated numeric value (see the module docstring); tracers pass unchecked."""
     if isinstance(value, jax.core.Tracer):
         return value
-    expected = _EXPECTED[kind]
-    what = f"{expected}" if shape == () else f"an array of {expected}s"
+    single, plural = _EXPECTED[kind]
+    what = single if shape == () or np.ndim(value) == 0 else f"an array of {plural}"
     if isinstance(value, bool | np.bool_ | str | bytes) or value is None:
         raise ValueError(f"{name} must be {what}, got {value!r}")
     if isinstance(value, numbers.Number) and not isinstance(value, numbers.Real):
@@ -91,7 +91,7 @@ def check_number(value: Any, name: str, kind: str = LENGTH, shape: Shape = ()) -
     ):
         raise ValueError(f"{name} must be {what}, got {value!r} (dtype {arr.dtype})")
     if not _shape_matches(arr.shape, shape):
-        wanted = "a scalar" if shape == () else f"shape {shape} (-1: any size)"
+        wanted = "a scalar" if shape == () else f"of shape {shape} (-1: any size)"
         raise ValueError(f"{name} must be {wanted}, got shape {arr.shape}")
     values = arr.astype(np.float64)
     bad = np.isnan(values)

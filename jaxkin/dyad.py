@@ -37,7 +37,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _batching, _validate
-from ._numerics import all_finite, computed_once, rsqrt, safe_sqrt, singular_rtol
+from ._numerics import computed_once, rsqrt, safe_sqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
 from .planar import angle_rates, length_rates, link_end_rates
@@ -126,26 +126,14 @@ def _unit_atan2_jvp(primals, tangents):
     return _unit_atan2(sin_phi, cos_phi), cos_phi * sin_dot - sin_phi * cos_dot
 
 
-def _position(
-    a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode: int, store_cos_sin: bool = False
-) -> _Position:
-    """Position of C from components; ``valid`` marks elements whose raw input was finite.
+def _position(dx, dy, l_ac, l_bc, valid, mode: int, store_cos_sin: bool = False) -> _Position:
+    """Position of C relative to A from the vector ``A->B = (dx, dy)``, in units of the reach
+    (``l_ac + l_bc = 1``, see ``_sanitized``); ``valid`` marks elements whose raw input was
+    finite.
 
     ``store_cos_sin``: compute cos/sin of phi once for all readers (``computed_once``): faster
     for the analytic path, slower for the autodiff path (measured), so only the first asks.
     """
-    dx, dy = b_x - a_x, b_y - a_y
-    # Work in units of the reach l_ac + l_bc (= 1 here, see _sanitized): beyond 4 the dyad
-    # cannot assemble, so the direction alone is kept (no square can overflow, and an
-    # overflowed difference of two finite points still counts as far).
-    big = jnp.maximum(jnp.abs(dx), jnp.abs(dy))
-    far = ~(big <= 4.0)
-    finite = jnp.isfinite(big)
-    denominator = jnp.where(far & finite, big, 1.0)  # double-where: no inf / inf
-    dx, dy = (
-        jnp.where(far, 4.0 * jnp.where(finite, d / denominator, jnp.sign(d) * jnp.isinf(d)), d)
-        for d in (dx, dy)
-    )
     r2 = dx * dx + dy * dy
     # One rsqrt for both |AB| and its reciprocal (double-where at A = B); fewer divisions
     # also keep the autodiff path's nested jvp cheap.
@@ -198,8 +186,8 @@ def _position(
     margin = jnp.where(singular, 0.0, jnp.clip(1.0 - u_raw * u_raw, -1.0, 1.0))
     margin = jnp.where(valid, margin, -1.0)
     return _Position(
-        a_x + l_ac * cos_phi,
-        a_y + l_ac * sin_phi,
+        l_ac * cos_phi,
+        l_ac * sin_phi,
         phi,
         cos_phi,
         sin_phi,
@@ -211,14 +199,14 @@ def _position(
     )
 
 
-def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
-    """Rates of phi and C by the paper's closed forms (eqs. 2-10), from components.
+def _analytic_rates(a_rates, rel, l_ac, l_bc, pos: _Position, mode: int):
+    """Rates of phi and of C relative to A by the paper's closed forms (eqs. 2-10).
 
-    ``a`` and ``b`` are ``(x, y, x_dot, y_dot, x_ddot, y_ddot)`` component tuples.
-    Returns ``(phi_dot, phi_ddot, c_dot_x, c_dot_y, c_ddot_x, c_ddot_y)``, 0 where not OK.
+    ``rel``: the vector A->B and its rates ``(x, y, x_dot, y_dot, x_ddot, y_ddot)`` in units of
+    the reach. Returns ``(phi_dot, phi_ddot, c_dot_x, c_dot_y, c_ddot_x, c_ddot_y)`` (C's rates
+    relative to A's, in units of the reach), 0 where not OK.
     """
     ok = pos.status == Status.OK
-    rel = [bk - ak for ak, bk in zip(a, b, strict=True)]  # the vector A->B and its rates
     inv_l = pos.inv_l
     theta_dot, theta_ddot = angle_rates(
         *rel, inv_r2=inv_l * inv_l
@@ -247,10 +235,9 @@ def _analytic_rates(a, b, l_ac, l_bc, pos: _Position, mode: int):
     # Read by the four rate outputs of C: stored once instead of recomputed by each
     phi_dot, phi_ddot = computed_once(jnp.stack([phi_dot, phi_ddot]))
 
-    # Eqs. 7-8: C's rates are A's plus those of the turning link AC.
+    # Eqs. 7-8: C's rates are A's (added by the caller) plus those of the turning link AC.
     link = link_end_rates(l_ac, pos.cos_phi, pos.sin_phi, phi_dot, phi_ddot)
-    rates = tuple(a_rate + link_rate for a_rate, link_rate in zip(a[2:], link, strict=True))
-    return (phi_dot, phi_ddot) + tuple(jnp.where(ok, r, 0.0) for r in rates)
+    return (phi_dot, phi_ddot) + tuple(jnp.where(ok, r, 0.0) for r in link)
 
 
 def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
@@ -275,13 +262,23 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
         l_bc = jnp.broadcast_to(l_bc, batch)
         columns.append(jnp.stack([l_ac, l_bc], axis=-1))
 
-    # Double-where, step 1: replace non-finite elements by a harmless dyad (A = 0, B = (1, 0),
-    # unit links) before any math, so neither values nor gradients can become NaN. The mask is
-    # a reduction on purpose: XLA keeps it as one loop that the others read, whereas an
-    # elementwise mask would be recomputed from all 14 inputs in each of the kernel's loops.
-    valid = all_finite(jnp.concatenate(columns, axis=-1))
+    # Double-where, step 1: replace non-finite elements, and those beyond twice the reach
+    # (where a square could overflow; the dyad cannot assemble there), by a harmless dyad
+    # (A = 0, B = (1, 0), unit links) before any math, so neither values nor gradients can
+    # become NaN. The mask is a reduction on purpose: XLA keeps it as one loop that the others
+    # read, whereas an elementwise mask would be recomputed in each of the kernel's loops.
+    finite_columns = jnp.isfinite(jnp.concatenate(columns, axis=-1))
+    reach = l_ac + l_bc  # the comparison below is False for NaN and for an overflowed difference
+    near = (
+        jnp.abs(b[0] - a[0]) <= 2.0 * reach[..., None]
+        if not lengths_are_scalars
+        else (jnp.abs(b[0] - a[0]) <= 2.0 * reach)
+    )
+    valid = jnp.all(jnp.concatenate([finite_columns, near], axis=-1), axis=-1)
+    finite = jnp.all(finite_columns, axis=-1)  # read by the status output only
     if lengths_are_scalars:
         valid = valid & lengths_finite
+        finite = finite & lengths_finite
     a_comps = tuple(jnp.where(valid, arr[..., k], 0.0) for arr in a for k in (0, 1))
     b_comps = tuple(
         jnp.where(valid, arr[..., k], 1.0 if (i, k) == (0, 0) else 0.0)
@@ -291,56 +288,70 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
     length_valid = lengths_finite if lengths_are_scalars else valid
     l_ac = jnp.where(length_valid, l_ac, 1.0)
     l_bc = jnp.where(length_valid, l_bc, 1.0)
-    # Units of the reach: the kernel sees lengths that sum to 1, whatever the scale of the
-    # input (no square, cube or product of rates over- or underflows); outputs are scaled back.
+    # Units of the reach: the kernel sees the vector A->B (and its rates) with lengths that
+    # sum to 1, whatever the scale of the input, so no square, cube or product of rates over-
+    # or underflows; C is scaled back and added to A.
     scale = l_ac + l_bc
     inv_scale = 1.0 / scale
-    a_comps = tuple(x * inv_scale for x in a_comps)
-    b_comps = tuple(x * inv_scale for x in b_comps)
-    return a_comps, b_comps, l_ac * inv_scale, l_bc * inv_scale, valid, scale
+    rel = tuple((bk - ak) * inv_scale for ak, bk in zip(a_comps, b_comps, strict=True))
+    return a_comps, rel, l_ac * inv_scale, l_bc * inv_scale, valid, scale, finite & ~valid
+
+
+def _far_status(status: Array, far: Array) -> Array:
+    """Elements solved as placeholders because they lie beyond twice the reach: UNREACHABLE."""
+    return jnp.where(far, jnp.int8(Status.UNREACHABLE), status)
 
 
 def _position_impl(a: Array, b: Array, l_ac: Array, l_bc: Array, mode: int) -> DyadPosition:
-    a_comps, b_comps, l_ac, l_bc, valid, scale = _sanitized([a], [b], l_ac, l_bc)
-    pos = _position(*a_comps, *b_comps, l_ac, l_bc, valid, mode)
-    c = jnp.stack([pos.c_x * scale, pos.c_y * scale], axis=-1)
-    return DyadPosition(c, pos.phi, pos.status, pos.margin)
+    a_comps, rel, l_ac, l_bc, valid, scale, far = _sanitized([a], [b], l_ac, l_bc)
+    pos = _position(*rel, l_ac, l_bc, valid, mode)
+    c = jnp.stack([a_comps[0] + pos.c_x * scale, a_comps[1] + pos.c_y * scale], axis=-1)
+    return DyadPosition(c, pos.phi, _far_status(pos.status, far), pos.margin)
 
 
 _position_jit = jax.jit(_position_impl, static_argnames=("mode",))
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
-    parts = _sanitized([a.p, a.v, a.a], [b.p, b.v, b.a], l_ac, l_bc)
-    a_comps, b_comps, l_ac, l_bc, valid, scale = parts
+    *parts, far = _sanitized([a.p, a.v, a.a], [b.p, b.v, b.a], l_ac, l_bc)
+    a_comps, rel, l_ac, l_bc, valid, scale = parts
 
     if method == "analytic":
-        pos = _position(*a_comps[:2], *b_comps[:2], l_ac, l_bc, valid, mode, store_cos_sin=True)
-        phi_dot, phi_ddot, *c_rates = _analytic_rates(a_comps, b_comps, l_ac, l_bc, pos, mode)
-        c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = (x * scale for x in (pos.c_x, pos.c_y, *c_rates))
+        pos = _position(*rel[:2], l_ac, l_bc, valid, mode, store_cos_sin=True)
+        phi_dot, phi_ddot, *c_rates = _analytic_rates(a_comps[2:], rel, l_ac, l_bc, pos, mode)
+        c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = (
+            a_k + c_k * scale
+            for a_k, c_k in zip(a_comps, (pos.c_x, pos.c_y, *c_rates), strict=True)
+        )
         c = Jet(
             jnp.stack([c_x, c_y], axis=-1),
             jnp.stack([c_v_x, c_v_y], axis=-1),
             jnp.stack([c_a_x, c_a_y], axis=-1),
         )
-        return DyadResult(c, Jet(pos.phi, phi_dot, phi_ddot), pos.status, pos.margin)
+        status = _far_status(pos.status, far)
+        return DyadResult(c, Jet(pos.phi, phi_dot, phi_ddot), status, pos.margin)
 
-    def autodiff_part(a_comps, b_comps, l_ac, l_bc, valid, scale):
-        def position(a_x, a_y, b_x, b_y):
-            pos = _position(a_x, a_y, b_x, b_y, l_ac, l_bc, valid, mode)
-            return pos.c_x * scale, pos.c_y * scale, pos.phi, pos.status, pos.margin
+    def autodiff_part(a_comps, rel, l_ac, l_bc, valid, scale):
+        def position(dx, dy):
+            pos = _position(dx, dy, l_ac, l_bc, valid, mode)
+            return pos.c_x, pos.c_y, pos.phi, pos.status, pos.margin
 
-        c_x, c_y, phi, status, margin = lift(position)(
-            *(Jet(*comps[k::2]) for comps in (a_comps, b_comps) for k in (0, 1))
-        )
+        c_x, c_y, phi, status, margin = lift(position)(Jet(*rel[0::2]), Jet(*rel[1::2]))
         ok = status == Status.OK
-        c_x, c_y, phi = (
-            Jet(j.p, jnp.where(ok, j.v, 0.0), jnp.where(ok, j.a, 0.0)) for j in (c_x, c_y, phi)
+        c_x, c_y = (
+            Jet(
+                a_comps[k] + j.p * scale,
+                a_comps[k + 2] + jnp.where(ok, j.v, 0.0) * scale,
+                a_comps[k + 4] + jnp.where(ok, j.a, 0.0) * scale,
+            )
+            for k, j in ((0, c_x), (1, c_y))
         )
+        phi = Jet(phi.p, jnp.where(ok, phi.v, 0.0), jnp.where(ok, phi.a, 0.0))
         return DyadResult(Jet.stack([c_x, c_y]), phi, status, margin.p)
 
     # Large batches as two halves: faster for this path (not the analytic one), measured.
-    return _batching.in_two_halves(autodiff_part, parts, valid.shape)
+    result = _batching.in_two_halves(autodiff_part, tuple(parts), valid.shape)
+    return dataclasses.replace(result, status=_far_status(result.status, far))
 
 
 _solve_jit = jax.jit(_solve_impl, static_argnames=("mode", "method"))

@@ -464,7 +464,12 @@ def _run(carry, data: dict, stop: Array, static: _Static):
 
         updates, state = tx.update(g, state, x, value=f, grad=g, value_fn=value_fn)
         x = optax.apply_updates(x, updates)
-        f_new, g_new = value_and_grad(x, data, static)
+        if isinstance(static.method, LBFGS):
+            # the line search evaluated the accepted point already: reuse, not re-trace
+            f_new = optax.tree_utils.tree_get(state, "value")
+            g_new = optax.tree_utils.tree_get(state, "grad")
+        else:
+            f_new, g_new = value_and_grad(x, data, static)
         return x, state, f_new, g_new
 
     def cond(carry):

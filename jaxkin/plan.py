@@ -226,9 +226,13 @@ def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Cost
 
 
 # ------------------------------------------------------------------ the kernel
-def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: int) -> Evaluation:
+def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) -> Evaluation:
+    """Every candidate on one branch; ``branch_index`` an int, or a traced one (``"best"``)."""
     branches = robot.branches
-    res = ik(robot, path, branches[branch_index])
+    if isinstance(branch_index, int):
+        res = ik(robot, path, branches[branch_index])
+    else:
+        res = robot._ik_indexed(path, branch_index)
     q, status, margin = res.q, res.status, res.margin
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
@@ -252,28 +256,27 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: int) ->
     )
 
 
-def _pick(better: Array, a: Evaluation, b: Evaluation) -> Evaluation:
-    """Per candidate: ``a`` where ``better`` else ``b`` (leaves with leading axis N)."""
-
-    def choose(x, y):
-        mask = better.reshape(better.shape + (1,) * (jnp.ndim(x) - better.ndim))
-        return jnp.where(mask, x, y)
-
-    return jax.tree.map(choose, a, b)
-
-
 def _evaluate_impl(robot, path: Jet, limits: Limits, dt, branch: Any) -> Evaluation:
     branches = robot.branches
-    if branch != "best":
-        return _evaluate_branch(robot, path, limits, dt, branches.index(branch))
-    best = _evaluate_branch(robot, path, limits, dt, 0)
-    for index in range(1, len(branches)):
-        other = _evaluate_branch(robot, path, limits, dt, index)
-        # Lower total wins (infeasible = inf); when neither is feasible, the one that fails
-        # later is reported (it got further along the path).
-        later = (other.first_failure > best.first_failure) & ~best.feasible & ~other.feasible
-        best = _pick((other.costs.total < best.costs.total) | later, other, best)
-    return best
+    if branch != "best" or len(branches) == 1:
+        index = 0 if branch == "best" else branches.index(branch)
+        return _evaluate_branch(robot, path, limits, dt, index)
+    indices = jnp.arange(len(branches), dtype=jnp.int32)
+    every = jax.vmap(lambda i: _evaluate_branch(robot, path, limits, dt, i))(indices)
+    # Per candidate: the feasible branch of least total (the first on ties); when none is
+    # feasible, the one that fails latest along the path (it got furthest).
+    total = jnp.where(every.feasible, every.costs.total, jnp.inf)
+    choice = jnp.where(
+        jnp.any(every.feasible, axis=0),
+        jnp.argmin(total, axis=0),
+        jnp.argmax(every.first_failure, axis=0),
+    )
+
+    def pick(x: Array) -> Array:
+        index = choice.reshape((1, *choice.shape) + (1,) * (x.ndim - 1 - choice.ndim))
+        return jnp.take_along_axis(x, index, axis=0)[0]
+
+    return jax.tree.map(pick, every)
 
 
 _evaluate_jit = jax.jit(_evaluate_impl, static_argnames=("branch",))
@@ -299,7 +302,8 @@ def evaluate(
             ``robot.default_branch``), or ``"best"``: every branch is evaluated and, per
             candidate, the feasible one with the lowest ``costs.total`` is kept.
         dt: sample spacing in time (for the integrated costs and jerk).
-        chunk_size: candidates per call (default ``PLAN_CHUNK_SAMPLES // T``).
+        chunk_size: candidates per call (default ``PLAN_CHUNK_SAMPLES // T``, divided by the
+            number of branches for ``"best"``).
 
     Returns:
         An ``Evaluation``; ``branch`` tells which branch each candidate used. Zero candidates
@@ -324,7 +328,9 @@ def evaluate(
     limits = robot_limits(robot, limits)
     n, t = path.shape[:2]
     if chunk_size is None:
-        chunk_size = max(1, _batching.PLAN_CHUNK_SAMPLES // t)
+        # "best" holds every branch of a chunk at once
+        held = len(robot.branches) if branch == "best" else 1
+        chunk_size = max(1, _batching.PLAN_CHUNK_SAMPLES // (t * held))
     elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
     if n == 0:  # the kernel's shapes from one placeholder candidate, then none of it

@@ -23,38 +23,44 @@ is None; ``fk(robot, q)`` returns an ``FKResult`` whose ``x`` is a ``Jet`` in th
 targets, so ``fk(robot, ik(robot, t).q).x`` reproduces ``t``. Targets and joints may be plain
 arrays (taken at rest: zero rates) or ``Jet``s. Both work inside ``jit`` and ``vmap``.
 
-A new robot subclasses ``Robot`` (as a ``jaxkin._geometry.geometry`` dataclass), sets the
-class attributes and implements ``_ik`` and ``_fk``; the command line needs one registry entry
-(``jaxkin.cli.robots``). The protocol is written down in ``docs/design.md``.
+A new robot subclasses ``Robot`` (as a ``geometry`` dataclass whose fields are ``number``s),
+sets the class attributes and implements ``_ik`` and ``_fk``; the command line needs one
+registry entry (``jaxkin.cli.robots``). The protocol is written down in ``docs/design.md``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from ._geometry import BOUND, Geometry, geometry, number
+from ._geometry import BOUND, LENGTH, REAL, Geometry, geometry, number
 from .jet import Jet
 from .result import FKResult, IKResult
 from .status import Status
 
 __all__ = [
+    "LENGTH",
     "PLANAR_POINT",
     "PLANAR_POSE",
     "POINT",
     "POSE",
+    "REAL",
     "JointLimits",
     "Robot",
     "Target",
     "as_robot",
     "fk",
+    "geometry",
     "ik",
+    "number",
 ]
 
 Bounds = tuple[tuple[float, float], ...]
@@ -216,6 +222,14 @@ class Robot(Geometry):
 
     def _ik(self, target: Jet | ArrayLike, branch: Any, **options: Any) -> IKResult:
         raise NotImplementedError
+
+    def _ik_indexed(self, target: Jet, index: Array) -> IKResult:
+        """The IK on branch ``self.branches[index]``, ``index`` a traced ``int32`` scalar (the
+        planner maps it over every branch). By default a ``lax.switch`` over the branches;
+        a robot whose kernel takes the branch as data overrides it, so that its branches
+        compile as one program."""
+        solvers = [functools.partial(self._ik, branch=b) for b in self.branches]
+        return jax.lax.switch(index, solvers, target)
 
     def _fk(self, q: Jet | ArrayLike, **options: Any) -> FKResult:
         raise NotImplementedError

@@ -235,18 +235,20 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
         l_oa, l_ab, l_bc = (jnp.where(jnp.isfinite(x), x, 1.0) for x in (l_oa, l_ab, l_bc))
     else:
         l_oa, l_ab, l_bc = (jnp.where(valid, x, 1.0) for x in (l_oa, l_ab, l_bc))
-    # Units of the arm's reach: no square or product of rates over- or underflows at any scale.
-    scale = jnp.asarray(l_ab + l_bc)
-    inv_scale = 1.0 / scale
-    d = d.map(lambda x: x * inv_scale[..., None])
-    l_oa, l_ab, l_bc = (x * inv_scale for x in (l_oa, l_ab, l_bc))
     shoulder = jnp.zeros((*batch, 2), d.dtype)  # A projected on its plane: the origin, at rest
 
     if method == "analytic":
         wrist = d[..., :2]  # eq. 13: C = (x_D, y_D) with the same rates
         sol = dyad.solve(Jet.constant(shoulder), wrist, l_ab, l_bc, mode=branch)
         ok = sol.status == Status.OK
-        forearm = Jet(wrist.p - sol.c.p, wrist.v - sol.c.v, wrist.a - sol.c.a)
+        # The forearm in units of its length (the dyad works in units of the reach): the
+        # angle's rate formulas multiply four lengths, which must not overflow at any scale.
+        inv_bc = jnp.asarray(1.0 / l_bc)[..., None]
+        forearm = Jet(
+            (wrist.p - sol.c.p) * inv_bc,
+            (wrist.v - sol.c.v) * inv_bc,
+            (wrist.a - sol.c.a) * inv_bc,
+        )
         theta_bc, _ = planar.angle(forearm)  # the angle of Fig. 2 (docs/errata.md)
         theta1 = sol.phi  # eqs. 9-10
         theta2 = Jet(  # eq. 15
@@ -263,7 +265,9 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
             """Position-level SCARA IK: q (..., 3), elbow (..., 2), status, margin."""
             wrist_p = d_p[..., :2]
             sol = dyad.solve(shoulder, wrist_p, l_ab, l_bc, mode=branch)
-            theta_bc, _ = planar.angle(Jet.constant(wrist_p - sol.c.p))
+            theta_bc, _ = planar.angle(
+                Jet.constant((wrist_p - sol.c.p) / jnp.asarray(l_bc)[..., None])
+            )
             q = jnp.stack([sol.phi.p, sol.phi.p - theta_bc.p, l_oa - d_p[..., 2]], axis=-1)
             return q, sol.c.p, sol.status, sol.margin
 
@@ -272,10 +276,8 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
         ok = dyad_status == Status.OK
 
     okc = ok[..., None]
-    units = jnp.stack(jnp.broadcast_arrays(jnp.ones_like(scale), jnp.ones_like(scale), scale), -1)
-    q = Jet(q.p * units, jnp.where(okc, q.v * units, 0.0), jnp.where(okc, q.a * units, 0.0))
-    s2 = scale[..., None]
-    elbow = Jet(elbow.p * s2, jnp.where(okc, elbow.v * s2, 0.0), jnp.where(okc, elbow.a * s2, 0.0))
+    q = Jet(q.p, jnp.where(okc, q.v, 0.0), jnp.where(okc, q.a, 0.0))
+    elbow = Jet(elbow.p, jnp.where(okc, elbow.v, 0.0), jnp.where(okc, elbow.a, 0.0))
 
     has_solution = valid & (
         ok | (dyad_status == Status.SINGULAR_EXTENDED) | (dyad_status == Status.SINGULAR_FOLDED)

@@ -16,6 +16,7 @@ shown when stderr is a terminal (``progress=None``); ``False`` silences it, ``Tr
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -95,6 +96,13 @@ def _check_box(robot: Robot, bounds: Any, resolution: Any) -> tuple[Bounds, floa
     return bounds, resolution
 
 
+@functools.partial(jax.jit, static_argnames=("branch", "accept"))
+def _reachable(robot: Robot, points: Array, branch: Any, accept: tuple[int, ...]) -> Array:
+    """Whether each point's status is one of ``accept``: ``(M,)`` bool."""
+    status = ik(robot, points, branch).status.astype(jnp.int32)
+    return jnp.any(status[:, None] == jnp.asarray(accept, jnp.int32), axis=-1)
+
+
 def sweep(
     robot: Robot,
     bounds: Bounds | None = None,
@@ -136,19 +144,15 @@ def sweep(
     shape = tuple(len(a) for a in axes)
     total = math.prod(shape)
     dtype = jnp.result_type(float) if dtype is None else jnp.dtype(dtype)
-    accept = jnp.asarray(sorted(int(s) for s in robot.reachable), jnp.int32)
-
-    @jax.jit
-    def reachable(points: Array) -> Array:
-        status = ik(robot, points, branch).status.astype(jnp.int32)
-        return jnp.any(status[:, None] == accept[None, :], axis=-1)
+    accept = tuple(sorted(int(s) for s in robot.reachable))
 
     flat = np.zeros(total, dtype=bool)
     with bar(total, "workspace", enabled=progress) as meter:
         for start, stop, index in _batching.host_chunks(total, chunk_size):
             coords = np.unravel_index(index, shape)
             points = np.stack([a[i] for a, i in zip(axes, coords, strict=True)], -1)
-            flat[start:stop] = np.asarray(reachable(points.astype(dtype)))[: stop - start]
+            inside = _reachable(robot, points.astype(dtype), branch, accept)
+            flat[start:stop] = np.asarray(inside)[: stop - start]
             meter.update(stop - start)
     mask = flat.reshape(shape)
     n_reachable = int(mask.sum())

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+from collections.abc import Callable, Iterator
 
 import jax
 import numpy as np
+from jax import monitoring
 
 BATCH_SHAPES = [(), (1,), (7,), (3, 5)]
 
@@ -36,6 +38,23 @@ def fd_rates(
     v1, a1 = central_differences(position, t, h1)
     v2, a2 = central_differences(position, t, h1 / 2.0)
     return (4.0 * v2 - v1) / 3.0, (4.0 * a2 - a1) / 3.0
+
+
+_EVENTS: list[str] = []
+monitoring.register_event_duration_secs_listener(lambda name, *_, **__: _EVENTS.append(name))
+# A trace, an XLA compilation, or a program loaded from the persistent compilation cache (the
+# tests share one): each means the call was not served by a function's own compiled cache.
+_COMPILE_EVENTS = ("jaxpr_trace_duration", "backend_compile_duration", "cache_retrieval_time_sec")
+
+
+@contextlib.contextmanager
+def compilations() -> Iterator[dict[str, int]]:
+    """Count traces and compilations inside the block: ``with compilations() as count``,
+    then ``count["n"]``."""
+    start = len(_EVENTS)
+    counter = {"n": 0}
+    yield counter
+    counter["n"] = sum(1 for n in _EVENTS[start:] if n.endswith(_COMPILE_EVENTS))
 
 
 def compile_count(jitted: Callable) -> int:

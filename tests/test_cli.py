@@ -1,7 +1,9 @@
 """The ``jaxkin`` command: round trips, every error path (one line, exit 2), no partial output.
 
-Most tests call ``jaxkin.cli.main(argv)`` in-process (a process start imports JAX, ~1-2 s);
-a few real subprocess round trips check the installed console script end to end.
+Every test but one calls ``jaxkin.cli.main(argv)`` in-process (a process start imports JAX,
+~1-2 s); ``test_console_script_end_to_end`` runs the installed console script. The command
+pads each file's rows to a power of two, so the files here have few distinct padded lengths
+(4, 32 and 64 rows) and share compilations.
 """
 
 import shutil
@@ -12,15 +14,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jaxkin import cli
-from jaxkin import io as kio
+from jaxkin import Jet, Robot, cli, delta, scara, serial
+from jaxkin.cli import commands, demo
+from jaxkin.cli import files as kio
+from jaxkin.cli.parser import build_parser
+from jaxkin.cli.robots import ROBOTS, RobotEntry
+from tests.references import delta as delta_ref
+from tests.references import scara as scara_ref
+from tests.test_plan import forward
 
-ROOT = Path(__file__).resolve().parents[1]
 SCARA_PAPER = ["--robot", "paper"]
+ARM = ["--l1", 0.3, "--l2", 0.25, "--l3", 0.2]  # anthropomorphic arm (m)
 
 
 def spiral(t):
-    """Seed 000 eq. 16 with its exact derivatives (mm, s)."""
+    """[Noriega, eq. 16] with its exact derivatives (mm, s)."""
     w = np.pi / 2
     s, c = np.sin(w * t), np.cos(w * t)
     p = np.stack([100 + 20 * s, -20 * c, 50 + 10 * t], -1)
@@ -37,14 +45,15 @@ def delta_path(t):
     return p, v, a
 
 
-def write_points(path, t, p, v=None, a=None, candidate=None):
+def write_points(path, t, p, v=None, a=None, candidate=None, names="xyz"):
     cols = {"t": t}
     if candidate is not None:
         cols["candidate"] = candidate
-    cols.update({"x": p[:, 0], "y": p[:, 1], "z": p[:, 2]})
-    for block, names in ((v, kio.CARTESIAN_VELOCITY), (a, kio.CARTESIAN_ACCELERATION)):
+    cols.update({n: p[:, j] for j, n in enumerate(names)})
+    velocity, acceleration = kio.rate_names(tuple(names))
+    for block, rate_names in ((v, velocity), (a, acceleration)):
         if block is not None:
-            cols.update({n: block[:, j] for j, n in enumerate(names)})
+            cols.update({n: block[:, j] for j, n in enumerate(rate_names)})
     kio.write_table(path, cols)
     return path
 
@@ -71,6 +80,10 @@ def _status_column(path):
     return np.array([line.split(",")[index] for line in lines[1:]])
 
 
+def columns(table, names):
+    return np.stack([table[k] for k in names], -1)
+
+
 def assert_one_line_error(code, err, *fragments):
     assert code == 2
     lines = err.strip().splitlines()
@@ -81,69 +94,70 @@ def assert_one_line_error(code, err, *fragments):
         assert fragment in lines[0], lines[0]
 
 
+def wrap(angle):
+    return (angle + np.pi) % (2 * np.pi) - np.pi
+
+
 # ------------------------------------------------------------------------------ round trips
 
 
-@pytest.mark.parametrize("mode", ["+1", "-1"])
-def test_scara_csv_round_trip_with_spline_rates(tmp_path, capsys, mode):
-    t = np.linspace(0.0, 8.0, 161)
+@pytest.mark.parametrize("branch", ["+1", "-1"])
+def test_scara_csv_round_trip_with_spline_rates(tmp_path, capsys, branch):
+    """ik then fk reproduce the path; the spline rates match the exact derivatives of
+    [Noriega, eq. 16] to the spline's accuracy. ``--mode`` is the old name of ``--branch``."""
+    t = np.linspace(0.0, 1.6, 33)  # h = 0.05 s
     p, v, a = spiral(t)
     src = write_points(tmp_path / "in.csv", t, p)  # positions only: rates by spline
+    option = "--mode" if branch == "-1" else "--branch"
     code, _, err = run(
-        capsys, "ik", "scara", *SCARA_PAPER, "--mode", mode, "-i", src, "-o", tmp_path / "q.csv"
+        capsys, "ik", "scara", *SCARA_PAPER, option, branch, "-i", src, "-o", tmp_path / "q.csv"
     )
     assert code == 0, err
-    assert "OK 161" in err
+    assert f"(branch {int(branch)})" in err and "OK 33" in err
     q = load(tmp_path / "q.csv")
     assert set(q["status"]) == {"OK"}
+    expected = scara_ref.ik_numpy(p, v, a, 150.0, 80.0, 50.0, mode=int(branch))[0]
+    np.testing.assert_allclose(columns(q, ("theta1", "theta2", "l3")), expected, atol=1e-12)
     code, _, err = run(
         capsys, "fk", "scara", *SCARA_PAPER, "-i", tmp_path / "q.csv", "-o", tmp_path / "p.csv"
     )
     assert code == 0, err
     back = load(tmp_path / "p.csv")
-    np.testing.assert_allclose(np.stack([back[k] for k in "xyz"], -1), p, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(columns(back, "xyz"), p, rtol=0, atol=1e-9)
     # Spline rates (h = 0.05 s) against the exact derivatives of eq. 16: velocity to ~1e-3
     # of its scale (|v| ~ 31 mm/s), acceleration to ~1 % (|a| ~ 49 mm/s^2, worst at the ends).
-    v_back = np.stack([back[k] for k in ("vx", "vy", "vz")], -1)
-    a_back = np.stack([back[k] for k in ("ax", "ay", "az")], -1)
+    v_back = columns(back, ("vx", "vy", "vz"))
+    a_back = columns(back, ("ax", "ay", "az"))
     np.testing.assert_allclose(v_back, v, atol=0.03)
     np.testing.assert_allclose(a_back, a, atol=0.5)
     np.testing.assert_allclose(a_back[5:-5], a[5:-5], atol=0.05)  # h^2 |y""""| / 12 ~ 0.025
 
 
-def test_scara_given_rates_reproduce_library_and_paper_value(tmp_path, capsys):
-    from jaxkin import Jet, scara
-
+def test_scara_given_rates_reproduce_the_reference_and_paper_value(tmp_path, capsys):
+    """Given rates pass through unchanged: the joints and their rates equal the NumPy reference
+    [Noriega, eqs. 1-15], theta1_ddot(0) is the corrected paper value (docs/errata.md), and the
+    margin column is sin(beta)^2 of the shoulder angle beta (law of cosines)."""
     t = np.linspace(0.0, 8.0, 33)
     p, v, a = spiral(t)
     src = write_points(tmp_path / "in.npz", t, p, v, a)
-    code, _, err = run(
-        capsys,
-        "ik",
-        "scara",
-        "--l-oa",
-        150,
-        "--l-ab",
-        80,
-        "--l-bc",
-        50,
-        "-i",
-        src,
-        "-o",
-        tmp_path / "q.npz",
-    )
+    lengths = ["--l-oa", 150, "--l-ab", 80, "--l-bc", 50]
+    code, _, err = run(capsys, "ik", "scara", *lengths, "-i", src, "-o", tmp_path / "q.npz")
     assert code == 0, err
     q = load(tmp_path / "q.npz")
-    ref = scara.ik(scara.Scara.create(150.0, 80.0, 50.0), Jet.of(p, v, a), mode=1)
-    got = np.stack([q[k] for k in ("theta1_ddot", "theta2_ddot", "l3_ddot")], -1)
-    np.testing.assert_allclose(got, np.asarray(ref.q.a), rtol=1e-12, atol=1e-12)
-    # ERRATA seed 000 item 4: theta1_ddot(0) = 0.309 rad/s^2 on the spiral, mode +1.
+    ref = scara_ref.ik_numpy(p, v, a, 150.0, 80.0, 50.0, mode=1)
+    names = ("theta1", "theta2", "l3")
+    for block, suffix in zip(ref, ("", "_dot", "_ddot"), strict=True):
+        got = columns(q, [n + suffix for n in names])
+        np.testing.assert_allclose(got, block, rtol=1e-12, atol=1e-12)
+    # docs/errata.md: theta1_ddot(0) = 0.309 rad/s^2 on the spiral, branch +1.
     assert q["theta1_ddot"][0] == pytest.approx(0.309, abs=5e-4)
-    np.testing.assert_allclose(q["margin"], np.asarray(ref.margin), rtol=1e-12)
+    r2 = p[:, 0] ** 2 + p[:, 1] ** 2
+    cos_beta = (r2 + 80.0**2 - 50.0**2) / (2 * np.sqrt(r2) * 80.0)
+    np.testing.assert_allclose(q["margin"], 1 - cos_beta**2, rtol=1e-12)
 
 
 def test_delta_npz_round_trip_with_candidates(tmp_path, capsys):
-    t = np.linspace(0.0, 2.0, 41)
+    t = np.linspace(0.0, 0.6, 16)  # h = 0.04 s
     p, v, a = delta_path(t)
     t2 = np.concatenate([t, t])
     p2 = np.concatenate([p, p * np.array([0.5, 0.5, 1.0])])
@@ -156,6 +170,9 @@ def test_delta_npz_round_trip_with_candidates(tmp_path, capsys):
     theta = load(tmp_path / "theta.npz")
     assert theta["candidate"].tolist() == candidate.tolist()
     assert set(theta["status"].tolist()) == {"OK"}
+    assert np.all((theta["margin"] > 0) & (theta["margin"] <= 1))
+    expected = delta_ref.ik_numpy(p2)  # elbow out, the default branch [Cardona, eq. 5]
+    np.testing.assert_allclose(columns(theta, ("theta1", "theta2", "theta3")), expected, atol=1e-12)
     code, _, err = run(
         capsys,
         "fk",
@@ -169,50 +186,39 @@ def test_delta_npz_round_trip_with_candidates(tmp_path, capsys):
     )
     assert code == 0, err
     back = load(tmp_path / "p.npz")
-    np.testing.assert_allclose(np.stack([back[k] for k in "xyz"], -1), p2, atol=1e-9)
+    np.testing.assert_allclose(columns(back, "xyz"), p2, atol=1e-9)
     # Candidate 0's velocity from splines of theta, mapped back by fk: close to the exact one.
-    v_back = np.stack([back[k] for k in ("vx", "vy", "vz")], -1)[: len(t)]
+    v_back = columns(back, ("vx", "vy", "vz"))[: len(t)]
     np.testing.assert_allclose(v_back, v, atol=0.05)
 
 
-def test_delta_branch_in_and_float32(tmp_path, capsys):
+def test_delta_branch_in(tmp_path, capsys):
+    """The elbow-in solution reaches the targets (NumPy FK, [Cardona]) and differs from the
+    elbow-out reference. (Float32 output: ``test_console_script_end_to_end``.)"""
     t = np.linspace(0.0, 2.0, 21)
     p, v, a = delta_path(t)
     src = write_points(tmp_path / "in.csv", t, p, v, a)
-    outs = {}
-    for dtype in ("float64", "float32"):
-        out = tmp_path / f"q_{dtype}.csv"
-        code, _, err = run(
-            capsys,
-            "ik",
-            "delta",
-            "--robot",
-            "paper",
-            "--mode",
-            "in",
-            "--dtype",
-            dtype,
-            "-i",
-            src,
-            "-o",
-            out,
-        )
-        assert code == 0, err
-        outs[dtype] = load(out)
-    for key in ("theta1", "theta2", "theta3"):
-        np.testing.assert_allclose(outs["float32"][key], outs["float64"][key], atol=1e-4)
-    from jaxkin import delta
-
-    ref = delta.ik(delta.Delta.paper(), p, branch="in").theta.p
-    np.testing.assert_allclose(outs["float64"]["theta1"], np.asarray(ref)[:, 0], rtol=1e-12)
+    out = tmp_path / "q.csv"
+    code, _, err = run(
+        capsys, "ik", "delta", "--robot", "paper", "--branch", "in", "-i", src, "-o", out
+    )
+    assert code == 0, err
+    assert "(branch in)" in err
+    theta = columns(load(out), ("theta1", "theta2", "theta3"))
+    np.testing.assert_allclose(delta_ref.fk_closed_form_numpy(theta), p, atol=1e-10)
+    assert np.all(np.abs(theta - delta_ref.ik_numpy(p)) > 0.1)
 
 
 def test_stdout_output(tmp_path, capsys):
     src = write_points(tmp_path / "in.csv", np.arange(3.0), np.array([[100.0, 0, 50]] * 3))
     code, out, _ = run(capsys, "ik", "scara", *SCARA_PAPER, "-q", "-i", src, "-o", "-")
     assert code == 0
-    assert out.splitlines()[0].startswith("t,theta1,theta2,l3,")
-    assert len(out.splitlines()) == 4
+    lines = out.splitlines()
+    assert lines[0] == (
+        "t,theta1,theta2,l3,theta1_dot,theta2_dot,l3_dot,theta1_ddot,theta2_ddot,l3_ddot,"
+        "status,margin"
+    )
+    assert len(lines) == 4
 
 
 def test_robot_file_toml_and_json(tmp_path, capsys):
@@ -236,103 +242,147 @@ def test_robot_file_toml_and_json(tmp_path, capsys):
     assert (tmp_path / "c.csv").read_text() != (tmp_path / "a.csv").read_text()
 
 
-def test_anthropomorphic_round_trip_and_rates(tmp_path, capsys):
-    from jaxkin import Jet, lift
-    from jaxkin.serial import arms
-
+def test_anthropomorphic_branch_and_rates(tmp_path, capsys):
+    """ik on the back_down branch: the joints, mapped by the arm's forward kinematics written
+    out in NumPy [Lopez-Villagomez, eqs. 2-6], reproduce the path with its velocity and
+    acceleration, and q1 is the back shoulder angle atan2(y, x) + pi."""
     t = np.linspace(0.0, 2.0, 21)
     p = np.stack([0.25 + 0.05 * np.cos(t), 0.05 * np.sin(2 * t), 0.35 + 0.02 * t], -1)
     v = np.stack([-0.05 * np.sin(t), 0.1 * np.cos(2 * t), np.full_like(t, 0.02)], -1)
     a = np.stack([-0.05 * np.cos(t), -0.2 * np.sin(2 * t), np.zeros_like(t)], -1)
     src = write_points(tmp_path / "in.csv", t, p, v, a)
-    geometry = ["--l1", 0.3, "--l2", 0.25, "--l3", 0.2]
-    code, _, err = run(
-        capsys,
-        "ik",
-        "anthropomorphic",
-        *geometry,
-        "--mode",
-        "back_down",
-        "-i",
-        src,
-        "-o",
-        tmp_path / "q.csv",
-    )
+    argv = ["anthropomorphic", *ARM, "--branch", "back_down"]
+    code, _, err = run(capsys, "ik", *argv, "-i", src, "-o", tmp_path / "q.csv")
     assert code == 0, err
-    code, _, err = run(
-        capsys,
-        "fk",
-        "anthropomorphic",
-        *geometry,
-        "-i",
-        tmp_path / "q.csv",
-        "-o",
-        tmp_path / "p.csv",
-    )
-    assert code == 0, err
-    back = load(tmp_path / "p.csv")
-    # fk(ik(x)) reproduces the path and, through the joint rates, its velocity and acceleration.
-    for block, names in ((p, "xyz"), (v, ("vx", "vy", "vz")), (a, ("ax", "ay", "az"))):
-        np.testing.assert_allclose(np.stack([back[k] for k in names], -1), block, atol=1e-10)
-    robot = arms.Anthropomorphic(0.3, 0.25, 0.2)
-    ref = lift(lambda x: arms.ik(robot, x).branch("back_down").q)(Jet.of(p, v, a))
     q = load(tmp_path / "q.csv")
-    np.testing.assert_allclose(q["q2_dot"], np.asarray(ref.v)[:, 1], rtol=1e-12, atol=1e-14)
+    joints = Jet.of(
+        *(columns(q, [f"q{k}{suffix}" for k in (1, 2, 3)]) for suffix in ("", "_dot", "_ddot"))
+    )
+    back = forward("anthropomorphic", joints)  # the arm l1, l2, l3 = 0.3, 0.25, 0.2
+    for got, block in zip((back.p, back.v, back.a), (p, v, a), strict=True):
+        np.testing.assert_allclose(got, block, atol=1e-10)
+    back_q1 = np.abs(wrap(q["q1"] - np.arctan2(p[:, 1], p[:, 0])))
+    np.testing.assert_allclose(back_q1, np.pi, atol=1e-12)
+    assert set(q["status"]) == {"OK"} and np.all((q["margin"] > 0) & (q["margin"] <= 1))
     code, _, err = run(
         capsys, "ik", "anthropomorphic", "--robot", "paper", "-i", src, "-o", tmp_path / "x.csv"
     )
     assert_one_line_error(code, err, "no anthropomorphic dimensions")
-    code, _, err = run(
-        capsys,
-        "ik",
-        "anthropomorphic",
-        *geometry,
-        "--mode",
-        "left",
-        "-i",
-        src,
-        "-o",
-        tmp_path / "x.csv",
-    )
+    code, _, err = run(capsys, "ik", *argv[:-1], "left", "-i", src, "-o", tmp_path / "x.csv")
     assert_one_line_error(code, err, "front_up, front_down, back_up, back_down")
 
 
+def test_spherical_and_planar_2r(tmp_path, capsys):
+    """Two of the new robots of the command: the spherical arm's joints from the [UANL]
+    formulas written out here (q = (atan2(y, x), atan2(z - h, r), |p - (0, 0, h)|)); a planar
+    2R file has x, y columns and its ik then fk close the loop."""
+    p = np.array([[0.5, 0.2, 0.7], [-0.3, 0.4, 0.1], [0.2, -0.6, 0.4]])
+    src = write_points(tmp_path / "in.csv", np.arange(3.0), p)
+    r, dz = np.hypot(p[:, 0], p[:, 1]), p[:, 2] - 0.4
+    expected = np.stack([np.arctan2(p[:, 1], p[:, 0]), np.arctan2(dz, r), np.hypot(r, dz)], -1)
+    code, _, err = run(capsys, "ik", "spherical", "--h", 0.4, "-i", src, "-o", tmp_path / "s.csv")
+    assert code == 0, err
+    q = load(tmp_path / "s.csv")
+    np.testing.assert_allclose(columns(q, ("q1", "q2", "q3")), expected, atol=1e-12)
+    assert set(q["status"]) == {"OK"} and np.all(q["margin"] > 0)
+    xy = p[:, :2] * 2.0  # inside the annulus 0.4 <= r <= 1.6
+    src = write_points(tmp_path / "xy.csv", np.arange(3.0), xy, names="xy")
+    geometry = ["--l1", 1.0, "--l2", 0.6]
+    code, _, err = run(capsys, "ik", "planar-2r", *geometry, "-i", src, "-o", tmp_path / "q.csv")
+    assert code == 0, err
+    q = load(tmp_path / "q.csv")
+    assert np.all(q["q2"] <= 0)  # elbow_up, the default branch
+    assert set(q["status"]) == {"OK"} and np.all((q["margin"] > 0) & (q["margin"] <= 1))
+    tip = np.stack(
+        [
+            np.cos(q["q1"]) + 0.6 * np.cos(q["q1"] + q["q2"]),
+            np.sin(q["q1"]) + 0.6 * np.sin(q["q1"] + q["q2"]),
+        ],
+        -1,
+    )
+    np.testing.assert_allclose(tip, xy, atol=1e-12)
+    code, _, err = run(
+        capsys, "fk", "planar-2r", *geometry, "-i", tmp_path / "q.csv", "-o", tmp_path / "p.csv"
+    )
+    assert code == 0, err
+    assert (tmp_path / "p.csv").read_text().splitlines()[0] == "t,x,y,vx,vy,ax,ay,status"
+    np.testing.assert_allclose(columns(load(tmp_path / "p.csv"), "xy"), xy, atol=1e-12)
+
+
 def test_no_geometry_uses_the_paper_robot_with_a_note(tmp_path, capsys):
-    src = write_points(tmp_path / "in.csv", np.arange(2.0), np.array([[100.0, 0, 50]] * 2))
+    src = write_points(tmp_path / "in.csv", np.arange(3.0), np.array([[100.0, 0, 50]] * 3))
     code, _, err = run(capsys, "ik", "scara", "-i", src, "-o", tmp_path / "a.csv")
     assert code == 0
     assert "no geometry given, used the paper's scara (l_oa 150, l_ab 80, l_bc 50 mm)" in err
+
+
+@pytest.mark.parametrize(
+    ("kind", "options", "expected"),
+    [
+        ("scara", ["--robot", "paper"], scara.Scara(150.0, 80.0, 50.0)),
+        ("delta", ["--robot", "paper"], delta.Delta(7.0, 2.5, 15.5, 30.0)),
+        ("anthropomorphic", ARM, serial.Anthropomorphic(0.3, 0.25, 0.2)),
+        ("cylindrical", ["--h", 0.4], serial.Cylindrical(0.4)),
+        ("spherical", ["--h", 0.5], serial.Spherical(0.5)),
+        ("planar-2r", ["--l1", 1.0, "--l2", 0.6], serial.Planar2R(1.0, 0.6)),
+    ],
+)
+def test_robot_registry_builds_each_robot_from_its_options(kind, options, expected):
+    """Every ``ROBOTS`` entry turns its options into the robot (the papers' dimensions for
+    ``--robot paper``: [Noriega] 150, 80, 50 mm; [Cardona] 7, 2.5, 15.5, 30 cm)."""
+    entry = ROBOTS[kind]
+    assert isinstance(entry, RobotEntry) and entry.name == kind
+    args = build_parser().parse_args(["ik", kind, *map(str, options), "-i", "in", "-o", "out"])
+    args.notes = []
+    robot = commands.robot_from_args(args)
+    assert type(robot) is type(expected) and isinstance(robot, Robot)
+    for key in entry.fields:
+        assert float(getattr(robot, key)) == float(getattr(expected, key))
+    assert robot.target.is_point and args.notes == []
+
+
+def test_robot_registry_lists_the_command_robots():
+    assert list(ROBOTS) == [
+        "scara",
+        "delta",
+        "anthropomorphic",
+        "cylindrical",
+        "spherical",
+        "planar-2r",
+    ]
+    assert ROBOTS["scara"].unit == "mm" and ROBOTS["delta"].unit == "cm"
 
 
 # ------------------------------------------------------------------------------ NaN rows
 
 
 def test_nan_rows_get_invalid_input_and_the_rest_is_solved(tmp_path, capsys):
-    t = np.linspace(0.0, 8.0, 41)
+    t = np.linspace(0.0, 8.0, 33)
     p, _, _ = spiral(t)
     p[[3, 17], 1] = np.nan
     p[20, 2] = np.inf
     src = write_points(tmp_path / "in.csv", t, p)
     code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, "-i", src, "-o", tmp_path / "q.csv")
     assert code == 0
-    assert "warning: 3 of 41 rows have NaN/inf input (first at" in err
+    assert "warning: 3 of 33 rows have NaN/inf input (first at" in err
     assert f"{src}:5" in err  # row 3 is on line 5 (header on line 1)
     q = load(tmp_path / "q.csv")
-    bad = np.zeros(41, bool)
+    bad = np.zeros(33, bool)
     bad[[3, 17, 20]] = True
     assert set(q["status"][bad]) == {"INVALID_INPUT"}
     assert set(q["status"][~bad]) == {"OK"}
     assert np.all(np.isnan(q["theta1"][bad])) and np.all(np.isfinite(q["theta1_ddot"][~bad]))
+    assert np.all(q["margin"][bad] == -1.0) and np.all(q["margin"][~bad] > 0)
 
 
 def test_warning_when_no_row_is_solved(tmp_path, capsys):
-    t = np.linspace(0.0, 8.0, 9)
+    t = np.linspace(0.0, 8.0, 20)
     src = write_points(tmp_path / "mm.csv", t, spiral(t)[0])  # mm targets, cm robot
     code, _, err = run(
         capsys, "ik", "delta", "--robot", "paper", "-i", src, "-o", tmp_path / "q.csv"
     )
     assert code == 0
-    assert "warning: no row has status OK (UNREACHABLE 9): check the geometry and the units" in err
+    assert "warning: no row has status OK (UNREACHABLE 20): check the geometry and the units" in err
 
 
 # ------------------------------------------------------------------------------ error paths
@@ -340,6 +390,7 @@ def test_warning_when_no_row_is_solved(tmp_path, capsys):
 
 @pytest.fixture
 def good_csv(tmp_path):
+    """Five rows: in chunks of 4 (``--chunk-size 4``), the shape of the 3-row files above."""
     t = np.linspace(0.0, 1.0, 5)
     return write_points(tmp_path / "good.csv", t, spiral(t)[0])
 
@@ -378,6 +429,8 @@ def test_missing_and_unreadable_files(tmp_path, capsys, good_csv):
         capsys, "ik", "scara", *SCARA_PAPER, "-i", good_csv, "-o", tmp_path / "no" / "dir" / "o.csv"
     )
     assert_one_line_error(code, err, "does not exist")
+    code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, "-i", good_csv, "-o", good_csv)
+    assert_one_line_error(code, err, "is the input file")
 
 
 @pytest.mark.parametrize(
@@ -385,7 +438,7 @@ def test_missing_and_unreadable_files(tmp_path, capsys, good_csv):
     [
         (
             ["ik", "scara", "--l-oa", "150", "--l-ab", "-80", "--l-bc", "50"],
-            ["invalid scara geometry", "l_ab must be positive"],
+            ["invalid scara geometry", "Scara.l_ab must be a positive"],
         ),
         (
             [
@@ -400,16 +453,19 @@ def test_missing_and_unreadable_files(tmp_path, capsys, good_csv):
                 "--l-rod",
                 "30",
             ],
-            ["invalid delta geometry", "l_arm must be positive"],
+            ["invalid delta geometry", "Delta.l_arm must be a positive"],
         ),
         (["ik", "scara", "--l-oa", "150", "--l-ab", "80"], ["missing geometry --l-bc"]),
         (["ik", "scara", "--robot", "paper", "--l-rod", "3"], ["--l-rod is a delta option"]),
-        (["ik", "scara", "--robot", "paper", "--mode", "out"], ["--mode for scara", "'out'"]),
-        (["ik", "delta", "--robot", "paper", "--mode", "+1"], ["--mode for delta"]),
+        (["ik", "scara", "--robot", "paper", "--h", "3"], ["--h is a cylindrical/spherical"]),
+        (["ik", "scara", "--robot", "paper", "--mode", "out"], ["--branch for Scara", "'out'"]),
+        (["ik", "delta", "--robot", "paper", "--branch", "+1"], ["--branch for Delta"]),
+        (["ik", "planar-2r", "--robot", "paper"], ["no planar-2r dimensions"]),
         (["ik", "puma", "--robot", "paper"], ["invalid choice: 'puma'"]),
         (["ik", "scara", "--robot", "nothere.toml"], ["nothere.toml: no such file"]),
         (["ik", "scara", "--robot", "paper", "--l-ab", "abc"], ["--l-ab", "invalid float value"]),
         (["ik", "scara", "--robot", "paper", "--dtype", "float16"], ["--dtype"]),
+        (["ik", "scara", "--robot", "paper", "--chunk-size", "0"], ["--chunk-size"]),
         (["frobnicate"], ["invalid choice: 'frobnicate'"]),
         ([], ["required"]),
     ],
@@ -482,21 +538,19 @@ def test_solver_failing_midway_leaves_output_intact(tmp_path, capsys, good_csv, 
     out = tmp_path / "out.csv"
     before = _precious(out)
     calls = []
-    original = cli.ROBOTS["scara"].ik
+    original = commands.ik
 
-    def failing_ik(robot, d, mode):
+    def failing_ik(robot, d, branch):
         calls.append(1)
         if len(calls) == 2:
             raise RuntimeError("simulated crash in the second chunk")
-        return original(robot, d, mode)
+        return original(robot, d, branch)
 
-    monkeypatch.setitem(
-        cli.ROBOTS, "scara", cli.dataclasses.replace(cli.ROBOTS["scara"], ik=failing_ik)
-    )
+    monkeypatch.setattr(commands, "ik", failing_ik)
     code, _, err = run(
-        capsys, "ik", "scara", *SCARA_PAPER, "--chunk-size", 2, "-i", good_csv, "-o", out
+        capsys, "ik", "scara", *SCARA_PAPER, "--chunk-size", 4, "-i", good_csv, "-o", out
     )
-    assert_one_line_error(code, err, "simulated crash")
+    assert_one_line_error(code, err, "internal error (RuntimeError)", "simulated crash")
     assert len(calls) == 2 and out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.csv", "out.csv"]
 
@@ -513,7 +567,8 @@ def test_writer_failing_midway_leaves_output_intact(tmp_path, capsys, good_csv, 
         raise exc  # ...and then the run dies before the rename
 
     monkeypatch.setattr(kio, "write_csv", half_then_fail)
-    code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, "-i", good_csv, "-o", out)
+    argv = ["--chunk-size", 4, "-i", good_csv, "-o", out]
+    code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, *argv)
     if isinstance(exc, KeyboardInterrupt):
         assert code == 130 and "interrupted" in err
     else:
@@ -527,27 +582,16 @@ def test_writer_failing_midway_leaves_output_intact(tmp_path, capsys, good_csv, 
 
 def test_workspace_scara_volume_and_npz(tmp_path, capsys):
     out = tmp_path / "ws.npz"
+    geometry = ["--l-oa", 10, "--l-ab", 8, "--l-bc", 5]
     code, stdout, err = run(
-        capsys,
-        "workspace",
-        "scara",
-        "--l-oa",
-        10,
-        "--l-ab",
-        8,
-        "--l-bc",
-        5,
-        "--resolution",
-        0.5,
-        "-q",
-        "-o",
-        out,
+        capsys, "workspace", "scara", *geometry, "--resolution", 0.5, "-q", "-o", out
     )
     assert code == 0, err
     with np.load(out) as ws:
         mask, res = ws["mask"], float(ws["resolution"])
         assert ws["volume"] == pytest.approx(mask.sum() * res**3)
-        assert float(ws["geometry_l_ab"]) == 8.0
+        assert float(ws["geometry_l_ab"]) == 8.0 and str(ws["robot"]) == "scara"
+        assert mask.shape == (len(ws["x"]), len(ws["y"]), len(ws["z"]))
     # Annulus 3 <= r <= 13 times the height 10 (z from 0 to l_oa): pi (13^2 - 3^2) 10.
     exact = np.pi * (13**2 - 3**2) * 10.0
     volume = float(stdout.split("reachable volume: ")[1].split()[0])
@@ -556,25 +600,34 @@ def test_workspace_scara_volume_and_npz(tmp_path, capsys):
 
 
 def test_workspace_anthropomorphic_is_a_spherical_shell(capsys):
-    code, stdout, _ = run(
-        capsys,
-        "workspace",
-        "anthropomorphic",
-        "--l1",
-        0.3,
-        "--l2",
-        0.25,
-        "--l3",
-        0.2,
-        "--resolution",
-        0.03,
-        "-q",
-    )
+    code, stdout, _ = run(capsys, "workspace", "anthropomorphic", *ARM, "--resolution", 0.03, "-q")
     assert code == 0
     # Reachable wrist positions: |p - shoulder| between l2 - l3 and l2 + l3.
     exact = 4 / 3 * np.pi * (0.45**3 - 0.05**3)
     volume = float(stdout.split("reachable volume: ")[1].split()[0])
     assert volume == pytest.approx(exact, rel=0.03)
+
+
+def test_workspace_planar_2r_area_with_four_bounds(capsys):
+    """A planar robot sweeps a 2-D grid; ``--bounds`` takes 4 numbers for it, 6 for a 3-D
+    robot, and the area of the annulus 0.4 <= r <= 1.6 is pi (1.6^2 - 0.4^2)."""
+    geometry = ["--l1", 1.0, "--l2", 0.6, "--resolution", 0.05, "-q"]
+    code, stdout, err = run(
+        capsys, "workspace", "planar-2r", *geometry, "--bounds", -1.6, 1.6, -1.6, 1.6
+    )
+    assert code == 0, err
+    area = float(stdout.split("reachable area: ")[1].split()[0])
+    assert area == pytest.approx(np.pi * (1.6**2 - 0.4**2), rel=0.02)
+    assert "of 4225 voxels of edge 0.05" in stdout  # 65 x 65
+    bounds = ["--bounds", 0, 1, 0, 1, 0, 1]
+    code, _, err = run(capsys, "workspace", "planar-2r", *geometry, *bounds)
+    assert_one_line_error(code, err, "--bounds: planar-2r needs 4 numbers")
+    code, _, err = run(capsys, "workspace", "scara", "--robot", "paper", *bounds[:5])
+    assert_one_line_error(code, err, "--bounds: scara needs 6 numbers")
+    code, _, err = run(
+        capsys, "workspace", "scara", "--robot", "paper", "--bounds", 1, 0, 0, 1, 0, 1
+    )
+    assert_one_line_error(code, err, "--bounds: need finite xmin <= xmax")
 
 
 def test_workspace_delta_bounds_and_errors(tmp_path, capsys):
@@ -602,35 +655,73 @@ def test_workspace_delta_bounds_and_errors(tmp_path, capsys):
     assert_one_line_error(code, err, "--resolution must be positive")
     code, _, err = run(capsys, "workspace", "delta", "--robot", "paper", "-o", tmp_path / "w.csv")
     assert_one_line_error(code, err, "saved as .npz")
+    code, _, err = run(capsys, "workspace", "delta", "--robot", "paper", "--resolution", 1e-4)
+    assert_one_line_error(code, err, "voxels is too many")
 
 
 # ------------------------------------------------------------------------------------- demo
 
 
 def test_demo_list_and_errors(capsys, monkeypatch, tmp_path):
-    code, out, _ = run(capsys, "demo", "--list")
-    assert code == 0
-    names = [line.split()[0] for line in out.splitlines()]
-    assert "scara-spiral" in names and "dyad" in names
+    """``--list`` shows every shipped example (whatever the set), one line each with its
+    summary, the default marked; unknown names, a missing output folder and a missing
+    ``jaxkin.examples`` package are one-line errors."""
+    code, out, err = run(capsys, "demo", "--list")
+    assert code == 0, err
+    found = demo.examples()
+    lines = out.splitlines()
+    assert [line.split()[0] for line in lines] == list(found)
+    assert demo.DEFAULT == "planner-scara" and demo.DEFAULT in found
+    assert all(len(line.split()) > 1 for line in lines)  # a summary on every line
+    assert [line for line in lines if line.endswith("(default)")] == [
+        next(line for line in lines if line.split()[0] == demo.DEFAULT)
+    ]
     code, _, err = run(capsys, "demo", "no-such-example")
-    assert_one_line_error(code, err, "example 'no-such-example' is not present", "scara-spiral")
-    monkeypatch.setattr(cli, "EXAMPLES_DIR", tmp_path / "missing")
+    assert_one_line_error(code, err, "example 'no-such-example' is not an example", demo.DEFAULT)
+    code, _, err = run(capsys, "demo", "--output-dir", tmp_path / "missing", demo.DEFAULT)
+    assert_one_line_error(code, err, "--output-dir", "no such directory")
+    monkeypatch.setattr(demo, "examples", dict)
     code, _, err = run(capsys, "demo")
-    assert_one_line_error(code, err, "no examples found")
+    assert_one_line_error(code, err, "no examples installed")
 
 
-def test_demo_runs_the_named_script(capsys, monkeypatch):
+def test_demo_runs_the_named_example_in_process(capsys, monkeypatch, tmp_path):
+    """The default, a name and a unique prefix each run one example in this process as
+    ``__main__`` with ``--output-dir`` and the remaining arguments; its exit status is the
+    command's. (Example scripts written here: the shipped set may change.)"""
+    scripts = {}
+    for name in ("planner-scara", "planner-delta", "dyad", "delta-workspace"):
+        path = tmp_path / (name.replace("-", "_") + ".py")
+        path.write_text(f'"""The {name} example."""\n')
+        scripts[name] = path
+    monkeypatch.setattr(demo, "examples", lambda: dict(scripts))
     seen = []
-    monkeypatch.setattr(cli.subprocess, "call", lambda cmd: seen.append(cmd) or 0)
-    assert run(capsys, "demo")[0] == 0
-    assert run(capsys, "demo", "dyad")[0] == 0
-    assert run(capsys, "demo", "delta-work", "--resolution", "5")[0] == 0  # unique prefix
-    assert Path(seen[0][1]) == ROOT / "examples" / "scara_spiral.py"
-    assert Path(seen[1][1]) == ROOT / "examples" / "dyad_demo.py"
-    assert seen[2][1:] == [str(ROOT / "examples" / "delta_workspace.py"), "--resolution", "5"]
-    assert seen[0][0] == sys.executable
-    monkeypatch.setattr(cli.subprocess, "call", lambda cmd: 3)  # the example's exit status
+
+    def fake_run(path, run_name):
+        seen.append((Path(path).name, run_name, list(sys.argv)))
+        if Path(path).name == "dyad.py":
+            raise SystemExit(3)  # the example's exit status is the command's
+
+    monkeypatch.setattr(demo.runpy, "run_path", fake_run)
+    argv = sys.argv
+    assert run(capsys, "demo", "--output-dir", tmp_path)[0] == 0
     assert run(capsys, "demo", "dyad")[0] == 3
+    assert run(capsys, "demo", "delta-work", "--resolution", "5")[0] == 0  # unique prefix
+    assert sys.argv == argv  # restored
+    assert [s[0] for s in seen] == ["planner_scara.py", "dyad.py", "delta_workspace.py"]
+    assert all(s[1] == "__main__" for s in seen)
+    assert seen[0][2] == [str(scripts["planner-scara"]), "--output-dir", str(tmp_path)]
+    assert seen[2][2][1:] == ["--output-dir", ".", "--resolution", "5"]
+    code, _, err = run(capsys, "demo", "planner")
+    assert_one_line_error(code, err, "example 'planner' is ambiguous")
+
+
+def test_demo_runs_a_shipped_example(capsys, tmp_path):
+    """A quick shipped example (the dyad batch, no files) runs for real, in this process."""
+    assert "dyad" in demo.examples()
+    code, out, err = run(capsys, "demo", "--output-dir", tmp_path, "dyad")
+    assert code == 0, err
+    assert "running the dyad example" in err and out.strip()
 
 
 # ------------------------------------------------------------------------------------- help
@@ -640,7 +731,7 @@ def test_demo_runs_the_named_script(capsys, monkeypatch):
     ("argv", "expected"),
     [
         ([], ["demo", "ik", "fk", "workspace"]),
-        (["demo"], ["NAME", "--list"]),
+        (["demo"], ["NAME", "--list", "--output-dir"]),
         (
             ["ik"],
             [
@@ -650,14 +741,19 @@ def test_demo_runs_the_named_script(capsys, monkeypatch):
                 "--robot",
                 "--l-oa",
                 "--r-base",
+                "--h",
+                "--branch",
                 "--mode",
                 "--dtype",
                 "--spline",
                 "--plot",
+                "cylindrical",
+                "spherical",
+                "planar-2r",
             ],
         ),
         (["fk"], ["ROBOT", "--input", "--output", "--l-rod"]),
-        (["workspace"], ["--resolution", "--bounds", "--plot", "--output"]),
+        (["workspace"], ["--resolution", "--bounds", "--plot", "--output", "[ZMIN ZMAX]"]),
     ],
 )
 def test_help(capsys, argv, expected):
@@ -682,7 +778,7 @@ def test_version(capsys):
 def test_progress_bar_only_on_a_terminal(monkeypatch):
     import io
 
-    from jaxkin import progress
+    from jaxkin import _progress as progress
 
     monkeypatch.setitem(sys.modules, "tqdm", None)  # the built-in bar, even if tqdm is installed
 
@@ -706,66 +802,34 @@ def test_progress_bar_only_on_a_terminal(monkeypatch):
     assert quiet.getvalue() == ""
 
 
-# ------------------------------------------------------------------------- real processes
+# ------------------------------------------------------------------------- a real process
 
 
-def _jaxkin():
-    exe = Path(sys.executable).parent / "jaxkin"
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "jaxkin.cli"]
-
-
-def test_subprocess_scara_csv_round_trip(tmp_path):
-    t = np.linspace(0.0, 8.0, 41)
-    p, _, _ = spiral(t)
-    src = write_points(tmp_path / "in.csv", t, p)
-    for argv in (
-        ["ik", "scara", "--robot", "paper", "-i", src, "-o", tmp_path / "q.csv"],
-        ["fk", "scara", "--robot", "paper", "-i", tmp_path / "q.csv", "-o", tmp_path / "p.csv"],
-    ):
-        proc = subprocess.run(
-            [*_jaxkin(), *map(str, argv)], capture_output=True, text=True, timeout=120
-        )
-        assert proc.returncode == 0, proc.stderr
-    back = load(tmp_path / "p.csv")
-    np.testing.assert_allclose(np.stack([back[k] for k in "xyz"], -1), p, atol=1e-9)
-
-
-def test_subprocess_delta_npz_and_error(tmp_path):
+def test_console_script_end_to_end(tmp_path):
+    """The installed ``jaxkin`` script in a fresh process (JAX's 64-bit mode off until the
+    command turns it on): a float32 solve writes float32 columns equal to the elbow-out
+    reference; a bad geometry exits with status 2 and one line, the output untouched."""
+    exe = shutil.which("jaxkin", path=str(Path(sys.executable).parent))
+    assert exe is not None, "the jaxkin console script is not installed"
     t = np.linspace(0.0, 2.0, 21)
     p, v, a = delta_path(t)
     src = write_points(tmp_path / "in.npz", t, p, v, a)
     out = tmp_path / "q.npz"
+    argv = ["ik", "delta", "--robot", "paper", "--dtype", "float32", "-i", src, "-o", out]
     proc = subprocess.run(
-        [
-            *_jaxkin(),
-            "ik",
-            "delta",
-            "--robot",
-            "paper",
-            "--dtype",
-            "float32",
-            "-i",
-            str(src),
-            "-o",
-            str(out),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
+        [exe, *map(str, argv)], capture_output=True, text=True, timeout=120, cwd=tmp_path
     )
     assert proc.returncode == 0, proc.stderr
-    assert load(out)["theta1"].dtype == np.float32
+    q = load(out)
+    assert q["theta1"].dtype == np.float32 and set(q["status"].tolist()) == {"OK"}
+    theta = columns(q, ("theta1", "theta2", "theta3"))
+    np.testing.assert_allclose(theta, delta_ref.ik_numpy(p), atol=1e-4)
     before = out.read_bytes()
+    argv = ["ik", "delta", "--l-arm", "-1", "-i", src, "-o", out]
     proc = subprocess.run(
-        [*_jaxkin(), "ik", "delta", "--l-arm", "-1", "-i", str(src), "-o", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=120,
+        [exe, *map(str, argv)], capture_output=True, text=True, timeout=120, cwd=tmp_path
     )
     assert proc.returncode == 2
-    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("jaxkin: error: ")
+    assert "Traceback" not in proc.stderr
     assert out.read_bytes() == before
-
-
-def test_console_script_is_installed():
-    assert shutil.which("jaxkin", path=str(Path(sys.executable).parent)) is not None

@@ -2,25 +2,22 @@
 
 Independent sources used here: plain NumPy geometry written in this file (chain directions from
 an explicit rotation matrix, elbow positions, rod lengths), hand-computed poses, the closed-form
-three-sphere intersection, finite differences, and the NumPy references in ``benchmarks/``.
+three-sphere intersection, finite differences, and the NumPy references in ``tests/references``.
 """
 
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
 
-from jaxkin import Jet, Status, delta, newton
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import reference_delta  # noqa: E402
+from jaxkin import Jet, Status, _batching, delta
+from jaxkin.delta import forward, inverse
+from tests.helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
+from tests.references import delta as reference_delta
 
 ROBOT = delta.Delta.paper()
 N = 256  # one batch size for most tests: each new shape costs a compilation
@@ -67,7 +64,7 @@ def test_geometry_validation_and_paper():
     for bad in ((0.0, 2.5, 15.5, 30.0), (7.0, -1.0, 15.5, 30.0), (7.0, 2.5, np.nan, 30.0)):
         with pytest.raises(ValueError):
             delta.Delta(*bad)
-    with pytest.raises(ValueError, match="theta_min < theta_max"):
+    with pytest.raises(ValueError, match="theta_min must be < theta_max"):
         robot.with_limits(1.0, -1.0)
     with pytest.raises(ValueError, match="scalar"):
         delta.Delta(np.ones(2), 2.5, 15.5, 30.0)
@@ -104,34 +101,34 @@ def test_hand_computed_home_pose():
     # 20 cm inward, so the platform hangs sqrt(30^2 - 20^2) = sqrt(500) below the base.
     p_home = np.array([0.0, 0.0, -math.sqrt(500.0)])
     result = delta.ik(ROBOT, p_home)
-    np.testing.assert_allclose(result.theta.p, 0.0, atol=1e-12)
+    np.testing.assert_allclose(result.q.p, 0.0, atol=1e-12)
     assert int(result.status) == Status.OK
-    np.testing.assert_allclose(delta.fk_closed_form(ROBOT, np.zeros(3)).p, p_home, atol=1e-12)
-    np.testing.assert_allclose(delta.fk(ROBOT, np.zeros(3)).p.p, p_home, atol=1e-12)
+    np.testing.assert_allclose(delta.fk_closed_form(ROBOT, np.zeros(3)).x, p_home, atol=1e-12)
+    np.testing.assert_allclose(delta.fk(ROBOT, np.zeros(3)).x.p, p_home, atol=1e-12)
 
 
 @pytest.mark.parametrize("z", [-21.0, -30.0, -42.0])
 def test_platform_below_centre_gives_equal_angles(z):
-    theta = np.asarray(delta.ik(ROBOT, np.array([0.0, 0.0, z])).theta.p)
+    theta = np.asarray(delta.ik(ROBOT, np.array([0.0, 0.0, z])).q.p)
     np.testing.assert_allclose(theta, theta[0], atol=1e-13)
     # by hand in the chain plane: (4.5 + 15.5 cos t)^2 + (z + 15.5 sin t)^2 = 30^2 (rod)
     t = theta[0]
     assert abs((4.5 + 15.5 * math.cos(t)) ** 2 + (z + 15.5 * math.sin(t)) ** 2 - 900.0) < 1e-10
     # deeper targets need larger (downward) angles
-    deeper = np.asarray(delta.ik(ROBOT, np.array([0.0, 0.0, z - 1.0])).theta.p)
+    deeper = np.asarray(delta.ik(ROBOT, np.array([0.0, 0.0, z - 1.0])).q.p)
     assert np.all(deeper > theta)
 
 
 def test_convention_chain_one_on_minus_y():
     # Pushing the platform toward -y (toward chain 1's actuator) lifts arm 1 (theta_1 decreases)
     # and lowers arms 2 and 3, whose actuators are on the +y side.
-    centre = np.asarray(delta.ik(ROBOT, np.array([0.0, 0.0, -30.0])).theta.p)
-    moved = np.asarray(delta.ik(ROBOT, np.array([0.0, -5.0, -30.0])).theta.p)
+    centre = np.asarray(delta.ik(ROBOT, np.array([0.0, 0.0, -30.0])).q.p)
+    moved = np.asarray(delta.ik(ROBOT, np.array([0.0, -5.0, -30.0])).q.p)
     assert moved[0] < centre[0]
     assert moved[1] > centre[1] and moved[2] > centre[2]
     np.testing.assert_allclose(moved[1], moved[2], atol=1e-13)  # mirror symmetry about x = 0
     # +x is on chain 2's side (at -90 + 120 = 30 degrees): chain 2 lifts, chain 3 lowers
-    moved_x = np.asarray(delta.ik(ROBOT, np.array([5.0, 0.0, -30.0])).theta.p)
+    moved_x = np.asarray(delta.ik(ROBOT, np.array([5.0, 0.0, -30.0])).q.p)
     assert moved_x[1] < centre[1] and moved_x[2] > centre[2]
 
 
@@ -140,13 +137,13 @@ def test_ik_satisfies_rod_lengths_independently(branch):
     p = random_workspace_points(N, seed=1)
     result = delta.ik(ROBOT, p, branch=branch)
     assert np.all(np.asarray(result.status) == Status.OK)
-    np.testing.assert_allclose(rod_lengths_np(p, np.asarray(result.theta.p)), LR, rtol=1e-12)
+    np.testing.assert_allclose(rod_lengths_np(p, np.asarray(result.q.p)), LR, rtol=1e-12)
 
 
 def test_elbow_out_is_farther_from_axis():
     p = random_workspace_points(N, seed=2)
-    out = elbows_np(np.asarray(delta.ik(ROBOT, p, branch="out").theta.p))
-    inn = elbows_np(np.asarray(delta.ik(ROBOT, p, branch="in").theta.p))
+    out = elbows_np(np.asarray(delta.ik(ROBOT, p, branch="out").q.p))
+    inn = elbows_np(np.asarray(delta.ik(ROBOT, p, branch="in").q.p))
     radial_out = np.sum(out * U, -1)
     radial_in = np.sum(inn * U, -1)
     assert np.all(radial_out > radial_in)  # farther out along the chain's radial direction
@@ -158,7 +155,7 @@ def test_elbow_out_is_farther_from_axis():
 
 def test_ik_matches_numpy_reference():
     p = random_workspace_points(N, seed=3)
-    np.testing.assert_allclose(delta.ik(ROBOT, p).theta.p, reference_delta.ik_numpy(p), atol=1e-12)
+    np.testing.assert_allclose(delta.ik(ROBOT, p).q.p, reference_delta.ik_numpy(p), atol=1e-12)
 
 
 def test_unreachable_invalid_and_limits_are_flagged():
@@ -195,30 +192,30 @@ def test_inverse_singularity_on_the_boundary():
 
 def test_fk_of_ik_round_trip_and_closed_form():
     p = random_workspace_points(N, seed=4)
-    theta = np.asarray(delta.ik(ROBOT, p).theta.p)
+    theta = np.asarray(delta.ik(ROBOT, p).q.p)
     fk = delta.fk(ROBOT, theta)
     assert np.all(np.asarray(fk.status) == Status.OK)
-    np.testing.assert_allclose(fk.p.p, p, atol=1e-10)
+    np.testing.assert_allclose(fk.x.p, p, atol=1e-10)
     # plain angles are taken at rest: zero rates of the position's shape and dtype, written by
-    # the kernel for small batches and by fk itself from delta._SHARED_ZEROS_MIN elements on
-    big = delta.fk(ROBOT, np.repeat(theta[:4], delta._SHARED_ZEROS_MIN // 4, axis=0))
+    # the kernel for small batches and by fk itself from _batching.SHARED_ZEROS_MIN elements on
+    big = delta.fk(ROBOT, np.repeat(theta[:4], _batching.SHARED_ZEROS_MIN // 4, axis=0))
     np.testing.assert_allclose(
-        np.asarray(big.p.p)[:: delta._SHARED_ZEROS_MIN // 4], fk.p.p[:4], atol=1e-12
+        np.asarray(big.x.p)[:: _batching.SHARED_ZEROS_MIN // 4], fk.x.p[:4], atol=1e-12
     )
     for result in (fk, big):
-        for rate in (result.p.v, result.p.a):
-            assert rate.shape == result.p.p.shape and rate.dtype == result.p.p.dtype
+        for rate in (result.x.v, result.x.a):
+            assert rate.shape == result.x.p.shape and rate.dtype == result.x.p.dtype
             assert not np.any(np.asarray(rate))
     closed = delta.fk_closed_form(ROBOT, theta)
     assert np.all(np.asarray(closed.status) == Status.OK)
-    np.testing.assert_allclose(closed.p, p, atol=1e-10)
-    assert np.all(np.asarray(delta.which_branch(ROBOT, theta, fk.p.p)) == delta.LOWER)
+    np.testing.assert_allclose(closed.x, p, atol=1e-10)
+    assert np.all(np.asarray(delta.which_branch(ROBOT, theta, fk.x.p)) == delta.LOWER)
     # the upper assembly lies above the plane of the sphere centres and satisfies the rods too
-    np.testing.assert_allclose(rod_lengths_np(np.asarray(closed.p_upper), theta), LR, rtol=1e-12)
-    assert np.all(np.asarray(closed.p_upper)[:, 2] > np.asarray(closed.p)[:, 2])
+    np.testing.assert_allclose(rod_lengths_np(np.asarray(closed.x_upper), theta), LR, rtol=1e-12)
+    assert np.all(np.asarray(closed.x_upper)[:, 2] > np.asarray(closed.x)[:, 2])
     # elbow-in angles reach the same platform positions
-    theta_in = np.asarray(delta.ik(ROBOT, p, branch="in").theta.p)
-    np.testing.assert_allclose(delta.fk_closed_form(ROBOT, theta_in).p, p, atol=1e-10)
+    theta_in = np.asarray(delta.ik(ROBOT, p, branch="in").q.p)
+    np.testing.assert_allclose(delta.fk_closed_form(ROBOT, theta_in).x, p, atol=1e-10)
 
 
 def test_newton_matches_closed_form_on_random_angles_and_reports_branch():
@@ -229,17 +226,17 @@ def test_newton_matches_closed_form_on_random_angles_and_reports_branch():
     ok = np.asarray(closed.status) == Status.OK
     assert ok.mean() > 0.9
     assert np.all(np.asarray(fk.status)[ok] == Status.OK)  # 100 % convergence where assemblable
-    np.testing.assert_allclose(np.asarray(fk.p.p)[ok], np.asarray(closed.p)[ok], atol=1e-10)
+    np.testing.assert_allclose(np.asarray(fk.x.p)[ok], np.asarray(closed.x)[ok], atol=1e-10)
     # A guess above the centres converges to the upper assembly, and which_branch says so.
-    upper = delta.fk(ROBOT, theta, guess=np.asarray(closed.p_upper) + 0.5)
-    np.testing.assert_allclose(np.asarray(upper.p.p)[ok], np.asarray(closed.p_upper)[ok], atol=1e-9)
-    branch = np.asarray(delta.which_branch(ROBOT, theta, upper.p.p))
+    upper = delta.fk(ROBOT, theta, guess=np.asarray(closed.x_upper) + 0.5)
+    np.testing.assert_allclose(np.asarray(upper.x.p)[ok], np.asarray(closed.x_upper)[ok], atol=1e-9)
+    branch = np.asarray(delta.which_branch(ROBOT, theta, upper.x.p))
     assert np.all(branch[ok] == delta.UPPER)
 
 
 def test_convergence_counts_default_home_and_warm_start():
     p = random_workspace_points(N, seed=6)
-    theta = np.asarray(delta.ik(ROBOT, p).theta.p)
+    theta = np.asarray(delta.ik(ROBOT, p).q.p)
     default = np.asarray(delta.fk(ROBOT, theta).iterations)
     # default guess (centroid of the sphere centres, lowered): measured max 5, mean ~4
     assert default.max() <= 6 and default.mean() < 5
@@ -251,12 +248,12 @@ def test_convergence_counts_default_home_and_warm_start():
     # warm start along a trajectory sampled at 1 kHz (circle of radius 10 cm at 1 m/s)
     t = np.arange(N + 1) * 1e-3
     path = np.stack([10 * np.cos(10 * t), 10 * np.sin(10 * t), -30 + 0 * t], -1)
-    theta_path = np.asarray(delta.ik(ROBOT, path).theta.p)
+    theta_path = np.asarray(delta.ik(ROBOT, path).q.p)
     warm = delta.fk(ROBOT, theta_path[1:], guess=path[:-1])
     assert np.all(np.asarray(warm.status) == Status.OK)
     assert np.asarray(warm.iterations).max() <= 3
     assert np.asarray(warm.residual).max() <= 1e-12 * (LA + LR)
-    np.testing.assert_allclose(warm.p.p, path[1:], atol=1e-11)
+    np.testing.assert_allclose(warm.x.p, path[1:], atol=1e-11)
 
 
 def test_unassemblable_angles_and_invalid_input():
@@ -291,7 +288,7 @@ def test_direct_singularity_flagged():
     edge = lo * bad
     closed = delta.fk_closed_form(ROBOT, edge)
     assert int(closed.status) == Status.SINGULAR
-    measure = delta.singularity(ROBOT, closed.p, edge)
+    measure = delta.singularity(ROBOT, closed.x, edge)
     assert float(measure.direct) < 1e-6 and int(measure.status) == Status.SINGULAR
     fk = delta.fk(ROBOT, edge)
     assert int(fk.status) in (Status.SINGULAR, Status.NOT_CONVERGED)
@@ -300,7 +297,7 @@ def test_direct_singularity_flagged():
 
 def test_references_agree_with_jaxkin():
     p = random_workspace_points(N, seed=8)
-    theta = np.asarray(delta.ik(ROBOT, p).theta.p)
+    theta = np.asarray(delta.ik(ROBOT, p).q.p)
     np.testing.assert_allclose(reference_delta.fk_closed_form_numpy(theta), p, atol=1e-10)
     np.testing.assert_allclose(reference_delta.fk_newton_numpy(theta), p, atol=1e-10)
     pytest.importorskip("numba")
@@ -327,40 +324,40 @@ def test_ik_rates_analytic_autodiff_and_finite_differences(t):
     jet = helix_jet(t)
     analytic = delta.ik(ROBOT, jet)
     autodiff = delta.ik(ROBOT, jet, method="autodiff")
-    np.testing.assert_allclose(analytic.theta.v, autodiff.theta.v, rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(analytic.theta.a, autodiff.theta.a, rtol=1e-10, atol=1e-12)
-    v_fd, a_fd = fd_rates(lambda s: np.asarray(delta.ik(ROBOT, helix(s)).theta.p), t)
-    np.testing.assert_allclose(analytic.theta.v, v_fd, rtol=1e-8, atol=1e-9)
-    np.testing.assert_allclose(analytic.theta.a, a_fd, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(analytic.q.v, autodiff.q.v, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(analytic.q.a, autodiff.q.a, rtol=1e-10, atol=1e-12)
+    v_fd, a_fd = fd_rates(lambda s: np.asarray(delta.ik(ROBOT, helix(s)).q.p), t)
+    np.testing.assert_allclose(analytic.q.v, v_fd, rtol=1e-8, atol=1e-9)
+    np.testing.assert_allclose(analytic.q.a, a_fd, rtol=1e-6, atol=1e-6)
 
 
 @pytest.mark.parametrize("t", [0.3, 1.7])
 def test_fk_rates_analytic_autodiff_and_finite_differences(t):
-    theta = delta.ik(ROBOT, helix_jet(t)).theta  # a joint-space Jet
+    theta = delta.ik(ROBOT, helix_jet(t)).q  # a joint-space Jet
     analytic = delta.fk(ROBOT, theta)
     autodiff = delta.fk(ROBOT, theta, method="autodiff")
     assert int(analytic.status) == Status.OK and int(autodiff.status) == Status.OK
-    np.testing.assert_allclose(analytic.p.v, autodiff.p.v, rtol=1e-10, atol=1e-11)
-    np.testing.assert_allclose(analytic.p.a, autodiff.p.a, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(analytic.x.v, autodiff.x.v, rtol=1e-10, atol=1e-11)
+    np.testing.assert_allclose(analytic.x.a, autodiff.x.a, rtol=1e-10, atol=1e-10)
     # the round trip recovers the Cartesian rates exactly
     jet = helix_jet(t)
-    np.testing.assert_allclose(analytic.p.v, jet.v, rtol=1e-10, atol=1e-11)
-    np.testing.assert_allclose(analytic.p.a, jet.a, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(analytic.x.v, jet.v, rtol=1e-10, atol=1e-11)
+    np.testing.assert_allclose(analytic.x.a, jet.a, rtol=1e-10, atol=1e-10)
 
     def theta_of(s):  # a joint trajectory, then FK by Newton as a black box
         base = np.asarray(theta.p)
         return base + np.asarray(theta.v) * (s - t) + 0.5 * np.asarray(theta.a) * (s - t) ** 2
 
-    v_fd, a_fd = fd_rates(lambda s: np.asarray(delta.fk(ROBOT, theta_of(s)).p.p), t)
-    np.testing.assert_allclose(analytic.p.v, v_fd, rtol=1e-8, atol=1e-8)
-    np.testing.assert_allclose(analytic.p.a, a_fd, rtol=1e-6, atol=1e-6)
+    v_fd, a_fd = fd_rates(lambda s: np.asarray(delta.fk(ROBOT, theta_of(s)).x.p), t)
+    np.testing.assert_allclose(analytic.x.v, v_fd, rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(analytic.x.a, a_fd, rtol=1e-6, atol=1e-6)
 
 
 def test_rates_are_zero_placeholders_where_not_ok():
     p = Jet.of(np.array([[0.0, 0.0, -30.0], [0.0, 0.0, -60.0]]), np.ones((2, 3)), np.ones((2, 3)))
     result = delta.ik(ROBOT, p)
     assert result.status.tolist() == [Status.OK, Status.UNREACHABLE]
-    assert np.all(np.asarray(result.theta.v)[1] == 0) and np.all(np.asarray(result.theta.a)[1] == 0)
+    assert np.all(np.asarray(result.q.v)[1] == 0) and np.all(np.asarray(result.q.a)[1] == 0)
 
 
 # ------------------------------------------------------------------ batching, jit, gradients
@@ -371,59 +368,57 @@ def test_batch_shapes(shape):
     n = int(np.prod(shape)) if shape else 1
     p = random_workspace_points(n, seed=9).reshape(*shape, 3)
     ik = delta.ik(ROBOT, p)
-    assert ik.theta.p.shape == (*shape, 3) and ik.status.shape == shape
-    fk = delta.fk(ROBOT, ik.theta)
-    assert fk.p.p.shape == (*shape, 3) and fk.iterations.shape == shape
-    np.testing.assert_allclose(fk.p.p, p, atol=1e-10)
+    assert ik.q.p.shape == (*shape, 3) and ik.status.shape == shape
+    fk = delta.fk(ROBOT, ik.q)
+    assert fk.x.p.shape == (*shape, 3) and fk.iterations.shape == shape
+    np.testing.assert_allclose(fk.x.p, p, atol=1e-10)
 
 
 def test_jit_over_batch_and_time_without_recompilation():
     p = random_workspace_points(4 * 6, seed=10).reshape(4, 6, 3)  # (N, T, 3)
-    theta = delta.ik(ROBOT, p).theta.p
-    before_ik, before_fk = compile_count(delta._ik_jit), compile_count(delta._fk_jit)
+    theta = delta.ik(ROBOT, p).q.p
+    before_ik, before_fk = compile_count(inverse._ik_jit), compile_count(forward._fk_jit)
     delta.ik(ROBOT, p + 0.1)
     delta.ik(ROBOT, p - 0.1)
     delta.fk(ROBOT, theta)
     delta.fk(ROBOT, theta + 0.01)
-    assert compile_count(delta._ik_jit) - before_ik <= 1
-    assert compile_count(delta._fk_jit) - before_fk <= 1
-    user = jax.jit(lambda th: delta.fk(ROBOT, th).p.p)
+    assert compile_count(inverse._ik_jit) - before_ik <= 1
+    assert compile_count(forward._fk_jit) - before_fk <= 1
+    user = jax.jit(lambda th: delta.fk(ROBOT, th).x.p)
     np.testing.assert_allclose(user(theta), p, atol=1e-10)
     user(theta + 0.01)
     assert compile_count(user) == 1
     # the geometry is a pytree: it can be vmapped (e.g. a batch of robots)
     robots = jax.tree.map(lambda x: jnp.stack([x, x * 1.01]), ROBOT)
     per_robot = jax.vmap(
-        lambda r: delta._ik_jit(r, Jet(p[0], None, None), "out", "analytic", False)
+        lambda r: inverse._ik_jit(r, Jet(p[0], None, None), "out", "analytic", False)
     )
-    assert per_robot(robots).theta.p.shape == (2, 6, 3)
+    assert per_robot(robots).q.p.shape == (2, 6, 3)
 
 
 def test_chunked_batches_equal_small_batches():
-    """A batch over jaxkin._chunks.CHUNK is solved in padded chunks: same answers per element.
+    """A batch over ``_batching.CHUNK`` is solved in padded chunks: same answers per element.
 
     The reference solves slices of at most CHUNK elements whole; the compiled loops differ,
     so values agree to rounding (1e-12 cm on a 30 cm robot) and counts/statuses exactly.
     """
-    from jaxkin import _chunks
-
-    n = _chunks.CHUNK + 37  # two chunks, the last one padded
+    n = _batching.CHUNK + 37  # two chunks, the last one padded
     p = random_workspace_points(n, seed=11)
-    theta = np.array(delta.ik(ROBOT, p).theta.p)
+    theta = np.array(delta.ik(ROBOT, p).q.p)
     theta[5] = np.nan  # invalid input in the first chunk
     theta[-1] = [np.pi, 0.0, 0.0]  # cannot be assembled (fk_closed_form: UNREACHABLE)
     whole = delta.fk(ROBOT, theta)
     half = n // 2
     parts = [delta.fk(ROBOT, theta[:half]), delta.fk(ROBOT, theta[half:])]
     np.testing.assert_allclose(
-        whole.p.p, np.concatenate([r.p.p for r in parts]), rtol=0, atol=1e-12
+        whole.x.p, np.concatenate([r.x.p for r in parts]), rtol=0, atol=1e-12
     )
     for field in ("iterations", "status", "converged"):
         np.testing.assert_array_equal(
             getattr(whole, field), np.concatenate([getattr(r, field) for r in parts])
         )
     assert whole.status[5] == Status.INVALID_INPUT
-    np.testing.assert_allclose(whole.p.p[:-1][whole.ok[:-1]], p[:-1][whole.ok[:-1]], atol=1e-10)
+    np.testing.assert_allclose(whole.x.p[:-1][whole.ok[:-1]], p[:-1][whole.ok[:-1]], atol=1e-10)
 
 
 def test_fk_diagnostics_refer_to_the_original_constraints():
@@ -431,18 +426,18 @@ def test_fk_diagnostics_refer_to_the_original_constraints():
 
     Independent check: the rod lengths (numpy geometry of this file) give the residuals
     ``(|rod|^2 - l_rod^2) / (2 l_rod)``, and the Hadamard ratio of the stacked Jacobian
-    ``[p - C_i]`` comes from ``newton.hadamard_ratio`` (determinant by ``jnp.cross``).
+    ``[p - C_i]`` comes from NumPy (``|det| / prod_i |row_i|``).
     """
     p = random_workspace_points(300, seed=21)
-    theta = np.asarray(delta.ik(ROBOT, p).theta.p)
+    theta = np.asarray(delta.ik(ROBOT, p).q.p)
     # Stop early so the residual is far from rounding and the comparison is meaningful.
     result = delta.fk(ROBOT, theta, max_iter=2)
-    x = np.asarray(result.p.p)
+    x = np.asarray(result.x.p)
     rods = rod_lengths_np(x, theta)
     expected = np.max(np.abs((rods * rods - LR * LR) / (2.0 * LR)), axis=-1)
     np.testing.assert_allclose(result.residual, expected, rtol=1e-9, atol=1e-12)
     rows = x[..., None, :] + RP * U - elbows_np(theta)  # p - C_i = D_i - E_i
-    ratio = newton.hadamard_ratio(jnp.asarray(rows))
+    ratio = np.abs(np.linalg.det(rows)) / np.prod(np.linalg.norm(rows, axis=-1), axis=-1)
     np.testing.assert_allclose(result.conditioning, ratio, rtol=1e-9)
     scale = LA + LR
     np.testing.assert_array_equal(result.converged, expected <= 1e-12 * scale)
@@ -454,30 +449,30 @@ def test_fk_diagnostics_refer_to_the_original_constraints():
 def test_static_and_traced_geometry_agree():
     """Concrete geometry is compiled in as constants; traced geometry takes the data path."""
     p = random_workspace_points(64, seed=12)
-    theta = delta.ik(ROBOT, p).theta
+    theta = delta.ik(ROBOT, p).q
     static = delta.fk(ROBOT, theta)
     traced = jax.jit(lambda robot, th: delta.fk(robot, th))(ROBOT, theta)
-    for a, b in zip(jax.tree.leaves(static.p), jax.tree.leaves(traced.p), strict=True):
+    for a, b in zip(jax.tree.leaves(static.x), jax.tree.leaves(traced.x), strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(static.residual, traced.residual, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(static.iterations, traced.iterations)
     np.testing.assert_array_equal(static.status, traced.status)
-    closed = jax.jit(lambda robot, th: delta.fk_closed_form(robot, th).p)(ROBOT, theta.p)
-    np.testing.assert_allclose(closed, delta.fk_closed_form(ROBOT, theta.p).p, rtol=1e-12)
+    closed = jax.jit(lambda robot, th: delta.fk_closed_form(robot, th).x)(ROBOT, theta.p)
+    np.testing.assert_allclose(closed, delta.fk_closed_form(ROBOT, theta.p).x, rtol=1e-12)
 
 
 def test_finite_gradients_on_mixed_batches():
     p = np.array([[0.0, 0.0, -30.0], [0.0, 0.0, -60.0], [np.nan, 0.0, -30.0], [3.0, 4.0, -25.0]])
 
     def ik_loss(p):
-        return jnp.sum(delta.ik(ROBOT, p).theta.p ** 2)
+        return jnp.sum(delta.ik(ROBOT, p).q.p ** 2)
 
     grad = jax.grad(ik_loss)(jnp.asarray(p))
     assert np.all(np.isfinite(np.asarray(grad)))
     theta = np.array([[0.1, 0.2, 0.3], [np.nan, 0.0, 0.0], [3.0, -3.0, 2.5], [0.0, 0.0, 0.0]])
 
     def fk_loss(theta):
-        return jnp.sum(delta.fk(ROBOT, theta).p.p ** 2)
+        return jnp.sum(delta.fk(ROBOT, theta).x.p ** 2)
 
     grad = np.asarray(jax.grad(fk_loss)(jnp.asarray(theta)))
     assert np.all(np.isfinite(grad))
@@ -494,7 +489,7 @@ def test_finite_gradients_on_mixed_batches():
     np.testing.assert_allclose(grad[0], fd, rtol=1e-6)
 
     def calibration_loss(robot):
-        return jnp.sum(delta.fk(robot, theta[:1]).p.p)
+        return jnp.sum(delta.fk(robot, theta[:1]).x.p)
 
     robot_grad = jax.grad(calibration_loss)(ROBOT)
     assert tree_allfinite(robot_grad)
@@ -503,15 +498,15 @@ def test_finite_gradients_on_mixed_batches():
 def test_float32():
     p = random_workspace_points(N, seed=11).astype(np.float32)
     ik = delta.ik(ROBOT, p)
-    assert ik.theta.p.dtype == jnp.float32
-    fk = delta.fk(ROBOT, ik.theta.p)  # the float32 default tolerance is 8 eps = 9.5e-7
-    assert fk.p.p.dtype == jnp.float32
+    assert ik.q.p.dtype == jnp.float32
+    fk = delta.fk(ROBOT, ik.q.p)  # the float32 default tolerance is 8 eps = 9.5e-7
+    assert fk.x.p.dtype == jnp.float32
     assert np.all(np.asarray(fk.status) == Status.OK)
     assert np.asarray(fk.iterations).max() <= 4
     # 1e-12 is below float32 resolution: most elements cannot meet it
-    strict = delta.fk(ROBOT, ik.theta.p, tol=1e-12)
+    strict = delta.fk(ROBOT, ik.q.p, tol=1e-12)
     assert np.mean(np.asarray(strict.status) == Status.NOT_CONVERGED) > 0.5
     # measured: ~1e-5 cm on a 50 cm robot (float32 eps 1.2e-7 times the ~30 cm rods, amplified)
-    assert np.abs(np.asarray(fk.p.p, np.float64) - p).max() < 1e-4
-    closed = delta.fk_closed_form(ROBOT, ik.theta.p)
-    assert np.abs(np.asarray(closed.p, np.float64) - p).max() < 1e-4
+    assert np.abs(np.asarray(fk.x.p, np.float64) - p).max() < 1e-4
+    closed = delta.fk_closed_form(ROBOT, ik.q.p)
+    assert np.abs(np.asarray(closed.x, np.float64) - p).max() < 1e-4

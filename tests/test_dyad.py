@@ -1,4 +1,4 @@
-"""RRR dyad (seed 000, section 2): every check uses a source independent of the kernel.
+"""RRR dyad [Noriega, sec. 2]: every check uses a source independent of the kernel.
 
 Independent sources: sympy (C and phi from atan2/acos, differentiated symbolically), central
 finite differences along smooth trajectories, the geometric invariants, and hand-built singular
@@ -10,11 +10,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import sympy as sp
-from helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from jaxkin import Jet, Status, dyad
+from jaxkin import Jet, Status, _batching, dyad
+from tests.helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
 
 t = sp.symbols("t", real=True)
 
@@ -87,7 +87,8 @@ def test_analytic_equals_autodiff(case, mode):
     if analytic.status != Status.OK or analytic.margin < 1e-3:
         return  # rates are 0 placeholders (checked elsewhere) or ill-conditioned
     for x, y in ((analytic.c, autodiff.c), (analytic.phi, autodiff.phi)):
-        np.testing.assert_array_equal(x.p, y.p)
+        # One kernel, positions scaled back in a different order: equal to an ulp or two.
+        np.testing.assert_allclose(x.p, y.p, rtol=1e-15, atol=1e-15 * (l_ac + l_bc))
         _close(x.v, y.v, 1e-10)
         _close(x.a, y.a, 1e-10)
 
@@ -234,11 +235,11 @@ def test_position_equals_the_position_part_of_solve(mode):
         dyad.position(a, b, 1.0, 1.0, mode=0)
 
 
-@pytest.mark.parametrize("shape", [(dyad._HALVES_MIN_SIZE + 1,), (3, 50_001)])
+@pytest.mark.parametrize("shape", [(33,), (3, 11)])
 def test_autodiff_in_two_halves_equals_the_whole_batch(monkeypatch, shape):
-    """Above _HALVES_MIN_SIZE the autodiff path runs on two halves of the flattened batch
-    (odd sizes: unequal halves); it must equal the one-piece computation and the analytic
-    path, bad elements included."""
+    """Above ``_batching.HALVES_MIN`` (patched small here) the autodiff path runs on two halves
+    of the flattened batch (odd sizes: unequal halves); it must equal the one-piece computation
+    and the analytic path, bad elements included."""
     rng = np.random.default_rng(17)
     a = Jet.of(*(rng.normal(size=(*shape, 2)) * 0.2 for _ in range(3)))
     b_p = rng.normal(size=(*shape, 2)) * 0.2 + [1.6, 0.0]
@@ -247,8 +248,9 @@ def test_autodiff_in_two_halves_equals_the_whole_batch(monkeypatch, shape):
     b = Jet.of(b_p, *rng.normal(size=(2, *shape, 2)))
     l_ac = rng.uniform(0.8, 1.4, shape)
     args = (a, b, l_ac, 0.9, -1, "autodiff")
-    halves = dyad._solve_jit(*args)
-    monkeypatch.setattr(dyad, "_HALVES_MIN_SIZE", 10**12)
+    monkeypatch.setattr(_batching, "HALVES_MIN", 16)
+    halves = jax.jit(dyad._solve_impl, static_argnames=("mode", "method"))(*args)
+    monkeypatch.setattr(_batching, "HALVES_MIN", 10**12)
     whole = jax.jit(dyad._solve_impl, static_argnames=("mode", "method"))(*args)
     for x, y in zip(jax.tree.leaves(halves), jax.tree.leaves(whole), strict=True):
         assert x.shape == y.shape
@@ -331,7 +333,9 @@ def test_batch_shapes_and_per_element_equality(shape):
     flat = jax.tree.map(lambda x: np.asarray(x).reshape(-1, *np.shape(x)[len(shape) :]), (a, b))
     for i in range(int(np.prod(shape))):
         one = dyad.solve(flat[0][i], flat[1][i], 1.0, 0.8, -1)
-        np.testing.assert_allclose(np.asarray(res.c.a).reshape(-1, 2)[i], one.c.a, rtol=1e-14)
+        # vectorised and scalar code round differently: 1e-14 of the acceleration's size
+        got = np.asarray(res.c.a).reshape(-1, 2)[i]
+        np.testing.assert_allclose(got, one.c.a, rtol=0, atol=1e-14 * np.abs(one.c.a).max())
 
 
 def test_lengths_broadcast_per_element():

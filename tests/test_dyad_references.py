@@ -1,16 +1,11 @@
 """The benchmark references compute what jaxkin computes (so benchmark ratios compare like
 with like). The references live in benchmarks/ and are not part of the library."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from reference_dyad import dyad_numpy, make_numba_dyad, random_dyads  # noqa: E402
-
-from jaxkin import Jet, dyad  # noqa: E402
+from jaxkin import Jet, dyad
+from tests.references.dyad import dyad_numpy, make_numba_dyad, random_dyads
 
 
 @pytest.mark.parametrize("mode", [1, -1])

@@ -7,7 +7,15 @@ import numpy as np
 import pytest
 
 from jaxkin import fixedpoint
-from jaxkin.serial.arms import Anthropomorphic, fk, ik
+from jaxkin.serial.arms import Anthropomorphic, ik
+from jaxkin.serial.dh import fk_dh
+
+
+def fk(robot, q):
+    """The DH forward kinematics of an arm: the 4x4 transform of its last frame."""
+    q = jnp.asarray(q)
+    return fk_dh(robot.dh_table(q.dtype), q)
+
 
 ROBOT = Anthropomorphic(0.3, 0.25, 0.2)
 
@@ -51,7 +59,7 @@ def test_quantize_error_bounds_and_grid():
 
 
 def test_unquantised_paper_equations_match_serial_ik():
-    """Seed 001's sequence (eq. 14's C, acos, eq. 11) vs the two-link solver of serial.ik.
+    """[Lopez-Villagomez]'s sequence (eq. 14's C, acos, eq. 11) vs the two-link solver of serial.ik.
 
     1e-9, not 1e-12: the acos of eq. 14's C / rho loses digits when the elbow is nearly
     straight (the targets keep |sin q3| > 0.2; observed ~2e-12).

@@ -1,18 +1,13 @@
 """The Fig. 4 comparison formulations (benchmarks/formulations.py) solve the same dyads as
 jaxkin.dyad, so their timings compare like with like."""
 
-import sys
-from pathlib import Path
-
 import jax
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-import formulations  # noqa: E402
-from reference_dyad import random_dyads  # noqa: E402
-
-from jaxkin import Jet, dyad  # noqa: E402
+from jaxkin import Jet, dyad
+from tests.references import formulations
+from tests.references.dyad import random_dyads
 
 
 @pytest.mark.parametrize("mode", [1, -1])

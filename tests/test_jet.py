@@ -100,7 +100,7 @@ def test_lift_matches_finite_differences_along_a_trajectory(t):
     def f(p):
         return jnp.arctan2(p[1], p[0]) * jnp.sqrt(1.0 + p[0] ** 2)
 
-    from helpers import fd_rates
+    from tests.helpers import fd_rates
 
     y = lift(f)(traj_jet(t))
     v_fd, a_fd = fd_rates(lambda s: np.asarray(f(jnp.asarray(traj(s)))), t)

@@ -8,33 +8,20 @@ own results; compilations are counted with JAX's monitoring events.
 
 from __future__ import annotations
 
-import contextlib
-
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from jax import monitoring
 from scipy.optimize import minimize
 
 import jaxkin
 from jaxkin import Status, delta, optimize, scara, serial
+from tests.helpers import compilations
 
 ROBOT = scara.Scara.paper()
 START = np.array([100.0, -60.0, 50.0])
 GOAL = np.array([100.0, 60.0, 70.0])
 N_SAMPLES = 60
-
-_EVENTS: list[str] = []
-monitoring.register_event_duration_secs_listener(lambda name, *_, **__: _EVENTS.append(name))
-
-
-@contextlib.contextmanager
-def compilations():
-    start = len(_EVENTS)
-    counter = {"n": 0}
-    yield counter
-    counter["n"] = sum(n.endswith("backend_compile_duration") for n in _EVENTS[start:])
 
 
 def _reference_objective(start, goal, n_interior):

@@ -1,6 +1,11 @@
-"""Planner backend: per-candidate equality with per-point IK, failures at the right sample,
-limits, branch choice, chunking and sharding."""
+"""Planner backend: every robot of the protocol, per-candidate equality with independent IK,
+failures at the right sample, limits, branch choice, chunking and sharding.
 
+Compilations dominate the cost of these tests, so the SCARA tests share one batch shape
+(``N_SCARA`` candidates of ``T_SCARA`` samples) and every other robot keeps one shape.
+"""
+
+import math
 import os
 import subprocess
 import sys
@@ -9,14 +14,19 @@ from pathlib import Path
 import jax
 import numpy as np
 import pytest
-from helpers import tree_allfinite
 
-from jaxkin import Jet, Status, delta, plan, scara
+import jaxkin
+from jaxkin import Jet, Status, delta, plan, scara, serial
+from tests.helpers import tree_allfinite
+from tests.references import delta as delta_ref
+from tests.references import scara as scara_ref
 
-ROBOT = scara.Scara.create(150.0, 80.0, 50.0)  # seed 000 spiral robot: annulus [30, 130] mm
+ROOT = Path(__file__).resolve().parents[1]
+ROBOT = scara.Scara.paper()  # [Noriega, eq. 16] spiral robot: annulus [30, 130] mm
+N_SCARA, T_SCARA = 5, 33
 
 
-def radial_paths(radii_start, radii_end, n_samples=41, z=60.0, angle=0.3):
+def radial_paths(radii_start, radii_end, n_samples=T_SCARA, z=60.0, angle=0.3):
     """Straight radial lines at a fixed angle, with exact (constant) velocity."""
     s = np.linspace(0.0, 1.0, n_samples)
     r = radii_start[:, None] + (radii_end - radii_start)[:, None] * s
@@ -27,8 +37,8 @@ def radial_paths(radii_start, radii_end, n_samples=41, z=60.0, angle=0.3):
     return Jet.of(p, v, np.zeros_like(p)), r
 
 
-def spiral_candidates(n=6, n_samples=33):
-    """Scaled copies of the seed's spiral (eq. 16), exact derivatives."""
+def spiral_candidates(n=N_SCARA, n_samples=T_SCARA):
+    """Scaled copies of the spiral of [Noriega, eq. 16], exact derivatives."""
     t = np.linspace(0.0, 8.0, n_samples)
     w = np.pi / 2
     scale = np.linspace(0.8, 1.2, n)[:, None]
@@ -41,6 +51,12 @@ def spiral_candidates(n=6, n_samples=33):
         [-20 * scale * w * w * np.sin(w * t), 20 * scale * w * w * np.cos(w * t), 0 * x], -1
     )
     return Jet.of(p, v, a), t[1] - t[0]
+
+
+def scara_reference(path, branch):
+    """Joint trajectories of the SCARA from the NumPy reference of [Noriega, eqs. 1-15]."""
+    p, v, a = (np.asarray(x) for x in (path.p, path.v, path.a))
+    return scara_ref.ik_numpy(p, v, a, 150.0, 80.0, 50.0, mode=branch)
 
 
 def assert_same_result(x, y):
@@ -56,62 +72,73 @@ def assert_same_result(x, y):
         np.testing.assert_array_equal(x, y)
 
 
-@pytest.mark.parametrize("mode", [1, -1])
-def test_joint_values_equal_per_point_ik(mode):
+# ------------------------------------------------------------------------------------- SCARA
+
+
+@pytest.mark.parametrize("branch", [1, -1])
+def test_joint_values_equal_the_reference_ik(branch):
+    """Every sample's joints and rates equal the NumPy reference IK [Noriega, eqs. 1-15]
+    (the same formulas written independently: 1e-12 relative)."""
     path, dt = spiral_candidates()
-    ev = plan.evaluate(ROBOT, path, mode=mode, dt=dt)
-    for i in (0, 3, 5):
-        for k in (0, 10, 32):
-            point = Jet(path.p[i, k], path.v[i, k], path.a[i, k])
-            ref = scara.ik(ROBOT, point, mode=mode)
-            # Same formulas, compiled for another shape: equal up to rounding (XLA may fuse
-            # differently), hence 1e-13 rather than bitwise equality.
-            np.testing.assert_allclose(ev.q.p[i, k], ref.q.p, rtol=1e-13, atol=1e-15)
-            np.testing.assert_allclose(ev.q.a[i, k], ref.q.a, rtol=1e-13, atol=1e-15)
-            assert ev.status[i, k] == ref.status
+    ev = plan.evaluate(ROBOT, path, branch=branch, dt=dt)
+    q, qd, qdd = scara_reference(path, branch)
+    np.testing.assert_allclose(ev.q.p, q, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(ev.q.v, qd, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(ev.q.a, qdd, rtol=1e-12, atol=1e-12)
+    assert np.all(ev.status == Status.OK)
     assert np.all(ev.feasible) and np.all(ev.first_failure == -1)
-    assert np.all(ev.branch == [1, -1].index(mode))
+    assert np.all(ev.branch == [1, -1].index(branch)) and ev.branches == (1, -1)
+    assert np.all((ev.min_margin > 0) & (ev.min_margin <= 1))
 
 
 def test_costs_against_direct_numpy_formulas():
-    path, dt = spiral_candidates(n=3)
+    path, dt = spiral_candidates()
     ev = plan.evaluate(ROBOT, path, dt=dt)
     q = [np.asarray(x) for x in (ev.q.p, ev.q.v, ev.q.a)]
+    c = ev.costs
     np.testing.assert_allclose(
-        ev.costs.path_length, np.linalg.norm(np.diff(q[0], axis=1), axis=-1).sum(1), rtol=1e-12
+        c.path_length, np.linalg.norm(np.diff(q[0], axis=1), axis=-1).sum(1), rtol=1e-12
     )
-    np.testing.assert_allclose(ev.costs.peak_speed, np.abs(q[1]).max(axis=(1, 2)), rtol=1e-14)
-    np.testing.assert_allclose(ev.costs.integrated_acceleration, (q[2] ** 2).sum((1, 2)) * dt)
+    np.testing.assert_allclose(c.peak_speed, np.abs(q[1]).max(axis=(1, 2)), rtol=1e-14)
+    np.testing.assert_allclose(c.integrated_speed, (q[1] ** 2).sum((1, 2)) * dt, rtol=1e-12)
+    np.testing.assert_allclose(c.peak_acceleration, np.abs(q[2]).max(axis=(1, 2)), rtol=1e-14)
+    np.testing.assert_allclose(c.integrated_acceleration, (q[2] ** 2).sum((1, 2)) * dt, rtol=1e-12)
     jerk = np.diff(q[2], axis=1) / dt
-    np.testing.assert_allclose(ev.costs.peak_jerk, np.abs(jerk).max(axis=(1, 2)), rtol=1e-12)
-    np.testing.assert_allclose(ev.costs.total, ev.costs.integrated_acceleration)
-    np.testing.assert_array_equal(ev.costs.limit_violation, 0.0)
+    np.testing.assert_allclose(c.peak_jerk, np.abs(jerk).max(axis=(1, 2)), rtol=1e-12)
+    np.testing.assert_allclose(c.integrated_jerk, (jerk**2).sum((1, 2)) * dt, rtol=1e-12)
+    np.testing.assert_allclose(c.total, c.integrated_acceleration, rtol=0)
+    np.testing.assert_array_equal(c.limit_violation, 0.0)
 
 
 def test_unreachable_and_singular_samples_fail_at_the_right_index():
-    # Radii from 60 up to 150 (outer reach 130) and one ending exactly on the boundary.
-    path, r = radial_paths(np.array([60.0, 60.0, 60.0]), np.array([150.0, 130.0, 120.0]))
+    # Radii from 60 up to 150 (outer reach 130), one ending exactly on the boundary, and two
+    # inside; plus one starting below the inner reach 30.
+    start = np.array([60.0, 60.0, 60.0, 20.0, 60.0])
+    path, r = radial_paths(start, np.array([150.0, 130.0, 120.0, 60.0, 100.0]))
     ev = plan.evaluate(ROBOT, path)
     expected_unreachable = int(np.argmax(r[0] > 130.0))
     assert ev.first_failure[0] == expected_unreachable
     assert ev.status[0, expected_unreachable] in (Status.UNREACHABLE, Status.SINGULAR_EXTENDED)
     assert ev.first_failure[1] == r.shape[1] - 1  # r = 130 exactly at the last sample
     assert ev.status[1, -1] == Status.SINGULAR_EXTENDED
-    assert ev.first_failure[2] == -1 and ev.feasible[2] and not ev.feasible[0]
+    assert ev.first_failure[3] == 0 and ev.status[3, 0] == Status.UNREACHABLE  # r = 20 < 30
+    assert list(np.asarray(ev.feasible)) == [False, False, True, False, True]
     assert np.isinf(ev.costs.total[0]) and np.isfinite(ev.costs.total[2])
     assert tree_allfinite(ev.q)
 
 
 def test_position_and_velocity_limits_are_enforced():
-    path, dt = spiral_candidates(n=2)
+    path, dt = spiral_candidates()
     free = plan.evaluate(ROBOT, path, dt=dt)
     theta1 = np.asarray(free.q.p[..., 0])
-    cap = float(np.median(theta1))
+    cap = float(np.median(theta1.max(1)))  # some candidates pass it, others stay below
     limits = plan.Limits.create(3, q_max=[cap, np.inf, np.inf])
     ev = plan.evaluate(ROBOT, path, limits=limits, dt=dt)
     expected = np.where((theta1 > cap).any(1), np.argmax(theta1 > cap, axis=1), -1)
+    assert np.any(expected >= 0) and np.any(expected == -1)
     np.testing.assert_array_equal(ev.first_failure, expected)
-    assert ev.status[0, expected[0]] == Status.OUT_OF_LIMITS
+    failing = int(np.flatnonzero(expected >= 0)[0])
+    assert ev.status[failing, expected[failing]] == Status.OUT_OF_LIMITS
     speed = np.abs(np.asarray(free.q.v[..., 1]))
     v_cap = float(speed.max() * 0.9)
     ev_v = plan.evaluate(ROBOT, path, limits=plan.Limits.create(3, v_max=[np.inf, v_cap, np.inf]))
@@ -120,32 +147,39 @@ def test_position_and_velocity_limits_are_enforced():
 
 
 def test_robot_own_joint_limits_apply():
-    path, dt = spiral_candidates(n=2)
+    """A theta1 range on the robot fails the same samples as the same cap given to the
+    planner (both compared with the unlimited joints)."""
+    path, dt = spiral_candidates()
     free = plan.evaluate(ROBOT, path, dt=dt)
-    cap = float(np.median(np.asarray(free.q.p[..., 0])))
-    limited = scara.Scara.create(150.0, 80.0, 50.0, limits={"theta1": (-10.0, cap)})
-    assert not np.all(plan.evaluate(limited, path, dt=dt).feasible)
+    theta1 = np.asarray(free.q.p[..., 0])
+    cap = float(np.median(theta1.max(1)))
+    limited = scara.Scara(150.0, 80.0, 50.0, limits={"theta1": (-10.0, cap)})
+    ev = plan.evaluate(limited, path, dt=dt)
+    expected = np.where((theta1 > cap).any(1), np.argmax(theta1 > cap, axis=1), -1)
+    np.testing.assert_array_equal(ev.first_failure, expected)
+    assert not np.all(ev.feasible) and np.any(ev.feasible)
 
 
-def test_best_mode_picks_the_feasible_lowest_cost_branch():
-    path, dt = spiral_candidates(n=4)
-    plus = plan.evaluate(ROBOT, path, mode=1, dt=dt)
-    minus = plan.evaluate(ROBOT, path, mode=-1, dt=dt)
-    best = plan.evaluate(ROBOT, path, mode="best", dt=dt)
+def test_best_branch_picks_the_feasible_lowest_cost_branch():
+    path, dt = spiral_candidates()
+    plus = plan.evaluate(ROBOT, path, branch=1, dt=dt)
+    minus = plan.evaluate(ROBOT, path, branch=-1, dt=dt)
+    best = plan.evaluate(ROBOT, path, branch="best", dt=dt)
     expected = np.where(plus.costs.total <= minus.costs.total, 0, 1)
     np.testing.assert_array_equal(best.branch, expected)
-    # Now make mode +1 infeasible with a theta1 cap that only its solutions exceed.
+    np.testing.assert_array_equal(best.costs.total, np.minimum(plus.costs.total, minus.costs.total))
+    # Now make branch +1 infeasible with a theta1 cap that only its solutions exceed.
     cap = float(np.asarray(minus.q.p[..., 0]).max()) + 1e-3
     assert np.asarray(plus.q.p[..., 0]).max() > cap
     limits = plan.Limits.create(3, q_max=[cap, np.inf, np.inf])
-    chosen = plan.evaluate(ROBOT, path, limits=limits, mode="best", dt=dt)
+    chosen = plan.evaluate(ROBOT, path, limits=limits, branch="best", dt=dt)
     assert np.all(chosen.branch == 1) and np.all(chosen.feasible)
     np.testing.assert_array_equal(chosen.q.p, minus.q.p)
 
 
 def test_best_ranking():
-    path, dt = spiral_candidates(n=6)
-    path_bad, _ = radial_paths(np.array([60.0]), np.array([200.0]), n_samples=33)
+    path, dt = spiral_candidates(n=N_SCARA - 1)
+    path_bad, _ = radial_paths(np.array([60.0]), np.array([200.0]))
     both = Jet(
         *(
             np.concatenate([x, y])
@@ -156,76 +190,272 @@ def test_best_ranking():
     )
     ev = plan.evaluate(ROBOT, both, dt=dt)
     idx, totals = plan.best(ev, 3)
-    feasible_totals = np.asarray(ev.costs.total)[:6]
+    feasible_totals = np.asarray(ev.costs.total)[: N_SCARA - 1]
     np.testing.assert_array_equal(idx, np.argsort(feasible_totals)[:3])
-    assert np.all(np.diff(totals) >= 0)
-    assert 6 not in plan.best(ev, 10)[0]
+    np.testing.assert_array_equal(totals, np.sort(feasible_totals)[:3])
+    assert N_SCARA - 1 not in plan.best(ev, 10)[0] and len(plan.best(ev, 10)[0]) == N_SCARA - 1
 
 
 def test_chunking_equals_one_call():
-    path, dt = spiral_candidates(n=7)
+    path, dt = spiral_candidates()
     whole = plan.evaluate(ROBOT, path, dt=dt)
-    chunked = plan.evaluate(ROBOT, path, dt=dt, chunk_size=3)
+    chunked = plan.evaluate(ROBOT, path, dt=dt, chunk_size=1)
     for x, y in zip(jax.tree.leaves(whole), jax.tree.leaves(chunked), strict=True):
         assert_same_result(x, y)
 
 
-def test_delta_evaluation_equals_per_point_ik():
-    robot = delta.Delta.paper()
+def test_sharded_equals_unsharded(tmp_path):
+    """Evaluate on 2 forced CPU devices in a subprocess, in overlapping chunks (5 candidates
+    padded to 6, chunks of 4 starting at 0 and 2), and compare with one call in this process
+    (one device)."""
+    if jax.device_count() != 1:
+        pytest.skip("this process must have one device to be the unsharded reference")
+    out = tmp_path / "sharded.npz"
+    script = (
+        "import sys\n"
+        "import jax\n"
+        "import numpy as np\n"
+        "jax.config.update('jax_enable_x64', True)\n"
+        "from jaxkin import plan\n"
+        "from tests.test_plan import ROBOT, spiral_candidates\n"
+        "path, dt = spiral_candidates()\n"
+        "ev = plan.evaluate(ROBOT, path, branch='best', dt=dt, chunk_size=4)\n"
+        "leaves = [np.asarray(x) for x in jax.tree.leaves(ev)]\n"
+        "np.savez(sys.argv[1], *leaves, n=jax.device_count())\n"
+    )
+    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    proc = subprocess.run(
+        [sys.executable, "-c", script, str(out)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    path, dt = spiral_candidates()
+    whole = jax.tree.leaves(plan.evaluate(ROBOT, path, branch="best", dt=dt))
+    with np.load(out) as data:
+        assert int(data["n"]) == 2
+        sharded = [data[f"arr_{i}"] for i in range(len(data.files) - 1)]
+    assert len(sharded) == len(whole)
+    for x, y in zip(sharded, whole, strict=True):
+        assert_same_result(x, y)
+
+
+# ------------------------------------------------------------------------------- other robots
+
+
+def delta_circles():
+    """Three circles of radius 5 cm at rest, at depths 30, 32 and 30 cm (paper Delta)."""
     t = np.linspace(0, 1, 21)
     p = np.stack([5 * np.cos(2 * t), 5 * np.sin(2 * t), -30 + 0 * t], -1)[None].repeat(3, 0)
     p[1, :, 2] -= 2.0
+    return p
+
+
+# Forward kinematics written out by hand, in NumPy, on (position, velocity, acceleration)
+# triples: the product and chain rules of the first two time derivatives.
+def _mul(a, b):
+    return (a[0] * b[0], a[1] * b[0] + a[0] * b[1], a[2] * b[0] + 2 * a[1] * b[1] + a[0] * b[2])
+
+
+def _add(*terms):
+    return tuple(sum(t[k] for t in terms) for k in range(3))
+
+
+def _scaled(c, a):
+    return tuple(c * x for x in a)
+
+
+def _cos_sin(angle):
+    c, s = np.cos(angle[0]), np.sin(angle[0])
+    w, al = angle[1], angle[2]
+    return (c, -s * w, -c * w * w - s * al), (s, c * w, -s * w * w + c * al)
+
+
+def _joints(q):
+    q = [np.asarray(x) for x in (q.p, q.v, q.a)]
+    return [tuple(x[..., k] for x in q) for k in range(q[0].shape[-1])]
+
+
+def _planar_two_link(q1, q2, l1, l2):
+    """Tip ``l1 (cos q1, sin q1) + l2 (cos(q1 + q2), sin(q1 + q2))`` and ``cos, sin`` of the
+    end angle."""
+    (c1, s1), (c12, s12) = _cos_sin(q1), _cos_sin(_add(q1, q2))
+    x = _add(_scaled(l1, c1), _scaled(l2, c12))
+    y = _add(_scaled(l1, s1), _scaled(l2, s12))
+    return x, y, c12, s12
+
+
+def forward(name, q):
+    """Targets at joints ``q`` (Jet ``(..., n)``) as a Jet, written from each robot's geometry:
+    SCARA [Noriega, eqs. 14-15: C = B + l_bc (cos(theta1 - theta2), sin(...)), z = l_oa - l3];
+    anthropomorphic [Lopez-Villagomez, eqs. 2-6]: the wrist at radius l2 cos q2 + l3 cos(q2 +
+    q3) and height l1 + l2 sin q2 + l3 sin(q2 + q3); planar 2R and its DH chain [Pineiro]."""
+    j = _joints(q)
+    if name == "scara":
+        x, y, _, _ = _planar_two_link(j[0], _scaled(-1.0, j[1]), 80.0, 50.0)
+        z = (150.0 - j[2][0], -j[2][1], -j[2][2])
+        out = [x, y, z]
+    elif name == "anthropomorphic":
+        radius, height, _, _ = _planar_two_link(j[1], j[2], 0.25, 0.2)
+        c1, s1 = _cos_sin(j[0])
+        out = [_mul(radius, c1), _mul(radius, s1), _add(height, (0.3, 0.0, 0.0))]
+    elif name == "planar-2r":
+        x, y, _, _ = _planar_two_link(j[0], j[1], 1.0, 0.6)
+        out = [x, y]
+    else:  # the DH chain of the planar 2R: Rz(q1 + q2) and the tip, as 4x4 poses
+        x, y, c, s = _planar_two_link(j[0], j[1], 1.0, 0.6)
+        zero = np.zeros_like(x[0])
+        one = (zero + 1.0, zero, zero)
+        zeros = (zero, zero, zero)
+        rows = [
+            [c, _scaled(-1.0, s), zeros, x],
+            [s, c, zeros, y],
+            [zeros, zeros, one, zeros],
+            [zeros, zeros, zeros, one],
+        ]
+        return Jet.of(
+            *(np.stack([np.stack([e[k] for e in r], -1) for r in rows], -2) for k in range(3))
+        )
+    return Jet.of(*(np.stack([c[k] for c in out], -1) for k in range(3)))
+
+
+def joint_path(q0, dq, n_samples=25):
+    """One candidate's joint trajectory ``q0 + dq sin(s)``, ``s`` in [0, 1], exact rates."""
+    s = np.linspace(0.0, 1.0, n_samples)[:, None]
+    q0, dq = np.asarray(q0, float), np.asarray(dq, float)
+    return Jet.of(q0 + dq * np.sin(s), dq * np.cos(s) + 0 * s, -dq * np.sin(s))[None]
+
+
+def wrap(angle):
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+ROBOTS = {
+    "scara": ROBOT,
+    "delta": delta.Delta.paper(),
+    "anthropomorphic": serial.Anthropomorphic(0.3, 0.25, 0.2),
+    "planar-2r": serial.Planar2R(1.0, 0.6),
+    "puma560": serial.Puma560(),
+    "dh-table": serial.DHTable([1.0, 0.6], [0.0, 0.0], [0.0, 0.0]),  # [Pineiro]'s 2R chain
+}
+JOINT_PATHS = {  # each on the default branch
+    "anthropomorphic": ([0.4, 0.5, -0.9], [0.2, 0.1, 0.3]),  # front_up: the elbow above
+    "planar-2r": ([0.3, -1.2], [0.4, 0.5]),  # elbow_up: q2 <= 0
+    "puma560": ([0.3, 1.3, 3.0, 0.4, 1.2, 0.3], [0.1, 0.1, -0.1, 0.2, 0.1, 0.2]),  # front_up_noflip
+    "dh-table": ([0.3, 0.8], [0.4, 0.5]),
+}
+
+
+def robot_case(name):
+    """``(robot, path, expected)``: a path inside the workspace and the joints it comes from
+    on the default branch, found independently of the robot's IK (a Jet)."""
+    robot = ROBOTS[name]
+    if name == "scara":
+        path, _ = spiral_candidates()
+        return robot, path, Jet.of(*scara_reference(path, 1))
+    if name == "delta":
+        p = delta_circles()
+        theta = delta_ref.ik_numpy(p.reshape(-1, 3)).reshape(p.shape)  # elbow out [Cardona]
+        return robot, Jet.of(p), Jet.of(theta)
+    q = joint_path(*JOINT_PATHS[name])
+    if name == "puma560":  # poses as Jets of 4x4 matrices from the arm's own FK
+        return robot, jaxkin.fk(robot, q).x, q
+    return robot, forward(name, q), q
+
+
+def assert_maps_to(name, robot, q, path):
+    """Joints ``q`` reach the targets of ``path`` (positions and rates)."""
+    if name == "delta":  # at rest: the closed-form NumPy FK of the positions
+        p = np.asarray(q.p).reshape(-1, 3)
+        back = delta_ref.fk_closed_form_numpy(p).reshape(q.p.shape)
+        np.testing.assert_allclose(back, path.p, atol=1e-10)
+        np.testing.assert_array_equal(q.v, 0.0)
+        return
+    if name == "puma560":  # a round trip through the FK that made the path
+        back = jaxkin.fk(robot, q).x
+    else:
+        back = forward(name, q)
+    scale = float(np.abs(path.p).max())
+    for x, y in zip((back.p, back.v, back.a), (path.p, path.v, path.a), strict=True):
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-9 * scale)
+
+
+def test_delta_evaluation_equals_the_reference_ik():
+    """Joints equal the NumPy elbow-out reference [Cardona, eq. 5]; a candidate leaving the
+    workspace fails at the sample where it leaves."""
+    robot = delta.Delta.paper()
+    p = delta_circles()
     p[2, 10:, 0] += 60.0  # leaves the workspace at sample 10
-    ev = plan.evaluate(robot, Jet.of(p), mode="best")
-    ref = delta.ik(robot, Jet.of(p[0]))
-    np.testing.assert_array_equal(ev.q.p[0], ref.theta.p)
+    ev = plan.evaluate(robot, p, branch="best")  # plain positions: a path at rest
     assert list(np.asarray(ev.feasible)) == [True, True, False]
     assert ev.first_failure[2] == 10 and ev.status[2, 10] == Status.UNREACHABLE
+    assert np.all(np.asarray(ev.branch)[:2] == 0)  # at rest both cost 0: the first wins
+    reference = delta_ref.ik_numpy(p[:2].reshape(-1, 3)).reshape(2, -1, 3)
+    np.testing.assert_allclose(ev.q.p[:2], reference, rtol=1e-12, atol=1e-12)
 
 
-def test_sharded_equals_unsharded():
-    """Run evaluate on 2 forced CPU devices in a subprocess and compare with 1 device."""
-    script = (
-        "import jax, numpy as np, sys\n"
-        "jax.config.update('jax_enable_x64', True)\n"
-        "sys.path.insert(0, sys.argv[1])\n"
-        "from test_plan import spiral_candidates, ROBOT\n"
-        "from jaxkin import plan\n"
-        "path, dt = spiral_candidates(n=5)\n"
-        "ev = plan.evaluate(ROBOT, path, mode='best', dt=dt, chunk_size=4)\n"
-        "leaves = [np.asarray(x) for x in jax.tree.leaves(ev)]\n"
-        "np.savez(sys.argv[2], *leaves, n=jax.device_count())\n"
-    )
-    results = []
-    for devices in (1, 2):
-        out = Path(os.environ.get("TMPDIR", "/tmp")) / f"jaxkin_shard_{os.getpid()}_{devices}.npz"
-        env = dict(os.environ, XLA_FLAGS=f"--xla_force_host_platform_device_count={devices}")
-        proc = subprocess.run(
-            [sys.executable, "-c", script, str(Path(__file__).parent), str(out)],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-        assert proc.returncode == 0, proc.stderr[-3000:]
-        with np.load(out) as data:
-            assert int(data["n"]) == devices
-            results.append([data[f"arr_{i}"] for i in range(len(data.files) - 1)])
-        out.unlink()
-    for x, y in zip(*results, strict=True):
-        assert_same_result(x, y)
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_every_robot_with_default_arguments(name):
+    """``evaluate(robot, path)`` returns, on the default branch, the joints the path was made
+    from (rates included, 1e-9 of their scale) and they reach the path; zero candidates give
+    empty arrays of the right trailing shapes."""
+    robot, path, expected = robot_case(name)
+    n, t = path.shape[:2]
+    ev = plan.evaluate(robot, path)
+    assert ev.q.shape == (n, t, robot.n_joints) and ev.status.shape == (n, t)
+    assert np.all(ev.status == Status.OK) and np.all(ev.feasible)
+    assert np.all(ev.first_failure == -1) and np.all(ev.branch == 0)
+    assert ev.branches == robot.branches
+    assert np.all((ev.min_margin > 0) & (ev.min_margin <= 1))
+    got = [np.asarray(x) for x in (ev.q.p, ev.q.v, ev.q.a)]
+    if name == "dh-table":  # Newton's angles are defined modulo 2 pi
+        got[0] = expected.p + wrap(got[0] - expected.p)
+    scale = float(np.abs(expected.p).max())
+    for x, y in zip(got, (expected.p, expected.v, expected.a), strict=True):
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-9 * scale)
+    assert_maps_to(name, robot, ev.q, path)
+
+    empty = plan.evaluate(robot, path[:0])
+    assert empty.q.shape == (0, t, robot.n_joints) and empty.status.shape == (0, t)
+    for leaf in (empty.feasible, empty.first_failure, empty.min_margin, empty.branch):
+        assert leaf.shape == (0,)
+    assert empty.costs.total.shape == (0,) and plan.best(empty, 1)[0].size == 0
+
+
+@pytest.mark.parametrize("name", list(ROBOTS))
+def test_every_robot_best_branch(name):
+    """``branch="best"`` keeps, per candidate, a branch of no greater cost than the default
+    branch whose joints reach the path (positions and rates)."""
+    robot, path, _ = robot_case(name)
+    default = plan.evaluate(robot, path)
+    best = plan.evaluate(robot, path, branch="best")
+    assert best.q.shape == default.q.shape and best.branches == robot.branches
+    assert np.all(best.feasible) and np.all(best.costs.total <= default.costs.total)
+    assert np.all((best.branch >= 0) & (best.branch < len(robot.branches)))
+    assert_maps_to(name, robot, best.q, path)
+
+
+# ------------------------------------------------------------------------------- bad input
 
 
 @pytest.mark.parametrize(
     "kwargs, match",
     [
         ({"robot": "scara"}, "robot must be"),
-        ({"mode": 2}, "mode"),
-        ({"mode": "out"}, "mode"),
+        ({"branch": 2}, "branch"),
+        ({"branch": "out"}, "branch"),
         ({"path": np.zeros((4, 3))}, "path: expected shape"),
         ({"path": np.zeros((4, 1, 3))}, "T >= 2"),
+        ({"path": np.zeros((2, 5, 2))}, r"path: expected shape \(N, T, 3\)"),
+        ({"robot": serial.Planar2R(1.0, 0.6)}, r"path: expected shape \(N, T, 2\)"),
+        ({"robot": serial.Puma560()}, r"path: expected shape \(N, T, 4, 4\)"),
         ({"dt": 0.0}, "dt"),
+        ({"dt": math.inf}, "dt"),
         ({"limits": "none"}, "limits"),
+        ({"limits": plan.Limits.create(2)}, "limits"),
         ({"chunk_size": 0}, "chunk_size"),
     ],
 )
@@ -256,25 +486,3 @@ def test_path_from_samples_reproduces_a_cubic_motion_exactly():
     np.testing.assert_allclose(jet.a[0], a, rtol=1e-9, atol=1e-9)
     with pytest.raises(ValueError, match="dt"):
         plan.path_from_samples(p[None], 0.0)
-
-
-def test_serial_arm_evaluation_equals_per_point_ik_and_fk():
-    from jaxkin.serial import arms
-
-    robot = arms.Anthropomorphic(0.3, 0.25, 0.2)
-    t = np.linspace(0.0, 1.0, 25)
-    p = np.stack([0.25 + 0.05 * t, 0.1 * np.sin(2 * t), 0.35 + 0.05 * t**2], -1)
-    v = np.stack([0.05 + 0 * t, 0.2 * np.cos(2 * t), 0.1 * t], -1)
-    a = np.stack([0 * t, -0.4 * np.sin(2 * t), 0.1 + 0 * t], -1)
-    path = Jet.of(p[None], v[None], a[None])
-    ev = plan.evaluate(robot, path, mode="best", dt=t[1] - t[0])
-    assert bool(ev.feasible[0]) and 0 < float(ev.min_margin[0]) <= 1
-    branch = robot.BRANCHES[int(ev.branch[0])]
-    ref = arms.ik(robot, p).branch(branch)
-    np.testing.assert_allclose(ev.q.p[0], ref.q, rtol=1e-12, atol=1e-14)
-    # Joint rates reproduce the Cartesian rates through the FK (chain rule, by lift of fk).
-    from jaxkin import lift
-
-    back = lift(lambda q: arms.fk(robot, q)[..., :3, 3])(Jet(ev.q.p[0], ev.q.v[0], ev.q.a[0]))
-    np.testing.assert_allclose(back.v, v, atol=1e-10)
-    np.testing.assert_allclose(back.a, a, atol=1e-9)

@@ -1,4 +1,4 @@
-"""Angle and distance rates (seed 000 Figs. 2-3) against sympy, the errata example and FD."""
+"""Angle and distance rates [Noriega, Figs. 2-3] against sympy, the errata example and FD."""
 
 import jax
 import jax.numpy as jnp
@@ -39,7 +39,7 @@ def test_angle_rates_match_sympy(x_expr, y_expr, t0):
 
 
 def test_angle_errata_example_on_negative_y_axis():
-    # ERRATA seed 000 item 3: at (0, -1), velocity (1, 2), acceleration (0, 6):
+    # docs/errata.md: at (0, -1), velocity (1, 2), acceleration (0, 6):
     # theta_dot = 1, theta_ddot = 4 (derived by hand from theta = atan2(y, x)).
     out, _ = planar.angle(Jet.of([0.0, -1.0], [1.0, 2.0], [0.0, 6.0]))
     np.testing.assert_allclose([out.p, out.v, out.a], [-np.pi / 2, 1.0, 4.0], rtol=1e-15)

@@ -7,10 +7,12 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from matplotlib.image import imread  # noqa: E402
+from matplotlib.image import imread
 
-from jaxkin import Jet, delta, plot, scara, workspace  # noqa: E402
-from jaxkin.status import Status  # noqa: E402
+from jaxkin import Jet, delta, plot, scara, workspace
+from jaxkin.status import Status
+from tests.references import delta as delta_ref
+from tests.references import scara as scara_ref
 
 
 def check_png(path, width, height):
@@ -19,31 +21,34 @@ def check_png(path, width, height):
     rgb = image[..., :3]
     # Non-empty: a good share of the pixels is not background white, in several colours.
     assert np.mean(np.any(rgb < 0.95, axis=-1)) > 0.01
-    assert len(np.unique(rgb.reshape(-1, 3).round(2), axis=0)) > 10
+    levels = np.round(rgb.reshape(-1, 3) * 100).astype(np.int64)  # colours to 1/100
+    assert len(np.unique(levels @ np.array([101 * 101, 101, 1]))) > 10
 
 
 @pytest.fixture(scope="module")
 def scara_robot():
-    return scara.Scara.create(150.0, 80.0, 50.0)
+    return scara.Scara.paper()  # [Noriega]: 150, 80, 50 mm
 
 
-def test_joint_trajectories_with_status_shading(tmp_path, scara_robot):
+def test_joint_trajectories_with_status_shading(tmp_path):
+    """Joints of the spiral [Noriega, eq. 16] (NumPy reference IK) with an unreachable stretch
+    and an invalid sample: one shading colour, and one legend entry, per failing status."""
     t = np.linspace(0.0, 8.0, 80)
     w = np.pi / 2
     d = np.stack([100 + 20 * np.sin(w * t), -20 * np.cos(w * t), 50 + 10 * t], -1)
-    d[30:35, 0] = 400.0  # unreachable stretch
-    d[50, 1] = np.nan
-    res = scara.ik(scara_robot, Jet.constant(d))
-    status = np.asarray(res.status)
-    assert {Status.UNREACHABLE, Status.INVALID_INPUT} <= set(status.tolist())
+    rates = np.zeros_like(d)
+    q = Jet.of(*scara_ref.ik_numpy(d, rates, rates, 150.0, 80.0, 50.0))
+    status = np.full(80, int(Status.OK))
+    status[30:35] = Status.UNREACHABLE
+    status[50] = Status.INVALID_INPUT
     path = tmp_path / "joints.png"
     fig = plot.joint_trajectories(
-        t, res.q, status=status, names=scara.JOINT_NAMES, path=path, figsize=(8, 6), dpi=50
+        t, q, status=status, names=scara.JOINT_NAMES, path=path, figsize=(8, 6), dpi=50
     )
     assert fig.get_size_inches().tolist() == [8, 6]
     check_png(path, 400, 300)
     legend_labels = [text.get_text() for text in fig.legends[0].get_texts()]
-    assert set(legend_labels) == {"UNREACHABLE", "INVALID_INPUT"}
+    assert sorted(legend_labels) == ["INVALID_INPUT", "UNREACHABLE"]
 
 
 def test_joint_trajectories_candidates_without_rates(tmp_path):
@@ -60,7 +65,8 @@ def test_joint_trajectories_candidates_without_rates(tmp_path):
 def test_scara_pose(tmp_path, scara_robot):
     t = np.linspace(0, 8, 50)
     trace = np.stack([100 + 20 * np.sin(t), -20 * np.cos(t), 50 + 10 * t], -1)
-    q = scara.ik(scara_robot, trace[-1]).q.p
+    rest = np.zeros(3)
+    q = scara_ref.ik_numpy(trace[-1], rest, rest, 150.0, 80.0, 50.0)[0]
     path = tmp_path / "scara.png"
     plot.scara_pose(scara_robot, q, trace=trace, path=path, figsize=(6, 3), dpi=60)
     check_png(path, 360, 180)
@@ -69,7 +75,7 @@ def test_scara_pose(tmp_path, scara_robot):
 def test_delta_pose_and_drawn_rods_have_the_rod_length(tmp_path):
     robot = delta.Delta.paper()
     p = np.array([3.0, -2.0, -30.0])
-    theta = np.asarray(delta.ik(robot, p).theta.p)
+    theta = delta_ref.ik_numpy(p[None])[0]  # elbow out [Cardona, eq. 5]
     pts = plot.delta_points(robot, theta, p)
     # Independent check of the drawing convention: |D_i - E_i| = l_rod at an IK solution.
     np.testing.assert_allclose(
@@ -84,12 +90,7 @@ def test_delta_pose_and_drawn_rods_have_the_rod_length(tmp_path):
 @pytest.fixture(scope="module")
 def sweep_result():
     robot = scara.Scara.create(10.0, 8.0, 5.0)
-    return workspace.sweep(
-        lambda pts: scara.ik(robot, pts).status,
-        ((-13, 13), (-13, 13), (0, 10)),
-        1.0,
-        progress=False,
-    )
+    return workspace.sweep(robot, ((-13, 13), (-13, 13), (0, 10)), 1.0, progress=False)
 
 
 @pytest.mark.parametrize(
@@ -125,7 +126,7 @@ def test_missing_matplotlib_message(monkeypatch):
 def test_cli_plots(tmp_path, capsys):
     from jaxkin import cli
 
-    t = np.linspace(0, 8, 30)
+    t = np.linspace(0, 8, 33)  # padded to 64 rows, as in test_cli
     src = tmp_path / "in.csv"
     src.write_text(
         "t,x,y,z\n"

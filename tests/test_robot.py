@@ -12,7 +12,6 @@ sweep and the optimiser (the protocol is all they need).
 from __future__ import annotations
 
 import ast
-import contextlib
 import dataclasses
 from pathlib import Path
 from typing import Any, ClassVar
@@ -21,30 +20,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from jax import monitoring
 
 import jaxkin
 from jaxkin import Jet, Status, delta, optimize, plan, scara, serial, workspace
 from jaxkin._geometry import LENGTH, geometry, number
 from jaxkin.result import FKResult, IKResult
 from jaxkin.robot import PLANAR_POINT, POINT, POSE, Robot
+from tests.helpers import compilations
 
 ROOT = Path(__file__).resolve().parents[1]
-
-_EVENTS: list[str] = []
-monitoring.register_event_duration_secs_listener(lambda name, *_, **__: _EVENTS.append(name))
-
-
-@contextlib.contextmanager
-def compilations():
-    """Count JAX traces and backend compilations inside the block: ``with ... as count``."""
-    start = len(_EVENTS)
-    counter = {"n": 0}
-    yield counter
-    names = _EVENTS[start:]
-    counter["n"] = sum(
-        1 for n in names if n.endswith(("backend_compile_duration", "jaxpr_trace_duration"))
-    )
 
 
 def _delta_joints(rng, n):

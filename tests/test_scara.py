@@ -1,16 +1,14 @@
 """Tests of jaxkin.scara: IK (analytic and autodiff) and FK against independent sources.
 
 Independent sources: sympy differentiation of the closed-form IK along the paper's spiral
-(eq. 16); the ERRATA's hand value theta1_ddot(0) = 0.309; the textbook 2R IK (seed 003/004:
+(eq. 16); the corrected (docs/errata.md) theta1_ddot(0) = 0.309; the 2R IK ([Pineiro], [UANL]:
 ``q2 = +/- acos((r^2 - l2^2 - l3^2) / (2 l2 l3))``); central finite differences of IK
-positions; the FK round trip; reflection geometry; the NumPy reference in benchmarks/.
+positions; the FK round trip; reflection geometry; the NumPy reference in tests/references.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -18,11 +16,12 @@ import mpmath
 import numpy as np
 import pytest
 import sympy as sp
-from helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from jaxkin import Jet, Status, lift, scara
+from tests.helpers import BATCH_SHAPES, compile_count, fd_rates, tree_allfinite
+from tests.references.scara import ik_numpy
 
 L_OA, L_AB, L_BC = 150.0, 80.0, 50.0
 W = math.pi / 2.0
@@ -103,7 +102,7 @@ def sympy_spiral():
 @pytest.mark.parametrize("mode", [1, -1])
 def test_spiral_matches_sympy(sympy_spiral, mode, method):
     times = ["0", "0.7", "1.3", "2.5", "4.1", "6.6", "8"]
-    res = scara.ik(PAPER, spiral(np.array([float(s) for s in times])), mode=mode, method=method)
+    res = scara.ik(PAPER, spiral(np.array([float(s) for s in times])), branch=mode, method=method)
     assert np.all(np.asarray(res.status) == Status.OK)
     for i, t in enumerate(times):
         ref = sympy_spiral(mode, t)  # rows theta1, theta2, l3; columns p, v, a
@@ -112,20 +111,20 @@ def test_spiral_matches_sympy(sympy_spiral, mode, method):
 
 
 def test_spiral_theta1_ddot_at_zero_is_errata_value():
-    """ERRATA seed 000 item 4: the true theta1_ddot at t = 0 is 0.309 rad/s^2 (mode +1)."""
-    res = scara.ik(PAPER, spiral(0.0), mode=1)
+    """docs/errata.md: the true theta1_ddot at t = 0 is 0.309 rad/s^2 (mode +1)."""
+    res = scara.ik(PAPER, spiral(0.0), branch=1)
     assert abs(float(res.q.a[0]) - 0.309) < 5e-4
-    res_other = scara.ik(PAPER, spiral(0.0), mode=-1)
+    res_other = scara.ik(PAPER, spiral(0.0), branch=-1)
     assert abs(float(res_other.q.a[0]) - 0.309) > 0.1  # the value belongs to mode +1 only
 
 
 @pytest.mark.parametrize("mode", [1, -1])
 def test_spiral_rates_match_finite_differences(mode):
     def position(t):
-        return np.asarray(scara.ik(PAPER, spiral(t).p, mode=mode).q.p)
+        return np.asarray(scara.ik(PAPER, spiral(t).p, branch=mode).q.p)
 
     for t in (0.3, 1.9, 5.2, 7.4):
-        res = scara.ik(PAPER, spiral(t), mode=mode)
+        res = scara.ik(PAPER, spiral(t), branch=mode)
         v_fd, a_fd = fd_rates(position, t, scale=1.0)
         # Richardson-extrapolated central differences: ~1e-11 (v) and ~1e-8 (a) relative.
         np.testing.assert_allclose(res.q.v, v_fd, rtol=1e-8, atol=1e-9)
@@ -137,16 +136,16 @@ def test_spiral_rates_match_finite_differences(mode):
 
 @pytest.mark.parametrize("point", [(1.0, 1.0), (3.0, 1.0), (3.0, 3.0), (1.0, 3.0), (2.0, 2.0)])
 def test_practical_case_matches_textbook_2r(point):
-    """Seed 004: l1 = 3 (column), l2 = 3, l3 = 2 m, plate at z = 2 m; both elbows."""
+    """[UANL]: l1 = 3 (column), l2 = 3, l3 = 2 m, plate at z = 2 m; both elbows."""
     robot = scara.Scara.create(3.0, 3.0, 2.0)
     px, py = point
     d = np.array([px, py, 2.0])
     r2 = px * px + py * py
     for mode in (1, -1):
-        res = scara.ik(robot, d, mode=mode)
+        res = scara.ik(robot, d, branch=mode)
         assert int(res.status) == Status.OK
-        q2 = float(scara.relative_elbow_angle(res.q.p[1]))  # seed 004's q2
-        # Textbook 2R (seed 003): the elbow angle's cosine, and q1 from q2.
+        q2 = float(scara.relative_elbow_angle(res.q.p[1]))  # [UANL]'s q2
+        # Textbook 2R [Pineiro]: the elbow angle's cosine, and q1 from q2.
         q2_ref = math.acos((r2 - 9.0 - 4.0) / (2 * 3.0 * 2.0))
         q2_ref = -q2_ref if mode == 1 else q2_ref  # mode +1: elbow left, forearm clockwise
         q1_ref = math.atan2(py, px) - math.atan2(
@@ -169,8 +168,8 @@ def test_practical_case_matches_textbook_2r(point):
 def test_analytic_equals_autodiff(shape, mode):
     rng = np.random.default_rng(7)
     d = random_reachable(rng, shape)
-    ana = scara.ik(PAPER, d, mode=mode)
-    auto = scara.ik(PAPER, d, mode=mode, method="autodiff")
+    ana = scara.ik(PAPER, d, branch=mode)
+    auto = scara.ik(PAPER, d, branch=mode, method="autodiff")
     assert ana.q.shape == (*shape, 3) and ana.elbow.shape == (*shape, 2)
     assert ana.status.shape == shape and ana.status.dtype == jnp.int8
     np.testing.assert_array_equal(ana.status, auto.status)
@@ -187,17 +186,17 @@ def test_analytic_equals_autodiff(shape, mode):
 def test_round_trip_random(mode):
     rng = np.random.default_rng(11)
     d = random_reachable(rng, (N,))
-    res = scara.ik(PAPER, d, mode=mode)
+    res = scara.ik(PAPER, d, branch=mode)
     assert np.all(np.asarray(res.status) == Status.OK)
     # Positions: fk(ik(d)) == d; rates: FK's link-rate formulas reproduce D's v and a, and
     # agree with the position-level FK lifted by autodiff.
-    np.testing.assert_allclose(scara.fk(PAPER, res.q.p), d.p, rtol=0, atol=1e-12 * 150)
-    d_back = scara.fk(PAPER, res.q)
+    at_rest = scara.fk(PAPER, res.q.p)
+    np.testing.assert_allclose(at_rest.x.p, d.p, rtol=0, atol=1e-12 * 150)
+    assert not np.any(np.asarray(at_rest.x.v)) and np.all(np.asarray(at_rest.status) == 0)
+    d_back = scara.fk(PAPER, res.q).x
     assert_jet_close(d_back, d, rtol=1e-12)
     lengths = [jnp.asarray(x) for x in (PAPER.l_oa, PAPER.l_ab, PAPER.l_bc)]
     assert_jet_close(d_back, lift(scara._fk_position)(res.q, *lengths), rtol=1e-13)
-    # FK with a plain array returns an array, with a Jet a Jet.
-    assert isinstance(scara.fk(PAPER, res.q.p), jax.Array) and isinstance(d_back, Jet)
 
 
 @settings(max_examples=25, deadline=None, derandomize=True)  # reproducible in CI
@@ -213,9 +212,9 @@ def test_round_trip_random_geometry(l_oa, l_ab, l_bc, seed):
     # Rates lose accuracy like eps / sin(beta)^2; random_reachable keeps sin(beta) >= s_min.
     s_min = min(0.05, 0.5 * min(1.0, l_bc / l_ab))
     for mode in (1, -1):
-        res = scara.ik(robot, d, mode=mode)
+        res = scara.ik(robot, d, branch=mode)
         assert np.all(np.asarray(res.status) == Status.OK)
-        back = scara.fk(robot, res.q)
+        back = scara.fk(robot, res.q).x
         np.testing.assert_allclose(back.p, d.p, rtol=0, atol=1e-12 * max(l_ab + l_bc, l_oa))
         assert_jet_close(back, d, rtol=1e-13 / s_min**2)
 
@@ -223,8 +222,8 @@ def test_round_trip_random_geometry(l_oa, l_ab, l_bc, seed):
 def test_modes_give_mirror_elbows():
     rng = np.random.default_rng(3)
     d = random_reachable(rng, (N,))
-    plus = scara.ik(PAPER, d, mode=1)
-    minus = scara.ik(PAPER, d, mode=-1)
+    plus = scara.ik(PAPER, d, branch=1)
+    minus = scara.ik(PAPER, d, branch=-1)
     c = np.asarray(d.p[:, :2])
     u = c / np.linalg.norm(c, axis=-1, keepdims=True)
     b = np.asarray(plus.elbow.p)
@@ -277,13 +276,13 @@ def test_statuses_on_and_outside_the_annulus():
     ]
     for method, mode in (("analytic", 1), ("analytic", -1), ("autodiff", 1)):
         d = Jet.of(pts, np.ones_like(pts), np.ones_like(pts))
-        res = scara.ik(PAPER, d, mode=mode, method=method)
+        res = scara.ik(PAPER, d, branch=mode, method=method)
         np.testing.assert_array_equal(res.status, expected)
         assert tree_allfinite(res)
         bad = np.asarray(res.status) != Status.OK
         assert np.all(np.asarray(res.q.v)[bad] == 0) and np.all(np.asarray(res.q.a)[bad] == 0)
         # Singular poses have valid positions: the round trip holds there.
-        np.testing.assert_allclose(scara.fk(PAPER, res.q.p)[:2], pts[:2], atol=1e-9)
+        np.testing.assert_allclose(scara.fk(PAPER, res.q.p).x.p[:2], pts[:2], atol=1e-9)
         margin = np.asarray(res.margin)
         assert np.all(margin[:2] == 0) and np.all(margin[2:5] < 0) and np.all(margin[5:] > 0)
 
@@ -387,10 +386,10 @@ def test_joint_limits_status_and_mask():
         (lambda: scara.Scara.create(1.0, 1.0, 1.0, limits={"l3": 5.0}), "l3"),
         (lambda: scara.Scara.create(1.0, 1.0, 1.0, limits=[1, 2]), "limits"),
         (lambda: scara.ik(PAPER, np.zeros(2)), "d"),
-        (lambda: scara.ik(PAPER, np.zeros(3), mode=0), "mode"),
+        (lambda: scara.ik(PAPER, np.zeros(3), branch=0), "branch"),
         (lambda: scara.ik(PAPER, np.zeros(3), method="numeric"), "method"),
         (lambda: scara.ik((150.0, 80.0, 50.0), np.zeros(3)), "robot"),
-        (lambda: scara.ik(scara.Scara(1.0, -2.0, 1.0), np.zeros(3)), "robot.l_ab"),
+        (lambda: scara.Scara(1.0, -2.0, 1.0), "Scara.l_ab"),
         (lambda: scara.ik(scara.Scara(np.ones(4), 1.0, 1.0), np.zeros((3, 3))), "batch"),
         (lambda: scara.fk(PAPER, np.zeros((5, 2))), "q"),
     ],
@@ -413,8 +412,8 @@ def test_jit_over_trajectories_without_recompilation():
     assert compile_count(scara._ik_jit) == before
     assert res2.q.shape == (4, 6, 3)
     # Under a user's jit the result equals the eager call (tracers skip host validation).
-    jitted = jax.jit(lambda robot, d: scara.ik(robot, d, mode=-1))
-    assert_jet_close(jitted(PAPER, d2).q, scara.ik(PAPER, d2, mode=-1).q, rtol=1e-15)
+    jitted = jax.jit(lambda robot, d: scara.ik(robot, d, branch=-1))
+    assert_jet_close(jitted(PAPER, d2).q, scara.ik(PAPER, d2, branch=-1).q, rtol=1e-15)
 
 
 def test_batched_geometry_equals_loop():
@@ -426,12 +425,12 @@ def test_batched_geometry_equals_loop():
         rng.normal(size=(3, 3)),
         rng.normal(size=(3, 3)),
     )
-    batched = scara.ik(robots, d, mode=-1)
+    batched = scara.ik(robots, d, branch=-1)
     for i in range(3):
-        single = scara.ik(scara.Scara.create(*lengths[i]), d[i], mode=-1)
+        single = scara.ik(scara.Scara.create(*lengths[i]), d[i], branch=-1)
         assert_jet_close(batched.q[i], single.q, rtol=1e-14)
     # vmap over a geometry batch gives the same as broadcasting.
-    vmapped = jax.vmap(lambda r, x: scara.ik(r, x, mode=-1))(robots, d)
+    vmapped = jax.vmap(lambda r, x: scara.ik(r, x, branch=-1))(robots, d)
     assert_jet_close(vmapped.q, batched.q, rtol=1e-14)
 
 
@@ -470,20 +469,11 @@ def test_float32_accuracy():
 # --------------------------------------------------------------------------- NumPy reference
 
 
-def _load_reference():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "reference_scara.py"
-    spec = importlib.util.spec_from_file_location("reference_scara", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.mark.parametrize("mode", [1, -1])
 def test_numpy_reference_equals_jaxkin(mode):
-    ref = _load_reference()
     d = random_reachable(np.random.default_rng(13), (N,))
-    q, q_d, q_dd = ref.ik_numpy(
+    q, q_d, q_dd = ik_numpy(
         np.asarray(d.p), np.asarray(d.v), np.asarray(d.a), L_OA, L_AB, L_BC, mode
     )
-    res = scara.ik(PAPER, d, mode=mode)
+    res = scara.ik(PAPER, d, branch=mode)
     assert_jet_close(res.q, Jet.of(q, q_d, q_dd), rtol=1e-9)

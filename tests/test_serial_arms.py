@@ -1,8 +1,8 @@
 """Analytic IK of the textbook arms (jaxkin.serial.arms): round trips, known values, statuses.
 
 Independent references: the closed-form forward kinematics below are written by hand from each
-arm's geometry (products of elementary rotations, not DH matrices), seed 001's eqs. 3-5 are
-multiplied with sympy, and Corke's PUMA 560 ``qz`` pose is a published value.
+arm's geometry (products of elementary rotations, not DH matrices), [Lopez-Villagomez]'s
+eqs. 3-5 are multiplied with sympy, and Corke's PUMA 560 ``qz`` pose is a published value.
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import sympy as sp
-from helpers import BATCH_SHAPES, compile_count, tree_allfinite
 
 from jaxkin import Status
 from jaxkin.serial import _arms_common, arms
@@ -26,9 +25,17 @@ from jaxkin.serial.arms import (
     Puma560,
     Spherical,
     Stanford,
-    fk,
     ik,
 )
+from jaxkin.serial.dh import fk_dh
+from tests.helpers import BATCH_SHAPES, compile_count, tree_allfinite
+
+
+def fk(robot, q):
+    """The DH forward kinematics of an arm: the 4x4 transform of its last frame."""
+    q = jnp.asarray(q)
+    return fk_dh(robot.dh_table(q.dtype), q)
+
 
 PI = np.pi
 
@@ -243,8 +250,8 @@ def test_fk_matches_hand_derived_geometry(robot):
     )
 
 
-def test_anthropomorphic_fk_against_seed_001_matrices_with_sympy():
-    """Seed 001 eqs. 3-5 (with eq. 4's "C" read as C2, ERRATA) multiplied symbolically."""
+def test_anthropomorphic_fk_against_the_papers_matrices_with_sympy():
+    """[Lopez-Villagomez, eqs. 3-5] multiplied symbolically (eq. 4's "C" read as C2: errata)."""
     t1, t2, t3, l1, l2, l3 = sp.symbols("theta1 theta2 theta3 L1 L2 L3", real=True)
     c, s = sp.cos, sp.sin
     a01 = sp.Matrix([[c(t1), 0, s(t1), 0], [s(t1), 0, -c(t1), 0], [0, 1, 0, l1], [0, 0, 0, 1]])
@@ -322,7 +329,7 @@ def test_planar_2r_known_values():
     """l1 = l2 = 1, target (1, 1): q = (pi/2, -pi/2) (elbow up) and (0, pi/2) (elbow down)."""
     res = ik(Planar2R(1.0, 1.0), jnp.array([1.0, 1.0]))
     np.testing.assert_allclose(np.asarray(res.q), [[PI / 2, -PI / 2], [0.0, PI / 2]], atol=1e-15)
-    # Seed 003's worked 2R target (0.366, 1.366) for unit links: q = (30 deg, 90 deg) is a branch.
+    # [Pineiro]'s worked 2R target (0.366, 1.366) for unit links: q = (30 deg, 90 deg) is a branch.
     target = np.array([np.cos(PI / 6) + np.cos(2 * PI / 3), np.sin(PI / 6) + np.sin(2 * PI / 3)])
     res = ik(Planar2R(1.0, 1.0), target)
     np.testing.assert_allclose(np.asarray(res.branch("elbow_down").q), [PI / 6, PI / 2], atol=1e-14)
@@ -358,7 +365,9 @@ def test_stanford_known_value_and_prismatic_offset():
     res = ik(robot, t)
     front = np.asarray(res.q)[0]  # front_noflip
     np.testing.assert_allclose(front, q, atol=1e-13)
-    assert np.allclose(np.asarray(res.q)[:, 2], 0.5)  # sqrt(r^2 + s^2) - a2 (ERRATA)
+    assert np.allclose(
+        np.asarray(res.q)[:, 2], 0.5
+    )  # sqrt(r^2 + s^2) - a2 (corrected, docs/errata.md)
 
 
 def test_anthropomorphic_branch_labels_are_geometric():
@@ -507,7 +516,7 @@ def test_bad_calls_raise():
     with pytest.raises(ValueError, match=r"target.*4, 4"):
         ik(Puma560(), np.zeros((3, 4)))
     with pytest.raises(ValueError, match="q"):
-        fk(robot, np.zeros(2))
+        arms.fk(robot, np.zeros(2))
     with pytest.raises(ValueError, match="robot"):
         ik("puma", np.zeros(3))
     with pytest.raises(ValueError, match="name"):

@@ -1,28 +1,24 @@
-"""DH and PoE forward kinematics, Jacobians, validation (seed 001 eqs. 2-6, seed 003)."""
+"""DH and PoE forward kinematics, Jacobians, validation [Lopez-Villagomez, eqs. 2-6], [Pineiro]."""
 
 from __future__ import annotations
-
-import sys
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 import sympy as sp
-from helpers import BATCH_SHAPES, compile_count
 
 from jaxkin.serial import dh, lie, poe
+from tests.helpers import BATCH_SHAPES, compile_count
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 # PUMA-560-type arm, standard DH (Corke's Robotics Toolbox p560 kinematic parameters, metres).
-from reference_serial import PUMA  # noqa: E402
+from tests.references.serial import PUMA
 
 RNG = np.random.default_rng(5)
 
 
-def _seed001(l1=0.5, l2=0.4, l3=0.3):
-    """Seed 001 Table 1: theta_i, d = (L1, 0, 0), a = (0, L2, L3), alpha = (90 deg, 0, 0)."""
+def _lopez_villagomez_arm(l1=0.5, l2=0.4, l3=0.3):
+    """[Lopez-Villagomez, Table 1]: d = (L1, 0, 0), a = (0, L2, L3), alpha = (90 deg, 0, 0)."""
     return dh.DHTable.create(
         a=[0.0, l2, l3], alpha=[np.pi / 2, 0.0, 0.0], d=[l1, 0.0, 0.0], joint_types="RRR"
     )
@@ -49,8 +45,8 @@ def test_dh_transform_matches_elementary_product():
         np.testing.assert_allclose(mat, np.array(f(*row), dtype=float), atol=1e-15)
 
 
-def test_dh_transform_is_seed001_eq2():
-    # Seed 001 eq. 2, transcribed entry by entry.
+def test_dh_transform_is_lopez_villagomez_arm_eq2():
+    # [Lopez-Villagomez, eq. 2], transcribed entry by entry.
     a, al, d, th = 0.3, 0.7, -0.2, 1.1
     ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(al), np.sin(al)
     eq2 = np.array(
@@ -64,14 +60,14 @@ def test_dh_transform_is_seed001_eq2():
     np.testing.assert_allclose(dh.dh_transform(a, al, d, th), eq2, atol=1e-16)
 
 
-def test_seed001_arm_matches_sympy_and_hand_formula():
+def test_lopez_villagomez_arm_arm_matches_sympy_and_hand_formula():
     l1, l2, l3 = 0.5, 0.4, 0.3
     t1, t2, t3 = sp.symbols("t1 t2 t3")
     total = (
         _sympy_dh(0, sp.pi / 2, l1, t1) * _sympy_dh(l2, 0, 0, t2) * _sympy_dh(l3, 0, 0, t3)
-    )  # seed 001 eqs. 3-6
+    )  # [Lopez-Villagomez, eqs. 3-6]
     f = sp.lambdify((t1, t2, t3), sp.simplify(total), "numpy")
-    table = _seed001(l1, l2, l3)
+    table = _lopez_villagomez_arm(l1, l2, l3)
     q = RNG.uniform(-np.pi, np.pi, size=(5, 3))
     q[0] = 0.0
     q[1] = [np.pi / 2, 0.0, -np.pi / 2]
@@ -168,8 +164,8 @@ def test_poe_matches_dh(joint_types):
     np.testing.assert_allclose(poe.change_frame(body, "space").screws, chain.screws, atol=1e-14)
 
 
-def test_poe_seed003_planar_2r_body_chain():
-    # Seed 003: M = Trans(2, 0, 0), B1 = (0, 0, 1, 0, 2, 0), B2 = (0, 0, 1, 0, 1, 0), L = 1 m.
+def test_poe_pineiro_planar_2r_body_chain():
+    # [Pineiro]: M = Trans(2, 0, 0), B1 = (0, 0, 1, 0, 2, 0), B2 = (0, 0, 1, 0, 1, 0), L = 1 m.
     home = np.eye(4)
     home[0, 3] = 2.0
     screws = np.array([[0, 0, 1, 0, 2, 0], [0, 0, 1, 0, 1, 0]], dtype=float)
@@ -241,7 +237,7 @@ def test_no_recompilation_and_user_jit():
 
 
 def test_float32_and_nan_isolation():
-    table = _seed001()
+    table = _lopez_villagomez_arm()
     q = RNG.normal(size=(5, 3)).astype(np.float32)
     t32 = dh.fk_dh(jax.tree.map(lambda x: x.astype(jnp.float32), table), q)
     assert t32.dtype == jnp.float32
@@ -255,9 +251,9 @@ def test_float32_and_nan_isolation():
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        (dict(a=[[0.0, 1.0]], alpha=[0, 0], d=[0, 0]), "a: expected a 1-D"),
+        (dict(a=[[0.0, 1.0]], alpha=[0, 0], d=[0, 0]), r"DHTable\.a must be of shape \(-1,\)"),
         (dict(a=[0.0, 1.0], alpha=[0.0], d=[0, 0]), "alpha: expected 2 entries"),
-        (dict(a=[0.0, 1.0], alpha=[0, 0], d=[0, np.nan]), "d must be finite"),
+        (dict(a=[0.0, 1.0], alpha=[0, 0], d=[0, np.nan]), r"DHTable\.d must be an array of finite"),
         (dict(a=[0.0, 1.0], alpha=[0, 0], d=[0, 0], theta=[0, 0, 0]), "theta: expected 2"),
         (dict(a=[0.0, 1.0], alpha=[0, 0], d=[0, 0], joint_types="RX"), "joint_types"),
         (dict(a=[0.0, 1.0], alpha=[0, 0], d=[0, 0], joint_types="RRR"), "joint_types"),
@@ -271,23 +267,23 @@ def test_malformed_dh_tables(kwargs, match):
 
 def test_bad_q_shape():
     with pytest.raises(ValueError, match=r"q: expected shape \(\.\.\., 3\)"):
-        dh.fk_dh(_seed001(), np.zeros((4, 2)))
+        dh.fk_dh(_lopez_villagomez_arm(), np.zeros((4, 2)))
     with pytest.raises(ValueError, match="table: expected a DHTable"):
         dh.fk_dh({"a": 1}, np.zeros(3))
     with pytest.raises(ValueError, match=r"q: expected shape"):
-        poe.chain_fk(poe.poe_from_dh(_seed001()), np.zeros(2))
+        poe.chain_fk(poe.poe_from_dh(_lopez_villagomez_arm()), np.zeros(2))
 
 
 @pytest.mark.parametrize(
     "screws, home, frame, match",
     [
-        (np.zeros((2, 5)), np.eye(4), "space", "screws: expected shape"),
+        (np.zeros((2, 5)), np.eye(4), "space", r"screws must be of shape \(-1, 6\)"),
         (np.zeros((0, 6)), np.eye(4), "space", "screws: expected shape"),
         ([[0, 0, 2.0, 0, 0, 0]], np.eye(4), "space", "rows \\[0\\] are not unit screws"),
         ([[0, 0, 0.0, 0, 0, 0]], np.eye(4), "space", "not unit screws"),
         ([[0, 0, 0.0, 0, 3.0, 0]], np.eye(4), "space", "not unit screws"),
-        ([[0, 0, np.nan, 0, 0, 0]], np.eye(4), "space", "screws must be finite"),
-        ([[0, 0, 1.0, 0, 0, 0]], np.eye(3), "space", "home: expected a \\(4, 4\\)"),
+        ([[0, 0, np.nan, 0, 0, 0]], np.eye(4), "space", "screws must be an array of finite"),
+        ([[0, 0, 1.0, 0, 0, 0]], np.eye(3), "space", "home must be of shape \\(4, 4\\)"),
         ([[0, 0, 1.0, 0, 0, 0]], 2 * np.eye(4), "space", "home: expected a rigid"),
         ([[0, 0, 1.0, 0, 0, 0]], np.diag([1.0, 1.0, -1.0, 1.0]), "space", "home: expected"),
         ([[0, 0, 1.0, 0, 0, 0]], np.eye(4), "world", "frame must be one of"),

@@ -6,10 +6,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import BATCH_SHAPES, tree_allfinite
 from jax.scipy.linalg import expm
 
 from jaxkin.serial import lie
+from tests.helpers import BATCH_SHAPES, tree_allfinite
 
 RNG = np.random.default_rng(1)
 

@@ -1,4 +1,4 @@
-"""Newton-Raphson IK (seed 003): step math, convergence, failure as data, validation."""
+"""Newton-Raphson IK [Pineiro]: step math, convergence, failure as data, validation."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import compile_count, tree_allfinite
 
 from jaxkin import Status
 from jaxkin.serial import dh, newton_ik, poe
+from tests.helpers import compile_count, tree_allfinite
 
 RNG = np.random.default_rng(11)
 
@@ -23,7 +23,7 @@ ANTHRO = dh.DHTable.create(a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.
 
 
 def _planar_2r_body() -> poe.PoEChain:
-    """Seed 003's 2R arm: M = Trans(2, 0, 0), B1 = (0,0,1, 0,2,0), B2 = (0,0,1, 0,1,0)."""
+    """[Pineiro]'s 2R arm: M = Trans(2, 0, 0), B1 = (0,0,1, 0,2,0), B2 = (0,0,1, 0,1,0)."""
     home = np.eye(4)
     home[0, 3] = 2.0
     screws = np.array([[0, 0, 1, 0, 2, 0], [0, 0, 1, 0, 1, 0]], dtype=float)
@@ -41,7 +41,7 @@ def _planar_target(x, y, phi):
 
 
 def _planar_2r_pose(q):
-    """Pose of seed 003's 2R arm (links 1 m) at joint angles q (..., 2), by hand."""
+    """Pose of [Pineiro]'s 2R arm (links 1 m) at joint angles q (..., 2), by hand."""
     q = np.asarray(q, dtype=float)
     q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
     return _planar_target(np.cos(q1) + np.cos(q12), np.sin(q1) + np.sin(q12), q12)

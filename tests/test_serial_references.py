@@ -1,16 +1,11 @@
 """The NumPy benchmark references compute what jaxkin.serial computes (so benchmark ratios
 compare like with like). The references live in benchmarks/ and are not part of the library."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from reference_serial import ARMS, ik_newton_numpy, random_problems  # noqa: E402
-
-from jaxkin.serial import dh, newton_ik, poe  # noqa: E402
+from jaxkin.serial import dh, newton_ik, poe
+from tests.references.serial import ARMS, ik_newton_numpy, random_problems
 
 
 @pytest.mark.parametrize("arm", list(ARMS))

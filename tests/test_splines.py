@@ -1,9 +1,9 @@
-"""Cubic-spline rates (jaxkin.splines) against analytic derivatives and an independent solve."""
+"""Cubic-spline rates (jaxkin._splines) against analytic derivatives and an independent solve."""
 
 import numpy as np
 import pytest
 
-from jaxkin import splines
+from jaxkin import _splines as splines
 
 
 def _nonuniform_times(rng, n, t0=0.3, span=2.0):

@@ -1,20 +1,49 @@
-"""Chunked voxel sweeps: exact counts for simple shapes, chunk invariance, the Delta tori."""
+"""Chunked voxel sweeps: exact counts for simple shapes, chunk invariance, the Delta tori,
+the SCARA's annulus and a planar arm's 2-D grid."""
 
 from __future__ import annotations
 
 import math
+from typing import Any, ClassVar
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxkin import Status, delta, workspace
+from jaxkin import IKResult, Jet, Status, delta, scara, serial, workspace
+from jaxkin._geometry import LENGTH, geometry, number
+from jaxkin.robot import POINT, Robot
+from tests.helpers import compile_count
 
 
-def ball_status(points):
-    """A 'robot' reaching the closed ball of radius 2.5 about the origin."""
-    inside = jnp.sum(points * points, axis=-1) <= 2.5**2
-    return jnp.where(inside, Status.OK, Status.UNREACHABLE)
+@geometry
+class Ball(Robot):
+    """A 'robot' of this test reaching the closed ball of ``radius`` about the origin."""
+
+    radius: Any = number(LENGTH, default=2.5)
+
+    target: ClassVar = POINT
+    branches: ClassVar = ("only",)
+
+    @property
+    def joint_names(self):
+        return ("x", "y", "z")
+
+    @property
+    def joint_types(self):
+        return "PPP"
+
+    def length_scale(self):
+        return self.radius
+
+    def _ik(self, target, branch, **options):
+        p = target.p if isinstance(target, Jet) else jnp.asarray(target)
+        inside = jnp.sum(p * p, axis=-1) <= self.radius**2
+        status = jnp.where(inside, Status.OK, Status.UNREACHABLE).astype(jnp.int8)
+        return IKResult(Jet.constant(p), status, jnp.zeros(p.shape[:-1]))
+
+
+ball_status = Ball()
 
 
 def test_ball_counts_match_numpy_and_chunking():
@@ -50,6 +79,12 @@ def test_bad_arguments():
         workspace.sweep(ball_status, ((1, 0), (0, 1), (0, 1)), 0.5)
     with pytest.raises(ValueError, match="bounds"):
         workspace.sweep(ball_status, ((0, 1), (0, 1)), 0.5)
+    with pytest.raises(ValueError, match="no default workspace box"):
+        workspace.sweep(ball_status)
+    with pytest.raises(ValueError, match="points"):
+        workspace.sweep(serial.Puma560())
+    with pytest.raises(ValueError, match="branch"):
+        workspace.sweep(ball_status, bounds, 0.5, branch="other")
 
 
 def in_three_tori(points: np.ndarray) -> np.ndarray:
@@ -85,3 +120,33 @@ def test_delta_workspace_is_the_intersection_of_three_tori():
     widest = int(np.argmax(areas))
     below = areas[: widest + 1]
     assert np.all(np.diff(below[below > 0]) >= 0)
+
+
+def test_scara_workspace_is_its_annulus_and_a_planar_arm_gets_a_2d_grid():
+    robot = scara.Scara.paper()
+    result = scara.workspace(robot, resolution=10.0, progress=False)
+    xs, ys, zs = result.axes
+    r = np.hypot(*np.meshgrid(xs, ys, indexing="ij"))
+    tol = 1e-6 * 130.0
+    clear = (np.abs(r - 130.0) > tol) & (np.abs(r - 30.0) > tol)
+    expected = (r < 130.0) & (r > 30.0)
+    for k in range(len(zs)):  # every height of the column is reached alike
+        np.testing.assert_array_equal(result.mask[:, :, k][clear], expected[clear])
+    arm = serial.Planar2R(1.0, 0.6)
+    flat = workspace.sweep(arm, resolution=0.1, progress=False)
+    assert flat.mask.ndim == 2 and len(flat.axes) == 2
+    gx, gy = np.meshgrid(*flat.axes, indexing="ij")
+    rr = np.hypot(gx, gy)
+    inside = (rr < 1.6 - 1e-6) & (rr > 0.4 + 1e-6)
+    outside = (rr > 1.6 + 1e-6) | (rr < 0.4 - 1e-6)
+    assert np.all(flat.mask[inside]) and not np.any(flat.mask[outside])
+    assert flat.volume == pytest.approx(flat.n_reachable * 0.01)
+
+
+def test_a_repeated_sweep_compiles_nothing_new():
+    bounds = ((-3.0, 3.0),) * 3
+    workspace.sweep(Ball(2.0), bounds, 0.5, progress=False)
+    before = compile_count(workspace._reachable)
+    again = workspace.sweep(Ball(2.2), bounds, 0.5, progress=False)  # a new robot object
+    assert compile_count(workspace._reachable) == before
+    assert again.n_reachable > 0

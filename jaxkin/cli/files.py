@@ -431,7 +431,7 @@ def _format_column(values: np.ndarray) -> list[str]:
     values = np.asarray(values)
     if values.dtype.kind == "f":
         # An empty cell where there is no value (a row whose status explains it), never "nan".
-        return [repr(x) if math.isfinite(x) else "" for x in values.astype(np.float64).tolist()]
+        return [repr(x) if not math.isnan(x) else "" for x in values.astype(np.float64).tolist()]
     if values.dtype.kind == "b":
         return ["1" if x else "0" for x in values.tolist()]
     return [str(x) for x in values.tolist()]

@@ -3,11 +3,11 @@ singularities and workspace.
 
 * ``Delta`` (``jaxkin.delta.geometry``): the geometry and its frame (origin at the fixed
   platform's centre, z up, platform below; ``theta_i`` positive downward).
-* ``ik`` (``jaxkin.delta.ik``): actuator angles for platform positions, elbow-out (``"out"``,
+* ``ik`` (``jaxkin.delta.inverse``): actuator angles for platform positions, elbow-out (``"out"``,
   default) or elbow-in (``"in"``) [Cardona, eqs. 1-7].
 * ``fk`` (Newton-Raphson, batched, per-element convergence, warm starts) and
   ``fk_closed_form`` (three-sphere intersection, both assemblies), ``which_branch``
-  (``jaxkin.delta.fk``) [Cardona, eqs. 8-16].
+  (``jaxkin.delta.forward``) [Cardona, eqs. 8-16].
 * Rates: analytic from the constraint Jacobians (``method="analytic"``) or by ``jaxkin.lift``
   (``"autodiff"``); ``singularity`` gives the inverse- and direct-type measures
   (``jaxkin.delta.rates``).
@@ -21,18 +21,18 @@ float32 accuracy are in ``docs/conventions.md``, ``docs/errata.md`` and
 from typing import Any
 
 from .. import workspace as _workspace
-from .fk import LOWER as LOWER
-from .fk import UPPER as UPPER
-from .fk import ClosedFormFKResult as ClosedFormFKResult
-from .fk import NewtonFKResult as NewtonFKResult
-from .fk import fk as fk
-from .fk import fk_closed_form as fk_closed_form
-from .fk import which_branch as which_branch
+from .forward import LOWER as LOWER
+from .forward import UPPER as UPPER
+from .forward import ClosedFormFKResult as ClosedFormFKResult
+from .forward import NewtonFKResult as NewtonFKResult
+from .forward import fk as fk
+from .forward import fk_closed_form as fk_closed_form
+from .forward import which_branch as which_branch
 from .geometry import BRANCHES as BRANCHES
 from .geometry import METHODS as METHODS
 from .geometry import Delta as Delta
 from .geometry import check_robot as _check_robot
-from .ik import ik as ik
+from .inverse import ik as ik
 from .rates import SingularityResult as SingularityResult
 from .rates import singularity as singularity
 

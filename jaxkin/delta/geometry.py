@@ -141,12 +141,12 @@ class Delta(Robot):
         return jnp.stack(segments, -3)
 
     def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .ik import ik
+        from .inverse import ik
 
         return ik(self, target, branch=branch, **options)
 
     def _fk(self, q: Any, **options: Any) -> Any:
-        from .fk import fk
+        from .forward import fk
 
         return fk(self, q, **options)
 

@@ -167,7 +167,7 @@ def singularity(
     robot = check_robot(robot)
     p = as_coords(p, "p")
     if theta is None:
-        from .ik import ik
+        from .inverse import ik
 
         theta = ik(robot, p, branch=branch).q.p
     theta = as_coords(theta, "theta")

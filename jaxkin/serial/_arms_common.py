@@ -140,6 +140,11 @@ class Arm(Robot):
 
         return fk(self, q, **options)
 
+    def _ik_indexed(self, target: Any, index: Any) -> Any:
+        from .arms import _ik_jet_core
+
+        return _ik_jet_core(self, target, index, True)  # the branch is data: one program
+
 
 # --------------------------------------------------------------------------- small math
 
@@ -312,13 +317,17 @@ def _ik_impl(robot: Arm, target: Array) -> ArmIKResult:
     valid_in = jnp.all(jnp.isfinite(target), axis=axes) & jnp.all(jnp.isfinite(lengths))
     scale = jnp.sum(jnp.where(jnp.isfinite(lengths), jnp.abs(lengths), 0.0))
     scale = jnp.where(scale > 0, scale, 1.0)
+    # Double-where: non-finite targets are replaced before any arithmetic (their gradient
+    # would otherwise reach the lengths through the division below).
+    placeholder = robot._placeholder_target(dtype)
+    shape_mask = (1,) * n_target
+    target = jnp.where(valid_in.reshape(valid_in.shape + shape_mask), target, placeholder)
     point, rest = _split_target(robot, target)
     point = point / scale
     far = ~jnp.all(jnp.abs(point) <= FAR, axis=-1)
     target = _join_target(robot, point, rest)
     unit = jax.tree.map(lambda x: jnp.asarray(x, dtype) / scale, robot)
-    mask = (valid_in & ~far).reshape(valid_in.shape + (1,) * n_target)
-    safe_target = jnp.where(mask, target, robot._placeholder_target(dtype))
+    safe_target = jnp.where(far.reshape(far.shape + shape_mask), placeholder, target)
     q, status = unit._ik_kernel(safe_target)
     status = jnp.broadcast_to(status, q.shape[:-1])
     status = jnp.where(far[..., None], Status.UNREACHABLE, status)

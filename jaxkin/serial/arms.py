@@ -26,7 +26,7 @@ not OK; everything is finite and so are gradients of status-masked losses (doubl
 The margin is the isotropy (``jaxkin._numerics.isotropy``) of the task Jacobian in
 units of the arm's size: in [0, 1], 0 at a singularity; minus the distance to the target in
 units of that size where unreachable; -1 for invalid input. Accuracy in float64 and float32:
-``docs/performance.md``; formulas: ``docs/serial.md``.
+``docs/performance.md``; formulas: ``docs/robots.md``.
 """
 
 from __future__ import annotations

@@ -19,7 +19,8 @@ the line shoulder->wrist). On the base axis ``q1`` is free (0 / pi) and all four
 
 The prismatic joints have no stroke limits, so every target of the cylindrical and spherical
 arms is reachable. Tolerances ``sqrt(eps(dtype))`` times the sum of the lengths (plus the
-target distance for the prismatic arms). DH tables and formulas: ``docs/serial.md``.
+target distance for the prismatic arms). Each arm's DH table is its ``dh_table()``; overview:
+``docs/robots.md``.
 """
 
 from __future__ import annotations

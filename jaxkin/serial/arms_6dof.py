@@ -20,7 +20,7 @@ singularities.
 
 Targets are ``(..., 4, 4)`` transforms (rotation block assumed orthonormal). Tolerances:
 ``sqrt(eps)`` times the sum of the lengths for positions, ``sqrt(eps)`` for ``sin q5``. The DH
-tables and every formula are in ``docs/serial.md``.
+tables are the arms' ``dh_table()``; overview: ``docs/robots.md``.
 """
 
 from __future__ import annotations

@@ -12,7 +12,9 @@ with an unrolled Cholesky, ``mu = damping^2 + sqrt(eps) trace(J^T J)``: the pseu
 step with a soft cut-off of singular directions (``damping > 0``: damped least squares). A step
 is scaled, direction kept, so no revolute joint moves more than ``max_step`` (default 1 rad):
 long steps far from the solution or near singular poses otherwise make iterates wander off.
-With ``limits`` every iterate is clamped into the box (projected Newton).
+With ``limits`` every iterate is clamped into the box (projected Newton). ``ik_newton`` works in
+the chain's own units, as [Pineiro] does (the least-squares step weighs rotation errors in rad
+against translation errors in the length unit).
 
 Every element iterates on its own inside one jitted ``lax.scan``; a converged element is
 frozen, and the remaining steps are skipped once all have converged. Statuses: ``OK``,
@@ -173,35 +175,32 @@ def _ik_impl(
     frame: str,
     keep_history: bool = True,
     adaptive: bool = False,
+    normalize: bool = False,
 ) -> NewtonIKResult:
     batch = jnp.broadcast_shapes(target.shape[:-2], q0.shape[:-1])
     n = chain.n_joints
     target = jnp.broadcast_to(target, (*batch, 4, 4))
     q0 = jnp.broadcast_to(q0, (*batch, n))
-    # Units of the chain's size: the twist's two halves stay comparable (the normal equations
-    # well conditioned) and nothing over- or underflows at any scale; q's prismatic joints and
-    # the length error are scaled back on output.
-    scale = jnp.asarray(chain.length_scale(), target.dtype)
-    prismatic = ~jnp.any(chain.screws[:, :3] != 0, axis=-1)
-    to_unit = jnp.where(prismatic, 1.0 / scale, 1.0)
-    chain = _poe.PoEChain(
-        jnp.concatenate(
-            [
-                chain.screws[:, :3],
-                chain.screws[:, 3:] * jnp.where(prismatic, 1.0, 1.0 / scale)[:, None],
-            ],
-            axis=-1,
-        ),
-        chain.home.at[:3, 3].divide(scale),
-        chain.frame,
-    )
-    target = target.at[..., :3, 3].divide(scale)
-    q0, lower, upper = q0 * to_unit, lower * to_unit, upper * to_unit
-    eps_v = eps_v / scale
     # Double-where, step 1: replace non-finite elements before any arithmetic.
     valid = all_finite(target.reshape(*batch, 16)) & all_finite(q0)
     target = jnp.where(valid[..., None, None], target, jnp.eye(4, dtype=target.dtype))
     q0 = jnp.clip(jnp.where(jnp.isfinite(q0), q0, 0.0), lower, upper)
+    scale = jnp.asarray(chain.length_scale() if normalize else 1.0, target.dtype)
+    prismatic = ~jnp.any(chain.screws[:, :3] != 0, axis=-1)
+    to_unit = jnp.where(prismatic, 1.0 / scale, 1.0)
+    if normalize:
+        # Units of the chain's size: the twist's two halves keep their relative weight at any
+        # scale (a least-squares step weighs rotation against translation errors) and nothing
+        # over- or underflows; q's prismatic joints and the length error are scaled back.
+        v_scale = jnp.where(prismatic, 1.0, 1.0 / scale)[:, None]
+        chain = _poe.PoEChain(
+            jnp.concatenate([chain.screws[:, :3], chain.screws[:, 3:] * v_scale], axis=-1),
+            chain.home.at[:3, 3].divide(scale),
+            chain.frame,
+        )
+        target = target.at[..., :3, 3].divide(scale)
+        q0, lower, upper = q0 * to_unit, lower * to_unit, upper * to_unit
+        eps_v = eps_v / scale
     # Revolute joints (|omega| = 1) set the step limit; prismatic rows (omega = 0) do not.
     revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)
 
@@ -406,6 +405,16 @@ def _ik_chain_core(
     chain: _poe.PoEChain, target: Jet, seeds: Array, tol: Array, max_iter: int, rates: bool
 ) -> IKResult:
     dtype = target.dtype
+    # Double-where: a non-finite target (or rate) is replaced before any arithmetic.
+    flat = jnp.concatenate(
+        [x.reshape(*x.shape[:-2], 16) for x in (target.p, target.v, target.a)], -1
+    )
+    finite = all_finite(flat)[..., None, None]
+    target = Jet(
+        jnp.where(finite, target.p, jnp.eye(4, dtype=dtype)),
+        jnp.where(finite, target.v, 0.0),
+        jnp.where(finite, target.a, 0.0),
+    )
     scale = jnp.asarray(chain.length_scale(), dtype)
     revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)
     n = chain.n_joints
@@ -425,6 +434,7 @@ def _ik_chain_core(
         "body",
         keep_history=False,
         adaptive=True,
+        normalize=True,
     )
     # Per target: the converged restart with the smallest error, else the smallest error.
     score = sol.error[..., 0] + sol.error[..., 1] / scale
@@ -436,6 +446,7 @@ def _ik_chain_core(
         return jnp.squeeze(jnp.take_along_axis(x, index, axis=best.ndim), axis=best.ndim)
 
     q, status = pick(sol.q), pick(sol.status)
+    status = jnp.where(finite[..., 0, 0], status, Status.INVALID_INPUT).astype(status.dtype)
     ok = status == Status.OK
     _, _, jac = _poe._fk_and_jacobian(chain, q, "body")
     # The body Jacobian in units of the chain's size (v rows / scale, prismatic columns *

@@ -1,6 +1,6 @@
 """Reference RRR dyad implementations for benchmarks (not part of the library).
 
-The formulas follow the paper's trigonometric formulation literally (seed 000 eqs. 1-10,
+The formulas follow the paper's trigonometric formulation literally ([Noriega, eqs. 1-10],
 Figs. 2-3, errata corrected): theta by atan2, beta by arccos, then cos/sin of phi. They are
 written once, elementwise (``dyad_formulas``, ``angle_formulas``), and run two ways: on whole
 NumPy arrays (vectorised) and compiled by Numba into a fused parallel ``prange`` loop. No status

@@ -1,6 +1,6 @@
-"""Plain NumPy (and optional Numba) reference of SCARA inverse kinematics, seed 000 eqs. 1-15.
+"""Plain NumPy (and optional Numba) reference of SCARA inverse kinematics, [Noriega, eqs. 1-15].
 
-Written from the paper's formulas (with the ERRATA corrections), independently of
+Written from the paper's formulas (with the corrections of docs/errata.md), independently of
 ``jaxkin.dyad``, by reusing the elementwise reference formulas of ``reference_dyad``: the
 shoulder A at the origin and the wrist C = (x_D, y_D) form the dyad whose middle joint is the
 elbow B, so ``theta1`` is the dyad's ``phi`` (``theta + mode * beta``, ``beta`` by arccos);
@@ -12,13 +12,9 @@ cross-check.
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from reference_dyad import angle_formulas, dyad_formulas, link_end, register_jitable  # noqa: E402
+from tests.references.dyad import angle_formulas, dyad_formulas, link_end, register_jitable
 
 
 @register_jitable

@@ -1,7 +1,7 @@
 """NumPy references for serial-arm FK and Newton IK (benchmarks only, not the library).
 
-Written independently of jaxkin.serial: DH FK by stacked 4x4 matrix products (seed 001
-eqs. 2, 6); Newton IK as in seed 003 with ``numpy.linalg.pinv`` (the function the seed names),
+Written independently of jaxkin.serial: DH FK by stacked 4x4 matrix products ([Lopez-Villagomez]
+eqs. 2, 6); Newton IK as in [Pineiro] with ``numpy.linalg.pinv`` (the function the paper names),
 the space-frame update ``q += J_s^+ Ad(T) log(T^-1 T_d)`` and the geometric Jacobian of the DH
 frames, vectorised over the batch with early exit once every element has converged.
 """
@@ -17,7 +17,7 @@ PUMA = dict(
     theta=[0.0] * 6,
     joint_types="RRRRRR",
 )
-ANTHROPOMORPHIC = dict(  # seed 001 Table 1 with L1 = 0.5, L2 = 0.4, L3 = 0.3 m
+ANTHROPOMORPHIC = dict(  # [Lopez-Villagomez, Table 1] with L1 = 0.5, L2 = 0.4, L3 = 0.3 m
     a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0.0, 0.0], theta=[0.0] * 3,
     joint_types="RRR",
 )  # fmt: skip
@@ -92,7 +92,7 @@ def _space_jacobian(arm: dict, frames: np.ndarray) -> np.ndarray:
 
 
 def ik_newton_numpy(arm, target, q0, eps_omega=1e-3, eps_v=1e-4, max_iter=20):
-    """Seed 003 Newton IK, space frame, np.linalg.pinv. Returns (q, converged, iterations)."""
+    """[Pineiro] Newton IK, space frame, np.linalg.pinv. Returns (q, converged, iterations)."""
     q = np.array(q0, dtype=np.float64)
     n_batch = q.shape[0]
     converged = np.zeros(n_batch, bool)

@@ -1,5 +1,5 @@
-"""Trajectory files (jaxkin.io): CSV/NPZ round trips, parse errors with line numbers,
-atomic writes."""
+"""Trajectory files of the command line (jaxkin.cli.files): CSV/NPZ round trips, parse errors
+with line numbers, atomic writes, spline rates per candidate, chunked solving."""
 
 import os
 import stat
@@ -7,7 +7,7 @@ import stat
 import numpy as np
 import pytest
 
-from jaxkin import io as kio
+from jaxkin.cli import files as kio
 
 
 def _write(path, text, encoding="utf-8"):
@@ -189,3 +189,66 @@ def test_trajectory_columns_order():
         "margin",
     ]
     assert kio.rate_names(("x", "y", "z")) == (("vx", "vy", "vz"), ("ax", "ay", "az"))
+
+
+def _trajectory(tmp_path, text):
+    return kio.read_trajectory(_write(tmp_path / "a.csv", text))
+
+
+def test_complete_rates_by_cubic_splines_per_candidate(tmp_path):
+    """Not-a-knot splines reproduce a cubic exactly (its derivatives written out here), per
+    candidate and around a NaN row, which gets NaN rates; given rates pass through."""
+    t = np.array([0.0, 0.3, 0.5, 1.0, 1.2, 0.0, 0.5, 1.5, 2.0])
+    candidate = np.array([0, 0, 0, 0, 0, 7, 7, 7, 7])
+    coeffs = np.array([[1.0, -2.0, 0.5], [0.3, 0.0, 2.0], [-1.0, 0.7, 0.0], [0.2, 0.1, -0.4]])
+    p = sum(coeffs[k] * t[:, None] ** k for k in range(4))
+    v = sum(k * coeffs[k] * t[:, None] ** (k - 1) for k in range(1, 4))
+    a = sum(k * (k - 1) * coeffs[k] * t[:, None] ** (k - 2) for k in range(2, 4))
+    p[2, 1] = np.nan  # row 2 invalid: candidate 0 is splined through rows 0, 1, 3, 4
+    rows = "".join(
+        f"{ti},{c},{x},{y},{z}\n" for ti, c, (x, y, z) in zip(t, candidate, p, strict=True)
+    )
+    traj = _trajectory(tmp_path, "t,candidate,x,y,z\n" + rows)
+    pos, vel, acc, valid = kio.complete_rates(traj, "not-a-knot")
+    assert valid.tolist() == [True, True, False] + [True] * 6
+    np.testing.assert_array_equal(pos, traj.p)
+    np.testing.assert_allclose(vel[valid], v[valid], rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(acc[valid], a[valid], rtol=1e-9, atol=1e-9)
+    assert np.all(np.isnan(vel[2])) and np.all(np.isnan(acc[2]))
+    natural = kio.complete_rates(traj, "natural")[2]
+    np.testing.assert_allclose(natural[[0, 4, 5, 8]], 0.0, atol=1e-12)  # s'' = 0 at the ends
+    path = _write(tmp_path / "b.csv", "t,x,y,vx,vy,ax,ay\n0,1,2,3,4,5,6\n0,1,2,3,4,5,6\n")
+    given = kio.read_trajectory(path, ("x", "y"))  # t not increasing: no spline needed
+    out = kio.complete_rates(given, "not-a-knot")
+    np.testing.assert_array_equal(out[1], [[3.0, 4.0]] * 2)
+    np.testing.assert_array_equal(out[2], [[5.0, 6.0]] * 2)
+
+
+def test_complete_rates_needs_increasing_times_per_candidate(tmp_path):
+    traj = _trajectory(tmp_path, "t,candidate,x,y,z\n0,1,0,0,0\n1,1,0,0,0\n1,1,0,0,0\n")
+    with pytest.raises(kio.InputError, match=r"a.csv:4: candidate 1: t must increase strictly"):
+        kio.complete_rates(traj, "not-a-knot")
+    # Times may restart from one candidate to the next.
+    traj = _trajectory(tmp_path, "t,candidate,x,y,z\n0,1,0,0,0\n1,1,0,0,0\n0,2,0,0,0\n")
+    assert kio.complete_rates(traj, "not-a-knot")[3].all()
+
+
+def test_solve_in_chunks_calls_one_shape_and_joins_the_rows():
+    """Each call gets the same number of rows (the chunk, or the next power of two of a small
+    input); the padding rows are dropped and the outputs joined in order."""
+    seen = []
+
+    def fn(x, y):
+        seen.append(len(x))
+        return x + y, (x * 2, y)
+
+    x, y = np.arange(5.0), np.arange(5.0) * 10
+    sums, doubled, ys = kio.solve_in_chunks(fn, (x, y), chunk=2, desc="test", quiet=True)
+    assert seen == [2, 2, 2]
+    np.testing.assert_array_equal(sums, x + y)
+    np.testing.assert_array_equal(doubled, 2 * x)
+    np.testing.assert_array_equal(ys, y)
+    seen.clear()
+    sums = kio.solve_in_chunks(fn, (x, y), chunk=1 << 16, desc="test", quiet=True)[0]
+    assert seen == [8]  # 5 rows padded to 8, not to the chunk
+    np.testing.assert_array_equal(sums, x + y)

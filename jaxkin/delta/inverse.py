@@ -116,10 +116,14 @@ def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array
 
 
 def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+    # Non-finite input is replaced first (double-where), then the kernel works in units of
+    # the robot's size.
+    p, valid = _sanitise(p, jnp.zeros((3,), p.p.dtype), rates)
     robot, scale = in_own_units(robot)
     inv_scale = 1.0 / jnp.asarray(scale, p.p.dtype)
     p = Jet(*(None if x is None else x * inv_scale for x in (p.p, p.v, p.a)))
-    p, valid = _sanitise(p, _home(robot, p.p.dtype), rates)
+    home = _home(robot, p.p.dtype)
+    p = Jet(jnp.where(valid[..., None], p.p, home), p.v, p.a)
     far = far_away(p.p)  # certainly unreachable: solved at the home pose instead, then flagged
     p = Jet(
         *(

@@ -1,7 +1,7 @@
-"""jaxkin._threads: large batches split across host threads give the whole-batch answer.
+"""jaxkin._batching: every way a batch is split gives the whole-batch answer.
 
-The reference is always the same kernel run once on the whole batch (``set_num_threads(1)``);
-parts are made small here (``MIN_PART`` patched) so the tests stay fast.
+The reference is always the same function run once on the whole batch (``set_num_threads(1)``
+for host parts); thresholds are patched small so the tests stay fast.
 """
 
 from __future__ import annotations
@@ -12,29 +12,94 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from helpers import tree_allfinite
 
 import jaxkin
-from jaxkin import Jet, Status, _threads, delta
+from jaxkin import Jet, Status, _batching, delta
+from jaxkin.delta import forward
+from tests.helpers import tree_allfinite
 
 ROBOT = delta.Delta.paper()
+CHUNK = _batching.CHUNK
 
 
+# ------------------------------------------------------------------ chunks inside a kernel
+@pytest.mark.parametrize(
+    ("size", "layout"),
+    [
+        (1_000_000, (125, 8000)),  # a divisor in (CHUNK/2, CHUNK]: no padding
+        (3 * CHUNK, (3, CHUNK)),
+        (CHUNK + 37, (2, 4115)),  # no such divisor: two chunks, one padding element
+    ],
+)
+def test_chunk_layout(size, layout):
+    n_chunks, chunk = _batching._chunk_layout(size)
+    assert (n_chunks, chunk) == layout
+    assert n_chunks * chunk >= size and chunk <= CHUNK
+
+
+def _pair(batch, seed=0):
+    rng = np.random.default_rng(seed)
+    return jnp.asarray(rng.normal(size=(*batch, 3))), jnp.asarray(rng.normal(size=batch))
+
+
+@pytest.mark.parametrize("batch", [(CHUNK + 37,), (3, 4001), (17,)])
+def test_map_chunks_equals_whole_batch(batch):
+    """Elementwise fn of a pytree (one leaf with a trailing axis): same values, same shapes."""
+    x, y = _pair(batch)
+
+    def fn(tree):
+        x, y = tree
+        return {"norm": jnp.sqrt(jnp.sum(x * x, -1)) + y, "scaled": x * y[..., None]}
+
+    chunked = _batching.map_chunks(fn, (x, y), batch)
+    whole = fn((x, y))
+    for key in whole:
+        assert chunked[key].shape == whole[key].shape
+        np.testing.assert_array_equal(chunked[key], whole[key])
+
+
+@pytest.mark.parametrize("batch", [(10,), (7,), (3, 5)])
+def test_in_two_halves_equals_whole_batch(batch, monkeypatch):
+    """Even, odd (unequal halves) and 2-D batches; a scalar argument reaches both halves;
+    below ``HALVES_MIN`` the function runs once."""
+    x, y = _pair(batch, seed=1)
+    calls = []
+
+    def fn(x, y, scale):
+        calls.append(y.shape)
+        return {"sum": x.sum(-1) * scale + y, "x": x * scale}
+
+    whole = fn(x, y, 2.0)
+    calls.clear()
+    monkeypatch.setattr(_batching, "HALVES_MIN", 4)
+    halves = _batching.in_two_halves(fn, (x, y, jnp.asarray(2.0)), batch)
+    size = int(np.prod(batch))
+    assert calls == [(size // 2,), (size - size // 2,)]
+    for key in whole:
+        assert halves[key].shape == whole[key].shape
+        np.testing.assert_array_equal(halves[key], whole[key])
+    monkeypatch.setattr(_batching, "HALVES_MIN", size + 1)
+    calls.clear()
+    _batching.in_two_halves(fn, (x, y, jnp.asarray(2.0)), batch)
+    assert calls == [batch]
+
+
+# ------------------------------------------------------------------ host threads
 @pytest.fixture
 def small_parts(monkeypatch):
     """Parts of at least 16 elements, two threads (whatever the machine has)."""
-    monkeypatch.setattr(_threads, "MIN_PART", 16)
-    _threads.set_num_threads(2)
+    monkeypatch.setattr(_batching, "MIN_PART", 16)
+    _batching.set_num_threads(2)
     yield
-    _threads.set_num_threads(None)
+    _batching.set_num_threads(None)
 
 
 def _whole(fn, *args, **kwargs):
-    _threads.set_num_threads(1)
+    _batching.set_num_threads(1)
     try:
         return fn(*args, **kwargs)
     finally:
-        _threads.set_num_threads(2)
+        _batching.set_num_threads(2)
 
 
 @pytest.mark.parametrize(
@@ -47,8 +112,8 @@ def _whole(fn, *args, **kwargs):
         (100, 8, 17, [0, 17, 34, 51, 68, 83]),  # at most size // MIN_PART parts
     ],
 )
-def test_layout(small_parts, size, threads, part, starts):
-    assert _threads._layout(size, threads) == (part, starts)
+def test_thread_layout(small_parts, size, threads, part, starts):
+    assert _batching._layout(size, threads) == (part, starts)
     covered = set()
     for start in starts:
         covered |= set(range(start, start + part))
@@ -66,7 +131,7 @@ def test_layout(small_parts, size, threads, part, starts):
     ],
 )
 def test_overlapping_parts(size, n_parts, multiple, part, starts):
-    assert _threads.overlapping_parts(size, n_parts, multiple) == (part, starts)
+    assert _batching.overlapping_parts(size, n_parts, multiple) == (part, starts)
     assert part % multiple == 0 and starts[-1] + part == size
 
 
@@ -76,14 +141,12 @@ def _toy(x, y, scale, mode):
     return {"norm": norm * scale + mode * y, "scaled": x * y[..., None]}
 
 
-@pytest.mark.parametrize("batch", [(40,), (41,), (7, 9), (3, 4, 5)])
+@pytest.mark.parametrize("batch", [(41,), (7, 9)])
 @pytest.mark.parametrize("threads", [2, 3])
 def test_parts_equal_whole_batch(small_parts, batch, threads):
-    rng = np.random.default_rng(0)
-    x = jnp.asarray(rng.normal(size=(*batch, 3)))
-    y = jnp.asarray(rng.normal(size=batch))
-    kernel = _threads.PartsJit(_toy, ("mode",), ("x", "y"))
-    _threads.set_num_threads(threads)
+    x, y = _pair(batch)
+    kernel = _batching.PartsJit(_toy, ("mode",), ("x", "y"))
+    _batching.set_num_threads(threads)
     parts = kernel(x, y, jnp.asarray(2.0), 3, batch=batch)
     whole = kernel.whole(x, y, jnp.asarray(2.0), 3)
     assert kernel._part._cache_size() == 1  # the parts ran (one shared compilation)
@@ -99,7 +162,7 @@ def test_parts_run_on_worker_threads(small_parts):
         jax.debug.callback(lambda: seen.add(threading.current_thread().name))
         return x * 2.0
 
-    split = _threads.PartsJit(kernel, (), ("x",))
+    split = _batching.PartsJit(kernel, (), ("x",))
     np.testing.assert_array_equal(split(jnp.arange(64.0), batch=(64,)), 2.0 * np.arange(64.0))
     assert len(seen) == 2 and all(name.startswith("jaxkin") for name in seen)
 
@@ -111,13 +174,13 @@ def test_whole_batch_when_splitting_does_not_apply(small_parts):
         calls.append(x.shape)  # runs at trace time: one entry per compilation
         return x + y
 
-    split = _threads.PartsJit(kernel, (), ("x", "y"))
+    split = _batching.PartsJit(kernel, (), ("x", "y"))
     x = jnp.ones((64, 2))
     out = [
         split(x, jnp.ones((1, 2)), batch=(64,)),  # y only broadcasts to the batch
         jax.jit(lambda x: split(x, x, batch=(64,)))(x),  # tracers inside a user's jit
     ]
-    _threads.set_num_threads(1)
+    _batching.set_num_threads(1)
     out.append(split(x, x, batch=(64,)))  # one thread
     for result in out:
         np.testing.assert_array_equal(result, 2.0 * np.ones((64, 2)))
@@ -130,42 +193,42 @@ def test_errors_reach_the_caller(small_parts):
         raise ValueError("bad part")
 
     with pytest.raises(ValueError, match="bad part"):
-        _threads.PartsJit(kernel, (), ("x",))(jnp.ones(64), batch=(64,))
+        _batching.PartsJit(kernel, (), ("x",))(jnp.ones(64), batch=(64,))
 
 
 def test_thread_count_setting(monkeypatch):
-    assert jaxkin.set_num_threads is _threads.set_num_threads  # the public names
-    assert jaxkin.num_threads is _threads.num_threads
+    assert jaxkin.set_num_threads is _batching.set_num_threads  # the public names
+    assert jaxkin.num_threads is _batching.num_threads
     monkeypatch.setenv("JAXKIN_NUM_THREADS", "3")
-    assert _threads.num_threads() == 3
-    _threads.set_num_threads(5)
-    assert _threads.num_threads() == 5
-    _threads.set_num_threads(None)
+    assert _batching.num_threads() == 3
+    _batching.set_num_threads(5)
+    assert _batching.num_threads() == 5
+    _batching.set_num_threads(None)
     monkeypatch.setenv("JAXKIN_NUM_THREADS", "zero")
     with pytest.raises(ValueError, match="JAXKIN_NUM_THREADS"):
-        _threads.num_threads()
+        _batching.num_threads()
     monkeypatch.delenv("JAXKIN_NUM_THREADS")
-    assert _threads.num_threads() >= 1
+    assert _batching.num_threads() >= 1
     for bad in (0, -1, 1.5, True):
         with pytest.raises(ValueError, match="positive int"):
-            _threads.set_num_threads(bad)
+            _batching.set_num_threads(bad)
 
 
 def test_delta_fk_in_parts_equals_whole_batch(small_parts):
     """The real kernel: Newton iterations, statuses, rates, a warm start, bad elements."""
     rng = np.random.default_rng(3)
     p = np.stack([rng.uniform(-8, 8, 101), rng.uniform(-8, 8, 101), rng.uniform(-38, -22, 101)], -1)
-    theta = np.array(delta.ik(ROBOT, p).theta.p)
+    theta = np.array(delta.ik(ROBOT, p).q.p)
     theta[4] = np.nan
     theta[-1] = [np.pi, 0.0, 0.0]  # cannot be assembled (fk_closed_form: UNREACHABLE)
     jet = Jet.of(theta, rng.normal(size=theta.shape), rng.normal(size=theta.shape))
     guess = p + rng.normal(scale=0.5, size=p.shape)
     results = []
-    for args, kwargs in [((theta,), {}), ((jet,), {}), ((theta,), {"guess": guess})]:
-        before = delta._fk_jit._static._part._cache_size()
+    for args, kwargs in [((jet,), {}), ((theta,), {"guess": guess})]:
+        before = forward._fk_jit._static._part._cache_size()
         parts = delta.fk(ROBOT, *args, **kwargs)
         # the part kernel (not the whole-batch one) was compiled for this call
-        assert delta._fk_jit._static._part._cache_size() == before + 1
+        assert forward._fk_jit._static._part._cache_size() == before + 1
         whole = _whole(delta.fk, ROBOT, *args, **kwargs)
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype
@@ -175,3 +238,13 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts):
     assert status[4] == Status.INVALID_INPUT and status[-1] == Status.NOT_CONVERGED
     assert np.sum(status == Status.OK) >= 95
     assert tree_allfinite(results)
+
+
+def test_host_chunks_cover_every_element_with_one_shape():
+    seen = []
+    for start, stop, index in _batching.host_chunks(10, 4):
+        assert len(index) == 4 and np.all(index[: stop - start] == np.arange(start, stop))
+        assert np.all(index[stop - start :] == start)  # padding repeats a real element
+        seen.extend(range(start, stop))
+    assert seen == list(range(10))
+    assert [len(i) for *_, i in _batching.host_chunks(5, 64)] == [8]  # next power of two
