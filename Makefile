@@ -5,21 +5,24 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test docs docs-serve bench bench-peers lint format clean
+.PHONY: demo test test-slow docs docs-serve bench bench-peers lint format clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,plot,bench]'
+	$(BIN)/python -m pip install --quiet -e '.[test,plot,bench,urdf]'
 	touch $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/jaxkin demo
 
 # Two worker processes (pytest-xdist), one file per worker at a time so that a file's tests
-# share their compilations.
+# share their compilations. The slow tests (tests/conftest.py) run with `make test-slow`.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile tests
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow" tests
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m slow tests
 
 DOCS_STAMP := $(VENV)/.installed-docs
 

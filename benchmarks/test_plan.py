@@ -1,5 +1,5 @@
 """Planner throughput: candidates per second for N = 1e2, 1e3, 1e4 candidates of T = 100
-samples (SCARA and Delta, float32 and float64, one fixed mode), and optimiser steps per second.
+samples (SCARA and Delta, float32 and float64, one fixed branch), and optimiser steps per second.
 """
 
 import jax
@@ -44,10 +44,10 @@ ROBOTS = {
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 @pytest.mark.parametrize("robot_name", list(ROBOTS))
 def test_plan_evaluate(measure, robot_name, dtype, n):
-    robot, start, goal, spread, mode = ROBOTS[robot_name]
+    robot, start, goal, spread, branch = ROBOTS[robot_name]
     path = _bezier_paths(n, start, goal, spread, np.dtype(dtype))
     measure(
-        lambda: plan.evaluate(robot, path, mode=mode, dt=2.0 / (T - 1)),
+        lambda: plan.evaluate(robot, path, branch=branch, dt=2.0 / (T - 1)),
         n,
         kernel=f"plan.evaluate[{robot_name}]",
         dtype=dtype,

@@ -59,7 +59,7 @@ def test_scara_ik_jaxkin(measure, benchmark, data, method, dtype):
     robot = scara.Scara.create(L_OA, L_AB, L_BC)
     d = jax.device_put(Jet.of(p, v, a).astype(jnp.dtype(dtype)))
     result = measure(
-        lambda: scara.ik(robot, d, mode=1, method=method),
+        lambda: scara.ik(robot, d, branch=1, method=method),
         N_CASES,
         rounds=3,
         batch=f"{N_TRAJ}x{N_SAMPLES}",

@@ -35,8 +35,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
-from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
+from . import _processes
 from ._validate import is_concrete
 
 # ------------------------------------------------------------------------------- thresholds
@@ -53,6 +53,8 @@ MIN_PART = 1 << 15
 # Planner samples (candidates x T) per call (N = 1e4, T = 100: larger calls map their
 # temporaries afresh every call, smaller ones gain nothing).
 PLAN_CHUNK_SAMPLES = 1 << 17
+# The same on an accelerator (one call's temporaries: about 1 GB in float64).
+ACCELERATOR_CHUNK_SAMPLES = 1 << 21
 # delta.fk at rest writes its zero rates outside the kernel from this many elements (the
 # extra eager call costs more than the kernel's writes below it).
 SHARED_ZEROS_MIN = 1 << 16
@@ -154,10 +156,25 @@ _pool_lock = threading.Lock()
 _in_worker = threading.local()
 
 
+def on_accelerator() -> bool:
+    """True when JAX's default backend is not the CPU (a GPU or TPU): the host-thread split
+    and the CPU's chunk sizes are then off (``docs/scaling.md``)."""
+    return jax.default_backend() != "cpu"
+
+
+def plan_chunk_samples() -> int:
+    """Samples per planner call: ``PLAN_CHUNK_SAMPLES`` on the CPU, ``ACCELERATOR_CHUNK_SAMPLES``
+    on an accelerator (its memory and parallelism favour larger calls)."""
+    return ACCELERATOR_CHUNK_SAMPLES if on_accelerator() else PLAN_CHUNK_SAMPLES
+
+
 def num_threads() -> int:
-    """Host threads a large batch is split across (>= 1)."""
+    """Host threads a large batch is split across (>= 1): 1 on an accelerator, whose own
+    parallelism serves the whole batch, unless set explicitly."""
     if _requested is not None:
         return _requested
+    if on_accelerator():
+        return 1
     env = os.environ.get("JAXKIN_NUM_THREADS", "").strip()
     if env:
         try:
@@ -320,7 +337,7 @@ class PartsJit:
         if (
             len(starts) < 2
             or getattr(_in_worker, "active", False)
-            or jax.default_backend() != "cpu"
+            or on_accelerator()
             or not all(_on_one_device(leaf) for leaf in jax.tree.leaves((args, kwargs)))
         ):
             return self.whole(*args, **kwargs)
@@ -344,45 +361,75 @@ class PartsJit:
 # ------------------------------------------------------------------ candidates and devices
 
 
-def _candidate_sharding(n_devices: int) -> NamedSharding | None:
-    if n_devices == 1:
-        return None
-    mesh = Mesh(np.asarray(jax.devices()), ("candidates",))
-    return NamedSharding(mesh, PartitionSpec("candidates"))
+_device_block = threading.local()  # set while a device's block runs: nested calls stay local
 
 
-def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int) -> Any:
+def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int, name: str = "path") -> Any:
     """Apply ``fn`` to a pytree whose leaves share a leading candidate axis N, in chunks.
 
-    The chunks have one size, at most ``chunk_size`` candidates (the last one overlaps its
-    neighbour rather than being padded: ``overlapping_parts``), so one compilation serves them
-    all. With several devices each chunk is sharded across all of them; with one, chunks run
-    on the host threads concurrently. The results are joined back to N candidates.
+    ``fn`` is elementwise in the candidates. With one device the chunks have one size, at most
+    ``chunk_size`` candidates (the last one overlaps its neighbour rather than being padded:
+    ``overlapping_parts``), so one compilation serves them all; they run on the host threads
+    concurrently and are joined back to N candidates.
+
+    With several devices (one process or many, ``jax.distributed``) the candidates are split
+    into one block per device (``_processes.layout_of``: equal blocks of host data, the last
+    rows repeating the last candidate, or a global array's own blocks), each process computes
+    its own devices' blocks in chunks of at most ``chunk_size`` as above, with no
+    communication, and the outputs are global arrays split along the candidate axis like the
+    blocks (replicated when N is not a multiple of the device count: ``_processes.assemble``).
+    ``name`` names ``tree`` in the ``ValueError`` for a global array split otherwise, or host
+    arrays whose shapes differ between processes.
     """
-    n = jax.tree.leaves(tree)[0].shape[0]
-    n_devices = jax.device_count()
-    # Sharded chunks need a multiple of the device count: repeat the last candidate.
-    pad = (-n) % n_devices
-    if pad:
-        tree = jax.tree.map(lambda x: jnp.concatenate([x, jnp.repeat(x[-1:], pad, 0)]), tree)
-    size = n + pad
-    chunk, starts = overlapping_parts(
-        size, math.ceil(size / max(1, min(chunk_size, size))), multiple=n_devices
-    )
-    sharding = _candidate_sharding(n_devices)
+    leaves = jax.tree.leaves(tree)
+    if (
+        jax.device_count() == 1
+        or getattr(_device_block, "active", False)
+        or not all(is_concrete(leaf) for leaf in leaves)
+    ):
+        return _map_on_one_device(fn, tree, chunk_size)
+    layout = _processes.layout_of(tree, name)
+    block = layout.block_rows
+    chunk, starts = overlapping_parts(block, math.ceil(block / max(1, min(chunk_size, block))))
+    blocks = [
+        jax.tree.map(lambda leaf, i=i: _processes.read_block(leaf, layout, i), tree)
+        for i in range(len(layout.blocks))
+    ]
+
+    def run(task: tuple[int, int]) -> Any:
+        i, start = task
+        part = blocks[i]
+        if chunk < block:
+            part = jax.tree.map(lambda x: x[start : start + chunk], part)
+        _device_block.active = True
+        try:
+            return fn(part)
+        finally:
+            _device_block.active = False
+
+    outputs = run_parts(run, [(i, start) for i in range(len(blocks)) for start in starts])
+    joined = []
+    for i in range(len(blocks)):
+        mine = outputs[i * len(starts) : (i + 1) * len(starts)]
+        joined.append(
+            mine[0] if len(mine) == 1 else join(mine, (block,), len(mine) * chunk - block)
+        )
+    return _processes.assemble(layout, joined)
+
+
+def _map_on_one_device(fn: Callable[[Any], Any], tree: Any, chunk_size: int) -> Any:
+    """``map_candidates`` on the device the leaves are on (chunks on the host threads)."""
+    size = jax.tree.leaves(tree)[0].shape[0]
+    if size == 0:
+        return fn(tree)
+    chunk, starts = overlapping_parts(size, math.ceil(size / max(1, min(chunk_size, size))))
 
     def run(start: int) -> Any:
         part = tree if chunk == size else jax.tree.map(lambda x: x[start : start + chunk], tree)
-        if sharding is not None:
-            part = jax.device_put(part, sharding)
         return fn(part)
 
-    if sharding is not None:  # the devices share the work: one chunk at a time
-        outputs = [run(start) for start in starts]
-    else:
-        outputs = run_parts(run, starts)
-    result = outputs[0] if len(outputs) == 1 else join(outputs, (size,), len(starts) * chunk - size)
-    return jax.tree.map(lambda x: x[:n], result) if pad else result
+    outputs = run_parts(run, starts)
+    return outputs[0] if len(outputs) == 1 else join(outputs, (size,), len(starts) * chunk - size)
 
 
 # ------------------------------------------------------------------ host chunks

@@ -23,6 +23,10 @@ stack computes each row on its own): ``n = round(x / pi)`` (sin) or ``floor(x / 
 Special values follow C's ``atan2`` (``atan2(+-0, -0) = +-pi``, NaN in, NaN out). All carry the
 usual derivative rules (``custom_jvp``): nested ``jvp`` and ``grad`` see ``d sin = cos`` and
 ``d atan2(y, x) = (x dy - y dx) / (x^2 + y^2)``, as ``jnp.arctan2`` does.
+
+On an accelerator (``jax.default_backend()`` not ``"cpu"``) the four functions are XLA's own
+``sin``, ``cos`` and ``atan2``, which GPUs evaluate in fast native code: the polynomial forms
+are a CPU choice (``docs/scaling.md``).
 """
 
 from __future__ import annotations
@@ -160,11 +164,19 @@ def _float(x: ArrayLike) -> Array:
     return x
 
 
+def _native() -> bool:
+    """XLA's own functions: on an accelerator (module docstring)."""
+    return jax.default_backend() != "cpu"
+
+
 def sincos(x: ArrayLike) -> tuple[Array, Array]:
     """``(sin x, cos x)`` elementwise, any shape; float64/float32 within 1 ulp.
 
     Other dtypes (float16, bfloat16, integers promoted to float) use ``jnp.sin``/``jnp.cos``.
     """
+    if _native():
+        x = _float(x)
+        return jnp.sin(x), jnp.cos(x)
     return _sincos(_float(x))
 
 
@@ -244,12 +256,12 @@ def sin_alone(x: ArrayLike) -> Array:
 
     For angles whose sin and cos are stored as separate rows (module docstring).
     """
-    return _sin_alone(_float(x))
+    return jnp.sin(_float(x)) if _native() else _sin_alone(_float(x))
 
 
 def cos_alone(x: ArrayLike) -> Array:
     """``cos x`` elementwise on its own, to absolute accuracy (see ``sin_alone``)."""
-    return _cos_alone(_float(x))
+    return jnp.cos(_float(x)) if _native() else _cos_alone(_float(x))
 
 
 def _atan2_value(y: Array, x: Array) -> Array:
@@ -299,4 +311,4 @@ def atan2(y: ArrayLike, x: ArrayLike) -> Array:
     y, x = jnp.asarray(y), jnp.asarray(x)
     dtype = jnp.result_type(y, x, float)
     y, x = jnp.broadcast_arrays(y.astype(dtype), x.astype(dtype))
-    return _atan2(y, x)
+    return jnp.arctan2(y, x) if _native() else _atan2(y, x)

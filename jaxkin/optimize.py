@@ -36,7 +36,7 @@ import optax
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import plan
+from . import _batching, _processes, plan
 from ._numerics import safe_norm
 from ._progress import bar, is_active
 from .jet import Jet
@@ -268,7 +268,8 @@ def compose(*weighted_terms: tuple[float, CostTerm]) -> Sum:
     for weight, term in weighted_terms:
         if not (isinstance(weight, int | float) and math.isfinite(weight)):
             raise ValueError(f"compose: weights must be finite numbers, got {weight!r}")
-        weights.append(jnp.asarray(float(weight)))
+        # NumPy, not a device array: importing jaxkin must not start JAX before jax.distributed
+        weights.append(np.asarray(float(weight)))
         if jax.tree_util.all_leaves([term]):
             terms.append(term)  # a plain function: part of the structure
         else:
@@ -381,6 +382,10 @@ class OptimizationResult:
         best: the index of the best guess: the feasible one of least cost (or of least cost if
             none is feasible), an ``int32`` scalar.
         evaluation: ``plan.Evaluation`` of the optimised paths.
+
+    With several devices (one process or many, ``jax.distributed``) every array is global,
+    split along the guess axis (``history`` along its second axis; replicated when B is not a
+    multiple of ``jax.device_count()``), and ``best`` is the global index on every process.
     """
 
     controls: Array
@@ -527,7 +532,9 @@ def optimize(
         start, goal: end points, shape ``robot.target.shape`` (``space="task"``), or joint
             vectors ``(n_joints,)`` (``space="joint"``: their forward kinematics).
         interior: initial interior control points, shape ``(B, K', d)`` or ``(K', d)``; every
-            guess must be finite (a ``ValueError`` names the guesses that are not).
+            guess must be finite (a ``ValueError`` names the guesses that are not). Host data
+            (the same on every process), or a global ``jax.Array`` split along the guesses:
+            with several devices each runs its own guesses' loop.
         duration: motion time; ``n_samples`` samples are taken uniformly in [0, duration].
         optimizer: ``LBFGS()`` (default) or ``Adam(...)`` (described by value: no new
             compilation), or any optax transformation (a new object compiles anew: keep one).
@@ -577,7 +584,14 @@ def optimize(
         raise ValueError(
             f"interior: expected shape (B, K', {dims}) with K' >= 1, got {interior.shape}"
         )
-    bad = np.flatnonzero(~np.all(np.isfinite(np.asarray(interior)), axis=(1, 2)))
+    bad = np.concatenate(
+        [
+            start + np.flatnonzero(~np.all(np.isfinite(rows), axis=(1, 2)))
+            for start, rows in _processes.local_rows(interior)
+        ]
+    )
+    if not _processes.fetchable(interior):  # split over processes: every process must raise
+        bad = np.unique(_processes.allgather_rows(bad))
     if bad.size:
         raise ValueError(
             f"interior: initial guess(es) {bad.tolist()} hold NaN or inf (every guess must be "
@@ -624,25 +638,36 @@ def optimize(
         gtol=jnp.asarray(gtol, dtype),
         ftol=jnp.asarray(ftol, dtype),
     )
-    carry = _start(interior / scale, data, static)
-    block = min(steps, PROGRESS_BLOCK) if is_active(progress) else steps
-    with bar(steps, "optimize", enabled=progress) as meter:
-        done_steps = 0
-        while done_steps < steps:
-            carry = _run(carry, data, jnp.int32(done_steps + block), static)
-            reached = int(carry[7])
-            meter.update(reached - done_steps)
-            if reached < done_steps + block:  # every guess has stopped
-                break
-            done_steps = reached
-    x, _, f, g, _, converged, iterations, step, history = carry
-    history = jnp.where(jnp.arange(steps + 1)[:, None] > step, f, history)
-    controls = _full_controls(x * scale, data["start"], data["goal"], rest_to_rest)
-    path = bezier_path(controls, basis, duration)
+
+    def run(guesses: Array) -> tuple:
+        """The guesses ``(b, K', d)`` of one device optimised, per-guess results leading."""
+        carry = _start(guesses / scale, data, static)
+        block = min(steps, PROGRESS_BLOCK) if is_active(progress) else steps
+        with bar(steps, "optimize", enabled=progress) as meter:
+            done_steps = 0
+            while done_steps < steps:
+                carry = _run(carry, data, jnp.int32(done_steps + block), static)
+                reached = int(carry[7])
+                meter.update(reached - done_steps)
+                if reached < done_steps + block:  # every guess has stopped
+                    break
+                done_steps = reached
+        x, _, f, g, _, converged, iterations, step, history = carry
+        history = jnp.where(jnp.arange(steps + 1)[:, None] > step, f, history)
+        controls = _full_controls(x * scale, data["start"], data["goal"], rest_to_rest)
+        path = bezier_path(controls, basis, duration)
+        grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
+        return controls, path, f, history.T, converged, iterations, grad_norm
+
+    # A guess's steps never depend on the others' (a stopped guess is held), so each device
+    # runs its own guesses' loop to its own end.
+    controls, path, f, history, converged, iterations, grad_norm = _batching.map_candidates(
+        run, interior, interior.shape[0], name="interior"
+    )
+    history = history.T
     evaluation = plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt)
     ranked = jnp.where(evaluation.feasible, f, jnp.inf)
     best = jnp.where(jnp.any(evaluation.feasible), jnp.argmin(ranked), jnp.argmin(f))
-    grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
     return OptimizationResult(
         controls,
         path,

@@ -25,10 +25,12 @@ every sample's status is ``OK``: solved, regular, within every position, speed a
 limit (``OUT_OF_LIMITS`` otherwise). A candidate keeps one branch from start to end: a path that
 would need a switch passes through a singularity, which the kernel reports.
 
-Scale: huge N is processed in chunks of about ``jaxkin._batching.PLAN_CHUNK_SAMPLES`` samples,
-so memory stays bounded besides the returned arrays; with several JAX devices each chunk is
-sharded over all of them, with one the chunks run on the host threads
-(``jaxkin._batching.map_candidates``).
+Scale: huge N is processed in chunks of about ``jaxkin._batching.plan_chunk_samples()`` samples,
+so memory stays bounded besides the returned arrays; the chunks run on the host threads. With
+several JAX devices, in one process or in many joined by ``jax.distributed`` (every process
+then calls ``evaluate`` with the same arguments), the candidates are split into one block per
+device, each process evaluates its own devices' blocks, and the results are global arrays
+split along the candidate axis (``jaxkin._batching.map_candidates``; ``docs/scaling.md``).
 """
 
 from __future__ import annotations
@@ -43,11 +45,11 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _splines, _validate
+from . import _batching, _processes, _splines, _validate
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
 from .result import SolverResult
-from .robot import Robot, as_robot, ik
+from .robot import Robot, as_robot
 from .status import STATUS_DTYPE, Status
 
 __all__ = [
@@ -58,7 +60,10 @@ __all__ = [
     "evaluate",
     "jerk",
     "limit_excess",
+    "path_from_poses",
     "path_from_samples",
+    "pose_from_quaternions",
+    "quaternions_from_pose",
     "trajectory_costs",
 ]
 
@@ -229,10 +234,8 @@ def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Cost
 def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) -> Evaluation:
     """Every candidate on one branch; ``branch_index`` an int, or a traced one (``"best"``)."""
     branches = robot.branches
-    if isinstance(branch_index, int):
-        res = ik(robot, path, branches[branch_index])
-    else:
-        res = robot._ik_indexed(path, branch_index)
+    # Along each candidate: an iterative IK warm-starts every sample from the previous one.
+    res = robot._ik_path(path, branch_index)
     q, status, margin = res.q, res.status, res.margin
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
@@ -296,22 +299,26 @@ def evaluate(
     Args:
         robot: any robot of the protocol (``jaxkin.robot``).
         path: Jet (or plain targets, at rest) of shape ``(N, T, *robot.target.shape)``; build
-            one from sampled points with ``path_from_samples``.
+            one from sampled points with ``path_from_samples``. Host arrays (the same on every
+            process), or global ``jax.Array``s split along the candidate axis only.
         limits: joint ``Limits``; the robot's own position limits always apply too.
         branch: the branch held along every candidate (one of ``robot.branches``; None for
             ``robot.default_branch``), or ``"best"``: every branch is evaluated and, per
             candidate, the feasible one with the lowest ``costs.total`` is kept.
         dt: sample spacing in time (for the integrated costs and jerk).
-        chunk_size: candidates per call (default ``PLAN_CHUNK_SAMPLES // T``, divided by the
-            number of branches for ``"best"``).
+        chunk_size: candidates per call on one device (default
+            ``_batching.plan_chunk_samples() // T``, divided by the number of branches for
+            ``"best"``).
 
     Returns:
         An ``Evaluation``; ``branch`` tells which branch each candidate used. Zero candidates
-        give empty arrays.
+        give empty arrays. With several devices its arrays are global, split along the
+        candidate axis (replicated when N is not a multiple of ``jax.device_count()``).
 
     Raises:
         ValueError: not a robot, a path not of shape ``(N, T, *target)`` with T >= 2, an
-            unknown branch, a non-positive dt, or limits of the wrong size.
+            unknown branch, a non-positive dt, limits of the wrong size, a global path split
+            along another axis, or host paths whose shapes differ between processes.
     """
     robot = as_robot(robot)
     if branch != "best":
@@ -330,7 +337,7 @@ def evaluate(
     if chunk_size is None:
         # "best" holds every branch of a chunk at once
         held = len(robot.branches) if branch == "best" else 1
-        chunk_size = max(1, _batching.PLAN_CHUNK_SAMPLES // (t * held))
+        chunk_size = max(1, _batching.plan_chunk_samples() // (t * held))
     elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
     if n == 0:  # the kernel's shapes from one placeholder candidate, then none of it
@@ -360,29 +367,211 @@ def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") 
     positions = np.asarray(positions, dtype=float)
     if positions.ndim < 2 or positions.shape[-2] < 2:
         raise ValueError(
-            f"positions: expected shape (..., T, 3) with T >= 2, got {positions.shape}"
+            f"positions: expected shape (..., T, d) with T >= 2, got {positions.shape}"
         )
-    if not (dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+    _check_samples(positions, "positions", positions.shape[-1], dt)
+    return Jet.of(*_splined(positions, dt, end))
+
+
+def _splined(positions: np.ndarray, dt: float, end: str) -> tuple[np.ndarray, ...]:
+    """``(value, velocity, acceleration)`` of per-candidate cubic splines through samples
+    ``(..., T, d)``; a candidate with a non-finite sample gets NaN rates."""
     t = np.broadcast_to(np.arange(positions.shape[-2]) * float(dt), positions.shape[:-1])
-    # A candidate with a NaN/inf sample has no spline: its rates are NaN (every sample then
-    # INVALID_INPUT in the kernels), and the other candidates are splined as usual.
     finite = np.all(np.isfinite(positions), axis=(-2, -1))[..., None, None]
     velocity, acceleration = _splines.derivatives(t, np.where(finite, positions, 0.0), end=end)
     velocity, acceleration = (np.where(finite, x, np.nan) for x in (velocity, acceleration))
-    return Jet.of(positions, velocity, acceleration)
+    return positions, velocity, acceleration
+
+
+def _check_samples(x: np.ndarray, name: str, width: int, dt: float) -> None:
+    if x.ndim < 2 or x.shape[-2] < 2 or x.shape[-1] != width:
+        raise ValueError(f"{name}: expected shape (..., T, {width}) with T >= 2, got {x.shape}")
+    if not (dt > 0 and math.isfinite(dt)):
+        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+
+
+def _rotation_of_quaternion(s: np.ndarray, ds: np.ndarray, dds: np.ndarray):
+    """``R``, ``R_dot``, ``R_ddot`` of ``R(s) = Q(s) / |s|^2`` along ``s(t)`` (``s`` any
+    non-zero quaternion ``(w, x, y, z)``; ``Q`` quadratic, so the rates are exact)."""
+
+    def q_matrix(a, b):  # the symmetric bilinear form with Q(s) = q_matrix(s, s)
+        aw, ax, ay, az = np.moveaxis(a, -1, 0)
+        bw, bx, by, bz = np.moveaxis(b, -1, 0)
+        rows = [
+            [aw * bw + ax * bx - ay * by - az * bz, ax * by + ay * bx - (aw * bz + az * bw),
+             ax * bz + az * bx + (aw * by + ay * bw)],
+            [ax * by + ay * bx + (aw * bz + az * bw), aw * bw - ax * bx + ay * by - az * bz,
+             ay * bz + az * by - (aw * bx + ax * bw)],
+            [ax * bz + az * bx - (aw * by + ay * bw), ay * bz + az * by + (aw * bx + ax * bw),
+             aw * bw - ax * bx - ay * by + az * bz],
+        ]  # fmt: skip
+        return np.stack([np.stack(r, -1) for r in rows], -2)
+
+    norm2 = np.sum(s * s, -1)[..., None, None]
+    d_norm2 = 2.0 * np.sum(s * ds, -1)[..., None, None]
+    dd_norm2 = 2.0 * np.sum(ds * ds + s * dds, -1)[..., None, None]
+    rot = q_matrix(s, s) / norm2
+    d_q = 2.0 * q_matrix(s, ds)
+    dd_q = 2.0 * q_matrix(ds, ds) + 2.0 * q_matrix(s, dds)
+    d_rot = (d_q - rot * d_norm2) / norm2
+    dd_rot = (dd_q - 2.0 * d_rot * d_norm2 - rot * dd_norm2) / norm2
+    return rot, d_rot, dd_rot
+
+
+def path_from_poses(
+    positions: ArrayLike, quaternions: ArrayLike, dt: float, end: str = "not-a-knot"
+) -> Jet:
+    """Jet of pose paths ``(..., T, 4, 4)`` sampled at a fixed time step (host side).
+
+    The pose target of the 6-DOF arms and chains is a homogeneous transform ``T = [[R, p],
+    [0, 1]]``; its rates are the time derivatives ``T_dot = [[R_dot, p_dot], [0, 0]]`` and
+    ``T_ddot`` (angular velocity ``[omega]_x = R_dot R^T``). Positions are splined per
+    coordinate as in ``path_from_samples``; the orientation follows the quaternion curve
+    ``s(t)`` that splines the four components (after flipping signs so that consecutive
+    samples lie in one hemisphere), and ``R(t) = Q(s(t)) / |s(t)|^2`` with ``Q`` the quadratic
+    quaternion-to-matrix map, so ``R`` is a rotation at every time, equals the given sample at
+    every sample, and its rates are the exact derivatives of that curve: no finite differences.
+
+    Args:
+        positions: ``(..., T, 3)``, samples ``dt`` apart.
+        quaternions: ``(..., T, 4)`` as ``(w, x, y, z)``, any non-zero length (normalised here).
+        dt: the time step (positive).
+        end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
+
+    Returns:
+        A ``Jet`` of shape ``(..., T, 4, 4)``. A candidate with a non-finite sample gets NaN
+        rates (``INVALID_INPUT`` in ``evaluate``); the others are unaffected.
+
+    Raises:
+        ValueError: shapes not ``(..., T, 3)`` and ``(..., T, 4)`` with the same leading axes
+            and T >= 2, a zero quaternion, or a non-positive ``dt``.
+    """
+    positions = np.asarray(positions, dtype=float)
+    quaternions = np.asarray(quaternions, dtype=float)
+    _check_samples(positions, "positions", 3, dt)
+    _check_samples(quaternions, "quaternions", 4, dt)
+    if positions.shape[:-1] != quaternions.shape[:-1]:
+        raise ValueError(
+            f"positions {positions.shape} and quaternions {quaternions.shape} must have the same "
+            "leading axes (..., T)"
+        )
+    length = np.linalg.norm(quaternions, axis=-1, keepdims=True)
+    if np.any(length == 0.0):
+        raise ValueError("quaternions: every quaternion must be non-zero")
+    unit = quaternions / length
+    # One hemisphere along each candidate: q and -q are one rotation, the spline needs one.
+    sign = np.where(np.sum(unit[..., 1:, :] * unit[..., :-1, :], -1) < 0.0, -1.0, 1.0)
+    sign = np.concatenate([np.ones_like(sign[..., :1]), np.cumprod(sign, axis=-1)], -1)
+    unit = unit * sign[..., None]
+    p, v, a = _splined(np.concatenate([positions, unit], -1), dt, end)
+    return pose_from_quaternions(p, v, a)
+
+
+def pose_from_quaternions(p: ArrayLike, v: ArrayLike, a: ArrayLike) -> Jet:
+    """Pose Jet ``(..., 4, 4)`` from poses as ``(x, y, z, qw, qx, qy, qz)`` and their time
+    derivatives, each ``(..., 7)`` (host side).
+
+    The quaternion part ``s`` may have any non-zero length: ``R = Q(s) / |s|^2`` with ``Q`` the
+    quadratic quaternion-to-matrix map, and ``R_dot``, ``R_ddot`` its exact derivatives along
+    ``s(t)`` with rates ``s_dot``, ``s_ddot`` (``path_from_poses``).
+    """
+    p, v, a = (np.asarray(x, dtype=float) for x in (p, v, a))
+    rot, d_rot, dd_rot = _rotation_of_quaternion(p[..., 3:], v[..., 3:], a[..., 3:])
+    shape = (*p.shape[:-1], 4, 4)
+    value, velocity, acceleration = np.zeros(shape), np.zeros(shape), np.zeros(shape)
+    for out, r, x in ((value, rot, p), (velocity, d_rot, v), (acceleration, dd_rot, a)):
+        out[..., :3, :3], out[..., :3, 3] = r, x[..., :3]
+    value[..., 3, 3] = 1.0
+    return Jet.of(value, velocity, acceleration)
+
+
+def _vee(m: np.ndarray) -> np.ndarray:
+    return np.stack([m[..., 2, 1], m[..., 0, 2], m[..., 1, 0]], -1)
+
+
+def _quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product of ``(w, x, y, z)`` quaternions."""
+    aw, av, bw, bv = a[..., :1], a[..., 1:], b[..., :1], b[..., 1:]
+    return np.concatenate([aw * bw - np.sum(av * bv, -1, keepdims=True),
+                           aw * bv + bw * av + np.cross(av, bv)], -1)  # fmt: skip
+
+
+def quaternions_from_pose(pose: Jet) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Poses ``(..., 4, 4)`` with their rates as ``(x, y, z, qw, qx, qy, qz)`` rows (host side).
+
+    The unit quaternion of each rotation (Shepperd's method, ``qw >= 0``), and its rates from
+    the angular velocity ``[omega]_x = R_dot R^T`` and acceleration ``[alpha]_x = R_ddot R^T +
+    R_dot R_dot^T``: ``q_dot = (0, omega) q / 2``, ``q_ddot = ((0, alpha) q + (0, omega) q_dot)
+    / 2`` (Hamilton products). Returns ``(p, v, a)``, each ``(..., 7)``.
+    """
+    r, d_r, dd_r = (np.asarray(x, dtype=float) for x in (pose.p, pose.v, pose.a))
+    rot = r[..., :3, :3]
+    trace = np.trace(rot, axis1=-2, axis2=-1)
+    diagonal = np.diagonal(rot, axis1=-2, axis2=-1)
+    # Shepperd: the largest of 4 w^2, 4 x^2, 4 y^2, 4 z^2 gives a well-conditioned square root.
+    big = np.argmax(np.concatenate([trace[..., None], diagonal], -1), -1)
+    s = np.sqrt(np.maximum(1.0 + np.where(big == 0, trace, 2 * np.take_along_axis(
+        diagonal, np.maximum(big - 1, 0)[..., None], -1)[..., 0] - trace), 0.0))  # fmt: skip
+    m = rot
+    odd = np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0],
+                    m[..., 1, 0] - m[..., 0, 1]], -1)  # fmt: skip
+    even = np.stack([m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0],
+                     m[..., 1, 2] + m[..., 2, 1]], -1)  # fmt: skip
+    half = 0.5 * s
+    inv = np.where(s > 0, 0.5 / np.where(s > 0, s, 1.0), 0.0)
+    cases = [
+        np.stack([half, odd[..., 0] * inv, odd[..., 1] * inv, odd[..., 2] * inv], -1),
+        np.stack([odd[..., 0] * inv, half, even[..., 0] * inv, even[..., 1] * inv], -1),
+        np.stack([odd[..., 1] * inv, even[..., 0] * inv, half, even[..., 2] * inv], -1),
+        np.stack([odd[..., 2] * inv, even[..., 1] * inv, even[..., 2] * inv, half], -1),
+    ]
+    quat = np.choose(big[..., None], cases)
+    quat = np.where(quat[..., :1] < 0, -quat, quat)
+    quat = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    transpose = np.swapaxes(rot, -1, -2)
+    omega = _vee(d_r[..., :3, :3] @ transpose)
+    alpha = _vee(
+        dd_r[..., :3, :3] @ transpose + d_r[..., :3, :3] @ np.swapaxes(d_r[..., :3, :3], -1, -2)
+    )
+    zero = np.zeros_like(omega[..., :1])
+    d_quat = 0.5 * _quaternion_product(np.concatenate([zero, omega], -1), quat)
+    dd_quat = 0.5 * (
+        _quaternion_product(np.concatenate([zero, alpha], -1), quat)
+        + _quaternion_product(np.concatenate([zero, omega], -1), d_quat)
+    )
+    p = np.concatenate([r[..., :3, 3], quat], -1)
+    v = np.concatenate([d_r[..., :3, 3], d_quat], -1)
+    a = np.concatenate([dd_r[..., :3, 3], dd_quat], -1)
+    return p, v, a
 
 
 def best(evaluation: Evaluation, k: int) -> tuple[np.ndarray, np.ndarray]:
     """The ``k`` best feasible candidates by ``costs.total`` (host side).
 
+    With an evaluation split over several processes (``jax.distributed``) every process calls
+    it: each ranks the candidates it holds, the lists are gathered, and every process gets
+    the same global answer.
+
     Returns:
-        ``(indices, totals)``: candidate indices sorted by increasing ``costs.total`` and
-        their costs; fewer than ``k`` when fewer candidates are feasible.
+        ``(indices, totals)``: candidate indices sorted by increasing ``costs.total`` (ties by
+        index) and their costs, NumPy; fewer than ``k`` when fewer candidates are feasible.
     """
     if not (isinstance(k, int) and k >= 1):
         raise ValueError(f"k must be a positive integer, got {k!r}")
-    total = np.asarray(evaluation.costs.total)
-    feasible = np.flatnonzero(np.asarray(evaluation.feasible))
-    order = feasible[np.argsort(total[feasible], kind="stable")][:k]
-    return order, total[order]
+    indices, totals = [], []
+    held = zip(
+        _processes.local_rows(evaluation.costs.total),
+        _processes.local_rows(evaluation.feasible),
+        strict=True,
+    )
+    for (start, total), (_, feasible) in held:
+        feasible = np.flatnonzero(feasible)
+        order = feasible[np.argsort(total[feasible], kind="stable")][:k]
+        indices.append(order + start)
+        totals.append(total[order])
+    index, total = np.concatenate(indices), np.concatenate(totals)
+    if not _processes.fetchable(evaluation.costs.total):
+        index, total = _processes.allgather_rows(index), _processes.allgather_rows(total)
+        order = np.lexsort((index, total))[:k]  # by total, then by index: a stable sort
+        index, total = index[order], total[order]
+    return index, total

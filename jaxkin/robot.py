@@ -24,8 +24,9 @@ targets, so ``fk(robot, ik(robot, t).q).x`` reproduces ``t``. Targets and joints
 arrays (taken at rest: zero rates) or ``Jet``s. Both work inside ``jit`` and ``vmap``.
 
 A new robot subclasses ``Robot`` (as a ``geometry`` dataclass whose fields are ``number``s),
-sets the class attributes and implements ``_ik`` and ``_fk``; the command line needs one
-registry entry (``jaxkin.cli.robots``). The protocol is written down in ``docs/design.md``.
+sets the class attributes and implements ``_ik`` and ``_fk`` (and may override ``_ik_path``,
+the planner's IK along sampled paths); the command line needs one registry entry
+(``jaxkin.cli.robots``). The protocol is written down in ``docs/design.md``.
 """
 
 from __future__ import annotations
@@ -230,6 +231,16 @@ class Robot(Geometry):
         compile as one program."""
         solvers = [functools.partial(self._ik, branch=b) for b in self.branches]
         return jax.lax.switch(index, solvers, target)
+
+    def _ik_path(self, path: Jet, index: Any) -> IKResult:
+        """The IK of sampled paths ``(..., T, *target.shape)`` (consecutive samples along the
+        axis before the target's) on branch ``self.branches[index]`` (``index`` an int, or a
+        traced ``int32`` scalar), for the planner. By default every sample on its own
+        (``_ik``, or ``_ik_indexed`` for a traced index); a robot whose IK is iterative
+        overrides it to warm-start each sample from the previous one."""
+        if isinstance(index, int):
+            return self._ik(path, self.branches[index])
+        return self._ik_indexed(path, index)
 
     def _fk(self, q: Jet | ArrayLike, **options: Any) -> FKResult:
         raise NotImplementedError

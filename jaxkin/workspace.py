@@ -11,6 +11,14 @@ workspace.
 Memory is bounded: points are made on the host chunk by chunk (``jaxkin._batching.host_chunks``,
 one compiled shape for every chunk) and only the boolean mask is kept. A progress bar is
 shown when stderr is a terminal (``progress=None``); ``False`` silences it, ``True`` forces it.
+
+Several processes (``jax.distributed``; every process calls ``sweep`` with the same
+arguments): the flattened grid (index order x, y, z) is split into one contiguous run of
+voxels per process (``jaxkin._processes.process_range``), each process sweeps its own run,
+and every process gets the global counts, volume and slice areas. The mask is then a global
+``jax.Array`` of the grid's shape: split along x over one device per process when the
+process count divides ``nx`` (each process holds its own slab of x), else replicated (each
+holds the whole mask, gathered as bits); ``jaxkin._processes.to_host`` gives it as NumPy.
 """
 
 from __future__ import annotations
@@ -25,7 +33,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from . import _batching
+from . import _batching, _processes
 from ._progress import bar
 from .robot import Robot, as_robot, ik
 
@@ -36,11 +44,12 @@ Bounds = tuple[tuple[float, float], ...]
 
 @dataclasses.dataclass(frozen=True)
 class WorkspaceResult:
-    """Result of a voxel sweep (host-side NumPy arrays).
+    """Result of a voxel sweep (host-side NumPy arrays, but for a global mask).
 
     Attributes:
         mask: reachable voxels, ``bool``, shape ``(nx, ny, nz)`` (``(nx, ny)`` for a planar
-            robot; index order x, y, z).
+            robot; index order x, y, z); a global ``jax.Array`` when several processes swept
+            the grid (module docstring).
         axes: the grid coordinates per axis, ``(x (nx,), y (ny,)[, z (nz,)])``.
         resolution: voxel edge length.
         n_evaluated: number of voxels evaluated.
@@ -50,7 +59,7 @@ class WorkspaceResult:
             a planar robot the one area, ``(1,)``.
     """
 
-    mask: np.ndarray
+    mask: np.ndarray | jax.Array
     axes: tuple[np.ndarray, ...]
     resolution: float
     n_evaluated: int
@@ -146,18 +155,29 @@ def sweep(
     dtype = jnp.result_type(float) if dtype is None else jnp.dtype(dtype)
     accept = tuple(sorted(int(s) for s in robot.reachable))
 
-    flat = np.zeros(total, dtype=bool)
-    with bar(total, "workspace", enabled=progress) as meter:
-        for start, stop, index in _batching.host_chunks(total, chunk_size):
-            coords = np.unravel_index(index, shape)
+    first, last = _processes.process_range(total)  # (0, total) with one process
+    flat = np.zeros(last - first, dtype=bool)
+    slice_counts = np.zeros(shape[-1] if len(shape) == 3 else 1, dtype=np.int64)
+    with bar(last - first, "workspace", enabled=progress) as meter:
+        for start, stop, index in _batching.host_chunks(last - first, chunk_size):
+            coords = np.unravel_index(first + index, shape)
             points = np.stack([a[i] for a, i in zip(axes, coords, strict=True)], -1)
-            inside = _reachable(robot, points.astype(dtype), branch, accept)
-            flat[start:stop] = np.asarray(inside)[: stop - start]
+            inside = np.asarray(_reachable(robot, points.astype(dtype), branch, accept))
+            flat[start:stop] = inside[: stop - start]
+            if len(shape) == 3:
+                z = coords[-1][: stop - start][inside[: stop - start]]
+                slice_counts += np.bincount(z, minlength=shape[-1])
             meter.update(stop - start)
-    mask = flat.reshape(shape)
-    n_reachable = int(mask.sum())
+    if _processes.process_count() == 1:
+        mask = flat.reshape(shape)
+        n_reachable = int(mask.sum())
+    else:  # counts summed over the processes; the mask a global array (module docstring)
+        mask = _processes.global_from_parts(flat, shape)
+        counts = np.append(slice_counts, np.count_nonzero(flat))
+        counts = _processes.allgather(counts).sum(axis=0)
+        slice_counts, n_reachable = counts[:-1], int(counts[-1])
     if len(shape) == 3:
-        slice_areas = mask.sum(axis=(0, 1)) * resolution**2
+        slice_areas = slice_counts * resolution**2
     else:
         slice_areas = np.array([n_reachable * resolution**2])
     return WorkspaceResult(

@@ -248,3 +248,27 @@ def test_host_chunks_cover_every_element_with_one_shape():
         seen.extend(range(start, stop))
     assert seen == list(range(10))
     assert [len(i) for *_, i in _batching.host_chunks(5, 64)] == [8]  # next power of two
+
+
+def test_accelerator_choices_are_keyed_on_the_backend(monkeypatch):
+    """On a GPU or TPU backend: no host-thread split (unless asked for), larger planner calls,
+    and XLA's own trigonometric functions instead of the CPU's polynomial forms."""
+    from jaxkin import _trig
+
+    x = np.linspace(-50.0, 50.0, 1001)
+    assert _batching.num_threads() >= 1 and not _batching.on_accelerator()
+    assert _batching.plan_chunk_samples() == _batching.PLAN_CHUNK_SAMPLES
+    monkeypatch.setattr(jax, "default_backend", lambda: "gpu")
+    assert _batching.on_accelerator() and _batching.num_threads() == 1
+    assert _batching.plan_chunk_samples() == _batching.ACCELERATOR_CHUNK_SAMPLES
+    _batching.set_num_threads(2)
+    try:
+        assert _batching.num_threads() == 2
+    finally:
+        _batching.set_num_threads(None)
+    sin, cos = _trig.sincos(x)
+    np.testing.assert_array_equal(sin, jnp.sin(x))
+    np.testing.assert_array_equal(cos, jnp.cos(x))
+    np.testing.assert_array_equal(_trig.sin_alone(x), jnp.sin(x))
+    np.testing.assert_array_equal(_trig.cos_alone(x), jnp.cos(x))
+    np.testing.assert_array_equal(_trig.atan2(x, x[::-1]), jnp.arctan2(x, x[::-1]))

@@ -349,6 +349,7 @@ def test_robot_registry_lists_the_command_robots():
         "cylindrical",
         "spherical",
         "planar-2r",
+        "urdf",
     ]
     assert ROBOTS["scara"].unit == "mm" and ROBOTS["delta"].unit == "cm"
 

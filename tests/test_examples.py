@@ -120,3 +120,15 @@ def test_planar_2r_newton_iterates_match_the_printed_table():
             limit = 1.5 * half_unit[j] if (i, j) in exceptions else half_unit[j] + 1e-12
             assert abs(rows[i, j] - paper[i, j]) <= limit, (i, j, rows[i, j], paper[i, j])
     np.testing.assert_allclose(rows[-1, 1:3], [30.0, 90.0], atol=5e-3)
+
+
+def test_urdf_arm(tmp_path, capsys):
+    out = run("urdf_arm", tmp_path, capsys, "200")
+    assert "200 pose targets, no seed: 100.00% OK" in out
+    assert "every OK answer within the limits: True" in out
+    assert number_after(out, "largest position error") < 1e-9
+    feasible = int(re.search(r"pose paths: (\d+) of 64 feasible", out).group(1))
+    assert feasible > 32
+    assert number_after(out, "tool pose from its joints within") < 1e-8
+    table = np.loadtxt(tmp_path / "urdf_arm_best.csv", delimiter=",", skiprows=1)
+    assert table.shape == (50, 19)

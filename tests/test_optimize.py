@@ -1,16 +1,46 @@
-"""Trajectory optimisation: Bezier basis, gradients vs finite differences, cost decrease."""
+"""Trajectory optimisation: the Bezier basis, gradients, convergence to a reference optimum,
+one compilation per configuration, independent guesses, obstacles and every robot.
+
+The reference optimum comes from scipy's L-BFGS-B run guess by guess on the same objective
+(written here from the public pieces: the Bezier basis, the IK through ``jaxkin.ik`` and the
+integrated squared joint acceleration), started both from the same guesses and from jaxkin's
+own results; compilations are counted with JAX's monitoring events. The tests share a few
+configurations (method, cost structure, shapes), so each compiles once in this file.
+"""
+
+from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+import optax
 import pytest
+from scipy.optimize import minimize
 
-from jaxkin import optimize, plan, scara, serial
-from tests.helpers import tree_allfinite
+import jaxkin
+from jaxkin import Status, delta, optimize, plan, scara, serial
+from tests.helpers import compilations, tree_allfinite
 
 ROBOT = scara.Scara.paper()  # [Noriega]: 150, 80, 50 mm
 START = np.array([100.0, -60.0, 50.0])
 GOAL = np.array([100.0, 60.0, 70.0])
+N_SAMPLES = 60
+# The shared configuration: 6 guesses of 3 interior points, rest to rest, 60 samples.
+KWARGS = dict(rest_to_rest=True, n_samples=N_SAMPLES)
+
+
+def _guesses(seed=1, noise=10.0, start=START, goal=GOAL):
+    return optimize.straight_line_guess(start, goal, 3, n_guesses=6, noise=noise, seed=seed)
+
+
+def _with_obstacle(weight, threshold, centre, radius=10.0, safety=5.0):
+    """The composed cost shared by the tests below (one structure: one compilation)."""
+    obstacles = optimize.Obstacles.create(spheres=([centre], [radius]), safety=safety)
+    return optimize.compose(
+        (weight, optimize.acceleration),
+        (10.0, optimize.SingularityBarrier(threshold)),
+        (1e4, obstacles),
+    )
 
 
 def test_bezier_basis_partition_of_unity_and_derivatives():
@@ -61,35 +91,188 @@ def test_gradients_match_central_differences_also_outside_the_workspace():
     assert np.abs(grad[2]).sum() > 0
 
 
-def test_optimiser_decreases_cost_keeps_rest_to_rest_ends_and_leaves_workspace_violations():
-    """Adam from five guesses, one starting partly outside the workspace: every cost decreases,
+def test_adam_decreases_cost_keeps_rest_to_rest_ends_and_leaves_workspace_violations():
+    """Adam from six guesses, one starting partly outside the workspace: every cost decreases,
     every path ends feasible, and the fixed control points (start and goal twice each: the
-    path starts and ends at rest) are kept exactly."""
-    guesses = optimize.straight_line_guess(START, GOAL, 3, n_guesses=5, noise=20.0, seed=3)
+    path starts and ends at rest) are kept exactly. Any optax transformation works too."""
+    guesses = _guesses(seed=3, noise=20.0)
     guesses[0] += np.array([80.0, 0.0, 0.0])  # starts partly unreachable
     res = optimize.optimize(
-        ROBOT,
-        START,
-        GOAL,
-        guesses,
-        duration=2.0,
-        n_samples=33,
-        steps=60,
-        optimizer=optimize.Adam(0.05),  # steps in units of the arm's reach (130 mm)
-        rest_to_rest=True,
+        ROBOT, START, GOAL, guesses, steps=60, optimizer=optimize.Adam(0.05), **KWARGS
     )
     history = np.asarray(res.history)
-    assert history.shape == (61, 5)
+    assert history.shape == (61, 6)
     assert np.all(history[-1] < history[0])
     np.testing.assert_array_equal(history[-1], res.cost)
-    assert res.controls.shape == (5, 7, 3)
-    np.testing.assert_array_equal(res.controls[:, :2], np.broadcast_to(START, (5, 2, 3)))
-    np.testing.assert_array_equal(res.controls[:, -2:], np.broadcast_to(GOAL, (5, 2, 3)))
-    np.testing.assert_allclose(res.path.p[:, 0], np.broadcast_to(START, (5, 3)), atol=1e-12)
-    np.testing.assert_allclose(res.path.p[:, -1], np.broadcast_to(GOAL, (5, 3)), atol=1e-12)
+    assert res.controls.shape == (6, 7, 3)
+    np.testing.assert_array_equal(res.controls[:, :2], np.broadcast_to(START, (6, 2, 3)))
+    np.testing.assert_array_equal(res.controls[:, -2:], np.broadcast_to(GOAL, (6, 2, 3)))
+    np.testing.assert_allclose(res.path.p[:, 0], np.broadcast_to(START, (6, 3)), atol=1e-12)
+    np.testing.assert_allclose(res.path.p[:, -1], np.broadcast_to(GOAL, (6, 3)), atol=1e-12)
     np.testing.assert_allclose(res.path.v[:, [0, -1]], 0.0, atol=1e-12)
     assert np.all(res.evaluation.feasible)
-    assert 0 <= int(res.best) < 5 and float(res.cost[res.best]) == float(np.min(res.cost))
+    assert 0 <= int(res.best) < 6 and float(res.cost[res.best]) == float(np.min(res.cost))
+    other = optimize.optimize(
+        ROBOT, START, GOAL, guesses, steps=60, optimizer=optax.rmsprop(1e-3), **KWARGS
+    )
+    assert np.all(np.asarray(other.history[-1]) < np.asarray(other.history[0]))
+
+
+def _reference_objective(start, goal, n_interior):
+    """The rest-to-rest acceleration objective of one guess, written from the public API."""
+    basis = jnp.asarray(optimize.bezier_basis(n_interior + 4, N_SAMPLES))
+    dt = 1.0 / (N_SAMPLES - 1)
+
+    @jax.jit
+    def value_and_grad(x):
+        def f(x):
+            interior = x.reshape(n_interior, 3)
+            controls = jnp.concatenate(
+                [jnp.stack([start, start]), interior, jnp.stack([goal, goal])]
+            )
+            p = basis[0] @ controls
+            path = jaxkin.Jet(p, basis[1] @ controls, basis[2] @ controls)
+            q = jaxkin.ik(ROBOT, path).q
+            return jnp.sum(q.a**2) * dt
+
+        return jax.value_and_grad(f)(x)
+
+    def scipy_fun(x):
+        value, grad = value_and_grad(jnp.asarray(x))
+        return float(value), np.asarray(grad)
+
+    return scipy_fun
+
+
+@pytest.fixture(scope="module")
+def problem():
+    guesses = _guesses()
+    result = optimize.optimize(ROBOT, START, GOAL, guesses, cost=optimize.acceleration, **KWARGS)
+    return guesses, result
+
+
+def test_defaults_reach_the_reference_optimum_and_say_so(problem):
+    guesses, result = problem
+    fun = _reference_objective(jnp.asarray(START), jnp.asarray(GOAL), 3)
+    reference = min(
+        minimize(fun, g.ravel(), jac=True, method="L-BFGS-B", options=dict(maxiter=2000)).fun
+        for g in guesses
+    )
+    polished = min(
+        minimize(fun, np.asarray(c[2:-2]).ravel(), jac=True, method="L-BFGS-B").fun
+        for c in result.controls
+    )
+    best = float(result.cost[int(result.best)])
+    assert best <= 1.001 * min(reference, polished)  # within 0.1 % of the reference optimum
+    # jaxkin's own cost equals the independently written objective at its controls.
+    np.testing.assert_allclose(
+        fun(np.asarray(result.controls[0, 2:-2]).ravel())[0], result.cost[0], rtol=1e-10
+    )
+    assert np.all(np.asarray(result.converged))
+    assert np.all(np.asarray(result.iterations) < 500)
+    assert np.all(np.asarray(result.grad_norm) >= 0)
+    history = np.asarray(result.history)
+    assert history.shape == (501, len(guesses))
+    np.testing.assert_array_equal(history[-1], result.cost)
+    assert np.all(history[-1] <= history[0])
+
+
+def test_second_call_compiles_nothing(problem):
+    guesses, _ = problem
+    new = [START + [5.0, 5.0, 0.0], GOAL - [5.0, 0.0, 5.0], guesses + 1.0]
+    new = [np.asarray(x) for x in new]
+    with compilations() as count:
+        optimize.optimize(ROBOT, *new, cost=optimize.acceleration, **KWARGS)
+    assert count["n"] == 0
+
+    # A composed cost with new weights, a new threshold and moved obstacles: one compilation
+    # for the first, none for the others.
+    optimize.optimize(
+        ROBOT, START, GOAL, guesses, cost=_with_obstacle(1.0, 0.05, [90.0, 0, 60]), **KWARGS
+    )
+    costs = [
+        _with_obstacle(2.0, 0.1, [95.0, 5.0, 60.0]),
+        _with_obstacle(3.0, 0.2, [85.0, -5.0, 60.0]),
+    ]
+    with compilations() as count:
+        for c in costs:
+            optimize.optimize(ROBOT, START, GOAL, guesses, cost=c, **KWARGS)
+    assert count["n"] == 0
+
+
+def test_guesses_are_independent(problem):
+    """A guess optimised among other guesses follows the path it follows among the fixture's
+    (its own history and line search): with every other guess replaced, guess 2's costs step
+    by step and its result are the same to rounding."""
+    guesses, result = problem
+    others = _guesses(seed=7, noise=15.0)
+    others[2] = guesses[2]
+    again = optimize.optimize(ROBOT, START, GOAL, others, cost=optimize.acceleration, **KWARGS)
+    np.testing.assert_allclose(again.history[:, 2], result.history[:, 2], rtol=1e-12)
+    np.testing.assert_allclose(again.controls[2], result.controls[2], rtol=1e-12)
+    assert not np.allclose(again.history[:, 3], result.history[:, 3])
+    # Coupled guesses (one objective summed over guesses) would change guess 2's first step.
+    assert not np.allclose(result.history[1, 2], result.history[1, 3])
+
+
+def test_obstacle_blocking_the_straight_line_is_avoided():
+    """A sphere on the straight segment from start to goal: the optimised path keeps every
+    link at the safety distance from it (checked with the segments written here)."""
+    start, goal = np.array([110.0, -40.0, 60.0]), np.array([110.0, 40.0, 60.0])
+    centre, radius, safety = np.array([110.0, 0.0, 60.0]), 8.0, 5.0
+    cost = _with_obstacle(1.0, 0.05, centre, radius, safety)
+    guesses = _guesses(seed=2, noise=3.0, start=start, goal=goal)
+    res = optimize.optimize(ROBOT, start, goal, guesses, cost=cost, **KWARGS)
+    best = int(res.best)
+    path = np.asarray(res.path.p[best])
+    q = np.asarray(jaxkin.ik(ROBOT, path).q.p)
+    theta1, theta2 = q[:, 0], q[:, 1]
+    shoulder = np.array([0.0, 0.0, 150.0])
+    elbow = shoulder + 80.0 * np.stack([np.cos(theta1), np.sin(theta1), 0 * theta1], -1)
+    wrist = elbow + 50.0 * np.stack(
+        [np.cos(theta1 - theta2), np.sin(theta1 - theta2), 0 * q[:, 0]], -1
+    )
+
+    def distance(a, b):
+        ab, ac = b - a, centre - a
+        t = np.clip(np.sum(ac * ab, -1) / np.maximum(np.sum(ab * ab, -1), 1e-300), 0, 1)
+        return np.linalg.norm(a + t[:, None] * ab - centre, axis=-1) - radius
+
+    clearance = min(
+        distance(np.broadcast_to(shoulder, elbow.shape), elbow).min(),
+        distance(elbow, wrist).min(),
+        distance(wrist, path).min(),
+    )
+    assert clearance > 0.8 * safety
+    straight = start + np.linspace(0, 1, N_SAMPLES)[:, None] * (goal - start)
+    assert np.linalg.norm(straight - centre, axis=-1).min() < radius  # the line was blocked
+    assert bool(res.evaluation.feasible[best])
+
+
+@pytest.mark.parametrize(
+    ("robot", "start", "goal"),
+    [
+        (delta.Delta.paper(), [0.0, -5.0, -30.0], [4.0, 5.0, -28.0]),
+        (serial.Anthropomorphic(0.3, 0.25, 0.2), [0.3, 0.1, 0.4], [0.1, 0.3, 0.35]),
+    ],
+)
+def test_other_robots_and_joint_space_ends(robot, start, goal):
+    """The defaults on other robots; the same ends given as joints (their forward kinematics)
+    give the same problem (no new compilation either)."""
+    guesses = optimize.straight_line_guess(start, goal, 2, n_guesses=2, noise=0.0)
+    res = optimize.optimize(robot, start, goal, guesses, n_samples=30, steps=60)
+    assert np.all(np.asarray(res.history[-1]) <= np.asarray(res.history[0]))
+    assert np.all(np.asarray(res.evaluation.status) == Status.OK)
+    q_start, q_goal = (jaxkin.ik(robot, np.asarray(x)).q.p for x in (start, goal))
+    jaxkin.fk(robot, q_start)  # the ends' forward kinematics compiles on its own
+    with compilations() as count:
+        joint = optimize.optimize(
+            robot, q_start, q_goal, guesses, n_samples=30, steps=60, space="joint"
+        )
+    assert count["n"] == 0
+    np.testing.assert_allclose(joint.path.p[:, 0], np.broadcast_to(start, (2, 3)), atol=1e-9)
+    np.testing.assert_allclose(joint.path.p[:, -1], np.broadcast_to(goal, (2, 3)), atol=1e-9)
+    np.testing.assert_allclose(joint.cost, res.cost, rtol=1e-9)
 
 
 def test_bad_arguments():

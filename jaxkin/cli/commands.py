@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 from pathlib import Path
@@ -11,11 +12,11 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching
+from .. import _batching, _processes, plan
 from ..jet import Jet
-from ..robot import Robot, fk, ik
+from ..robot import POSE, Robot, fk, ik
 from ..status import status_names
-from . import files
+from . import distributed, files
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
 __all__ = ["cmd_fk", "cmd_ik", "cmd_workspace", "robot_from_args", "set_dtype"]
@@ -26,6 +27,21 @@ MAX_VOXELS = 500_000_000  # a bool mask of this size is 0.5 GB
 def robot_from_args(args: argparse.Namespace) -> Robot:
     """The robot described by ``--robot`` and the geometry options of ``args``."""
     entry = ROBOTS[args.kind]
+    links = {"--tip": getattr(args, "tip", None), "--base": getattr(args, "base", None)}
+    if entry.from_file:
+        if args.robot is None or args.robot.strip().lower() == "paper":
+            raise CliError(f"{entry.name}: --robot FILE is required (the robot's description)")
+        if links["--tip"] is None:
+            raise CliError(f"{entry.name}: --tip LINK is required (the link whose pose is solved)")
+        try:
+            return entry.build(args.robot, links["--tip"], links["--base"])
+        except ImportError as exc:
+            raise CliError(str(exc)) from None
+        except ValueError as exc:
+            raise CliError(f"--robot {args.robot}: {exc}") from None
+    given = [name for name, value in links.items() if value is not None]
+    if given:
+        raise CliError(f"{given[0]} is for robots described by a file (urdf), not {entry.name}")
     for key, users in _field_users().items():
         if key not in entry.fields and getattr(args, key, None) is not None:
             raise CliError(f"{option(key)} is a {'/'.join(users)} option, not for {entry.name}")
@@ -48,6 +64,13 @@ def set_dtype(name: str) -> Any:
         jax.config.update("jax_enable_x64", True)
         return np.float64
     return np.float32
+
+
+def _join(args: argparse.Namespace) -> None:
+    """``--distributed``: join JAX's processes; only process 0 prints (and writes)."""
+    distributed.join(args)
+    if not distributed.is_writer():
+        args.quiet = True
 
 
 def _summary(status: np.ndarray) -> str:
@@ -90,8 +113,10 @@ def _check_output(path: str, what: str = "--output", source: str | None = None) 
 
 
 def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
+    _join(args)
     robot = robot_from_args(args)
-    if not robot.target.is_point:
+    pose = robot.target == POSE
+    if not (robot.target.is_point or pose):
         raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
     branch = parse_branch(robot, args.branch) if inverse else None
     _check_output(args.output, source=args.input)
@@ -104,11 +129,17 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     targets, joints = robot.target.coordinates, robot.joint_names
     in_names, out_names = (targets, joints) if inverse else (joints, targets)
     traj = files.read_trajectory(args.input, in_names)
+    if pose and inverse:
+        traj = files.continuous_quaternions(traj)
     p, v, a, valid = files.complete_rates(traj, args.spline)
-    _warn_invalid(traj, valid)
+    if distributed.is_writer():
+        _warn_invalid(traj, valid)
 
     def solve(p, v, a):
-        jet = Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
+        if pose and inverse:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
+            jet = plan.pose_from_quaternions(p, v, a).astype(dtype)
+        else:
+            jet = Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
         if inverse:
             res = ik(robot, jet, branch)
             return res.q, res.status, res.margin
@@ -117,10 +148,19 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
 
     desc = f"{args.kind} {'ik' if inverse else 'fk'}"
     chunk = args.chunk_size or _batching.HOST_CHUNK
-    outputs = files.solve_in_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+    outputs = distributed.solve_rows(
+        files.solve_in_chunks, solve, (p, v, a), chunk, desc, args.quiet
+    )
     q, qd, qdd, status = outputs[:4]
+    if pose and not inverse:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
+        q, qd, qdd = plan.quaternions_from_pose(Jet(q, qd, qdd))
+        sign = files.quaternion_signs(traj.t, traj.candidate, valid, q[:, 3:])[:, None]
+        for block in (q, qd, qdd):  # continuous along each candidate, as splines need
+            block[:, 3:] *= sign
     for block in (q, qd, qdd):
         block[~valid] = np.nan  # nothing meaningful to report for invalid input
+    if not distributed.is_writer():
+        return 0
     if valid.any() and not np.any(status[valid] == 0):
         print(
             f"jaxkin: warning: no row has status OK ({_summary(status)}): check the geometry "
@@ -164,6 +204,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
     """``jaxkin workspace``: a voxel sweep; prints the reachable volume."""
     from .. import workspace
 
+    _join(args)
     robot = robot_from_args(args)
     if not robot.target.is_point:
         raise CliError(f"{args.kind}: a voxel workspace needs a robot whose targets are points")
@@ -214,6 +255,10 @@ def cmd_workspace(args: argparse.Namespace) -> int:
         dtype=dtype,
         progress=progress,
     )
+    if not _processes.fetchable(result.mask):  # every process takes part in the gather
+        result = dataclasses.replace(result, mask=_processes.to_host(result.mask))
+    if not distributed.is_writer():
+        return 0
     if args.output is not None:
         entry = ROBOTS[args.kind]
         geometry = {f"geometry_{k}": float(np.asarray(getattr(robot, k))) for k in entry.fields}

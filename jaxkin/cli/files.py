@@ -55,6 +55,8 @@ __all__ = [
     "atomic_write",
     "check_output_path",
     "complete_rates",
+    "continuous_quaternions",
+    "quaternion_signs",
     "file_format",
     "rate_names",
     "read_table",
@@ -493,6 +495,35 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
             )
     v, a = _splines.by_group(traj.t, traj.p, group, end=end, valid=valid)
     return traj.p, traj.v if traj.v is not None else v, traj.a if traj.a is not None else a, valid
+
+
+def quaternion_signs(
+    t: np.ndarray, candidate: np.ndarray | None, valid: np.ndarray, quat: np.ndarray
+) -> np.ndarray:
+    """``(N,)`` signs (+-1) that make quaternions ``(N, 4)`` continuous along each candidate
+    in time (``q`` and ``-q`` are one rotation); the first valid row of each keeps its own."""
+    group = candidate if candidate is not None else np.zeros(len(t), np.int64)
+    sign = np.ones(len(t))
+    for label in np.unique(group[valid]):
+        rows = np.flatnonzero(valid & (group == label))
+        rows = rows[np.argsort(t[rows], kind="stable")]
+        flips = np.sum(quat[rows[1:]] * quat[rows[:-1]], axis=-1) < 0
+        sign[rows] = np.concatenate([[1.0], np.cumprod(np.where(flips, -1.0, 1.0))])
+    return sign
+
+
+def continuous_quaternions(traj: Trajectory) -> Trajectory:
+    """A pose trajectory (columns ``x, y, z, qw, qx, qy, qz``) with the quaternions' signs made
+    continuous along each candidate (``quaternion_signs``: splining needs one sign), rates
+    flipped with them."""
+    sign = quaternion_signs(traj.t, traj.candidate, traj.valid, traj.p[:, 3:7])
+    flip = np.concatenate([np.ones((len(sign), 3)), np.repeat(sign[:, None], 4, axis=1)], 1)
+    return dataclasses.replace(
+        traj,
+        p=traj.p * flip,
+        v=None if traj.v is None else traj.v * flip,
+        a=None if traj.a is None else traj.a * flip,
+    )
 
 
 def solve_in_chunks(

@@ -34,7 +34,11 @@ def _add_robot_options(parser: argparse.ArgumentParser, with_branch: bool = True
     geometry = parser.add_argument_group(
         "geometry", "--robot paper|FILE.toml|FILE.json, and/or the lengths (they override it)"
     )
-    geometry.add_argument("--robot", metavar="SPEC", help="'paper' or a TOML/JSON file")
+    geometry.add_argument(
+        "--robot", metavar="SPEC", help="'paper' or a TOML/JSON file (urdf: the URDF file)"
+    )
+    geometry.add_argument("--tip", metavar="LINK", help="urdf: the link whose pose is solved")
+    geometry.add_argument("--base", metavar="LINK", help="urdf: the base link (default: the root)")
     users: dict[str, list[str]] = {}
     for entry in ROBOTS.values():
         for key in entry.fields:
@@ -76,7 +80,7 @@ _FILE_HELP = (
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``jaxkin`` argument parser."""
-    from . import commands, demo
+    from . import commands, demo, distributed
 
     parser = _Parser(
         prog="jaxkin",
@@ -142,6 +146,7 @@ def build_parser() -> argparse.ArgumentParser:
             help="end condition of the cubic spline for missing rates (default not-a-knot)",
         )
         p.add_argument("--plot", metavar="FILE.png", help="also plot the result (needs matplotlib)")
+        distributed.add_option(p)
         p.set_defaults(func=func, branch=None)
 
     ws = sub.add_parser(
@@ -168,5 +173,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ws.add_argument("-o", "--output", metavar="FILE.npz", help="save the mask and grid (atomic)")
     ws.add_argument("--plot", metavar="FILE.png", help="slices and point cloud (needs matplotlib)")
+    distributed.add_option(ws)
     ws.set_defaults(func=commands.cmd_workspace)
     return parser

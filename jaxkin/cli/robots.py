@@ -60,6 +60,12 @@ def _delta_paper() -> Robot:
     return Delta.paper()
 
 
+def _urdf(source: str, tip_link: str, base_link: str | None = None) -> Robot:
+    from ..serial import from_urdf
+
+    return from_urdf(source, tip_link, base_link=base_link)
+
+
 def _arm(name: str) -> Callable[..., Robot]:
     def build(**values: Any) -> Robot:
         from .. import serial
@@ -81,6 +87,8 @@ class RobotEntry:
         paper: the papers' robot (a factory), or None when they print no dimensions.
         unit: the length unit of ``paper``.
         summary: one line for ``--help``.
+        from_file: the robot is described by a file (``--robot FILE``) and links (``--tip``,
+            ``--base``) rather than by lengths: ``build(source, tip_link, base_link)``.
     """
 
     name: str
@@ -90,6 +98,7 @@ class RobotEntry:
     paper: Callable[[], Robot] | None = None
     unit: str = "m"
     summary: str = ""
+    from_file: bool = False
 
 
 ROBOTS: dict[str, RobotEntry] = {
@@ -122,6 +131,13 @@ ROBOTS: dict[str, RobotEntry] = {
         RobotEntry("cylindrical", _arm("Cylindrical"), ("h",), summary="cylindrical RPP arm"),
         RobotEntry("spherical", _arm("Spherical"), ("h",), summary="spherical RRP arm"),
         RobotEntry("planar-2r", _arm("Planar2R"), ("l1", "l2"), summary="planar 2R arm"),
+        RobotEntry(
+            "urdf",
+            _urdf,
+            (),
+            summary="a serial arm from its URDF: --robot FILE.urdf --tip LINK [--base LINK]",
+            from_file=True,
+        ),
     )
 }
 

@@ -6,6 +6,8 @@ Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk
   [Lopez-Villagomez, eq. 2].
 * ``PoEChain``, ``fk_poe``, ``chain_fk``, ``fk_chain``, ``space_jacobian``, ``body_jacobian``,
   ``poe_from_dh``, ``change_frame``: product of exponentials [Pineiro]; ``lie``: SO(3)/SE(3).
+* ``JointChain``: a chain with named, typed, limited joints and mimic couplings;
+  ``from_urdf``: the chain from a base link to a tip link of a URDF (the ``urdf`` extra).
 * ``ik_newton``: Newton-Raphson IK with body/space twists [Pineiro], per-element convergence
   from given seeds; ``ik_chain``: the protocol's IK of a chain (restarts, rates, margin).
 * The analytic arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``, ``Cylindrical``,
@@ -26,6 +28,7 @@ from .arms import Stanford as Stanford
 from .arms import fk as fk
 from .arms import ik as ik
 from .arms import ik_jet as ik_jet
+from .chain import JointChain as JointChain
 from .dh import DHTable as DHTable
 from .dh import dh_transform as dh_transform
 from .dh import fk_dh as fk_dh
@@ -40,6 +43,7 @@ from .poe import fk_chain as fk_chain
 from .poe import fk_poe as fk_poe
 from .poe import poe_from_dh as poe_from_dh
 from .poe import space_jacobian as space_jacobian
+from .urdf import from_urdf as from_urdf
 
 __all__ = [
     "ARMS",
@@ -47,6 +51,7 @@ __all__ = [
     "ArmIKResult",
     "Cylindrical",
     "DHTable",
+    "JointChain",
     "NewtonIKResult",
     "Planar2R",
     "Planar3R",
@@ -62,6 +67,7 @@ __all__ = [
     "fk_chain",
     "fk_dh",
     "fk_poe",
+    "from_urdf",
     "ik",
     "ik_chain",
     "ik_jet",

@@ -1,37 +1,48 @@
 """Newton-Raphson inverse kinematics of serial chains [Pineiro, "Cinemática Inversa Numérica"].
 
-Given a desired pose ``T_sd`` and a start ``q^0``, iterate [Pineiro]'s algorithm::
+``ik_newton``: given a desired pose ``T_sd`` and a start ``q^0``, [Pineiro]'s iteration::
 
     V_b = log(T(q^k)^-1 T_sd)            body twist to the target, rows (omega, v)
     body frame: V = V_b, J = J_b(q^k);   space frame: V = Ad(T(q^k)) V_b, J = J_s(q^k)
-    q^{k+1} = q^k + J^+ V                until |omega| <= eps_omega and |v| <= eps_v
+    q^{k+1} = q^k + J^+ V                until angle(R^T R_d) <= eps_omega, |p_d - p| <= eps_v
 
-The frames take different paths; [Pineiro]'s 2R table is the body-frame one (docs/errata.md).
-The step solves ``(J^T J + mu I) dq = J^T V`` (``n <= 6``) or ``dq = J^T (J J^T + mu I)^-1 V``
-with an unrolled Cholesky, ``mu = damping^2 + sqrt(eps) trace(J^T J)``: the pseudo-inverse
-step with a soft cut-off of singular directions (``damping > 0``: damped least squares). A step
-is scaled, direction kept, so no revolute joint moves more than ``max_step`` (default 1 rad):
-long steps far from the solution or near singular poses otherwise make iterates wander off.
-With ``limits`` every iterate is clamped into the box (projected Newton). ``ik_newton`` works in
-the chain's own units, as [Pineiro] does (the least-squares step weighs rotation errors in rad
-against translation errors in the length unit).
+The stopping rule bounds the tool's own errors (rotation angle in rad, position distance in
+length units) in either frame: ``|v|`` of the space twist is the velocity of the point at the
+base origin, not of the tool (docs/errata.md). The step solves ``(J^T J + mu I) dq = J^T V``
+(``n <= 6``) or ``dq = J^T (J J^T + mu I)^-1 V`` with an unrolled Cholesky,
+``mu = damping^2 + sqrt(eps) trace(J^T J)``, scaled (direction kept) so that no revolute joint
+moves more than ``max_step``; with ``limits`` every iterate is clamped into the box. Every
+element iterates on its own in one jitted ``lax.scan``; ``NOT_CONVERGED`` elements keep the
+last iterate, ``INVALID_INPUT`` (NaN/inf) the start with non-finite entries replaced by 0.
 
-Every element iterates on its own inside one jitted ``lax.scan``; a converged element is
-frozen, and the remaining steps are skipped once all have converged. Statuses: ``OK``,
-``NOT_CONVERGED`` (``q`` the last iterate, finite), ``INVALID_INPUT`` (NaN/inf in ``target`` or
-``q0``: ``q`` is the start with non-finite entries replaced by 0). Gradients flow through the
-unrolled scan.
+``ik_chain`` is the robot protocol's IK of a chain (``jaxkin.ik``), in units of the chain's
+size and in the body frame, with
 
-``ik_chain`` is the robot protocol's IK of a chain (``jaxkin.ik``): the body frame,
-Levenberg-Marquardt damping ``mu = |V|`` (Yamashita and Fukushima: quadratic convergence also
-near singular poses, where the fixed ``sqrt(eps)`` floor converges linearly), tolerances
-relative to the chain's size, restarts from fixed starts when no ``q0`` is given, joint rates
-from the target's body twist, and a Jacobian-based margin.
+* projected Levenberg-Marquardt: ``mu = |V|^2`` (Yamashita and Fukushima; quadratic also near
+  singular poses) and every iterate projected onto the joint limits (a revolute joint outside
+  them first tries the 2 pi turn that lands inside; continuous joints wrap to [-pi, pi)):
+  Kanzow, Yamashita and Fukushima (J. Comput. Appl. Math. 172, 2004) prove local quadratic
+  convergence to a solution inside the box. Returned joints always lie within the limits;
+* restarts, one after the other per element: from ``q0`` (or the limits' home) and then from
+  fixed seeds spread uniformly over the limits, ``max_iter`` updates each; the first run that
+  meets the tolerances ends the element's search; after the last, one unbounded run from the
+  best iterate tells ``OUT_OF_LIMITS`` (the pose is solved only outside the limits) from
+  ``NOT_CONVERGED``. ``UNREACHABLE``: the target lies beyond ``chain.reach()``;
+* ``OK`` only where ``angle(R^T R_d) <= orientation_tol`` and ``|p_d - p| <= position_tol``,
+  evaluated at the returned joints;
+* rates from the target's body twist, ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot -
+  J_b_dot q_dot)`` (minimum-norm for a redundant chain, least squares for one with fewer than
+  six joints), a Jacobian-based margin, and implicit derivatives (``dq = J_b^+ dV_b``).
+
+``ik_chain_path`` warm-starts along sampled paths: the first sample as ``ik_chain``, every
+further one from the previous solution (one run, then the unbounded run); a sample that fails
+keeps its status, and the next one starts from the last solution.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -44,11 +55,12 @@ from .._numerics import all_finite, eps, isotropy, safe_sqrt, singular_rtol
 from ..jet import Jet
 from ..result import IKResult, SolverResult
 from ..status import STATUS_DTYPE, Status
+from . import chain as _chain
 from . import dh as _dh
 from . import lie
 from . import poe as _poe
 
-__all__ = ["NewtonIKResult", "ik_chain", "ik_newton"]
+__all__ = ["NewtonIKResult", "ik_chain", "ik_chain_path", "ik_newton"]
 
 
 @jax.tree_util.register_dataclass
@@ -61,7 +73,8 @@ class NewtonIKResult(SolverResult):
         converged: both tolerances met, shape ``(...)``.
         iterations: number of Newton updates applied (0 if the seed already met the
             tolerances), ``int32``, shape ``(...)`` ([Pineiro]'s table of 4 rows = 3 updates).
-        error: ``(|omega|, |v|)`` of the twist ``V`` (update frame) at ``q``, ``(..., 2)``.
+        error: the tool's ``(rotation angle, position distance)`` to the target at ``q``
+            (rad, length units), ``(..., 2)``: what the tolerances bound.
         history: the iterates ``q^0 ... q^max_iter``, ``(max_iter + 1, ..., n)``, held
             constant after convergence.
         status: ``int8`` codes (``OK``, ``NOT_CONVERGED``, ``INVALID_INPUT``), ``(...)``.
@@ -142,23 +155,33 @@ def _newton_step(jac: Array, twist: Array, damping, floor: float | None = None) 
 
 
 def _twist_and_jacobian(chain: _poe.PoEChain, q: Array, target: Array, frame: str):
-    """Twist to the target ``V`` (update frame, 6 arrays) and the Jacobian's columns at ``q``.
+    """Twist to the target ``V`` (update frame, 6 arrays), the Jacobian's columns at ``q`` and
+    the tool's position error ``|p_d - p|``.
 
-    ``V_b = log(T_sb^-1 T_sd)``: ``R_bd = R^T R_d``, ``p_bd = R^T (p_d - p)``.
+    ``V_b = log(T_sb^-1 T_sd)``: ``R_bd = R^T R_d``, ``p_bd = R^T (p_d - p)``; ``|omega|`` of
+    either frame's twist is the rotation angle of ``R_bd``.
     """
     rot, p, jac = _poe._fk_and_jacobian(chain, q, frame)
-    rot_t = jnp.swapaxes(rot, -1, -2)
-    rot_bd = rot_t @ target[..., :3, :3]
-    p_bd = jnp.einsum("...ij,...j->...i", rot_t, target[..., :3, 3] - p)
-    twist = lie.se3_log_soa(
-        [[rot_bd[..., r, c] for c in range(3)] for r in range(3)],
-        [p_bd[..., r] for r in range(3)],
-    )
+    twist, p_bd = _body_twist(rot, p, target)
     if frame == "space":
         twist_arr = _poe._apply_adjoint(rot, p, jnp.stack(twist, axis=-1)[..., None])[..., 0]
         twist = [twist_arr[..., k] for k in range(6)]
-    columns = [[jac[..., k, i] for k in range(6)] for i in range(chain.n_joints)]
-    return twist, columns
+    columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
+    return twist, columns, _norm3(p_bd)
+
+
+def _body_twist(rot: Array, p: Array, target: Array) -> tuple[list[Array], list[Array]]:
+    """``V_b = log(T^-1 T_d)`` (6 arrays) and ``p_bd = R^T (p_d - p)`` (3 arrays)."""
+    rot_t = jnp.swapaxes(rot, -1, -2)
+    rot_bd = rot_t @ target[..., :3, :3]
+    p_bd = jnp.einsum("...ij,...j->...i", rot_t, target[..., :3, 3] - p)
+    p_bd = [p_bd[..., r] for r in range(3)]
+    twist = lie.se3_log_soa([[rot_bd[..., r, c] for c in range(3)] for r in range(3)], p_bd)
+    return twist, p_bd
+
+
+def _norm3(x: list[Array]) -> Array:
+    return safe_sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
 
 
 def _ik_impl(
@@ -173,9 +196,6 @@ def _ik_impl(
     upper: Array,
     max_iter: int,
     frame: str,
-    keep_history: bool = True,
-    adaptive: bool = False,
-    normalize: bool = False,
 ) -> NewtonIKResult:
     batch = jnp.broadcast_shapes(target.shape[:-2], q0.shape[:-1])
     n = chain.n_joints
@@ -185,34 +205,12 @@ def _ik_impl(
     valid = all_finite(target.reshape(*batch, 16)) & all_finite(q0)
     target = jnp.where(valid[..., None, None], target, jnp.eye(4, dtype=target.dtype))
     q0 = jnp.clip(jnp.where(jnp.isfinite(q0), q0, 0.0), lower, upper)
-    scale = jnp.asarray(chain.length_scale() if normalize else 1.0, target.dtype)
-    prismatic = ~jnp.any(chain.screws[:, :3] != 0, axis=-1)
-    to_unit = jnp.where(prismatic, 1.0 / scale, 1.0)
-    if normalize:
-        # Units of the chain's size: the twist's two halves keep their relative weight at any
-        # scale (a least-squares step weighs rotation against translation errors) and nothing
-        # over- or underflows; q's prismatic joints and the length error are scaled back.
-        v_scale = jnp.where(prismatic, 1.0, 1.0 / scale)[:, None]
-        chain = _poe.PoEChain(
-            jnp.concatenate([chain.screws[:, :3], chain.screws[:, 3:] * v_scale], axis=-1),
-            chain.home.at[:3, 3].divide(scale),
-            chain.frame,
-        )
-        target = target.at[..., :3, 3].divide(scale)
-        q0, lower, upper = q0 * to_unit, lower * to_unit, upper * to_unit
-        eps_v = eps_v / scale
     # Revolute joints (|omega| = 1) set the step limit; prismatic rows (omega = 0) do not.
     revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)
 
-    def limited(dq):
-        largest = jnp.max(jnp.where(revolute, jnp.abs(dq), 0.0), axis=-1, keepdims=True)
-        too_long = largest > max_step  # never true for max_step = inf (no limit)
-        return dq * jnp.where(too_long, max_step / jnp.where(too_long, largest, 1.0), 1.0)
-
     def errors(q):
-        twist, columns = _twist_and_jacobian(chain, q, target, frame)
-        err_w = safe_sqrt(twist[0] * twist[0] + twist[1] * twist[1] + twist[2] * twist[2])
-        err_v = safe_sqrt(twist[3] * twist[3] + twist[4] * twist[4] + twist[5] * twist[5])
+        twist, columns, err_v = _twist_and_jacobian(chain, q, target, frame)
+        err_w = _norm3(twist[:3])
         done = (err_w <= eps_omega) & (err_v <= eps_v)
         return twist, columns, jnp.stack([err_w, err_v], axis=-1), done | ~valid
 
@@ -224,36 +222,33 @@ def _ik_impl(
         def do_step(c):
             q_c, it_c = c
             twist, columns, _, done = errors(q_c)
-            if adaptive:
-                # Levenberg-Marquardt damping after Yamashita and Fukushima: it grows with the
-                # squared error far from a solution and vanishes at it (quadratic convergence,
-                # also where J is nearly singular); the floor 16 eps trace keeps it defined.
-                error_sq = sum(t * t for t in twist)
-                mu, floor = jnp.sqrt(damping * damping + error_sq), 16 * eps(q_c.dtype)
-            else:
-                mu, floor = damping, None
-            step = _newton_step_soa(columns, twist, mu, floor)
-            dq = limited(jnp.stack(step, axis=-1))
+            step = _newton_step_soa(columns, twist, damping)
+            dq = _limited(jnp.stack(step, axis=-1), revolute, max_step)
             q_new = jnp.where(done[..., None], q_c, jnp.clip(q_c + dq, lower, upper))
             return q_new, it_c + (~done).astype(it_c.dtype), jnp.all(done)
 
         q, iterations, now_done = jax.lax.cond(
             all_done, lambda c: (*c, jnp.array(True)), do_step, (q, iterations)
         )
-        return (q, iterations, now_done), (q if keep_history else None)
+        return (q, iterations, now_done), q
 
     init = (q0, jnp.zeros(batch, jnp.int32), jnp.array(False))
     (q, iterations, _), steps = jax.lax.scan(body, init, None, length=max_iter)
-    history = jnp.concatenate([q0[None], steps], axis=0) if keep_history else q0[None]
+    history = jnp.concatenate([q0[None], steps], axis=0)
     _, _, err, done = errors(q)
-    history, q = history / to_unit, q / to_unit
-    err = err * jnp.stack([jnp.ones_like(scale), scale])
     converged = done & valid
     status = jnp.where(
         ~valid, Status.INVALID_INPUT, jnp.where(converged, Status.OK, Status.NOT_CONVERGED)
     ).astype(STATUS_DTYPE)
     err = jnp.where(valid[..., None], err, 0.0)
     return NewtonIKResult(q, converged, iterations, err, history, status)
+
+
+def _limited(dq: Array, revolute: Array, max_step: Array) -> Array:
+    """``dq`` scaled, direction kept, so that no revolute joint moves more than ``max_step``."""
+    largest = jnp.max(jnp.where(revolute, jnp.abs(dq), 0.0), axis=-1, keepdims=True)
+    too_long = largest > max_step  # never true for max_step = inf (no limit)
+    return dq * jnp.where(too_long, max_step / jnp.where(too_long, largest, 1.0), 1.0)
 
 
 _ik_jit = jax.jit(_ik_impl, static_argnames=("max_iter", "frame"))
@@ -286,8 +281,8 @@ def ik_newton(
         chain: a ``PoEChain`` or a ``DHTable`` (converted to its space-frame PoE chain).
         target: desired end-effector transforms ``T_sd``, shape ``(..., 4, 4)``.
         q0: seeds, shape ``(..., n)``; batch shapes of ``target`` and ``q0`` broadcast.
-        eps_omega: tolerance on ``|omega|`` of the twist (radians), > 0.
-        eps_v: tolerance on ``|v|`` of the twist (length units), > 0.
+        eps_omega: tolerance on the tool's rotation angle to the target (radians), > 0.
+        eps_v: tolerance on the tool's distance to the target (length units), > 0.
         max_iter: number of Newton steps (static; ``history`` has ``max_iter + 1`` rows).
         damping: ``lambda >= 0`` of damped least squares; 0 gives the pseudo-inverse step.
         max_step: largest change of a revolute joint in one step (radians), > 0; the step is
@@ -366,15 +361,7 @@ def ik_newton(
 
 
 # ------------------------------------------------------------------ the robot protocol
-
-
-def _restart_seeds(chain: _poe.PoEChain, restarts: int, dtype) -> Array:
-    """``(restarts, n)`` starts: zeros, then revolute joints uniform in [-pi, pi] (prismatic
-    joints at 0), from a fixed generator (the same starts every call)."""
-    uniform = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(restarts, chain.n_joints))
-    uniform[0] = 0.0
-    revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)  # traceable: the chain may be
-    return jnp.where(revolute, jnp.asarray(uniform, dtype), 0.0)
+_TWO_PI = 2.0 * np.pi
 
 
 def _skew_parts(m: Array) -> Array:
@@ -401,139 +388,447 @@ def _body_twists(target: Jet) -> tuple[Array, Array]:
     return twist, rate
 
 
-def _ik_chain_core(
-    chain: _poe.PoEChain, target: Jet, seeds: Array, tol: Array, max_iter: int, rates: bool
-) -> IKResult:
+def _joint_chain(chain: Any) -> _chain.JointChain:
+    """A ``JointChain`` as is; a ``PoEChain`` or ``DHTable`` as the same chain, no limits."""
+    if isinstance(chain, _chain.JointChain):
+        return chain
+    poe = _poe.change_frame(_poe.as_poe(chain), "space")
+    if _validate.is_concrete(poe.screws) and _validate.is_concrete(poe.home):
+        return _chain.JointChain.from_poe(poe)
+    # A traced chain (differentiated, or a user's jit argument): nothing to validate, and the
+    # kernels read which joints are prismatic from the screws, not from ``kinds``.
+    n = poe.n_joints
+    out = object.__new__(_chain.JointChain)
+    ones, inf = jnp.ones(n, poe.screws.dtype), jnp.full(n, jnp.inf, poe.screws.dtype)
+    fields = dict(screws=poe.screws, home=poe.home, multiplier=ones, offset=0.0 * ones)
+    fields |= dict(lower=-inf, upper=inf, velocity=inf, follows=tuple(range(n)))
+    fields |= dict(names=tuple(f"q{i + 1}" for i in range(n)), kinds=("revolute",) * n)
+    for name, value in (fields | dict(base_link="", tip_link="")).items():
+        object.__setattr__(out, name, value)
+    return out
+
+
+def _in_units(chain: _chain.JointChain, scale: Array) -> tuple[_chain.JointChain, Array, Array]:
+    """The chain in units of its size (lengths / ``scale``), the factors ``g`` of the
+    coordinates (``q_unit = g q``) and the mask of prismatic coordinates (whose joints slide)."""
+    dtype = chain.screws.dtype
+    onto = np.zeros((chain.n_path_joints, chain.n_joints))
+    onto[np.arange(chain.n_path_joints), np.asarray(chain.follows)] = 1.0
+    sliding = jnp.all(chain.screws[:, :3] == 0, axis=-1)
+    prismatic = jnp.asarray(onto.T, dtype) @ sliding.astype(dtype) > 0
+    f = jnp.where(sliding, 1.0 / scale, 1.0)  # theta_unit = f theta
+    g = jnp.where(prismatic, 1.0 / scale, 1.0)
+    unit = _chain.JointChain(
+        chain.screws.at[:, 3:].multiply(jnp.where(sliding, 1.0, 1.0 / scale)[:, None]),
+        chain.home.at[:3, 3].divide(scale),
+        chain.multiplier * f / g[np.asarray(chain.follows)],
+        chain.offset * f,
+        chain.lower * g,
+        chain.upper * g,
+        chain.velocity,
+        chain.follows,
+        chain.names,
+        chain.kinds,
+        chain.base_link,
+        chain.tip_link,
+    )
+    return unit, g, prismatic
+
+
+def _turned(q: Array, lower: Array, upper: Array, revolute: Array, continuous: Array) -> Array:
+    """``q`` with every revolute joint outside its limits turned by the multiple of 2 pi that
+    brings it inside, where one does (the one nearest the range's middle: the only one when the
+    range is shorter than 2 pi); continuous joints wrapped to [-pi, pi)."""
+    middle = jnp.where(jnp.isfinite(lower) & jnp.isfinite(upper), 0.5 * (lower + upper), 0.0)
+    turned = q - _TWO_PI * jnp.round((q - middle) / _TWO_PI)
+    outside = (q < lower) | (q > upper)
+    q = jnp.where(revolute & outside & (turned >= lower) & (turned <= upper), turned, q)
+    return jnp.where(continuous, q - _TWO_PI * jnp.floor((q + np.pi) / _TWO_PI), q)
+
+
+def _projected(q: Array, lower: Array, upper: Array, revolute: Array, continuous: Array) -> Array:
+    """The projection onto the joint limits after the 2 pi turns of ``_turned``."""
+    return jnp.clip(_turned(q, lower, upper, revolute, continuous), lower, upper)
+
+
+def _residual(chain: _chain.JointChain, q: Array, target: Array):
+    """Body twist to the target (6 arrays), Jacobian columns, rotation and position errors."""
+    rot, p, jac = _chain.fk_and_jacobian(chain, q, "body")
+    twist, p_bd = _body_twist(rot, p, target)
+    columns = [[jac[..., k, i] for k in range(6)] for i in range(chain.n_joints)]
+    return twist, columns, _norm3(twist[:3]), _norm3(p_bd)
+
+
+def _search(
+    chain: _chain.JointChain,
+    target: Array,
+    start: Array,
+    seeds: Array,
+    limits: tuple[Array, Array, Array, Array],
+    tols: tuple[Array, Array],
+    done: Array,
+    status: Array,
+    max_iter: int,
+    runs: int,
+) -> tuple[Array, Array]:
+    """Projected Levenberg-Marquardt with restarts (module docstring), in units of the chain.
+
+    ``target`` ``(..., 4, 4)``; ``start`` ``(..., n)`` the first run's start, ``seeds``
+    ``(runs, n)`` the later runs' (row 0 unused); ``limits`` ``(lower, upper, revolute,
+    continuous)``; ``tols`` ``(rotation, position)``; ``done``/``status`` preset elements
+    (invalid, unreachable). Returns ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``,
+    ``NOT_CONVERGED`` or the preset status.
+    """
+    lower, upper, revolute, continuous = limits
+    tol_rot, tol_pos = tols
+    dtype = start.dtype
+    bounded = jnp.any(jnp.isfinite(lower) | jnp.isfinite(upper))
+    last = runs - 1 + bounded.astype(jnp.int32)  # the unbounded run comes last, with limits
+    one = jnp.asarray(1.0, dtype)
+
+    def project(q):
+        return _projected(q, lower, upper, revolute, continuous)
+
+    def body(state):
+        q, run, k, done, status, best_q, best, it = state
+        twist, columns, err_rot, err_pos = _residual(chain, q, target)
+        free = run >= runs
+        turned = _turned(q, lower, upper, revolute, continuous)
+        within = jnp.all((turned >= lower) & (turned <= upper), axis=-1)
+        hit = (err_rot <= tol_rot) & (err_pos <= tol_pos)
+        score = err_rot + err_pos
+        improve = ~done & ~free & (score < best)
+        best_q = jnp.where(improve[..., None], q, best_q)
+        best = jnp.where(improve, score, best)
+        spent = k >= max_iter
+        ended = ~done & (hit | (spent & (run >= last)))
+        code = jnp.where(within, Status.OK, Status.OUT_OF_LIMITS)
+        code = jnp.where(hit, code, Status.NOT_CONVERGED).astype(STATUS_DTYPE)
+        status = jnp.where(ended, code, status)
+        # Levenberg-Marquardt damping mu = |V|^2 (the floor 16 eps trace keeps it defined).
+        error_sq = sum(t * t for t in twist)
+        step = _newton_step_soa(columns, twist, safe_sqrt(error_sq), 16 * eps(dtype))
+        moved = q + _limited(jnp.stack(step, axis=-1), revolute, one)
+        moved = jnp.where(
+            free[..., None], _turned(moved, -jnp.inf, jnp.inf, revolute, continuous), project(moved)
+        )
+        following = run + 1
+        restart = project(jnp.take(seeds, jnp.minimum(following, runs - 1), axis=0))
+        restart = jnp.where((following < runs)[..., None], restart, best_q)
+        q_next = jnp.where(spent[..., None], restart, moved)
+        q_end = jnp.where(hit[..., None], turned, best_q)
+        q = jnp.where(done[..., None], q, jnp.where(ended[..., None], q_end, q_next))
+        run = jnp.where(spent & ~done, following, run)
+        k = jnp.where(spent, 0, k + 1)
+        return q, run, k, done | ended, status, best_q, best, it + 1
+
+    limit = (runs + 1) * (max_iter + 1) + 1
+
+    def cond(state):
+        return (state[-1] < limit) & jnp.any(~state[3])
+
+    batch = start.shape[:-1]
+    q0 = project(start)
+    zeros = jnp.zeros(batch, jnp.int32)
+    init = (q0, zeros, zeros, done, status, q0, jnp.full(batch, jnp.inf, dtype), 0)
+    q, _, _, _, status, *_ = jax.lax.while_loop(cond, body, init)
+    return q, status
+
+
+@dataclasses.dataclass(frozen=True)
+class _Search:
+    """The static shape of a search: updates per run, runs, and updates of a warm start."""
+
+    max_iter: int
+    runs: int
+    warm_iter: int
+
+
+def _prepare(chain: _chain.JointChain, target: Jet, tols: tuple[Array, Array], use_limits):
+    """Units, limits, seeds and the preset statuses (invalid, unreachable) of a batch."""
     dtype = target.dtype
-    # Double-where: a non-finite target (or rate) is replaced before any arithmetic.
     flat = jnp.concatenate(
         [x.reshape(*x.shape[:-2], 16) for x in (target.p, target.v, target.a)], -1
     )
-    finite = all_finite(flat)[..., None, None]
-    target = Jet(
-        jnp.where(finite, target.p, jnp.eye(4, dtype=dtype)),
-        jnp.where(finite, target.v, 0.0),
-        jnp.where(finite, target.a, 0.0),
+    finite = all_finite(flat)
+    safe = Jet(
+        jnp.where(finite[..., None, None], target.p, jnp.eye(4, dtype=dtype)),
+        jnp.where(finite[..., None, None], target.v, 0.0),
+        jnp.where(finite[..., None, None], target.a, 0.0),
     )
     scale = jnp.asarray(chain.length_scale(), dtype)
-    revolute = jnp.any(chain.screws[:, :3] != 0, axis=-1)
+    unit, g, prismatic = _in_units(chain, scale)
     n = chain.n_joints
-    lower = jnp.full((n,), -jnp.inf, dtype)
-    upper = jnp.full((n,), jnp.inf, dtype)
-    sol = _ik_impl(
-        chain,
-        target.p[..., None, :, :],
-        seeds,
-        tol,
-        tol * scale,
-        jnp.asarray(0.0, dtype),
-        jnp.asarray(1.0, dtype),
-        lower,
-        upper,
-        max_iter,
-        "body",
-        keep_history=False,
-        adaptive=True,
-        normalize=True,
-    )
-    # Per target: the converged restart with the smallest error, else the smallest error.
-    score = sol.error[..., 0] + sol.error[..., 1] / scale
-    score = jnp.where(sol.converged, score, score + 1e30)
-    best = jnp.argmin(score, axis=-1)
-
-    def pick(x):
-        index = best.reshape(best.shape + (1,) * (x.ndim - best.ndim))
-        return jnp.squeeze(jnp.take_along_axis(x, index, axis=best.ndim), axis=best.ndim)
-
-    q, status = pick(sol.q), pick(sol.status)
-    status = jnp.where(finite[..., 0, 0], status, Status.INVALID_INPUT).astype(status.dtype)
-    ok = status == Status.OK
-    _, _, jac = _poe._fk_and_jacobian(chain, q, "body")
-    # The body Jacobian in units of the chain's size (v rows / scale, prismatic columns *
-    # scale): the least-squares solves below stay well conditioned at any scale.
-    rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
-    columns = jnp.where(revolute, 1.0, scale)
-    unit_jac = jac * rows[:, None] * columns
-    if rates:
-        twist, twist_rate = _body_twists(target)
-        floor = eps(dtype)
-        q_dot = _newton_step(unit_jac, twist * rows, 0.0, floor) * columns
-        jac_rate = jax.jvp(lambda x: _poe._fk_and_jacobian(chain, x, "body")[2], (q,), (q_dot,))[1]
-        drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _newton_step(unit_jac, (twist_rate - drift) * rows, 0.0, floor) * columns
-        okc = ok[..., None]
-        q_jet = Jet(q, jnp.where(okc, q_dot, 0.0), jnp.where(okc, q_ddot, 0.0))
+    if use_limits:
+        lower, upper = unit.lower, unit.upper
     else:
-        q_jet = Jet.constant(q)
-    margin = isotropy(unit_jac)
-    margin = jnp.where(
-        status == Status.INVALID_INPUT,
-        -1.0,
-        jnp.where(ok, margin, -jnp.minimum(pick(score), 1.0)),
-    )
+        lower, upper = jnp.full(n, -jnp.inf, dtype), jnp.full(n, jnp.inf, dtype)
+    continuous = jnp.asarray([k == "continuous" for k in chain.kinds])
+    limits = (lower, upper, ~prismatic, continuous)
+    goal = safe.p.at[..., :3, 3].divide(scale)
+    centre, radius = unit.reach()
+    distance = safe_sqrt(jnp.sum((goal[..., :3, 3] - centre) ** 2, axis=-1))
+    unreachable = finite & (distance > radius + tols[1])
+    status = jnp.where(finite, Status.NOT_CONVERGED, Status.INVALID_INPUT)
+    status = jnp.where(unreachable, Status.UNREACHABLE, status).astype(STATUS_DTYPE)
+    return safe, goal, unit, g, scale, limits, status, ~finite | unreachable
+
+
+def _seeds(limits: tuple[Array, ...], runs: int, dtype) -> Array:
+    """``(runs, n)`` starts: the middle of the limits (0 for an unbounded joint), then uniform
+    over the limits (revolute joints without limits over [-pi, pi), prismatic ones at 0), from
+    a fixed generator: the same starts every call."""
+    lower, upper, revolute, _ = limits
+    n = lower.shape[-1]
+    u = np.random.default_rng(0).uniform(size=(runs, n))
+    u[0] = 0.5
+    u = jnp.asarray(u, dtype)
+    finite = jnp.isfinite(lower) & jnp.isfinite(upper)
+    inside = jnp.where(finite, lower, 0.0) + u * jnp.where(finite, upper - lower, 0.0)
+    free = jnp.clip(jnp.where(revolute, (2.0 * u - 1.0) * np.pi, 0.0), lower, upper)
+    return jnp.where(finite, inside, free)
+
+
+def _finish(
+    unit: _chain.JointChain,
+    g: Array,
+    scale: Array,
+    target: Jet,
+    goal: Array,
+    q_unit: Array,
+    status: Array,
+    rates: bool,
+) -> IKResult:
+    """Joint rates, margins and implicit derivatives at the solutions (module docstring)."""
+    dtype = q_unit.dtype
+    ok = status == Status.OK
+    fixed = jax.lax.stop_gradient(q_unit)
+    rot, p, _ = _chain.fk_and_jacobian(unit, fixed, "body")
+    # Implicit derivatives: one Newton step at the solution, whose value is removed; the
+    # goal of a failed element is its own pose (finite derivatives of the log at identity).
+    reached = lie.from_rotation_translation(rot, p)
+    twist, _ = _body_twist(rot, p, jnp.where(ok[..., None, None], goal, reached))
+    jac = _chain.fk_and_jacobian(unit, fixed, "body")[2]
+    floor = eps(dtype)
+    dq = _newton_step(jac, jnp.stack(twist, axis=-1), 0.0, floor)
+    q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
+    _, _, jac = _chain.fk_and_jacobian(unit, q_unit, "body")
+    rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
+    if rates:
+        velocity, acceleration = _body_twists(target)
+        q_dot = _newton_step(jac, velocity * rows, 0.0, floor)
+        jac_rate = jax.jvp(
+            lambda x: _chain.fk_and_jacobian(unit, x, "body")[2], (q_unit,), (q_dot,)
+        )[1]
+        drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
+        q_ddot = _newton_step(jac, acceleration * rows - drift, 0.0, floor)
+        okc = ok[..., None]
+        q_jet = Jet(q_unit / g, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
+    else:
+        q_jet = Jet.constant(q_unit / g)
+    goal_twist, p_bd = _body_twist(rot, p, goal)
+    error = jnp.minimum(_norm3(goal_twist[:3]) + _norm3(p_bd), 1.0)
+    solved = ok | (status == Status.OUT_OF_LIMITS)
+    margin = jnp.where(solved, isotropy(jac), -error)
+    margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)
     return IKResult(q_jet, status, margin.astype(dtype))
 
 
-_ik_chain_jit = jax.jit(_ik_chain_core, static_argnames=("max_iter", "rates"))
+def _ik_chain_core(
+    chain: _chain.JointChain,
+    target: Jet,
+    q0: Array | None,
+    tols: tuple[Array, Array],
+    search: _Search,
+    use_limits: bool,
+    rates: bool,
+) -> IKResult:
+    safe, goal, unit, g, scale, limits, status, done = _prepare(chain, target, tols, use_limits)
+    tols = (tols[0], tols[1] / scale)
+    seeds = _seeds(limits, search.runs, target.dtype)
+    batch = status.shape
+    start = jnp.broadcast_to(seeds[0] if q0 is None else q0 * g, (*batch, chain.n_joints))
+    start = jnp.where(jnp.isfinite(start), start, 0.0)
+    q, status = _search(
+        unit, goal, start, seeds, limits, tols, done, status, search.max_iter, search.runs
+    )
+    return _finish(unit, g, scale, safe, goal, q, status, rates)
+
+
+_ik_chain_jit = jax.jit(_ik_chain_core, static_argnames=("search", "use_limits", "rates"))
+
+
+def _ik_chain_path_core(
+    chain: _chain.JointChain,
+    path: Jet,
+    tols: tuple[Array, Array],
+    search: _Search,
+    use_limits: bool,
+) -> IKResult:
+    safe, goal, unit, g, scale, limits, status, done = _prepare(chain, path, tols, use_limits)
+    tols = (tols[0], tols[1] / scale)
+    seeds = _seeds(limits, search.runs, path.dtype)
+    n = chain.n_joints
+    first = (*status.shape[:-1], n)
+    q, code = _search(
+        unit,
+        goal[..., 0, :, :],
+        jnp.broadcast_to(seeds[0], first),
+        seeds,
+        limits,
+        tols,
+        done[..., 0],
+        status[..., 0],
+        search.max_iter,
+        search.runs,
+    )
+
+    def step(previous, sample):
+        goal_t, done_t, status_t = sample
+        q_t, code_t = _search(
+            unit, goal_t, previous, seeds[:1], limits, tols, done_t, status_t, search.warm_iter, 1
+        )
+        solved = (code_t == Status.OK) | (code_t == Status.OUT_OF_LIMITS)
+        return jnp.where(solved[..., None], q_t, previous), (q_t, code_t)
+
+    rest = (
+        jnp.moveaxis(x[..., 1:, *([slice(None)] * k)], x.ndim - 1 - k, 0)
+        for x, k in ((goal, 2), (done, 0), (status, 0))
+    )
+    _, (q_rest, code_rest) = jax.lax.scan(step, q, tuple(rest))
+    q = jnp.concatenate([q[..., None, :], jnp.moveaxis(q_rest, 0, -2)], axis=-2)
+    code = jnp.concatenate([code[..., None], jnp.moveaxis(code_rest, 0, -1)], axis=-1)
+    return _finish(unit, g, scale, safe, goal, q, code, True)
+
+
+_ik_chain_path_jit = jax.jit(_ik_chain_path_core, static_argnames=("search", "use_limits"))
+
+
+def _options(chain: _chain.JointChain, dtype, position_tol, orientation_tol, counts) -> tuple:
+    """Validated tolerances (as arrays: no recompilation for new values) and counts."""
+    for name, value in counts.items():
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ValueError(f"{name} must be an int >= 1, got {value!r}")
+    default = max(1e-10, 1e3 * eps(dtype))
+    rot = default if orientation_tol is None else orientation_tol
+    _positive(rot, "orientation_tol")
+    if position_tol is None:
+        pos = jnp.asarray(default * chain.length_scale(), dtype)
+    else:
+        _positive(position_tol, "position_tol")
+        pos = jnp.asarray(position_tol, dtype)
+    return jnp.asarray(rot, dtype), pos
+
+
+def _check_target(target: Jet | ArrayLike, name: str) -> tuple[Jet, bool]:
+    rates = isinstance(target, Jet)
+    target = _validate.as_jet(target, name, coords=None)
+    if target.p.ndim < 2 or target.shape[-2:] != (4, 4):
+        raise ValueError(f"{name}: expected shape (..., 4, 4), got {target.shape}")
+    return target, rates
 
 
 def ik_chain(
-    chain: _poe.PoEChain | _dh.DHTable,
+    chain: _chain.JointChain | _poe.PoEChain | _dh.DHTable,
     target: Jet | ArrayLike,
     branch: str | None = None,
     q0: ArrayLike | None = None,
-    restarts: int = 8,
-    tol: float | None = None,
-    max_iter: int = 50,
+    restarts: int = 64,
+    max_iter: int = 20,
+    position_tol: float | None = None,
+    orientation_tol: float | None = None,
+    use_limits: bool = True,
 ) -> IKResult:
     """Inverse kinematics of a chain as the robot protocol has it (``jaxkin.ik``).
 
-    Newton-Raphson in the body frame (``ik_newton``, 1 rad step limit), from ``q0`` or, without
-    one, from ``restarts`` fixed seeds (zeros, then random revolute angles) run as one batch;
-    per target the converged run with the smallest error is kept. Converged means a body
-    twist to the target below ``tol`` (rad) and ``tol * chain.length_scale()`` (length). Joint
-    rates of a target Jet (4x4 matrices and their time derivatives) come from the body twist:
-    ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot - J_b_dot q_dot)`` (minimum-norm for a
-    redundant chain).
+    Projected Levenberg-Marquardt in the body frame with restarts, per element (module
+    docstring). Guarantees: ``OK`` means ``angle(R^T R_d) <= orientation_tol`` (rad) and
+    ``|p_d - p| <= position_tol`` (length) at the returned joints, computed by the chain's
+    forward kinematics; with ``use_limits`` the joints of every status but ``OUT_OF_LIMITS``
+    lie within the chain's limits; continuous joints come back in [-pi, pi).
 
     Args:
-        chain: a ``PoEChain`` or a ``DHTable``.
-        target: Jet (or array, at rest) of 4x4 transforms ``(..., 4, 4)``.
+        chain: a ``JointChain`` (e.g. from ``serial.from_urdf``), ``PoEChain`` or ``DHTable``.
+        target: Jet (or array, at rest) of 4x4 transforms ``(..., 4, 4)``; a Jet's rates give
+            the joint rates (``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot - J_b_dot
+            q_dot)``: minimum-norm for a redundant chain).
         branch: ``"newton"`` (the only branch) or None.
-        q0: seeds ``(..., n)`` broadcast against the targets; None for the restarts.
-        restarts: number of seeds without ``q0`` (>= 1).
-        tol: None for ``max(1e-10, 1000 eps(dtype))``.
-        max_iter: Newton updates at most.
+        q0: the first run's start ``(..., n)`` (broadcast against the targets); None for the
+            middle of the limits. Later runs start from fixed seeds spread over the limits.
+        restarts: runs per element at most (>= 1), before the unbounded run.
+        max_iter: updates per run (>= 1).
+        position_tol: length units; None for ``max(1e-10, 1000 eps) * chain.length_scale()``.
+        orientation_tol: rad; None for ``max(1e-10, 1000 eps)``.
+        use_limits: respect the chain's position limits (False: search without them).
 
     Returns:
-        ``IKResult``: ``q`` (Jet ``(..., n)``), ``status`` (``OK``, ``NOT_CONVERGED``,
-        ``INVALID_INPUT``), ``margin`` (the scaled body Jacobian's isotropy in [0, 1] where
-        converged; minus the remaining error, at most 1, where not; -1 for invalid input).
+        ``IKResult``: ``q`` (Jet ``(..., n)``), ``status`` (``OK``, ``OUT_OF_LIMITS``: solved
+        only outside the limits, ``q`` that solution; ``NOT_CONVERGED``: ``q`` the best iterate
+        within the limits; ``UNREACHABLE``: beyond ``chain.reach()``; ``INVALID_INPUT``),
+        ``margin`` (the isotropy of the body Jacobian in units of the chain's size where
+        solved; minus the remaining error, at most 1, where not; -1 for invalid input).
+
+    Raises:
+        ValueError: an unknown branch, a target or ``q0`` of the wrong shape, non-positive
+            tolerances or counts below 1.
     """
     if branch not in (None, "newton"):
         raise ValueError(f"branch must be 'newton' (or None) for a chain, got {branch!r}")
-    poe_chain = _poe.as_poe(chain)
-    n = poe_chain.n_joints
-    rates = isinstance(target, Jet)
-    target = _validate.as_jet(target, "target", coords=None)
-    if target.p.ndim < 2 or target.shape[-2:] != (4, 4):
-        raise ValueError(f"target: expected shape (..., 4, 4), got {target.shape}")
-    for name, value, low in (("restarts", restarts, 1), ("max_iter", max_iter, 1)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
-    dtype = jnp.result_type(target.dtype, poe_chain.dtype)
-    if tol is None:
-        tol = max(1e-10, 1e3 * eps(dtype))
-    _positive(tol, "tol")
-    if q0 is None:
-        seeds = _restart_seeds(poe_chain, restarts, dtype)
-    else:
+    joint_chain = _joint_chain(chain)
+    target, rates = _check_target(target, "target")
+    dtype = jnp.result_type(target.dtype, joint_chain.dtype)
+    counts = dict(restarts=restarts, max_iter=max_iter)
+    tols = _options(joint_chain, dtype, position_tol, orientation_tol, counts)
+    n = joint_chain.n_joints
+    batch = target.shape[:-2]
+    if q0 is not None:
         q0 = jnp.asarray(q0, dtype)
         if q0.ndim == 0 or q0.shape[-1] != n:
             raise ValueError(f"q0: expected shape (..., {n}), got {tuple(q0.shape)}")
-        _validate.batch_shape({"target": target.shape[:-2], "q0": q0.shape[:-1]})
-        seeds = q0[..., None, :]
-    batch = tuple(jnp.broadcast_shapes(target.shape[:-2], seeds.shape[:-2]))
+        batch = _validate.batch_shape({"target": batch, "q0": q0.shape[:-1]})
     target = target.map(lambda x: jnp.broadcast_to(x.astype(dtype), (*batch, 4, 4)))
-    body = _poe.change_frame(_validate.cast_leaves(poe_chain, dtype), "body")
-    return _ik_chain_jit(body, target, seeds, jnp.asarray(tol, dtype), max_iter, rates)
+    search = _Search(max_iter, restarts, max_iter)
+    return _ik_chain_jit(
+        _validate.cast_leaves(joint_chain, dtype), target, q0, tols, search, bool(use_limits), rates
+    )
+
+
+def ik_chain_path(
+    chain: _chain.JointChain | _poe.PoEChain | _dh.DHTable,
+    path: Jet | ArrayLike,
+    restarts: int = 64,
+    max_iter: int = 20,
+    warm_iter: int = 20,
+    position_tol: float | None = None,
+    orientation_tol: float | None = None,
+    use_limits: bool = True,
+) -> IKResult:
+    """``ik_chain`` along sampled paths, each sample warm-started from the previous one.
+
+    Args:
+        chain: as for ``ik_chain``.
+        path: Jet (or array) of 4x4 transforms ``(..., T, 4, 4)``, T >= 1 consecutive samples.
+        restarts, max_iter: the search of each path's first sample (``ik_chain``).
+        warm_iter: updates of a later sample's run from the previous solution (then the
+            unbounded run tells ``OUT_OF_LIMITS``); no restart elsewhere: a sample that fails
+            keeps ``NOT_CONVERGED`` and the next one starts from the last solution.
+        position_tol, orientation_tol, use_limits: as for ``ik_chain``.
+
+    Returns:
+        ``IKResult`` of shape ``(..., T)`` (rates from the path's Jet).
+    """
+    joint_chain = _joint_chain(chain)
+    path, _ = _check_target(path, "path")
+    if path.p.ndim < 3:
+        raise ValueError(f"path: expected shape (..., T, 4, 4), got {path.shape}")
+    dtype = jnp.result_type(path.dtype, joint_chain.dtype)
+    counts = dict(restarts=restarts, max_iter=max_iter, warm_iter=warm_iter)
+    tols = _options(joint_chain, dtype, position_tol, orientation_tol, counts)
+    search = _Search(max_iter, restarts, warm_iter)
+    return _ik_chain_path_jit(
+        _validate.cast_leaves(joint_chain, dtype),
+        path.astype(dtype),
+        tols,
+        search,
+        bool(use_limits),
+    )

@@ -66,6 +66,36 @@ FRAMES = ("space", "body")
 _UNIT_TOL = 1e-6  # tolerance on |omega| = 1 (revolute) or |v| = 1 with omega = 0 (prismatic)
 
 
+def check_screws_and_home(screws: ArrayLike, home: ArrayLike, owner: str) -> None:
+    """Host-side: unit screws ``(n, 6)``, n >= 1, and a rigid ``home``; a ``ValueError`` naming
+    ``owner.screws`` / ``owner.home`` otherwise."""
+    values = np.asarray(screws, dtype=np.float64)
+    if values.shape[0] < 1:
+        raise ValueError(f"{owner}.screws: expected shape (n, 6) with n >= 1, got (0, 6)")
+    w_norm = np.linalg.norm(values[:, :3], axis=1)
+    v_norm = np.linalg.norm(values[:, 3:], axis=1)
+    revolute = np.abs(w_norm - 1.0) <= _UNIT_TOL
+    prismatic = (w_norm <= _UNIT_TOL) & (np.abs(v_norm - 1.0) <= _UNIT_TOL)
+    bad = np.flatnonzero(~(revolute | prismatic))
+    if bad.size:
+        raise ValueError(
+            f"{owner}.screws: rows {bad.tolist()} are not unit screws (need |omega| = 1 for "
+            "a revolute joint, or omega = 0 and |v| = 1 for a prismatic joint); got "
+            f"|omega| = {w_norm[bad]}, |v| = {v_norm[bad]}"
+        )
+    m = np.asarray(home, dtype=np.float64)
+    rot = m[:3, :3]
+    if (
+        np.max(np.abs(m[3] - np.array([0.0, 0.0, 0.0, 1.0]))) > _UNIT_TOL
+        or np.max(np.abs(rot.T @ rot - np.eye(3))) > _UNIT_TOL
+        or np.linalg.det(rot) < 0.0
+    ):
+        raise ValueError(
+            f"{owner}.home: expected a rigid transform [[R, p], [0, 0, 0, 1]] with R a "
+            f"rotation (R^T R = I, det R = +1), got {m}"
+        )
+
+
 @geometry
 class PoEChain(Robot):
     """A serial chain in product-of-exponentials form; a robot of the protocol (pose targets).
@@ -94,31 +124,7 @@ class PoEChain(Robot):
         super()._validate()
         if not (_validate.is_concrete(self.screws) and _validate.is_concrete(self.home)):
             return
-        values = np.asarray(self.screws, dtype=np.float64)
-        if values.shape[0] < 1:
-            raise ValueError("PoEChain.screws: expected shape (n, 6) with n >= 1, got (0, 6)")
-        w_norm = np.linalg.norm(values[:, :3], axis=1)
-        v_norm = np.linalg.norm(values[:, 3:], axis=1)
-        revolute = np.abs(w_norm - 1.0) <= _UNIT_TOL
-        prismatic = (w_norm <= _UNIT_TOL) & (np.abs(v_norm - 1.0) <= _UNIT_TOL)
-        bad = np.flatnonzero(~(revolute | prismatic))
-        if bad.size:
-            raise ValueError(
-                f"PoEChain.screws: rows {bad.tolist()} are not unit screws (need |omega| = 1 for "
-                "a revolute joint, or omega = 0 and |v| = 1 for a prismatic joint); got "
-                f"|omega| = {w_norm[bad]}, |v| = {v_norm[bad]}"
-            )
-        m = np.asarray(self.home, dtype=np.float64)
-        rot = m[:3, :3]
-        if (
-            np.max(np.abs(m[3] - np.array([0.0, 0.0, 0.0, 1.0]))) > _UNIT_TOL
-            or np.max(np.abs(rot.T @ rot - np.eye(3))) > _UNIT_TOL
-            or np.linalg.det(rot) < 0.0
-        ):
-            raise ValueError(
-                "PoEChain.home: expected a rigid transform [[R, p], [0, 0, 0, 1]] with R a "
-                f"rotation (R^T R = I, det R = +1), got {m}"
-            )
+        check_screws_and_home(self.screws, self.home, "PoEChain")
         dtype = jnp.result_type(self.screws, self.home, float)
         object.__setattr__(self, "screws", jnp.asarray(self.screws, dtype))
         object.__setattr__(self, "home", jnp.asarray(self.home, dtype))
@@ -269,10 +275,18 @@ def _apply_adjoint_inv(rot: Array, p: Array, twists: Array) -> Array:
 
 
 def _chain_fk_impl(chain: PoEChain, q: Array) -> Array:
+    if not isinstance(chain, PoEChain):  # a JointChain: its own coupling of q to the screws
+        from .chain import fk_rp
+
+        return lie.from_rotation_translation(*fk_rp(chain, q))
     return lie.from_rotation_translation(*_fk_rp(chain, q))
 
 
 def _jacobian_impl(chain: PoEChain, q: Array, which: str) -> Array:
+    if not isinstance(chain, PoEChain):
+        from .chain import fk_and_jacobian
+
+        return fk_and_jacobian(chain, q, which)[2]
     return _fk_and_jacobian(chain, q, which)[2]
 
 
@@ -348,7 +362,10 @@ def as_poe(chain: PoEChain | _dh.DHTable, name: str = "chain") -> PoEChain:
 
 
 def _prepare(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> tuple[PoEChain, Array]:
-    chain = as_poe(chain)
+    from .chain import JointChain
+
+    if not isinstance(chain, JointChain):
+        chain = as_poe(chain)
     q = _dh.check_q(q, chain.n_joints, chain.dtype)
     return _validate.cast_leaves(chain, q.dtype), q
 
@@ -358,7 +375,8 @@ def _prepare(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> tuple[PoEChain, Arr
 
 
 def chain_fk(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
-    """Forward kinematics of a ``PoEChain`` (or ``DHTable``): ``(..., n) -> (..., 4, 4)``."""
+    """Forward kinematics of a ``PoEChain`` (or ``DHTable``, ``JointChain``):
+    ``(..., n) -> (..., 4, 4)``."""
     if isinstance(chain, _dh.DHTable):
         return _dh.fk_dh(chain, q)
     chain, q = _prepare(chain, q)
@@ -385,13 +403,15 @@ def fk_poe(screws: ArrayLike, home: ArrayLike, q: ArrayLike, frame: str = "space
 
 
 def space_jacobian(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
-    """Space Jacobian ``J_s`` (..., 6, n): ``V_s = J_s q_dot`` with ``[V_s] = T_dot T^-1``."""
+    """Space Jacobian ``J_s`` (..., 6, n): ``V_s = J_s q_dot`` with ``[V_s] = T_dot T^-1``
+    (``chain`` a ``PoEChain``, ``DHTable`` or ``JointChain``; columns per coordinate of ``q``)."""
     chain, q = _prepare(chain, q)
     return _jacobian_jit(chain, q, "space")
 
 
 def body_jacobian(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
-    """Body Jacobian ``J_b`` (..., 6, n): ``V_b = J_b q_dot`` with ``[V_b] = T^-1 T_dot``."""
+    """Body Jacobian ``J_b`` (..., 6, n): ``V_b = J_b q_dot`` with ``[V_b] = T^-1 T_dot``
+    (``chain`` as for ``space_jacobian``)."""
     chain, q = _prepare(chain, q)
     return _jacobian_jit(chain, q, "body")
 
@@ -428,6 +448,10 @@ def fk_chain(chain: PoEChain | _dh.DHTable, q: Jet | ArrayLike) -> FKResult:
         derivatives) and ``status`` (``INVALID_INPUT`` for NaN/inf in ``q``: ``x`` is then the
         home pose, else ``OK``).
     """
+    from .chain import JointChain, fk_joint_chain
+
+    if isinstance(chain, JointChain):
+        return fk_joint_chain(chain, q)
     if not isinstance(chain, PoEChain | _dh.DHTable):
         raise ValueError(f"chain: expected a PoEChain or a DHTable, got {type(chain).__name__}")
     rates = isinstance(q, Jet)

@@ -92,7 +92,8 @@ def _space_jacobian(arm: dict, frames: np.ndarray) -> np.ndarray:
 
 
 def ik_newton_numpy(arm, target, q0, eps_omega=1e-3, eps_v=1e-4, max_iter=20):
-    """[Pineiro] Newton IK, space frame, np.linalg.pinv. Returns (q, converged, iterations)."""
+    """[Pineiro] Newton IK, space frame, np.linalg.pinv, stopping on the tool's rotation angle
+    and distance to the target. Returns (q, converged, iterations)."""
     q = np.array(q0, dtype=np.float64)
     n_batch = q.shape[0]
     converged = np.zeros(n_batch, bool)
@@ -109,7 +110,10 @@ def ik_newton_numpy(arm, target, q0, eps_omega=1e-3, eps_v=1e-4, max_iter=20):
         v_b = _log_se3(t_bd)
         w_s = np.einsum("nij,nj->ni", t[:, :3, :3], v_b[:, :3])
         v_s = np.cross(t[:, :3, 3], w_s) + np.einsum("nij,nj->ni", t[:, :3, :3], v_b[:, 3:])
-        done = (np.linalg.norm(w_s, axis=1) <= eps_omega) & (np.linalg.norm(v_s, axis=1) <= eps_v)
+        # Stop on the tool's own errors: rotation angle and distance to the target.
+        angle = np.linalg.norm(v_b[:, :3], axis=1)
+        distance = np.linalg.norm(t_bd[:, :3, 3], axis=1)
+        done = (angle <= eps_omega) & (distance <= eps_v)
         converged[active[done]] = True
         keep = ~done
         if _ == max_iter or not np.any(keep):

@@ -1,0 +1,238 @@
+"""URDF import: ``from_urdf(source, tip_link, base_link=None)`` -> a ``JointChain``.
+
+The file is parsed by yourdfpy (the optional ``urdf`` extra: ``pip install 'jaxkin[urdf]'``),
+without meshes or scene graph; this module only walks the joint tree. From the tip link up to
+the base link (the root link by default) every joint on the path is kept, side branches
+(fingers, sensors) are ignored. With ``T_j`` the composed joint origins from the base to joint
+``j`` at ``theta = 0`` (fixed joints fold into it) and ``a_j`` the unit joint axis in joint
+``j``'s frame::
+
+    omega_j = R(T_j) a_j,   revolute/continuous: S_j = (omega_j, -omega_j x p(T_j)),
+                            prismatic: S_j = (0, omega_j);      home M = T_tip
+
+Joint kinds: ``revolute``, ``continuous`` (no position limits) and ``prismatic``; ``fixed``
+joints are folded in; ``floating`` and ``planar`` joints on the path are refused. A ``mimic``
+joint (``theta = multiplier * theta_leader + offset``) becomes a path joint following its
+leader's coordinate (a chain of mimics is composed); its own position and speed limits are
+carried over to the leader (``lower <= c q + b <= upper`` and ``|c q_dot| <= v``). Limits:
+``<limit lower upper>`` of revolute and prismatic joints (none when absent), ``velocity`` as
+the speed limit (none when absent or not positive). Errors name the link or joint: an unknown
+link, no path from the base to the tip, an unsupported joint type, a zero axis, a mimic joint
+whose leader is not on the path.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .chain import JointChain
+
+__all__ = ["from_urdf"]
+
+_MOVING = ("revolute", "continuous", "prismatic")
+
+
+def _load(source: str | os.PathLike) -> object:
+    """The yourdfpy model of a path or XML text (strict XML: no silent recovery)."""
+    try:
+        import yourdfpy
+        from lxml import etree
+    except ImportError as exc:  # pragma: no cover - the extra is part of the test install
+        raise ImportError(
+            "serial.from_urdf needs the 'urdf' extra (yourdfpy): pip install 'jaxkin[urdf]'"
+        ) from exc
+    if isinstance(source, bytes):
+        source = source.decode("utf-8")
+    if isinstance(source, str) and source.lstrip().startswith("<"):
+        data, where = source.encode("utf-8"), "source (URDF text)"
+    else:
+        if not isinstance(source, str | os.PathLike):
+            raise ValueError(f"source: expected a URDF path or XML text, got {source!r}")
+        path = Path(source)
+        if not path.is_file():
+            raise ValueError(f"source: no such URDF file {str(path)!r}")
+        data, where = path.read_bytes(), f"source {str(path)!r}"
+    try:
+        etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
+    except etree.XMLSyntaxError as exc:
+        raise ValueError(f"{where}: not well-formed XML ({exc})") from None
+    try:
+        model = yourdfpy.URDF.load(
+            io.BytesIO(data),
+            build_scene_graph=False,
+            build_collision_scene_graph=False,
+            load_meshes=False,
+            load_collision_meshes=False,
+        )
+    except Exception as exc:  # a malformed element: yourdfpy raises what its parser meets
+        raise ValueError(f"{where}: not a readable URDF ({type(exc).__name__}: {exc})") from None
+    return model.robot
+
+
+def _listed(names: list[str], limit: int = 12) -> str:
+    shown = ", ".join(repr(n) for n in names[:limit])
+    return shown + (f", ... ({len(names)} links)" if len(names) > limit else "")
+
+
+def _path_joints(robot, tip_link: str, base_link: str | None) -> tuple[list, str]:
+    """The joints from the base link down to the tip link, in that order, and the base."""
+    links = [link.name for link in robot.links]
+    by_child = {joint.child: joint for joint in robot.joints}
+    known = set(links) | set(by_child) | {joint.parent for joint in robot.joints}
+    for name, link in (("tip_link", tip_link), ("base_link", base_link)):
+        if link is not None and (not isinstance(link, str) or link not in known):
+            raise ValueError(
+                f"{name}: no link {link!r} in robot {robot.name!r} (links: {_listed(links)})"
+            )
+    if base_link is None:
+        roots = sorted({j.parent for j in robot.joints if j.parent not in by_child})
+        if not robot.joints:
+            roots = links[:1]
+        if len(roots) != 1:
+            raise ValueError(
+                f"base_link: robot {robot.name!r} has {len(roots)} root links "
+                f"({_listed(roots)}); name the base link"
+            )
+        base_link = roots[0]
+    path, link = [], tip_link
+    while link != base_link:
+        joint = by_child.get(link)
+        if joint is None:
+            raise ValueError(
+                f"no path from base link {base_link!r} to tip link {tip_link!r}: "
+                f"{tip_link!r} is not below {base_link!r} (its root is {link!r})"
+            )
+        path.append(joint)
+        link = joint.parent
+        if len(path) > len(robot.joints):
+            raise ValueError(f"robot {robot.name!r}: the joints form a loop at link {link!r}")
+    return path[::-1], base_link
+
+
+def _axis(joint) -> np.ndarray:
+    axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+    norm = np.linalg.norm(axis)
+    if axis.shape != (3,) or not np.isfinite(norm) or norm == 0.0:
+        raise ValueError(f"joint {joint.name!r}: the axis must be a non-zero 3-vector, got {axis}")
+    return axis / norm
+
+
+def _limits(joint) -> tuple[float, float, float]:
+    """``(lower, upper, velocity)`` of one joint (``+-inf`` for none)."""
+    limit = joint.limit
+    lower, upper, velocity = -np.inf, np.inf, np.inf
+    if limit is not None:
+        if joint.type != "continuous":
+            lower = -np.inf if limit.lower is None else float(limit.lower)
+            upper = np.inf if limit.upper is None else float(limit.upper)
+        if limit.velocity is not None and float(limit.velocity) > 0:
+            velocity = float(limit.velocity)
+    if np.isnan(lower) or np.isnan(upper) or lower > upper:
+        raise ValueError(
+            f"joint {joint.name!r}: limits need lower <= upper, got lower {lower}, upper {upper}"
+        )
+    return lower, upper, velocity
+
+
+def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = None) -> JointChain:
+    """The chain from ``base_link`` to ``tip_link`` of a URDF (module docstring).
+
+    Args:
+        source: a path to a ``.urdf`` file, or the URDF's XML text.
+        tip_link: the link whose pose the chain computes (e.g. ``"tool0"``).
+        base_link: the link the pose is expressed in; None for the root link.
+
+    Returns:
+        A ``JointChain`` (a robot of the protocol: ``jaxkin.ik``/``jaxkin.fk`` with 4x4
+        poses) whose coordinates are the independent moving joints on the path, named as in
+        the URDF, base to tip.
+
+    Raises:
+        ValueError: an unreadable source, an unknown link, no path from the base to the tip, no
+            moving joint on it, a ``floating`` or ``planar`` joint on it, a zero axis, bad
+            limits, or a mimic joint whose leader is not a moving joint on the path.
+        ImportError: yourdfpy is not installed (the ``urdf`` extra).
+    """
+    robot = _load(source)
+    path, base_link = _path_joints(robot, tip_link, base_link)
+    frame = np.eye(4)
+    rows, moving = [], []
+    for joint in path:
+        origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, dtype=float)
+        frame = frame @ origin
+        if joint.type == "fixed":
+            continue
+        if joint.type not in _MOVING:
+            raise ValueError(
+                f"joint {joint.name!r} ({joint.type}) between links {joint.parent!r} and "
+                f"{joint.child!r}: only revolute, continuous, prismatic and fixed joints are "
+                "supported on the path from base to tip"
+            )
+        omega = frame[:3, :3] @ _axis(joint)
+        if joint.type == "prismatic":
+            rows.append(np.concatenate([np.zeros(3), omega]))
+        else:
+            rows.append(np.concatenate([omega, -np.cross(omega, frame[:3, 3])]))
+        moving.append(joint)
+    if not moving:
+        raise ValueError(
+            f"no moving joint on the path from base link {base_link!r} to tip link {tip_link!r}"
+        )
+    index = {joint.name: i for i, joint in enumerate(moving)}
+    by_name = {joint.name: joint for joint in robot.joints}
+
+    def leader_of(joint) -> tuple[int, float, float]:
+        """``(row of the independent leader, c, b)``: ``theta = c theta_leader + b``."""
+        c, b, seen = 1.0, 0.0, {joint.name}
+        while joint.mimic is not None:
+            name = joint.mimic.joint
+            if name not in index:
+                kind = "is not a joint" if name not in by_name else "is not on the path"
+                raise ValueError(
+                    f"joint {joint.name!r} mimics {name!r}, which {kind} from base link "
+                    f"{base_link!r} to tip link {tip_link!r}"
+                )
+            multiplier = 1.0 if joint.mimic.multiplier is None else float(joint.mimic.multiplier)
+            offset = 0.0 if joint.mimic.offset is None else float(joint.mimic.offset)
+            c, b = c * multiplier, c * offset + b
+            joint = moving[index[name]]
+            if joint.name in seen:
+                raise ValueError(f"joint {joint.name!r}: mimic joints form a loop")
+            seen.add(joint.name)
+        return index[joint.name], c, b
+
+    couplings = [leader_of(joint) for joint in moving]
+    own = [i for i, (leader, _, _) in enumerate(couplings) if leader == i]
+    coordinate = {row: j for j, row in enumerate(own)}
+    lower, upper, velocity = (np.array([_limits(moving[i])[k] for i in own]) for k in range(3))
+    for i, (leader, c, b) in enumerate(couplings):
+        if leader == i or c == 0.0:
+            continue
+        j = coordinate[leader]
+        low, high, speed = _limits(moving[i])
+        bounds = sorted(((low - b) / c, (high - b) / c))
+        lower[j], upper[j] = max(lower[j], bounds[0]), min(upper[j], bounds[1])
+        velocity[j] = min(velocity[j], speed / abs(c))
+        if lower[j] > upper[j]:
+            raise ValueError(
+                f"joint {moving[i].name!r}: its limits leave no position for its leader "
+                f"{moving[leader].name!r}"
+            )
+    return JointChain(
+        np.stack(rows),
+        frame,
+        np.array([c for _, c, _ in couplings]),
+        np.array([b for _, _, b in couplings]),
+        lower,
+        upper,
+        velocity,
+        tuple(coordinate[leader] for leader, _, _ in couplings),
+        tuple(moving[i].name for i in own),
+        tuple(moving[i].type for i in own),
+        base_link,
+        tip_link,
+    )
