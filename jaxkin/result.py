@@ -8,6 +8,7 @@ FK's iterations and residual).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import jax
 import numpy as np
@@ -16,7 +17,7 @@ from jax import Array
 from .jet import Jet
 from .status import Status, describe
 
-__all__ = ["FKResult", "IKResult", "SolverResult"]
+__all__ = ["FKResult", "IKResult", "SolverResult", "forward_result"]
 
 
 class SolverResult:
@@ -80,3 +81,24 @@ class FKResult(SolverResult):
 
     x: Jet
     status: Array
+
+
+def forward_result(pose: Callable[[Array], Array], q: Jet, rates: bool, target_ndim: int):
+    """``FKResult`` of ``pose`` (joints ``(..., n)`` -> targets ``(..., *target)``) at ``q``.
+
+    Rows with a NaN or inf joint value or rate are ``INVALID_INPUT``, their target the pose at
+    ``q = 0`` with zero rates; the others ``OK``. With ``rates`` the target's rates come from
+    ``jaxkin.lift`` (nested forward-mode derivatives), else they are zero.
+    """
+    import jax.numpy as jnp
+
+    from .jet import lift
+    from .status import STATUS_DTYPE
+
+    valid = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
+    safe = q.map(lambda x: jnp.where(valid[..., None], x, 0.0))
+    x = lift(pose)(safe) if rates else Jet.constant(pose(safe.p))
+    mask = valid.reshape(valid.shape + (1,) * target_ndim)
+    x = Jet(x.p, jnp.where(mask, x.v, 0.0), jnp.where(mask, x.a, 0.0))
+    status = jnp.where(valid, Status.OK, Status.INVALID_INPUT).astype(STATUS_DTYPE)
+    return FKResult(x, status)

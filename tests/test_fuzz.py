@@ -40,6 +40,16 @@ def _finite(tree) -> bool:
     )
 
 
+def _check_classification(res, back, grad, reachable, clear, dtype):
+    """Statuses OK/UNREACHABLE as the independent classification says (away from the
+    boundary band), everything finite; returns the OK mask and the round-trip tolerance."""
+    status = np.asarray(res.status)
+    want = np.where(reachable, Status.OK, Status.UNREACHABLE)
+    np.testing.assert_array_equal(status[clear], want[clear])
+    assert _finite(res) and _finite(back) and _finite(grad)
+    return status == Status.OK, 1e-4 if dtype == np.float32 else 1e-10
+
+
 def _case(draw, dtype):
     lo, hi = SCALES[dtype]
     exponent = draw(st.floats(lo, hi))
@@ -120,12 +130,7 @@ def test_scara_statuses_and_round_trip_at_every_scale(data, dtype):
     robot = scara.Scara(dtype(l_oa * s), dtype(l_ab * s), dtype(l_bc * s))
     jet = Jet.of(d * s, rng.normal(size=d.shape) * s, rng.normal(size=d.shape) * s).astype(dtype)
     res, back, grad = _scara(robot, jet)
-    status = np.asarray(res.status)
-    want = np.where(reachable, Status.OK, Status.UNREACHABLE)
-    np.testing.assert_array_equal(status[clear], want[clear])
-    assert _finite(res) and _finite(back) and _finite(grad)
-    ok = status == Status.OK
-    tol = 1e-4 if dtype == np.float32 else 1e-10
+    ok, tol = _check_classification(res, back, grad, reachable, clear, dtype)
     err = np.abs(np.asarray(back.x.p, np.float64) / s - d)[ok]
     assert np.all(err <= tol * (l_oa + reach_out + np.abs(d[ok])))
 
@@ -221,12 +226,7 @@ def test_anthropomorphic_reach_at_every_scale(data, dtype):
     clear &= np.hypot(p[:, 0], p[:, 1]) > BAND * size  # off the base axis (a singular set)
     robot = serial.Anthropomorphic(dtype(l1 * s), dtype(l2 * s), dtype(l3 * s))
     res, back, grad = _arm(robot, jnp.asarray(p * s, dtype))
-    status = np.asarray(res.status)
-    want = np.where(reachable, Status.OK, Status.UNREACHABLE)
-    np.testing.assert_array_equal(status[clear], want[clear])
-    assert _finite(res) and _finite(back) and _finite(grad)
-    ok = status == Status.OK
-    tol = 1e-4 if dtype == np.float32 else 1e-10
+    ok, tol = _check_classification(res, back, grad, reachable, clear, dtype)
     assert np.all(np.abs(np.asarray(back.x.p, np.float64) / s - p)[ok] <= tol * size)
     assert np.all(np.asarray(res.margin)[~reachable & clear] < 0)
 

@@ -39,9 +39,9 @@ from jax.typing import ArrayLike
 from .. import _validate
 from .._numerics import isotropy, safe_norm
 from ..jet import Jet, lift
-from ..result import FKResult, IKResult
+from ..result import FKResult, IKResult, forward_result
 from ..robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
-from ..status import STATUS_DTYPE, Status
+from ..status import Status
 from . import poe as _poe
 from ._arms_common import Arm, ArmIKResult, _ik_impl, check_robot, ik_arm
 from .arms_3dof import Anthropomorphic, Cylindrical, Spherical
@@ -216,16 +216,7 @@ def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IK
 
 
 def _fk_core(robot: Arm, q: Jet, rates: bool) -> FKResult:
-    valid = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
-    safe = q.map(lambda x: jnp.where(valid[..., None], x, 0.0))
-    if rates:
-        x = lift(lambda joints: _task(robot, joints))(safe)
-    else:
-        x = Jet.constant(_task(robot, safe.p))
-    mask = valid.reshape(valid.shape + (1,) * len(robot.TARGET_SHAPE))
-    x = Jet(x.p, jnp.where(mask, x.v, 0.0), jnp.where(mask, x.a, 0.0))
-    status = jnp.where(valid, Status.OK, Status.INVALID_INPUT).astype(STATUS_DTYPE)
-    return FKResult(x, status)
+    return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.TARGET_SHAPE))
 
 
 _fk_jit = jax.jit(_fk_core, static_argnames="rates")

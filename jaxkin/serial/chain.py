@@ -39,10 +39,10 @@ from jax.typing import ArrayLike
 
 from .. import _validate
 from .._geometry import BOUND, REAL, geometry, number, static
-from ..jet import Jet, lift
-from ..result import FKResult
+from ..jet import Jet
+from ..result import FKResult, forward_result
 from ..robot import POSE, JointLimits, Robot
-from ..status import STATUS_DTYPE, Status
+from ..status import Status
 from . import dh as _dh
 from . import lie
 from . import poe as _poe
@@ -318,17 +318,10 @@ def fk_and_jacobian(chain: JointChain, q: Array, which: str) -> tuple[Array, Arr
 
 
 def _fk_core(chain: JointChain, q: Jet, rates: bool) -> FKResult:
-    valid = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
-    safe = q.map(lambda x: jnp.where(valid[..., None], x, 0.0))
-
     def pose(joints):
         return lie.from_rotation_translation(*fk_rp(chain, joints))
 
-    x = lift(pose)(safe) if rates else Jet.constant(pose(safe.p))
-    mask = valid[..., None, None]
-    x = Jet(x.p, jnp.where(mask, x.v, 0.0), jnp.where(mask, x.a, 0.0))
-    status = jnp.where(valid, Status.OK, Status.INVALID_INPUT).astype(STATUS_DTYPE)
-    return FKResult(x, status)
+    return forward_result(pose, q, rates, 2)
 
 
 _fk_jit = jax.jit(_fk_core, static_argnames="rates")

@@ -544,8 +544,11 @@ class _Search:
     warm_iter: int
 
 
-def _prepare(chain: _chain.JointChain, target: Jet, tols: tuple[Array, Array], use_limits):
-    """Units, limits, seeds and the preset statuses (invalid, unreachable) of a batch."""
+def _prepare(
+    chain: _chain.JointChain, target: Jet, tols: tuple[Array, Array], use_limits, runs: int
+):
+    """Units, limits, the preset statuses (invalid, unreachable), the tolerances in units of
+    the chain and the ``runs`` seeds of a batch."""
     dtype = target.dtype
     flat = jnp.concatenate(
         [x.reshape(*x.shape[:-2], 16) for x in (target.p, target.v, target.a)], -1
@@ -568,10 +571,12 @@ def _prepare(chain: _chain.JointChain, target: Jet, tols: tuple[Array, Array], u
     goal = safe.p.at[..., :3, 3].divide(scale)
     centre, radius = unit.reach()
     distance = safe_sqrt(jnp.sum((goal[..., :3, 3] - centre) ** 2, axis=-1))
-    unreachable = finite & (distance > radius + tols[1])
+    unit_tols = (tols[0], tols[1] / scale)
+    unreachable = finite & (distance > radius + unit_tols[1])
     status = jnp.where(finite, Status.NOT_CONVERGED, Status.INVALID_INPUT)
     status = jnp.where(unreachable, Status.UNREACHABLE, status).astype(STATUS_DTYPE)
-    return safe, goal, unit, g, scale, limits, status, ~finite | unreachable
+    seeds = _seeds(limits, runs, dtype)
+    return safe, goal, unit, g, scale, limits, status, ~finite | unreachable, unit_tols, seeds
 
 
 def _seeds(limits: tuple[Array, ...], runs: int, dtype) -> Array:
@@ -643,9 +648,8 @@ def _ik_chain_core(
     use_limits: bool,
     rates: bool,
 ) -> IKResult:
-    safe, goal, unit, g, scale, limits, status, done = _prepare(chain, target, tols, use_limits)
-    tols = (tols[0], tols[1] / scale)
-    seeds = _seeds(limits, search.runs, target.dtype)
+    prepared = _prepare(chain, target, tols, use_limits, search.runs)
+    safe, goal, unit, g, scale, limits, status, done, tols, seeds = prepared
     batch = status.shape
     start = jnp.broadcast_to(seeds[0] if q0 is None else q0 * g, (*batch, chain.n_joints))
     start = jnp.where(jnp.isfinite(start), start, 0.0)
@@ -665,9 +669,8 @@ def _ik_chain_path_core(
     search: _Search,
     use_limits: bool,
 ) -> IKResult:
-    safe, goal, unit, g, scale, limits, status, done = _prepare(chain, path, tols, use_limits)
-    tols = (tols[0], tols[1] / scale)
-    seeds = _seeds(limits, search.runs, path.dtype)
+    prepared = _prepare(chain, path, tols, use_limits, search.runs)
+    safe, goal, unit, g, scale, limits, status, done, tols, seeds = prepared
     n = chain.n_joints
     first = (*status.shape[:-1], n)
     q, code = _search(

@@ -43,10 +43,10 @@ from jax.typing import ArrayLike
 from .. import _validate
 from .._geometry import REAL, geometry, number, static
 from .._trig import sincos
-from ..jet import Jet, lift
-from ..result import FKResult
+from ..jet import Jet
+from ..result import FKResult, forward_result
 from ..robot import POSE, Robot
-from ..status import STATUS_DTYPE, Status
+from ..status import Status
 from . import dh as _dh
 from . import lie
 
@@ -417,19 +417,12 @@ def body_jacobian(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
 
 
 def _fk_chain_core(chain: PoEChain | _dh.DHTable, q: Jet, rates: bool) -> FKResult:
-    valid = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
-    safe = q.map(lambda x: jnp.where(valid[..., None], x, 0.0))
-
     def pose(joints):
         if isinstance(chain, _dh.DHTable):
             return _dh._fk_dh_impl(chain, joints, False)
         return _chain_fk_impl(chain, joints)
 
-    x = lift(pose)(safe) if rates else Jet.constant(pose(safe.p))
-    mask = valid[..., None, None]
-    x = Jet(x.p, jnp.where(mask, x.v, 0.0), jnp.where(mask, x.a, 0.0))
-    status = jnp.where(valid, Status.OK, Status.INVALID_INPUT).astype(STATUS_DTYPE)
-    return FKResult(x, status)
+    return forward_result(pose, q, rates, 2)
 
 
 _fk_chain_jit = jax.jit(_fk_chain_core, static_argnames="rates")
