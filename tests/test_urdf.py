@@ -289,3 +289,27 @@ def test_command_line_pose_files_of_a_urdf_arm(tmp_path, capsys):
     assert angle.max() <= 1e-9 and distance.max() <= 1e-9
     code = cli.main(["ik", "urdf", "--robot", _path("ur5"), "-i", "x.csv", "-o", "y.csv"])
     assert code == 2 and "--tip LINK is required" in capsys.readouterr().err
+
+
+def test_work_queue_gives_the_results_of_the_batch_in_step(monkeypatch):
+    """A batch larger than ``QUEUE_SLOTS`` runs as a work queue; run in step instead (a fresh
+    compilation with a queue larger than the batch), every target gets the same joints and
+    status, bit for bit: invalid and unreachable rows included."""
+    from jaxkin.serial import newton_ik
+
+    chain = serial.from_urdf(MIMIC_URDF, "camera")
+    q = np.random.default_rng(4).uniform([-4, -0.1, -1.0], [4, 0.25, 1.2], (100, 3))
+    targets = np.array(jaxkin.fk(chain, q).x.p)
+    targets[3, 0, 0] = np.nan
+    targets[7, :3, 3] = 50.0
+    queued = jaxkin.ik(chain, targets)
+    assert targets.shape[0] > newton_ik.QUEUE_SLOTS
+    monkeypatch.setattr(newton_ik, "QUEUE_SLOTS", 1000)
+    fresh = jax.jit(newton_ik._ik_chain_core, static_argnames=("search", "use_limits", "rates"))
+    monkeypatch.setattr(newton_ik, "_ik_chain_jit", fresh)
+    in_step = jaxkin.ik(chain, targets)
+    np.testing.assert_array_equal(queued.status, in_step.status)
+    np.testing.assert_array_equal(queued.q.p, in_step.q.p)
+    assert int(queued.status[3]) == Status.INVALID_INPUT
+    assert int(queued.status[7]) == Status.UNREACHABLE
+    assert np.mean(np.asarray(queued.status) == Status.OK) >= 0.95
