@@ -517,69 +517,65 @@ def _search(
     status: Array,
     max_iter: int,
     runs: int,
+    slots: int | None = None,
 ) -> tuple[Array, Array]:
-    """Projected Levenberg-Marquardt with restarts (module docstring), in units of the chain,
-    every lane in step until the last has ended (for short searches: the warm starts).
+    """Projected Levenberg-Marquardt with restarts (module docstring), in units of the chain.
 
     ``target`` ``(..., 4, 4)``; ``start`` ``(..., n)`` the first run's start, ``seeds``
     ``(runs, n)`` the later runs' (row 0 unused); ``limits`` ``(lower, upper, revolute,
     continuous)``; ``tols`` ``(rotation, position)``; ``done``/``status`` preset elements
-    (invalid, unreachable). Returns ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``,
-    ``NOT_CONVERGED`` or the preset status.
+    (invalid, unreachable). Every element iterates in step until the last has ended, or, with
+    more elements than ``slots``, as a work queue of ``slots`` lanes (``_queued``). Returns
+    ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``, ``NOT_CONVERGED`` or the preset status.
     """
     lower, upper, revolute, continuous = limits
 
+    def project(x):
+        return _projected(x, lower, upper, revolute, continuous)
+
+    def update(goal, q, run, k, done, best_q, best):
+        return _update(
+            chain, goal, q, run, k, done, best_q, best, seeds, limits, tols, max_iter, runs
+        )
+
+    per_element = (runs + 1) * (max_iter + 1) + 2
+    batch = start.shape[:-1]
+    size = math.prod(batch)
+    if slots is not None and size > slots:
+        flat = (target.reshape(size, 4, 4), start.reshape(size, -1), done.ravel(), status.ravel())
+        q, status = _queued(update, project, *flat, slots, per_element)
+        return q.reshape(start.shape), status.reshape(batch)
+
     def body(state):
         q, run, k, done, status, best_q, best, it = state
-        (q_next, run, k, best_q, best), ended, q_end, code = _update(
-            chain, target, q, run, k, done, best_q, best, seeds, limits, tols, max_iter, runs
+        (q_next, run, k, best_q, best), ended, q_end, code = update(
+            target, q, run, k, done, best_q, best
         )
         status = jnp.where(ended, code, status)
         q = jnp.where(done[..., None], q, jnp.where(ended[..., None], q_end, q_next))
         return q, run, k, done | ended, status, best_q, best, it + 1
 
-    limit = (runs + 1) * (max_iter + 1) + 1
-
     def cond(state):
-        return (state[-1] < limit) & jnp.any(~state[3])
+        return (state[-1] < per_element) & jnp.any(~state[3])
 
-    batch = start.shape[:-1]
-    q0 = _projected(start, lower, upper, revolute, continuous)
+    q0 = project(start)
     zeros = jnp.zeros(batch, jnp.int32)
     init = (q0, zeros, zeros, done, status, q0, jnp.full(batch, jnp.inf, start.dtype), 0)
     q, _, _, _, status, *_ = jax.lax.while_loop(cond, body, init)
     return q, status
 
 
-def _search_queued(
-    chain: _chain.JointChain,
-    target: Array,
-    start: Array,
-    seeds: Array,
-    limits: tuple[Array, Array, Array, Array],
-    tols: tuple[Array, Array],
-    done: Array,
-    status: Array,
-    max_iter: int,
-    runs: int,
-    slots: int,
-) -> tuple[Array, Array]:
-    """``_search`` as a work queue: ``slots`` lanes iterate, and a lane whose target has ended
-    takes the next target, so a batch costs its targets' total work rather than its hardest
-    target's work times its size. Same arguments and results as ``_search``, with
-    ``target`` ``(B, 4, 4)`` and ``start`` ``(B, n)`` flat; the updates of one target are the
-    same as there (the same starts and seeds)."""
-    lower, upper, revolute, continuous = limits
+def _queued(update, project, target, start, done, status, slots: int, per_element: int):
+    """``_search`` as a work queue over flat ``(B, ...)`` elements: ``slots`` lanes iterate,
+    and a lane whose element has ended takes the next one, so a batch costs its elements'
+    total work rather than its hardest element's work times its size. Each element gets the
+    same updates as in step (the same starts and seeds), so the same results."""
     size = start.shape[0]
     dtype = start.dtype
 
-    def project(x):
-        return _projected(x, lower, upper, revolute, continuous)
-
     def fresh(index):
-        """Per-slot state for targets ``index`` (past the end: an idle slot)."""
-        i = jnp.minimum(index, size - 1)
-        q = project(start[i])
+        """Per-lane state for elements ``index`` (past the end: an idle lane)."""
+        q = project(start[jnp.minimum(index, size - 1)])
         zeros = jnp.zeros(index.shape, jnp.int32)
         return q, zeros, zeros, q, jnp.full(index.shape, jnp.inf, dtype)
 
@@ -587,30 +583,25 @@ def _search_queued(
         slot, (q, run, k, best_q, best), out_q, out_status, following, it = state
         i = jnp.minimum(slot, size - 1)
         preset = done[i] | (slot >= size)  # invalid, unreachable, or idle
-        (q_next, run, k, best_q, best), ended, q_end, code = _update(
-            chain, target[i], q, run, k, preset, best_q, best, seeds, limits, tols, max_iter, runs
-        )
-        # A preset target ends at once with its preset status and its start.
+        kept, ended, q_end, code = update(target[i], q, run, k, preset, best_q, best)
+        # A preset element ends at once with its preset status and its start.
         finished = ended | (preset & (slot < size))
         q_out = jnp.where(ended[..., None], q_end, project(start[i]))
         code = jnp.where(ended, code, status[i])
         where = jnp.where(finished, slot, size)  # out of range: dropped
         out_q = out_q.at[where].set(q_out, mode="drop")
         out_status = out_status.at[where].set(code, mode="drop")
-        # Finished slots take the next targets in order.
+        # Finished lanes take the next elements in order.
         rank = jnp.cumsum(finished, dtype=jnp.int32) - 1
         slot = jnp.where(finished, following + rank, slot)
         following = following + jnp.sum(finished, dtype=jnp.int32)
-        refill = fresh(slot)
-        kept = (q_next, run, k, best_q, best)
-        state_next = tuple(
+        lanes = tuple(
             jnp.where(finished.reshape(finished.shape + (1,) * (a.ndim - 1)), b, a)
-            for a, b in zip(kept, refill, strict=True)
+            for a, b in zip(kept, fresh(slot), strict=True)
         )
-        return slot, state_next, out_q, out_status, following, it + 1
+        return slot, lanes, out_q, out_status, following, it + 1
 
-    per_target = (runs + 1) * (max_iter + 1) + 2
-    limit = (-(-size // slots) + 1) * per_target
+    limit = (-(-size // slots) + 1) * per_element
 
     def cond(state):
         return jnp.any(state[0] < size) & (state[-1] < limit)
@@ -621,7 +612,7 @@ def _search_queued(
     return q, status
 
 
-# Lanes of the work queue of ``ik_chain`` (``_search_queued``): batches up to this size run
+# Lanes of the work queue of ``ik_chain`` (``_queued``): batches up to this size run
 # every target in step; larger ones keep this many iterating and refill them as targets end
 # (1e3-1e4 UR5 / Panda poses: 32-64 lanes fastest, 4-7x the batch in step).
 QUEUE_SLOTS = 32
@@ -745,18 +736,10 @@ def _ik_chain_core(
     batch = status.shape
     start = jnp.broadcast_to(seeds[0] if q0 is None else q0 * g, (*batch, chain.n_joints))
     start = jnp.where(jnp.isfinite(start), start, 0.0)
-    size = math.prod(batch)
-    if size <= QUEUE_SLOTS:
-        q, status = _search(
-            unit, goal, start, seeds, limits, tols, done, status, search.max_iter, search.runs
-        )
-    else:
-        flat = (goal.reshape(size, 4, 4), start.reshape(size, -1), done.ravel(), status.ravel())
-        q, status = _search_queued(
-            unit, *flat[:2], seeds, limits, tols, *flat[2:], search.max_iter, search.runs,
-            QUEUE_SLOTS,
-        )  # fmt: skip
-        q, status = q.reshape(*batch, chain.n_joints), status.reshape(batch)
+    q, status = _search(
+        unit, goal, start, seeds, limits, tols, done, status, search.max_iter, search.runs,
+        QUEUE_SLOTS,
+    )  # fmt: skip
     return _finish(unit, g, scale, safe, goal, q, status, rates)
 
 
