@@ -284,3 +284,18 @@ def pyroki_ik_solver(max_iterations: int = 30):
         return sol[var]
 
     return jax.jit(jax.vmap(solve))
+
+
+def rtb_urdf_ets(path: str, tip: str):
+    """roboticstoolbox: the chain from the root to ``tip`` of a URDF file, by its own parser
+    (visual and collision elements removed: their mesh paths are not resolvable here)."""
+    import io
+    import re
+
+    import roboticstoolbox as rtb
+    from roboticstoolbox.models.URDF.URDFRobot import URDF_file
+
+    with open(path, encoding="utf-8") as f:
+        text = re.sub(r"<(visual|collision)\b.*?</\1>", "", f.read(), flags=re.S)
+    links, name, *_ = URDF_file(io.StringIO(text))
+    return rtb.Robot(links, name=name).ets(end=tip)

@@ -36,7 +36,11 @@ Tasks and solvers:
   1e-10, ``max_iter`` 20, its default, and 8: the batch steps until its last element
   converges, so the slowest element sets the cost);
 * PUMA 560 FK (1e4 configurations): pytorch_kinematics, roboticstoolbox (``ETS.fkine`` of the
-  batch), jaxkin ``serial.fk_dh`` and ``serial.fk``.
+  batch), jaxkin ``serial.fk_dh`` and ``serial.fk``;
+* URDF arms (UR5 and Franka Panda of example-robot-data, 500 poses from joints within the
+  limits, no seed, joint limits on): roboticstoolbox ``ETS.ik_LM`` on the chain its own URDF
+  parser builds, vs ``jaxkin.ik`` on ``serial.from_urdf``; success also needs the joints
+  within the limits and the orientation within 1e-6 rad (Pinocchio's FK).
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ import peers_tasks as tasks
 import pytest
 
 from jaxkin import delta, dyad, serial
+from jaxkin import ik as jaxkin_ik
 
 IK_SIZES = [1_000, 10_000]
 FK_SIZE = 10_000
@@ -398,3 +403,75 @@ def test_fk_roboticstoolbox(benchmark, fk_configs):
     ets = tasks.rtb_puma_ets()
     t, rate = _run(benchmark, lambda: ets.fkine(q), FK_SIZE, "PUMA FK", "roboticstoolbox")
     _fk_record(benchmark, "roboticstoolbox ETS.fkine (batch)", rate, np.asarray(t.A), targets)
+
+
+# ------------------------------------------------------------------- URDF arms: IK with limits
+URDF_ARMS = {
+    "UR5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
+    "Panda": ("panda_description/urdf/panda.urdf", "panda_hand"),
+}
+URDF_SIZE = 500
+
+
+@pytest.fixture(scope="module", params=list(URDF_ARMS))
+def urdf_arm(request):
+    """(name, path, tip, chain, targets from joints within the limits, Pinocchio's FK)."""
+    pin = _peer("pinocchio", "pin")
+    import importlib.metadata
+
+    robots = importlib.metadata.distribution("example-robot-data").locate_file(
+        "cmeel.prefix/share/example-robot-data/robots"
+    )
+    rel, tip = URDF_ARMS[request.param]
+    path = str(robots / rel)
+    chain = serial.from_urdf(path, tip)
+    model = pin.buildModelFromUrdf(path)
+    data, frame = model.createData(), model.getFrameId(tip)
+    columns = [model.joints[model.getJointId(j)].idx_q for j in chain.names]
+
+    def fk(q):
+        out = []
+        for qi in q:
+            full = pin.neutral(model)
+            full[columns] = qi
+            pin.framesForwardKinematics(model, data, full)
+            out.append(data.oMf[frame].homogeneous)
+        return np.array(out)
+
+    rng = np.random.default_rng(0)
+    q = rng.uniform(chain.lower, chain.upper, size=(URDF_SIZE, chain.n_joints))
+    return request.param, path, tip, chain, fk(q), fk
+
+
+def _urdf_errors(urdf_arm, q):
+    """Position error relative to the reach (Pinocchio's FK), inf outside the joint limits or
+    beyond 1e-6 rad of orientation error."""
+    _, _, _, chain, targets, fk = urdf_arm
+    reached = fk(q)
+    pos = np.linalg.norm(reached[:, :3, 3] - targets[:, :3, 3], axis=-1) / float(chain.reach()[1])
+    relative = np.swapaxes(reached[:, :3, :3], -1, -2) @ targets[:, :3, :3]
+    cos = np.clip((np.trace(relative, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
+    within = np.all((q >= chain.lower - 1e-12) & (q <= chain.upper + 1e-12), axis=-1)
+    return np.where(within & (np.arccos(cos) <= 1e-6), pos, np.inf)
+
+
+def test_urdf_ik_jaxkin(benchmark, urdf_arm):
+    name, _, _, chain, targets, _ = urdf_arm
+    goal = jnp.asarray(targets)
+    res, rate = _run(benchmark, lambda: jaxkin_ik(chain, goal), URDF_SIZE, f"{name} IK", "jaxkin")
+    err = _urdf_errors(urdf_arm, np.asarray(res.q.p))
+    _record(benchmark, f"{name} IK", "jaxkin.ik (no seed, limits)", URDF_SIZE, rate, err, True)
+
+
+def test_urdf_ik_roboticstoolbox(benchmark, urdf_arm):
+    _peer("roboticstoolbox", "roboticstoolbox-python")
+    name, path, tip, _, targets, _ = urdf_arm
+    ets = tasks.rtb_urdf_ets(path, tip)
+
+    def run():
+        # no seed (its random restarts), joint limits on; tol 1e-16 on E = e^T W e / 2
+        return [ets.ik_LM(t, tol=1e-16, joint_limits=True, slimit=100) for t in targets]
+
+    sols, rate = _run(benchmark, run, URDF_SIZE, f"{name} IK", "roboticstoolbox", rounds=1)
+    err = _urdf_errors(urdf_arm, np.stack([np.asarray(s.q) for s in sols]))
+    _record(benchmark, f"{name} IK", "roboticstoolbox ETS.ik_LM (C++)", URDF_SIZE, rate, err)
