@@ -224,9 +224,10 @@ def overlapping_parts(size: int, n_parts: int, multiple: int = 1) -> tuple[int, 
     return part, [k * part for k in range(count - 1)] + [size - part]
 
 
-def _layout(size: int, threads: int) -> tuple[int, list[int]]:
-    """The parts for ``threads`` threads; one part when there are too few elements."""
-    parts = min(threads, size // MIN_PART)
+def _layout(size: int, threads: int, min_part: int | None = None) -> tuple[int, list[int]]:
+    """The parts for ``threads`` threads, each of ``min_part`` (default ``MIN_PART``) elements
+    at least; one part when there are too few elements."""
+    parts = min(threads, size // (MIN_PART if min_part is None else min_part))
     if parts < 2:
         return size, [0]
     return overlapping_parts(size, parts)
@@ -303,6 +304,8 @@ class PartsJit:
         static_argnames: as for ``jax.jit``.
         batched_argnames: arguments whose array leaves carry the batch as leading axes (leaves
             of rank 0 are shared by the whole batch); the others are passed to every part.
+        min_part: fewest elements per part (None: ``MIN_PART``; an iterative kernel whose
+            every element costs much, such as a chain's IK, splits far smaller batches).
 
     Call it as the kernel, with the batch shape as the keyword ``batch``.
     """
@@ -312,8 +315,10 @@ class PartsJit:
         impl: Callable[..., Any],
         static_argnames: Iterable[str] = (),
         batched_argnames: Iterable[str] = (),
+        min_part: int | None = None,
     ) -> None:
         self._impl = impl
+        self._min_part = min_part
         self._signature = inspect.signature(impl)
         self._static = tuple(static_argnames)
         self._batched = tuple(batched_argnames)
@@ -333,7 +338,7 @@ class PartsJit:
         batch = tuple(int(d) for d in batch)
         threads = num_threads()
         size = math.prod(batch)
-        part, starts = _layout(size, threads)
+        part, starts = _layout(size, threads, self._min_part)
         if (
             len(starts) < 2
             or getattr(_in_worker, "active", False)

@@ -305,11 +305,31 @@ def test_work_queue_gives_the_results_of_the_batch_in_step(monkeypatch):
     queued = jaxkin.ik(chain, targets)
     assert targets.shape[0] > newton_ik.QUEUE_SLOTS
     monkeypatch.setattr(newton_ik, "QUEUE_SLOTS", 1000)
-    fresh = jax.jit(newton_ik._ik_chain_core, static_argnames=("search", "use_limits", "rates"))
-    monkeypatch.setattr(newton_ik, "_ik_chain_jit", fresh)
+    monkeypatch.setattr(newton_ik, "_ik_chain_jit", newton_ik._ik_chain_parts())
     in_step = jaxkin.ik(chain, targets)
     np.testing.assert_array_equal(queued.status, in_step.status)
     np.testing.assert_array_equal(queued.q.p, in_step.q.p)
     assert int(queued.status[3]) == Status.INVALID_INPUT
     assert int(queued.status[7]) == Status.UNREACHABLE
     assert np.mean(np.asarray(queued.status) == Status.OK) >= 0.95
+
+
+def test_host_thread_parts_give_the_results_of_one_thread():
+    """A batch of at least two ``CHAIN_MIN_PART`` targets is split across the host threads,
+    each part its own work queue: the same joints and statuses, bit for bit, as one thread."""
+    from jaxkin import _batching
+    from jaxkin.serial import newton_ik
+
+    chain = serial.from_urdf(MIMIC_URDF, "camera")
+    n = 2 * newton_ik.CHAIN_MIN_PART + 7
+    q = np.random.default_rng(5).uniform([-4, -0.1, -1.0], [4, 0.25, 1.2], (n, 3))
+    targets = jaxkin.fk(chain, q).x.p
+    split = jaxkin.ik(chain, targets)
+    _batching.set_num_threads(1)
+    try:
+        whole = jaxkin.ik(chain, targets)
+    finally:
+        _batching.set_num_threads(None)
+    np.testing.assert_array_equal(split.status, whole.status)
+    np.testing.assert_array_equal(split.q.p, whole.q.p)
+    assert np.mean(np.asarray(split.status) == Status.OK) >= 0.95

@@ -30,7 +30,8 @@ size and in the body frame, with
   best iterate tells ``OUT_OF_LIMITS`` (the pose is solved only outside the limits) from
   ``NOT_CONVERGED``. ``UNREACHABLE``: the target lies beyond ``chain.reach()``. A batch larger
   than ``QUEUE_SLOTS`` runs as a work queue: that many lanes iterate, and a lane whose target
-  has ended takes the next one (the same updates, so the same results, as in step);
+  has ended takes the next one (the same updates, so the same results, as in step); from
+  ``2 * CHAIN_MIN_PART`` targets, one queue per host thread (``jaxkin._batching``);
 * ``OK`` only where ``angle(R^T R_d) <= orientation_tol`` and ``|p_d - p| <= position_tol``,
   evaluated at the returned joints;
 * rates from the target's body twist, ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot -
@@ -54,7 +55,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _batching, _validate
 from .._numerics import all_finite, eps, isotropy, safe_sqrt, singular_rtol
 from ..jet import Jet
 from ..result import IKResult, SolverResult
@@ -616,6 +617,8 @@ def _queued(update, project, target, start, done, status, slots: int, per_elemen
 # every target in step; larger ones keep this many iterating and refill them as targets end
 # (1e3-1e4 UR5 / Panda poses: 32-64 lanes fastest, 4-7x the batch in step).
 QUEUE_SLOTS = 32
+# Targets per host-thread part of ``ik_chain`` (``_batching.PartsJit``): each part is a queue.
+CHAIN_MIN_PART = 4 * QUEUE_SLOTS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -743,7 +746,17 @@ def _ik_chain_core(
     return _finish(unit, g, scale, safe, goal, q, status, rates)
 
 
-_ik_chain_jit = jax.jit(_ik_chain_core, static_argnames=("search", "use_limits", "rates"))
+def _ik_chain_parts() -> _batching.PartsJit:
+    """The compiled ``_ik_chain_core``, large batches split across the host threads."""
+    return _batching.PartsJit(
+        _ik_chain_core,
+        static_argnames=("search", "use_limits", "rates"),
+        batched_argnames=("target", "q0"),
+        min_part=CHAIN_MIN_PART,
+    )
+
+
+_ik_chain_jit = _ik_chain_parts()
 
 
 def _ik_chain_path_core(
@@ -873,10 +886,12 @@ def ik_chain(
         if q0.ndim == 0 or q0.shape[-1] != n:
             raise ValueError(f"q0: expected shape (..., {n}), got {tuple(q0.shape)}")
         batch = _validate.batch_shape({"target": batch, "q0": q0.shape[:-1]})
+        q0 = jnp.broadcast_to(q0, (*batch, n))
     target = target.map(lambda x: jnp.broadcast_to(x.astype(dtype), (*batch, 4, 4)))
     search = _Search(max_iter, restarts, max_iter)
+    chain = _validate.cast_leaves(joint_chain, dtype)
     return _ik_chain_jit(
-        _validate.cast_leaves(joint_chain, dtype), target, q0, tols, search, bool(use_limits), rates
+        chain, target, q0, tols, search, bool(use_limits), rates, batch=tuple(batch)
     )
 
 
