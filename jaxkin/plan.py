@@ -57,6 +57,7 @@ __all__ = [
     "Evaluation",
     "Limits",
     "best",
+    "continuous_signs",
     "evaluate",
     "jerk",
     "limit_excess",
@@ -365,11 +366,7 @@ def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") 
         end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
     """
     positions = np.asarray(positions, dtype=float)
-    if positions.ndim < 2 or positions.shape[-2] < 2:
-        raise ValueError(
-            f"positions: expected shape (..., T, d) with T >= 2, got {positions.shape}"
-        )
-    _check_samples(positions, "positions", positions.shape[-1], dt)
+    _check_samples(positions, "positions", None, dt)
     return Jet.of(*_splined(positions, dt, end))
 
 
@@ -383,9 +380,11 @@ def _splined(positions: np.ndarray, dt: float, end: str) -> tuple[np.ndarray, ..
     return positions, velocity, acceleration
 
 
-def _check_samples(x: np.ndarray, name: str, width: int, dt: float) -> None:
-    if x.ndim < 2 or x.shape[-2] < 2 or x.shape[-1] != width:
-        raise ValueError(f"{name}: expected shape (..., T, {width}) with T >= 2, got {x.shape}")
+def _check_samples(x: np.ndarray, name: str, width: int | None, dt: float) -> None:
+    """Samples ``(..., T, width)`` (any width for None) with T >= 2, and a positive ``dt``."""
+    if x.ndim < 2 or x.shape[-2] < 2 or (width is not None and x.shape[-1] != width):
+        shape = f"(..., T, {'d' if width is None else width})"
+        raise ValueError(f"{name}: expected shape {shape} with T >= 2, got {x.shape}")
     if not (dt > 0 and math.isfinite(dt)):
         raise ValueError(f"dt must be a positive finite number, got {dt!r}")
 
@@ -416,6 +415,15 @@ def _rotation_of_quaternion(s: np.ndarray, ds: np.ndarray, dds: np.ndarray):
     d_rot = (d_q - rot * d_norm2) / norm2
     dd_rot = (dd_q - 2.0 * d_rot * d_norm2 - rot * dd_norm2) / norm2
     return rot, d_rot, dd_rot
+
+
+def continuous_signs(quaternions: ArrayLike) -> np.ndarray:
+    """Signs ``(..., T)`` (+-1) that put consecutive quaternions ``(..., T, 4)`` in one
+    hemisphere (``q`` and ``-q`` are one rotation; a spline through them needs one sign); the
+    first sample keeps its own."""
+    q = np.asarray(quaternions, dtype=float)
+    flips = np.where(np.sum(q[..., 1:, :] * q[..., :-1, :], -1) < 0.0, -1.0, 1.0)
+    return np.concatenate([np.ones_like(q[..., :1, 0]), np.cumprod(flips, axis=-1)], -1)
 
 
 def path_from_poses(
@@ -459,10 +467,7 @@ def path_from_poses(
     if np.any(length == 0.0):
         raise ValueError("quaternions: every quaternion must be non-zero")
     unit = quaternions / length
-    # One hemisphere along each candidate: q and -q are one rotation, the spline needs one.
-    sign = np.where(np.sum(unit[..., 1:, :] * unit[..., :-1, :], -1) < 0.0, -1.0, 1.0)
-    sign = np.concatenate([np.ones_like(sign[..., :1]), np.cumprod(sign, axis=-1)], -1)
-    unit = unit * sign[..., None]
+    unit = unit * continuous_signs(unit)[..., None]
     p, v, a = _splined(np.concatenate([positions, unit], -1), dt, end)
     return pose_from_quaternions(p, v, a)
 
@@ -485,7 +490,7 @@ def pose_from_quaternions(p: ArrayLike, v: ArrayLike, a: ArrayLike) -> Jet:
     return Jet.of(value, velocity, acceleration)
 
 
-def _vee(m: np.ndarray) -> np.ndarray:
+def _vee(m: np.ndarray) -> np.ndarray:  # NumPy: host float64 whatever JAX's x64 setting
     return np.stack([m[..., 2, 1], m[..., 0, 2], m[..., 1, 0]], -1)
 
 
@@ -506,12 +511,11 @@ def quaternions_from_pose(pose: Jet) -> tuple[np.ndarray, np.ndarray, np.ndarray
     """
     r, d_r, dd_r = (np.asarray(x, dtype=float) for x in (pose.p, pose.v, pose.a))
     rot = r[..., :3, :3]
-    trace = np.trace(rot, axis1=-2, axis2=-1)
-    diagonal = np.diagonal(rot, axis1=-2, axis2=-1)
-    # Shepperd: the largest of 4 w^2, 4 x^2, 4 y^2, 4 z^2 gives a well-conditioned square root.
-    big = np.argmax(np.concatenate([trace[..., None], diagonal], -1), -1)
-    s = np.sqrt(np.maximum(1.0 + np.where(big == 0, trace, 2 * np.take_along_axis(
-        diagonal, np.maximum(big - 1, 0)[..., None], -1)[..., 0] - trace), 0.0))  # fmt: skip
+    trace = np.trace(rot, axis1=-2, axis2=-1)[..., None]
+    # Shepperd: of 4 w^2 = 1 + tr, 4 x^2 = 1 + 2 R_00 - tr, ..., the largest is well conditioned.
+    squares = 1.0 + np.concatenate([trace, 2.0 * np.diagonal(rot, 0, -2, -1) - trace], -1)
+    big = np.argmax(squares, -1)
+    s = np.sqrt(np.maximum(np.take_along_axis(squares, big[..., None], -1)[..., 0], 0.0))
     m = rot
     odd = np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0],
                     m[..., 1, 0] - m[..., 0, 1]], -1)  # fmt: skip

@@ -44,7 +44,7 @@ from typing import IO, Any
 import jax
 import numpy as np
 
-from .. import _batching, _splines
+from .. import _batching, _splines, plan
 from .._progress import bar
 
 __all__ = [
@@ -507,8 +507,7 @@ def quaternion_signs(
     for label in np.unique(group[valid]):
         rows = np.flatnonzero(valid & (group == label))
         rows = rows[np.argsort(t[rows], kind="stable")]
-        flips = np.sum(quat[rows[1:]] * quat[rows[:-1]], axis=-1) < 0
-        sign[rows] = np.concatenate([[1.0], np.cumprod(np.where(flips, -1.0, 1.0))])
+        sign[rows] = plan.continuous_signs(quat[rows])
     return sign
 
 

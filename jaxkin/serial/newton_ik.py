@@ -781,6 +781,7 @@ def _ik_chain_path_core(
         status[..., 0],
         search.max_iter,
         search.runs,
+        QUEUE_SLOTS,
     )
 
     def step(previous, sample):
