@@ -28,16 +28,16 @@ nothing new); names, kinds, the coupling indices and the link names are static.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _batching, _validate
 from .._geometry import BOUND, REAL, geometry, number, static
 from ..jet import Jet
 from ..result import FKResult, forward_result
@@ -284,7 +284,9 @@ _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocit
 # ------------------------------------------------------------------------------ kernels
 def angles(chain: JointChain, q: Array) -> Array:
     """``theta_i = c_i q_{k(i)} + b_i``: ``(..., n) -> (..., m)``."""
-    return q[..., np.asarray(chain.follows)] * chain.multiplier + chain.offset
+    if chain.follows != tuple(range(chain.n_joints)):
+        q = q[..., np.asarray(chain.follows)]
+    return q * chain.multiplier + chain.offset
 
 
 def couple(chain: JointChain, jac: Array) -> Array:
@@ -317,14 +319,21 @@ def fk_and_jacobian(chain: JointChain, q: Array, which: str) -> tuple[Array, Arr
     return rot, p, couple(chain, jac)
 
 
-def _fk_core(chain: JointChain, q: Jet, rates: bool) -> FKResult:
+def _fk_core(chain: JointChain, q: Jet | Array, rates: bool, zero_rates: bool = True) -> Any:
+    """``FKResult`` at ``q`` (a Jet, or at rest an array); at rest with ``zero_rates`` False,
+    ``(pose, status)``: the caller adds the zero rates outside the kernel."""
+
     def pose(joints):
         return lie.from_rotation_translation(*fk_rp(chain, joints))
 
-    return forward_result(pose, q, rates, 2)
+    result = forward_result(pose, q if rates else Jet.constant(q), rates, 2)
+    return result if rates or zero_rates else (result.x.p, result.status)
 
 
-_fk_jit = jax.jit(_fk_core, static_argnames="rates")
+# Large batches split across host threads: FK is cheap per element, so the parts are large.
+_fk_jit = _batching.PartsJit(
+    _fk_core, static_argnames=("rates", "zero_rates"), batched_argnames=("q",)
+)
 
 
 def fk_joint_chain(chain: JointChain, q: Jet | ArrayLike) -> FKResult:
@@ -342,4 +351,13 @@ def fk_joint_chain(chain: JointChain, q: Jet | ArrayLike) -> FKResult:
     rates = isinstance(q, Jet)
     q = _validate.as_jet(q, "q", coords=chain.n_joints)
     dtype = jnp.result_type(q.dtype, chain.dtype)
-    return _fk_jit(_validate.cast_leaves(chain, dtype), q.astype(dtype), rates)
+    chain, q, batch = _validate.cast_leaves(chain, dtype), q.astype(dtype), q.shape[:-1]
+    if rates:
+        return _fk_jit(chain, q, True, batch=batch)
+    # At rest, a large batch's zero rates are written outside the kernel (memory-bound).
+    zeros_here = math.prod(batch) >= _batching.SHARED_ZEROS_MIN
+    result = _fk_jit(chain, q.p, False, not zeros_here, batch=batch)
+    if not zeros_here:
+        return result
+    pose, status = result
+    return FKResult(Jet.constant(pose), status)

@@ -40,7 +40,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _batching, _validate
 from .._geometry import REAL, geometry, number, static
 from .._trig import sincos
 from ..jet import Jet
@@ -291,7 +291,10 @@ def _jacobian_impl(chain: PoEChain, q: Array, which: str) -> Array:
 
 
 _chain_fk_jit = jax.jit(_chain_fk_impl)
-_jacobian_jit = jax.jit(_jacobian_impl, static_argnames=("which",))
+# Large batches split across host threads (memory-bound: 36-42 outputs per element).
+_jacobian_jit = _batching.PartsJit(
+    _jacobian_impl, static_argnames=("which",), batched_argnames=("q",)
+)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -406,14 +409,14 @@ def space_jacobian(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
     """Space Jacobian ``J_s`` (..., 6, n): ``V_s = J_s q_dot`` with ``[V_s] = T_dot T^-1``
     (``chain`` a ``PoEChain``, ``DHTable`` or ``JointChain``; columns per coordinate of ``q``)."""
     chain, q = _prepare(chain, q)
-    return _jacobian_jit(chain, q, "space")
+    return _jacobian_jit(chain, q, "space", batch=q.shape[:-1])
 
 
 def body_jacobian(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
     """Body Jacobian ``J_b`` (..., 6, n): ``V_b = J_b q_dot`` with ``[V_b] = T^-1 T_dot``
     (``chain`` as for ``space_jacobian``)."""
     chain, q = _prepare(chain, q)
-    return _jacobian_jit(chain, q, "body")
+    return _jacobian_jit(chain, q, "body", batch=q.shape[:-1])
 
 
 def _fk_chain_core(chain: PoEChain | _dh.DHTable, q: Jet, rates: bool) -> FKResult:
