@@ -1,5 +1,5 @@
 # Two commands do all the set-up: `make demo` and `make test` create .venv and install
-# the project (with its extras) when it is missing.
+# the project (with its extras) when it is missing, with uv (parallel downloads; pip if it fails).
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -9,8 +9,9 @@ STAMP := $(VENV)/.installed
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,plot,bench,urdf]'
+	$(BIN)/python -m pip install --quiet uv
+	$(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[test,plot,bench,urdf]' \
+	  || $(BIN)/python -m pip install --quiet -e '.[test,plot,bench,urdf]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -27,7 +28,8 @@ test-slow: $(STAMP)
 DOCS_STAMP := $(VENV)/.installed-docs
 
 $(DOCS_STAMP): $(STAMP)
-	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	$(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[docs]' \
+	  || $(BIN)/python -m pip install --quiet -e '.[docs]'
 	touch $(DOCS_STAMP)
 
 docs: $(DOCS_STAMP)

@@ -239,12 +239,16 @@ def pytorch_kinematics_chain():
     return pk.build_serial_chain_from_urdf(puma_urdf().encode(), "tool").to(dtype=torch.float64)
 
 
-def pyroki_ik_solver(max_iterations: int = 30):
+def pyroki_ik_solver(
+    max_iterations: int = 30, urdf_text: str | None = None, tip: str = "tool", limits=False
+):
     """``jit(vmap(solve))`` of PyRoki's IK pattern: pose cost, jaxls Levenberg-Marquardt.
 
     ``linear_solver="conjugate_gradient"`` (jaxls' default): ``"dense_cholesky"``, used in
     PyRoki's examples, fails under ``jax_enable_x64`` (int64/int32 index mix in jaxls'
     ``to_dense``). Tolerances are tightened so that converged means the 1e-6 criterion.
+    ``urdf_text``/``tip``: another arm than the PUMA; ``limits``: add PyRoki's joint-limit
+    cost (its way of keeping joints within the limits).
     """
     import io
 
@@ -255,9 +259,10 @@ def pyroki_ik_solver(max_iterations: int = 30):
     import pyroki
     import yourdfpy
 
-    urdf = yourdfpy.URDF.load(io.StringIO(puma_urdf()), load_meshes=False)
+    text = puma_urdf() if urdf_text is None else urdf_text
+    urdf = yourdfpy.URDF.load(io.BytesIO(text.encode()), load_meshes=False)
     robot = pyroki.Robot.from_urdf(urdf)
-    link = jnp.asarray(robot.links.names.index("tool"), dtype=jnp.int32)
+    link = jnp.asarray(robot.links.names.index(tip), dtype=jnp.int32)
     termination = jaxls.TerminationConfig(
         max_iterations=max_iterations,
         cost_tolerance=1e-14,
@@ -270,8 +275,9 @@ def pyroki_ik_solver(max_iterations: int = 30):
         cost = pyroki.costs.pose_cost_analytic_jac(
             robot, var, jaxlie.SE3.from_matrix(target), link, pos_weight=50.0, ori_weight=10.0
         )
+        costs = [cost, pyroki.costs.limit_cost(robot, var, weight=100.0)] if limits else [cost]
         sol = (
-            jaxls.LeastSquaresProblem([cost], [var])
+            jaxls.LeastSquaresProblem(costs, [var])
             .analyze()
             .solve(
                 initial_vals=jaxls.VarValues.make([var.with_value(q0)]),
@@ -283,19 +289,27 @@ def pyroki_ik_solver(max_iterations: int = 30):
         )
         return sol[var]
 
-    return jax.jit(jax.vmap(solve))
+    solver = jax.jit(jax.vmap(solve))
+    solver.joints = robot.joints  # actuated names and limits, for arms with more joints
+    return solver
+
+
+def urdf_without_geometry(path: str) -> str:
+    """A URDF file's text with its visual and collision elements removed (their mesh paths are
+    not resolvable here)."""
+    import re
+
+    with open(path, encoding="utf-8") as f:
+        return re.sub(r"<(visual|collision)\b.*?</\1>", "", f.read(), flags=re.S)
 
 
 def rtb_urdf_ets(path: str, tip: str):
     """roboticstoolbox: the chain from the root to ``tip`` of a URDF file, by its own parser
-    (visual and collision elements removed: their mesh paths are not resolvable here)."""
+    (``urdf_without_geometry``)."""
     import io
-    import re
 
     import roboticstoolbox as rtb
     from roboticstoolbox.models.URDF.URDFRobot import URDF_file
 
-    with open(path, encoding="utf-8") as f:
-        text = re.sub(r"<(visual|collision)\b.*?</\1>", "", f.read(), flags=re.S)
-    links, name, *_ = URDF_file(io.StringIO(text))
+    links, name, *_ = URDF_file(io.StringIO(urdf_without_geometry(path)))
     return rtb.Robot(links, name=name).ets(end=tip)

@@ -39,8 +39,11 @@ Tasks and solvers:
   batch), jaxkin ``serial.fk_dh`` and ``serial.fk``;
 * URDF arms (UR5 and Franka Panda of example-robot-data, 500 poses from joints within the
   limits, no seed, joint limits on): roboticstoolbox ``ETS.ik_LM`` on the chain its own URDF
-  parser builds, vs ``jaxkin.ik`` on ``serial.from_urdf``; success also needs the joints
-  within the limits and the orientation within 1e-6 rad (Pinocchio's FK).
+  parser builds (random restarts), pytorch_kinematics ``PseudoInverseIK`` (64 random retries
+  within the limits, the first that passes the check counted), PyRoki (from the middle of the
+  limits with its joint-limit cost; it has no restarts), vs ``jaxkin.ik`` on
+  ``serial.from_urdf``; success also needs the joints within the limits and the orientation
+  within 1e-6 rad (Pinocchio's FK).
 """
 
 from __future__ import annotations
@@ -443,10 +446,11 @@ def urdf_arm(request):
     return request.param, path, tip, chain, fk(q), fk
 
 
-def _urdf_errors(urdf_arm, q):
+def _urdf_errors(urdf_arm, q, per_target: int = 1):
     """Position error relative to the reach (Pinocchio's FK), inf outside the joint limits or
-    beyond 1e-6 rad of orientation error."""
+    beyond 1e-6 rad of orientation error; ``per_target`` consecutive rows of ``q`` per target."""
     _, _, _, chain, targets, fk = urdf_arm
+    targets = np.repeat(targets, per_target, axis=0)
     reached = fk(q)
     pos = np.linalg.norm(reached[:, :3, 3] - targets[:, :3, 3], axis=-1) / float(chain.reach()[1])
     relative = np.swapaxes(reached[:, :3, :3], -1, -2) @ targets[:, :3, :3]
@@ -475,3 +479,73 @@ def test_urdf_ik_roboticstoolbox(benchmark, urdf_arm):
     sols, rate = _run(benchmark, run, URDF_SIZE, f"{name} IK", "roboticstoolbox", rounds=1)
     err = _urdf_errors(urdf_arm, np.stack([np.asarray(s.q) for s in sols]))
     _record(benchmark, f"{name} IK", "roboticstoolbox ETS.ik_LM (C++)", URDF_SIZE, rate, err)
+
+
+def _first_within(urdf_arm, solutions: np.ndarray) -> np.ndarray:
+    """Per target, the first of a peer's ``(B, R, n)`` solutions that passes
+    ``_urdf_errors`` (else the first): its best honest answer."""
+    b, r, n = solutions.shape
+    err = _urdf_errors(urdf_arm, solutions.reshape(b * r, n), r).reshape(b, r)
+    good = err < tasks.REL_TOL
+    pick = np.where(np.any(good, -1), np.argmax(good, -1), 0)
+    return solutions[np.arange(b), pick]
+
+
+def test_urdf_ik_pytorch_kinematics(benchmark, urdf_arm):
+    _peer("pytorch_kinematics", "pytorch-kinematics")
+    import pytorch_kinematics as pk
+    import torch
+
+    name, path, tip, chain, targets, _ = urdf_arm
+    text = tasks.urdf_without_geometry(path)
+    pchain = pk.build_serial_chain_from_urdf(text.encode(), tip).to(dtype=torch.float64)
+    assert tuple(pchain.get_joint_parameter_names()) == chain.names
+    limits = torch.as_tensor(np.stack([chain.lower, chain.upper], -1), dtype=torch.float64)
+    # no seed: 64 random retries within the limits (as jaxkin's 64 restarts), limits on
+    ik = pk.PseudoInverseIK(
+        pchain,
+        num_retries=64,
+        joint_limits=limits,
+        pos_tolerance=1e-9,
+        rot_tolerance=1e-9,
+        max_iterations=30,
+        early_stopping_any_converged=True,
+    )
+    goal = pk.Transform3d(matrix=torch.as_tensor(targets), dtype=torch.float64)
+    sol, rate = _run(
+        benchmark, lambda: ik.solve(goal), URDF_SIZE, f"{name} IK", "pytorch_kinematics", rounds=1
+    )
+    q = _first_within(urdf_arm, sol.solutions.numpy())
+    _record(
+        benchmark,
+        f"{name} IK",
+        "pytorch_kinematics PseudoInverseIK",
+        URDF_SIZE,
+        rate,
+        _urdf_errors(urdf_arm, q),
+    )
+
+
+def test_urdf_ik_pyroki(benchmark, urdf_arm):
+    _peer("pyroki", "almond-pyroki")
+    name, path, tip, chain, targets, _ = urdf_arm
+    solve = tasks.pyroki_ik_solver(
+        urdf_text=tasks.urdf_without_geometry(path), tip=tip, limits=True
+    )
+    # no seed: the middle of the limits (PyRoki has no restarts; its actuated joints may
+    # include side branches such as the Panda's finger); its limit cost on
+    joints = solve.joints
+    middle = (np.asarray(joints.lower_limits) + np.asarray(joints.upper_limits)) / 2
+    q0 = jnp.broadcast_to(jnp.asarray(middle), (URDF_SIZE, len(middle)))
+    ours = [joints.actuated_names.index(j) for j in chain.names]
+    t = jnp.asarray(targets)
+    q, rate = _run(benchmark, lambda: solve(t, q0), URDF_SIZE, f"{name} IK", "pyroki", rounds=3)
+    q = np.asarray(q)[:, ours]
+    _record(
+        benchmark,
+        f"{name} IK",
+        "PyRoki (jaxls LM, limit cost)",
+        URDF_SIZE,
+        rate,
+        _urdf_errors(urdf_arm, np.asarray(q)),
+    )
