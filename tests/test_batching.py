@@ -14,8 +14,10 @@ import numpy as np
 import pytest
 
 import jaxkin
-from jaxkin import Jet, Status, _batching, delta
+from jaxkin import Jet, Status, _batching, delta, serial
 from jaxkin.delta import forward
+from jaxkin.serial import chain as joint_chain
+from jaxkin.serial import poe
 from tests.helpers import tree_allfinite
 
 ROBOT = delta.Delta.paper()
@@ -238,6 +240,37 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts):
     assert status[4] == Status.INVALID_INPUT and status[-1] == Status.NOT_CONVERGED
     assert np.sum(status == Status.OK) >= 95
     assert tree_allfinite(results)
+
+
+def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, monkeypatch):
+    """A chain's FK (at rest, its zero rates then written outside the kernel; and with rates)
+    and both Jacobians, split in parts, equal the whole batch bit for bit."""
+    monkeypatch.setattr(_batching, "SHARED_ZEROS_MIN", 16)
+    chain = serial.JointChain.from_poe(serial.poe_from_dh(serial.Puma560().dh_table()))
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-2, 2, (101, 6))
+    q[7] = np.nan
+    jet = Jet.of(q, rng.normal(size=q.shape), rng.normal(size=q.shape))
+    before = joint_chain._fk_jit._part._cache_size()
+    at_rest = jaxkin.fk(chain, q)
+    assert joint_chain._fk_jit._part._cache_size() == before + 1  # the part kernel ran
+    calls = [
+        (jaxkin.fk, q),
+        (jaxkin.fk, jet),
+        (serial.space_jacobian, q),
+        (serial.body_jacobian, q),
+    ]
+    for fn, arg in calls:
+        parts, whole = fn(chain, arg), _whole(fn, chain, arg)
+        for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
+            assert a.shape == b.shape and a.dtype == b.dtype
+            np.testing.assert_array_equal(a, b)
+    assert poe._jacobian_jit._part._cache_size() >= 1
+    status = np.asarray(at_rest.status)
+    assert status[7] == Status.INVALID_INPUT and np.all(np.delete(status, 7) == Status.OK)
+    assert not np.any(at_rest.x.v) and not np.any(at_rest.x.a)
+    moving = jaxkin.fk(chain, jet)
+    np.testing.assert_allclose(at_rest.x.p, moving.x.p, rtol=0, atol=1e-14)
 
 
 def test_host_chunks_cover_every_element_with_one_shape():
