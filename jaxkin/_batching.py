@@ -395,7 +395,7 @@ def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int, name: s
         return _map_on_one_device(fn, tree, chunk_size)
     layout = _processes.layout_of(tree, name)
     block = layout.block_rows
-    chunk, starts = overlapping_parts(block, math.ceil(block / max(1, min(chunk_size, block))))
+    chunk, starts = _candidate_chunks(block, chunk_size)
     blocks = [
         jax.tree.map(lambda leaf, i=i: _processes.read_block(leaf, layout, i), tree)
         for i in range(len(layout.blocks))
@@ -422,12 +422,17 @@ def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int, name: s
     return _processes.assemble(layout, joined)
 
 
+def _candidate_chunks(size: int, chunk_size: int) -> tuple[int, list[int]]:
+    """Chunks of one size, at most ``chunk_size``, covering ``size`` rows (overlapping)."""
+    return overlapping_parts(size, math.ceil(size / max(1, min(chunk_size, size))))
+
+
 def _map_on_one_device(fn: Callable[[Any], Any], tree: Any, chunk_size: int) -> Any:
     """``map_candidates`` on the device the leaves are on (chunks on the host threads)."""
     size = jax.tree.leaves(tree)[0].shape[0]
     if size == 0:
         return fn(tree)
-    chunk, starts = overlapping_parts(size, math.ceil(size / max(1, min(chunk_size, size))))
+    chunk, starts = _candidate_chunks(size, chunk_size)
 
     def run(start: int) -> Any:
         part = tree if chunk == size else jax.tree.map(lambda x: x[start : start + chunk], tree)

@@ -294,9 +294,15 @@ def couple(chain: JointChain, jac: Array) -> Array:
     (module docstring)."""
     if chain.follows == tuple(range(chain.n_joints)):
         return jac * chain.multiplier
+    onto = jnp.asarray(follow_matrix(chain), jac.dtype)
+    return jnp.einsum("...im,mn->...in", jac * chain.multiplier, onto)
+
+
+def follow_matrix(chain: JointChain) -> np.ndarray:
+    """``(m, n)``: 1 where path joint ``i`` follows coordinate ``k(i)``, else 0."""
     onto = np.zeros((chain.n_path_joints, chain.n_joints))
     onto[np.arange(chain.n_path_joints), np.asarray(chain.follows)] = 1.0
-    return jnp.einsum("...im,mn->...in", jac * chain.multiplier, jnp.asarray(onto, jac.dtype))
+    return onto
 
 
 def poe_chain(chain: JointChain) -> _poe.PoEChain:

@@ -381,27 +381,13 @@ def ik_newton(
 _TWO_PI = 2.0 * np.pi
 
 
-def _skew_parts(m: Array) -> Array:
-    """``vee`` of the (skew) rotation block of ``(..., 4, 4)``: ``(..., 3)``."""
-    return jnp.stack([m[..., 2, 1], m[..., 0, 2], m[..., 1, 0]], axis=-1)
-
-
 def _body_twists(target: Jet) -> tuple[Array, Array]:
     """The target's body twist ``V = vee(T^-1 T_dot)`` and its time derivative
     ``vee(T^-1 T_ddot - (T^-1 T_dot)^2)``, rows ``(omega, v)``, each ``(..., 6)``."""
-    rot, p = target.p[..., :3, :3], target.p[..., :3, 3]
-    rot_t = jnp.swapaxes(rot, -1, -2)
-    inverse = jnp.concatenate(
-        [
-            jnp.concatenate([rot_t, -jnp.einsum("...ij,...j->...i", rot_t, p)[..., None]], -1),
-            jnp.broadcast_to(jnp.eye(4, dtype=p.dtype)[3:], (*p.shape[:-1], 1, 4)),
-        ],
-        axis=-2,
-    )
+    inverse = lie.se3_inverse(target.p)
     x = inverse @ target.v
     y = inverse @ target.a - x @ x
-    twist = jnp.concatenate([_skew_parts(x), x[..., :3, 3]], axis=-1)
-    rate = jnp.concatenate([_skew_parts(y), y[..., :3, 3]], axis=-1)
+    twist, rate = lie.se3_vee(x), lie.se3_vee(y)
     return twist, rate
 
 
@@ -429,10 +415,9 @@ def _in_units(chain: _chain.JointChain, scale: Array) -> tuple[_chain.JointChain
     """The chain in units of its size (lengths / ``scale``), the factors ``g`` of the
     coordinates (``q_unit = g q``) and the mask of prismatic coordinates (whose joints slide)."""
     dtype = chain.screws.dtype
-    onto = np.zeros((chain.n_path_joints, chain.n_joints))
-    onto[np.arange(chain.n_path_joints), np.asarray(chain.follows)] = 1.0
     sliding = jnp.all(chain.screws[:, :3] == 0, axis=-1)
-    prismatic = jnp.asarray(onto.T, dtype) @ sliding.astype(dtype) > 0
+    onto = jnp.asarray(_chain.follow_matrix(chain), dtype)
+    prismatic = onto.T @ sliding.astype(dtype) > 0
     f = jnp.where(sliding, 1.0 / scale, 1.0)  # theta_unit = f theta
     g = jnp.where(prismatic, 1.0 / scale, 1.0)
     unit = _chain.JointChain(
@@ -508,9 +493,10 @@ def _update(
     error_sq = sum(t * t for t in twist)
     step = _newton_step_soa(columns, twist, safe_sqrt(LM_WEIGHT * error_sq), 16 * eps(q.dtype))
     moved = q + _limited(jnp.stack(step, axis=-1), revolute, one)
-    moved = jnp.where(
-        free[..., None], _turned(moved, -jnp.inf, jnp.inf, revolute, continuous), project(moved)
-    )
+    # The unbounded run projects onto no limits: only its continuous joints wrap.
+    lo = jnp.where(free[..., None], -jnp.inf, lower)
+    hi = jnp.where(free[..., None], jnp.inf, upper)
+    moved = _projected(moved, lo, hi, revolute, continuous)
     following = run + 1
     own = starts.shape[-2]
     mine = jnp.take_along_axis(starts, jnp.minimum(following, own - 1)[..., None, None], -2)
@@ -763,12 +749,11 @@ def _finish(
     dtype = q_unit.dtype
     ok = status == Status.OK
     fixed = jax.lax.stop_gradient(q_unit)
-    rot, p, _ = _chain.fk_and_jacobian(unit, fixed, "body")
+    rot, p, jac = _chain.fk_and_jacobian(unit, fixed, "body")
     # Implicit derivatives: one Newton step at the solution, whose value is removed; the
     # goal of a failed element is its own pose (finite derivatives of the log at identity).
     reached = lie.from_rotation_translation(rot, p)
     twist, _ = _body_twist(rot, p, jnp.where(ok[..., None, None], goal, reached))
-    jac = _chain.fk_and_jacobian(unit, fixed, "body")[2]
     floor = eps(dtype)
     dq = _newton_step(jac, jnp.stack(twist, axis=-1), 0.0, floor)
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
