@@ -142,7 +142,7 @@ def test_rates_round_trip(name):
 
 @pytest.mark.parametrize("name", list(ROBOTS))
 def test_plain_arrays_are_at_rest_and_errors_name_the_argument(name):
-    robot, q, t = _targets(name, n=2)
+    robot, q, t = _targets(name)
     res = jaxkin.ik(robot, t)
     assert not np.any(np.asarray(res.q.v)) and not np.any(np.asarray(res.q.a))
     x = jaxkin.fk(robot, q).x
