@@ -547,5 +547,5 @@ def test_urdf_ik_pyroki(benchmark, urdf_arm):
         "PyRoki (jaxls LM, limit cost)",
         URDF_SIZE,
         rate,
-        _urdf_errors(urdf_arm, np.asarray(q)),
+        _urdf_errors(urdf_arm, q),
     )

@@ -55,8 +55,8 @@ MIN_PART = 1 << 15
 PLAN_CHUNK_SAMPLES = 1 << 17
 # The same on an accelerator (one call's temporaries: about 1 GB in float64).
 ACCELERATOR_CHUNK_SAMPLES = 1 << 21
-# delta.fk at rest writes its zero rates outside the kernel from this many elements (the
-# extra eager call costs more than the kernel's writes below it).
+# FK at rest writes its zero rates outside the kernel from this many elements (the extra eager
+# call costs more than the kernel's writes below it; ``zero_rates_outside``).
 SHARED_ZEROS_MIN = 1 << 16
 # Rows per call of the command line (files) and voxels per call of a workspace sweep: memory
 # bounds (a few tens of MB of intermediates per call in float64).
@@ -64,6 +64,13 @@ HOST_CHUNK = 1 << 16
 SWEEP_CHUNK = 1 << 18
 
 # ------------------------------------------------------------------ chunks in a kernel
+
+
+def zero_rates_outside(rates: bool, batch: tuple[int, ...]) -> bool:
+    """True for a large batch at rest: the FK kernel returns positions only and the caller
+    adds the zero rates (``Jet.constant``), since writing them costs more in the
+    memory-bound kernel than in one eager call (from ``SHARED_ZEROS_MIN`` elements)."""
+    return not rates and math.prod(batch) >= SHARED_ZEROS_MIN
 
 
 def _chunk_layout(size: int) -> tuple[int, int]:

@@ -418,14 +418,12 @@ def fk(
         shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
         theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)), theta)
     theta = jax.tree.map(lambda x: x.astype(dtype), theta)
-    zeros_here = not rates and math.prod(theta.shape[:-1]) >= _batching.SHARED_ZEROS_MIN
     batch = theta.shape[:-1]
+    outside = _batching.zero_rates_outside(rates, batch)
     result = _fk_jit(
-        robot, theta, guess, float(tol), max_iter, method, rates, not zeros_here, batch=batch
+        robot, theta, guess, float(tol), max_iter, method, rates, not outside, batch=batch
     )
-    if not zeros_here:
-        return result
-    return dataclasses.replace(result, x=Jet.constant(result.x.p))
+    return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result
 
 
 def fk_closed_form(robot: Delta, theta: ArrayLike) -> ClosedFormFKResult:

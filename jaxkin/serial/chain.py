@@ -28,7 +28,7 @@ nothing new); names, kinds, the coupling indices and the link names are static.
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -325,15 +325,17 @@ def fk_and_jacobian(chain: JointChain, q: Array, which: str) -> tuple[Array, Arr
     return rot, p, couple(chain, jac)
 
 
-def _fk_core(chain: JointChain, q: Jet | Array, rates: bool, zero_rates: bool = True) -> Any:
+def _fk_core(chain: JointChain, q: Jet | Array, rates: bool, zero_rates: bool = True) -> FKResult:
     """``FKResult`` at ``q`` (a Jet, or at rest an array); at rest with ``zero_rates`` False,
-    ``(pose, status)``: the caller adds the zero rates outside the kernel."""
+    the pose without rates: the caller adds them (``_batching.zero_rates_outside``)."""
 
     def pose(joints):
         return lie.from_rotation_translation(*fk_rp(chain, joints))
 
     result = forward_result(pose, q if rates else Jet.constant(q), rates, 2)
-    return result if rates or zero_rates else (result.x.p, result.status)
+    if rates or zero_rates:
+        return result
+    return dataclasses.replace(result, x=Jet(result.x.p, None, None))
 
 
 # Large batches split across host threads: FK is cheap per element, so the parts are large.
@@ -358,12 +360,6 @@ def fk_joint_chain(chain: JointChain, q: Jet | ArrayLike) -> FKResult:
     q = _validate.as_jet(q, "q", coords=chain.n_joints)
     dtype = jnp.result_type(q.dtype, chain.dtype)
     chain, q, batch = _validate.cast_leaves(chain, dtype), q.astype(dtype), q.shape[:-1]
-    if rates:
-        return _fk_jit(chain, q, True, batch=batch)
-    # At rest, a large batch's zero rates are written outside the kernel (memory-bound).
-    zeros_here = math.prod(batch) >= _batching.SHARED_ZEROS_MIN
-    result = _fk_jit(chain, q.p, False, not zeros_here, batch=batch)
-    if not zeros_here:
-        return result
-    pose, status = result
-    return FKResult(Jet.constant(pose), status)
+    outside = _batching.zero_rates_outside(rates, batch)
+    result = _fk_jit(chain, q if rates else q.p, rates, not outside, batch=batch)
+    return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result
