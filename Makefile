@@ -19,11 +19,15 @@ demo: $(STAMP)
 
 # Two worker processes (pytest-xdist), one file per worker at a time so that a file's tests
 # share their compilations. The slow tests (tests/conftest.py) run with `make test-slow`.
+# Python's bytecode caches are written even where the environment turns them off, so that
+# later processes (workers, the command-line tests' subprocesses) load modules compiled once.
+PYTEST := PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q -n 2 --dist loadfile
+
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m "not slow" tests
+	$(PYTEST) -m "not slow" tests
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile -m slow tests
+	$(PYTEST) -m slow tests
 
 DOCS_STAMP := $(VENV)/.installed-docs
 

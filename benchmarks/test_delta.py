@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import tests.references.delta as ref
-from jaxkin import _threads, delta
+from jaxkin import _batching, delta
 
 SIZES = [1_000, 100_000, 1_000_000]
 ROBOT = delta.Delta.paper()
@@ -81,10 +81,10 @@ def test_fk_cold_jaxkin(measure, n):
 
 @pytest.mark.parametrize("n", SIZES)
 def test_fk_cold_jaxkin_one_thread(measure, n):
-    """The same kernel, never split across host threads (``jaxkin._threads``): the gain."""
+    """The same kernel, never split across host threads (``jaxkin._batching``): the gain."""
     p, theta = data(n)
     theta_dev = jnp.asarray(theta)
-    _threads.set_num_threads(1)
+    _batching.set_num_threads(1)
     try:
         result = measure(
             lambda: delta.fk(ROBOT, theta_dev).p.p,
@@ -93,7 +93,7 @@ def test_fk_cold_jaxkin_one_thread(measure, n):
             dtype="float64",
         )
     finally:
-        _threads.set_num_threads(None)
+        _batching.set_num_threads(None)
     assert np.abs(np.asarray(result) - p).max() < 1e-9
 
 

@@ -13,6 +13,9 @@
   sharded over the devices when there are several, else run on the host threads.
 * **Host chunks** (``host_chunks``): a host-side loop over fixed-size, padded chunks (files of
   the command line, voxels of a workspace sweep), so one compilation serves every chunk.
+* **Padded small batches** (``PaddedJit``): a small concrete batch is flattened and padded to a
+  power of two, so calls whose batch shapes differ (a replanning loop whose
+  candidate count changes, a batch ``(3, 5)`` then ``(12,)``) share one compilation per size.
 
 Every split gives the same values as the whole batch: the kernels are elementwise in the batch
 (tested). Thread count: ``set_num_threads(n)``, else ``JAXKIN_NUM_THREADS``, else the CPUs this
@@ -62,6 +65,13 @@ SHARED_ZEROS_MIN = 1 << 16
 # bounds (a few tens of MB of intermediates per call in float64).
 HOST_CHUNK = 1 << 16
 SWEEP_CHUNK = 1 << 18
+# Small batches are padded to a power of two, at least PAD_MIN, up to PAD_MAX elements: the
+# padded elements cost microseconds there, a compilation a fraction of a second.
+PAD_MIN = 64
+PAD_MAX = 1 << 12
+# The planner pads its candidates while the padded call holds at most this many samples
+# (candidates x T x branches held): a few milliseconds of work.
+PLAN_PAD_SAMPLES = 1 << 15
 
 # ------------------------------------------------------------------ chunks in a kernel
 
@@ -465,3 +475,128 @@ def host_chunks(n: int, chunk: int) -> Iterator[tuple[int, int, np.ndarray]]:
         index = np.arange(start, start + chunk)
         index[stop - start :] = start
         yield start, stop, index
+
+
+# ------------------------------------------------------------------ padded small batches
+
+
+def padded_size(size: int) -> int:
+    """The size a batch of ``size`` elements is computed at: the next power of two, at least
+    ``PAD_MIN``, for ``0 < size <= PAD_MAX``; ``size`` itself otherwise."""
+    if not 0 < size <= PAD_MAX:
+        return size
+    return max(PAD_MIN, 1 << (size - 1).bit_length())
+
+
+class PaddedJit:
+    """A jitted kernel whose small concrete batches run padded to one size class.
+
+    Args:
+        jitted: the kernel (``jax.jit``, or ``PartsJit`` or another callable with a true
+            ``takes_batch`` attribute, called with ``batch=``), elementwise in the batch:
+            element ``i`` of every output depends only on element ``i`` of the batched
+            arguments.
+        core: for each batched argument, the number of trailing axes of its leaves that are
+            not batch axes (1 for points ``(..., 3)``, 0 for per-element scalars). Leaves of
+            rank 0 with no core axes (a scalar length) are shared by the whole batch.
+        axes: the batch axis of output fields where it is not the first (e.g. a history
+            ``(steps, ..., n)``: ``{"history": 1}``); the field is the leaf's attribute name.
+
+    Call it as the kernel, with the batch shape as the keyword ``batch``; ``pad=False`` where
+    an argument outside ``core`` has batch axes (e.g. a batched geometry), or ``pad`` a dict
+    that replaces ``core`` for this call (a target whose core shape depends on the robot).
+
+    A batch of at most ``PAD_MAX`` elements (``()`` included) whose arguments are all concrete,
+    on a single-device machine, is broadcast to ``batch``, flattened and padded to
+    ``padded_size`` on the host by repeating its last element (a real input, computed and
+    dropped), and the outputs are cut back by one small program (``_cut``) compiled per batch
+    shape in milliseconds, where the kernel takes a fraction of a second or more. Larger batches,
+    tracers (under a user's ``jit``, ``vmap`` or ``grad``) and several devices go to the
+    kernel as they are.
+    """
+
+    def __init__(
+        self,
+        jitted: Callable[..., Any],
+        core: dict[str, int],
+        axes: dict[str, int] | None = None,
+    ) -> None:
+        self.jitted = jitted
+        self._core = dict(core)
+        self._axes = dict(axes or {})
+        self._takes_batch = isinstance(jitted, PartsJit) or getattr(jitted, "takes_batch", False)
+        self._signature = inspect.signature(getattr(jitted, "__wrapped__", jitted))
+        functools.update_wrapper(self, jitted)
+
+    def __call__(
+        self, *args: Any, batch: tuple[int, ...], pad: bool | dict[str, int] = True, **kwargs: Any
+    ) -> Any:
+        batch = tuple(int(d) for d in batch)
+        size = math.prod(batch)
+        padded = padded_size(size)
+        if (
+            not pad
+            or size == 0
+            or (padded == size and len(batch) == 1)
+            or jax.device_count() > 1
+            or not all(is_concrete(leaf) for leaf in jax.tree.leaves((args, kwargs)))
+        ):
+            return self._direct(args, kwargs, batch)
+        bound = self._signature.bind(*args, **kwargs)
+        for name, core in (pad if isinstance(pad, dict) else self._core).items():
+            if bound.arguments.get(name) is not None:
+                bound.arguments[name] = jax.tree.map(
+                    lambda leaf, core=core: _pad_leaf(leaf, batch, core, padded),
+                    bound.arguments[name],
+                )
+        out = self._direct(bound.args, bound.kwargs, (padded,))
+        leaves, tree = jax.tree_util.tree_flatten_with_path(out)
+        axes = tuple(self._axes.get(_field(path), 0) for path, _ in leaves)
+        return jax.tree.unflatten(tree, _cut([leaf for _, leaf in leaves], axes, batch, size))
+
+    def _direct(self, args: tuple, kwargs: dict, batch: tuple[int, ...]) -> Any:
+        if self._takes_batch:
+            return self.jitted(*args, batch=batch, **kwargs)
+        return self.jitted(*args, **kwargs)
+
+    def _cache_size(self) -> int:
+        """Compilations held by the kernel, for recompilation tests."""
+        return self.jitted._cache_size()
+
+
+def shared_geometry(robot: Any) -> bool:
+    """True when every array leaf of ``robot`` is a scalar: nothing in it has batch axes."""
+    return all(np.ndim(leaf) == 0 for leaf in jax.tree.leaves(robot))
+
+
+def _pad_leaf(leaf: Any, batch: tuple[int, ...], core: int, padded: int) -> Any:
+    """``leaf`` (``(*b, *core)`` with ``b`` broadcasting to ``batch``) as a host array
+    ``(padded, *core)``, the last element repeated, for the kernel to take in; a scalar
+    without core axes unchanged (shared). On the host: no program per input shape."""
+    if core == 0 and np.ndim(leaf) == 0:
+        return leaf
+    host = np.asarray(leaf)
+    shape = host.shape[host.ndim - core :] if core else ()
+    flat = np.broadcast_to(host, (*batch, *shape)).reshape((-1, *shape))
+    return np.concatenate([flat, np.broadcast_to(flat[-1:], (padded - len(flat), *shape))])
+
+
+@functools.partial(jax.jit, static_argnames=("axes", "batch", "size"))
+def _cut(leaves: list, axes: tuple[int, ...], batch: tuple[int, ...], size: int) -> list:
+    """Each output leaf's first ``size`` rows on its batch axis, that axis reshaped to
+    ``batch``: one small program per output structure and batch shape, compiled in
+    milliseconds (a transfer through the host would cost about 20 us per leaf and call)."""
+
+    def cut(leaf, axis):
+        rows = jax.lax.slice_in_dim(leaf, 0, size, axis=axis)
+        return rows.reshape((*rows.shape[:axis], *batch, *rows.shape[axis + 1 :]))
+
+    return [cut(leaf, axis) for leaf, axis in zip(leaves, axes, strict=True)]
+
+
+def _field(path: tuple) -> str | None:
+    """The attribute name of a pytree path's first dataclass field, if any."""
+    for key in path:
+        if isinstance(key, jax.tree_util.GetAttrKey):
+            return key.name
+    return None

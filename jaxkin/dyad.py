@@ -309,7 +309,8 @@ def _position_impl(a: Array, b: Array, l_ac: Array, l_bc: Array, mode: int) -> D
     return DyadPosition(c, pos.phi, _far_status(pos.status, far), pos.margin)
 
 
-_position_jit = jax.jit(_position_impl, static_argnames=("mode",))
+_DYAD_CORES = {"a": 1, "b": 1, "l_ac": 0, "l_bc": 0}
+_position_jit = _batching.PaddedJit(jax.jit(_position_impl, static_argnames=("mode",)), _DYAD_CORES)
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
@@ -354,18 +355,20 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     return dataclasses.replace(result, status=_far_status(result.status, far))
 
 
-_solve_jit = jax.jit(_solve_impl, static_argnames=("mode", "method"))
+_solve_jit = _batching.PaddedJit(
+    jax.jit(_solve_impl, static_argnames=("mode", "method")), _DYAD_CORES
+)
 
 
 def _checked_lengths(a_batch: tuple[int, ...], b_batch: tuple[int, ...], l_ac, l_bc):
-    """The lengths, checked, after checking that every batch shape broadcasts."""
+    """The lengths, checked, and the batch shape (every batch shape must broadcast)."""
     # Lengths may be per-element batch data: NaN/inf there becomes INVALID_INPUT, not an error.
     l_ac = _validate.positive_length(l_ac, "l_ac", allow_nonfinite=True)
     l_bc = _validate.positive_length(l_bc, "l_bc", allow_nonfinite=True)
-    _validate.batch_shape(
+    batch = _validate.batch_shape(
         {"a": a_batch, "b": b_batch, "l_ac": np.shape(l_ac), "l_bc": np.shape(l_bc)}
     )
-    return l_ac, l_bc
+    return l_ac, l_bc, batch
 
 
 def position(
@@ -393,8 +396,8 @@ def position(
     mode = _validate.choice(mode, "mode", MODES)
     a = _validate.point(a, "a", coords=2)
     b = _validate.point(b, "b", coords=2)
-    l_ac, l_bc = _checked_lengths(a.shape[:-1], b.shape[:-1], l_ac, l_bc)
-    return _position_jit(a, b, l_ac, l_bc, mode)
+    l_ac, l_bc, batch = _checked_lengths(a.shape[:-1], b.shape[:-1], l_ac, l_bc)
+    return _position_jit(a, b, l_ac, l_bc, mode, batch=batch)
 
 
 def solve(
@@ -434,5 +437,5 @@ def solve(
     method = _validate.choice(method, "method", METHODS)
     a = _validate.as_jet(a, "a", coords=2)
     b = _validate.as_jet(b, "b", coords=2)
-    l_ac, l_bc = _checked_lengths(a.shape[:-1], b.shape[:-1], l_ac, l_bc)
-    return _solve_jit(a, b, l_ac, l_bc, mode, method)
+    l_ac, l_bc, batch = _checked_lengths(a.shape[:-1], b.shape[:-1], l_ac, l_bc)
+    return _solve_jit(a, b, l_ac, l_bc, mode, method, batch=batch)

@@ -34,7 +34,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate
+from . import _batching, _validate
 from ._numerics import safe_div, safe_sqrt
 from .serial.arms import Anthropomorphic, fk
 
@@ -140,7 +140,7 @@ def _ik_impl(lengths: Array, p: Array, bits: Array | None, rounding: str) -> Arr
     return _paper_ik(lengths, p, _quantizer(bits, rounding))
 
 
-_ik_jit = jax.jit(_ik_impl, static_argnames=("rounding",))
+_ik_jit = _batching.PaddedJit(jax.jit(_ik_impl, static_argnames=("rounding",)), {"p": 1, "bits": 0})
 
 
 def _robot_lengths(robot: Anthropomorphic, dtype) -> Array:
@@ -180,11 +180,11 @@ def anthropomorphic_ik(
         raise ValueError(f"target: expected shape (..., 3), got {tuple(target.shape)}")
     lengths = _robot_lengths(robot, target.dtype)
     if bits is None:
-        return _ik_jit(lengths, target, None, rounding)
+        return _ik_jit(lengths, target, None, rounding, batch=target.shape[:-1])
     bits = _check_bits(bits).astype(jnp.int32)
     batch = _validate.batch_shape({"target": target.shape[:-1], "bits": bits.shape})
     target = jnp.broadcast_to(target, (*batch, 3))
-    return _ik_jit(lengths, target, jnp.broadcast_to(bits, batch), rounding)
+    return _ik_jit(lengths, target, jnp.broadcast_to(bits, batch), rounding, batch=batch)
 
 
 @jax.tree_util.register_dataclass

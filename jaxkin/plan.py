@@ -283,7 +283,8 @@ def _evaluate_impl(robot, path: Jet, limits: Limits, dt, branch: Any) -> Evaluat
     return jax.tree.map(pick, every)
 
 
-_evaluate_jit = jax.jit(_evaluate_impl, static_argnames=("branch",))
+# Candidates are padded (the core of a path: its samples and the target's axes, per call).
+_evaluate_jit = _batching.PaddedJit(jax.jit(_evaluate_impl, static_argnames=("branch",)), {})
 
 
 # ------------------------------------------------------------------ public API
@@ -335,19 +336,23 @@ def evaluate(
         raise ValueError(f"dt must be a positive finite number, got {dt!r}")
     limits = robot_limits(robot, limits)
     n, t = path.shape[:2]
+    # "best" holds every branch of a chunk at once
+    held = len(robot.branches) if branch == "best" else 1
     if chunk_size is None:
-        # "best" holds every branch of a chunk at once
-        held = len(robot.branches) if branch == "best" else 1
         chunk_size = max(1, _batching.plan_chunk_samples() // (t * held))
     elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+
+    def call(chunk: Jet) -> Evaluation:
+        candidates = chunk.shape[0]
+        samples = _batching.padded_size(candidates) * t * held
+        pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
+        return _evaluate_jit(robot, chunk, limits, float(dt), branch, batch=(candidates,), pad=pad)
+
     if n == 0:  # the kernel's shapes from one placeholder candidate, then none of it
         placeholder = jax.tree.map(lambda x: jnp.zeros((1, *x.shape[1:]), x.dtype), path)
-        one = _evaluate_jit(robot, placeholder, limits, float(dt), branch)
-        return jax.tree.map(lambda x: x[:0], one)
-    return _batching.map_candidates(
-        lambda chunk: _evaluate_jit(robot, chunk, limits, float(dt), branch), path, chunk_size
-    )
+        return jax.tree.map(lambda x: x[:0], call(placeholder))
+    return _batching.map_candidates(call, path, chunk_size)
 
 
 def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") -> Jet:

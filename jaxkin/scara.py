@@ -38,7 +38,7 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate, dyad, planar
+from . import _batching, _validate, dyad, planar
 from . import workspace as _workspace
 from ._geometry import LENGTH, geometry, number
 from ._numerics import all_finite, computed_once
@@ -295,7 +295,7 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
     return ScaraIKResult(q, status, margin, elbow, within_limits)
 
 
-_ik_jit = jax.jit(_ik_impl, static_argnames=("branch", "method"))
+_ik_jit = _batching.PaddedJit(jax.jit(_ik_impl, static_argnames=("branch", "method")), {"d": 1})
 
 
 def _check_robot(robot: Any, batch_names: dict[str, tuple[int, ...]]) -> Scara:
@@ -307,6 +307,12 @@ def _check_robot(robot: Any, batch_names: dict[str, tuple[int, ...]]) -> Scara:
         batch_names["robot.limits"] = tuple(jnp.shape(robot.limits.lower))[:-1]
     _validate.batch_shape(batch_names)
     return robot
+
+
+def _padding(shapes: dict[str, tuple[int, ...]]) -> dict[str, Any]:
+    """``PaddedJit``'s keywords: the batch, padded only when the geometry has no batch axes."""
+    geometry = [shape for name, shape in shapes.items() if name.startswith("robot.")]
+    return {"batch": _validate.batch_shape(shapes), "pad": not any(geometry)}
 
 
 def ik(
@@ -334,8 +340,9 @@ def ik(
     branch = _validate.choice(BRANCHES[0] if branch is None else branch, "branch", BRANCHES)
     method = _validate.choice(method, "method", METHODS)
     d = _validate.as_jet(d, "d", coords=3)
-    _check_robot(robot, {"d": d.shape[:-1]})
-    return _ik_jit(robot, d, branch, method)
+    shapes = {"d": d.shape[:-1]}
+    _check_robot(robot, shapes)
+    return _ik_jit(robot, d, branch, method, **_padding(shapes))
 
 
 def _fk_position(q: Array, l_oa: Array, l_ab: Array, l_bc: Array) -> Array:
@@ -391,7 +398,7 @@ def _fk_impl(robot: Scara, q: Jet, rates: bool) -> FKResult:
     return FKResult(x, status)
 
 
-_fk_jit = jax.jit(_fk_impl, static_argnames="rates")
+_fk_jit = _batching.PaddedJit(jax.jit(_fk_impl, static_argnames="rates"), {"q": 1})
 
 
 def fk(robot: Scara, q: Jet | ArrayLike) -> FKResult:
@@ -416,8 +423,9 @@ def fk(robot: Scara, q: Jet | ArrayLike) -> FKResult:
     """
     rates = isinstance(q, Jet)
     jet = _validate.as_jet(q, "q", coords=3)
-    _check_robot(robot, {"q": jet.shape[:-1]})
-    return _fk_jit(robot, jet, rates)
+    shapes = {"q": jet.shape[:-1]}
+    _check_robot(robot, shapes)
+    return _fk_jit(robot, jet, rates, **_padding(shapes))
 
 
 def workspace(robot: Scara, bounds: Any = None, resolution: float | None = None, **options: Any):

@@ -227,10 +227,10 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts):
     guess = p + rng.normal(scale=0.5, size=p.shape)
     results = []
     for args, kwargs in [((jet,), {}), ((theta,), {"guess": guess})]:
-        before = forward._fk_jit._static._part._cache_size()
+        before = forward._fk_jit.jitted._static._part._cache_size()
         parts = delta.fk(ROBOT, *args, **kwargs)
         # the part kernel (not the whole-batch one) was compiled for this call
-        assert forward._fk_jit._static._part._cache_size() == before + 1
+        assert forward._fk_jit.jitted._static._part._cache_size() == before + 1
         whole = _whole(delta.fk, ROBOT, *args, **kwargs)
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype
@@ -251,9 +251,9 @@ def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, monkeypa
     q = rng.uniform(-2, 2, (101, 6))
     q[7] = np.nan
     jet = Jet.of(q, rng.normal(size=q.shape), rng.normal(size=q.shape))
-    before = joint_chain._fk_jit._part._cache_size()
+    before = joint_chain._fk_jit.jitted._part._cache_size()
     at_rest = jaxkin.fk(chain, q)
-    assert joint_chain._fk_jit._part._cache_size() == before + 1  # the part kernel ran
+    assert joint_chain._fk_jit.jitted._part._cache_size() == before + 1  # the part kernel ran
     calls = [
         (jaxkin.fk, q),
         (jaxkin.fk, jet),
@@ -265,7 +265,7 @@ def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, monkeypa
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype
             np.testing.assert_array_equal(a, b)
-    assert poe._jacobian_jit._part._cache_size() >= 1
+    assert poe._jacobian_jit.jitted._part._cache_size() >= 1
     status = np.asarray(at_rest.status)
     assert status[7] == Status.INVALID_INPUT and np.all(np.delete(status, 7) == Status.OK)
     assert not np.any(at_rest.x.v) and not np.any(at_rest.x.a)
@@ -281,6 +281,121 @@ def test_host_chunks_cover_every_element_with_one_shape():
         seen.extend(range(start, stop))
     assert seen == list(range(10))
     assert [len(i) for *_, i in _batching.host_chunks(5, 64)] == [8]  # next power of two
+
+
+# ------------------------------------------------------------------ padded small batches
+@pytest.mark.parametrize(
+    ("size", "padded"),
+    [(0, 0), (1, 64), (64, 64), (65, 128), (4096, 4096), (4097, 4097), (10**6, 10**6)],
+)
+def test_padded_size(size, padded):
+    assert _batching.padded_size(size) == padded
+
+
+def _dyad_inputs(batch, seed):
+    rng = np.random.default_rng(seed)
+    a = Jet.of(*(rng.normal(size=(*batch, 2)) for _ in range(3)))
+    b = Jet.of(*(rng.normal(size=(*batch, 2)) + [1.0, 0.0] for _ in range(3)))
+    return a, b
+
+
+def _pad_by_hand(x, padded):
+    flat = np.reshape(x, (-1, x.shape[-1]))
+    return np.concatenate([flat, np.repeat(flat[-1:], padded - len(flat), axis=0)])
+
+
+def test_small_batches_of_any_shape_share_one_padded_compilation():
+    """(3, 5), (15,) and (2, 7) run as 64 elements: one compilation of the kernel (a new shape
+    compiles only the small padding and cut), and each element is what that program gives for
+    it in a batch padded by hand (repeating the last element)."""
+    from jaxkin import dyad
+
+    kernel = dyad._solve_jit.jitted
+    for k, batch in enumerate([(3, 5), (15,), (2, 7)]):
+        a, b = _dyad_inputs(batch, k)
+        before = kernel._cache_size()
+        result = dyad.solve(a, b, 1.3, 1.1)
+        assert k == 0 or kernel._cache_size() == before  # the first shape compiles the kernel
+        size = int(np.prod(batch))
+        by_hand = [jax.tree.map(lambda x: _pad_by_hand(x, 64), jet) for jet in (a, b)]
+        padded = kernel(*by_hand, 1.3, 1.1, 1, "analytic")
+        for got, want in zip(jax.tree.leaves(result), jax.tree.leaves(padded), strict=True):
+            assert got.shape == (*batch, *want.shape[1:]) and got.dtype == want.dtype
+            np.testing.assert_array_equal(got, np.reshape(want[:size], got.shape))
+        # Against the kernel compiled for the exact shape: the same to a few ulp.
+        exact = kernel(a, b, 1.3, 1.1, 1, "analytic")
+        np.testing.assert_array_equal(result.status, exact.status)
+        np.testing.assert_allclose(result.c.a, exact.c.a, rtol=1e-14, atol=1e-14)
+
+
+def test_padding_broadcasts_batched_arguments_and_leaves_the_rest_alone():
+    """Arguments whose batch shapes differ are broadcast before padding; a batched geometry,
+    a large batch, and a call under jit run unpadded; the caller's arrays are not changed."""
+    from jaxkin import dyad, scara
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(4, 1, 2))
+    b = rng.normal(size=(5, 2)) + [1.0, 0.0]
+    l_ac = rng.uniform(1.0, 2.0, size=(4, 5))
+    kept = a.copy(), b.copy(), l_ac.copy()
+    result = dyad.solve(a, b, l_ac, 1.1)
+    exact = dyad._solve_jit.jitted(
+        Jet.constant(a), Jet.constant(b), jnp.asarray(l_ac), 1.1, 1, "analytic"
+    )
+    assert result.c.p.shape == (4, 5, 2)
+    np.testing.assert_allclose(result.c.p, exact.c.p, rtol=1e-14, atol=1e-14)
+    for given, copy in zip((a, b, l_ac), kept, strict=True):
+        np.testing.assert_array_equal(given, copy)
+    traced = jax.jit(lambda a: dyad.solve(a, b, l_ac, 1.1).c.p)(a)
+    np.testing.assert_allclose(traced, exact.c.p, rtol=1e-14, atol=1e-14)
+
+    robots = scara.Scara(l_oa=1.5, l_ab=jnp.array([0.8, 0.9, 1.0]), l_bc=0.5)
+    d = jnp.array([[0.9, 0.3, 1.0], [1.0, -0.2, 1.2], [0.7, 0.7, 1.1]])
+    before = scara._ik_jit._cache_size()
+    solved = scara.ik(robots, d)  # batch (3,) from the geometry: run as it is
+    np.testing.assert_allclose(jaxkin.fk(robots, solved.q).x.p, d, rtol=0, atol=1e-13)
+    assert scara._ik_jit._cache_size() == before + 1
+
+    size = _batching.PAD_MAX + 1
+    large = dyad.position(np.zeros((size, 2)), np.ones((size, 2)), 1.0, 1.0)
+    assert large.c.shape == (size, 2)
+    assert dyad._position_jit.jitted._cache_size() >= 1
+
+
+def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_axis():
+    """The planner pads its candidates (5 and 7 share one program; a path's samples are not
+    a batch axis); the Newton IK's history keeps its step axis first."""
+    from jaxkin import plan, scara
+
+    robot = scara.Scara.paper()
+    rng = np.random.default_rng(6)
+    t = np.linspace(0.0, 1.0, 9)[:, None]
+    start = rng.uniform([60.0, -20.0, 40.0], [90.0, 20.0, 80.0], (7, 1, 3))
+    path = plan.path_from_samples(start + t * [10.0, 5.0, -5.0], dt=0.1)
+    parts = [jax.tree.map(lambda x, n=n: x[:n], path) for n in (5, 7)]
+    results, counts = [], []
+    for part in parts:
+        results.append(plan.evaluate(robot, part))
+        counts.append(plan._evaluate_jit._cache_size())
+    assert counts[1] == counts[0]  # 7 candidates reuse the program compiled for 5
+    for part, got in zip(parts, results, strict=True):
+        want = plan._evaluate_jit.jitted(robot, part, plan.robot_limits(robot, None), 1.0, 1)
+        n = part.shape[0]
+        assert got.q.p.shape == (n, 9, 3) and got.costs.total.shape == (n,)
+        np.testing.assert_array_equal(got.status, want.status)
+        np.testing.assert_allclose(got.q.a, want.q.a, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(got.costs.total, want.costs.total, rtol=1e-12)
+
+    # Newton IK: (3, 5) runs as 64; against the 64-element program called unpadded.
+    arm = serial.Puma560().dh_table()
+    q = rng.uniform(-1.0, 1.0, (64, 6))
+    target = serial.fk_dh(arm, q)
+    whole = serial.ik_newton(arm, target, q + 0.05, max_iter=6)
+    q0 = (q[:15] + 0.05).reshape(3, 5, 6)
+    got = serial.ik_newton(arm, target[:15].reshape(3, 5, 4, 4), q0, max_iter=6)
+    assert got.history.shape == (7, 3, 5, 6) and got.q.shape == (3, 5, 6)
+    np.testing.assert_array_equal(got.history, whole.history[:, :15].reshape(7, 3, 5, 6))
+    np.testing.assert_array_equal(got.iterations, whole.iterations[:15].reshape(3, 5))
 
 
 def test_accelerator_choices_are_keyed_on_the_backend(monkeypatch):

@@ -391,7 +391,7 @@ def test_jit_over_batch_and_time_without_recompilation():
     # the geometry is a pytree: it can be vmapped (e.g. a batch of robots)
     robots = jax.tree.map(lambda x: jnp.stack([x, x * 1.01]), ROBOT)
     per_robot = jax.vmap(
-        lambda r: inverse._ik_jit(r, Jet(p[0], None, None), "out", "analytic", False)
+        lambda r: inverse._ik_jit.jitted(r, Jet(p[0], None, None), "out", "analytic", False)
     )
     assert per_robot(robots).q.p.shape == (2, 6, 3)
 

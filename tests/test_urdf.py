@@ -232,10 +232,11 @@ def test_mimic_limits_carry_over_and_continuous_joints_wrap():
     # -0.2 <= -0.5 tilt + 0.1 <= 0.3  <=>  -0.4 <= tilt <= 0.6, within tilt's own [-1, 1.2]
     np.testing.assert_allclose(chain.lower[2], -0.4)
     np.testing.assert_allclose(chain.upper[2], 0.6)
-    q = np.array([[3.0 + 2 * np.pi, 0.1, 0.2]])
+    # One target, repeated to the work-queue test's batch of 100 (one compilation for both).
+    q = np.repeat([[3.0 + 2 * np.pi, 0.1, 0.2]], 100, axis=0)
     res = jaxkin.ik(chain, jaxkin.fk(chain, q).x.p)
-    assert int(res.status[0]) == Status.OK
-    np.testing.assert_allclose(res.q.p[0, 0], 3.0, atol=1e-9)  # wrapped to [-pi, pi)
+    assert np.all(np.asarray(res.status) == Status.OK)
+    np.testing.assert_allclose(res.q.p[:, 0], 3.0, atol=1e-9)  # wrapped to [-pi, pi)
 
 
 @pytest.mark.parametrize(

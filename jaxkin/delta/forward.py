@@ -357,8 +357,9 @@ def _fk_chunked(
 
 
 # The Newton loop runs on one core per program: large batches are split across host threads.
-_fk_jit = compiled(
-    _fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"), ("theta", "guess")
+_fk_jit = _batching.PaddedJit(
+    compiled(_fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"), ("theta", "guess")),
+    {"theta": 1, "guess": 1},
 )
 _fk_closed_form_jit = compiled(_fk_closed_form_impl)
 _branch_jit = compiled(_branch_impl)
@@ -421,8 +422,9 @@ def fk(
     batch = theta.shape[:-1]
     outside = _batching.zero_rates_outside(rates, batch)
     result = _fk_jit(
-        robot, theta, guess, float(tol), max_iter, method, rates, not outside, batch=batch
-    )
+        robot, theta, guess, float(tol), max_iter, method, rates, not outside,
+        batch=batch, pad=_batching.shared_geometry(robot),
+    )  # fmt: skip
     return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result
 
 

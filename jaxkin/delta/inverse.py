@@ -26,7 +26,7 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _batching, _validate
 from .._numerics import safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..result import IKResult
@@ -159,7 +159,7 @@ def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKR
     return IKResult(theta_jet, status, margin)
 
 
-_ik_jit = compiled(_ik_impl, ("branch", "method", "rates"))
+_ik_jit = _batching.PaddedJit(compiled(_ik_impl, ("branch", "method", "rates")), {"p": 1})
 
 
 def ik(
@@ -185,9 +185,11 @@ def ik(
     robot = check_robot(robot)
     branch = _validate.choice(BRANCHES[0] if branch is None else branch, "branch", BRANCHES)
     method = _validate.choice(method, "method", METHODS)
+    pad = _batching.shared_geometry(robot)
     if isinstance(p, Jet):
         p = _validate.as_jet(p, "p", coords=3)
-        return _ik_jit(robot, p.astype(float_dtype(p.p)), branch, method, True)
+        p = p.astype(float_dtype(p.p))
+        return _ik_jit(robot, p, branch, method, True, batch=p.shape[:-1], pad=pad)
     # Positions only: no rate arrays are built or passed (the result has zero rates).
     p = as_coords(p, "p")
-    return _ik_jit(robot, Jet(p, None, None), branch, method, False)
+    return _ik_jit(robot, Jet(p, None, None), branch, method, False, batch=p.shape[:-1], pad=pad)

@@ -27,7 +27,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _batching, _validate
 from .._numerics import safe_sqrt, singular_rtol
 from ..result import SolverResult
 from ..robot import Robot
@@ -339,7 +339,7 @@ def _ik_impl(robot: Arm, target: Array) -> ArmIKResult:
     return ArmIKResult(q, valid, status, robot.BRANCHES)
 
 
-_ik_jit = jax.jit(_ik_impl)
+_ik_jit = _batching.PaddedJit(jax.jit(_ik_impl), {})
 
 
 def check_robot(robot: Any, kinds: tuple[type, ...]) -> None:
@@ -365,7 +365,8 @@ def ik_arm(robot: Arm, target: ArrayLike) -> ArmIKResult:
             f"target: {type(robot).__name__} expects shape (..., {', '.join(map(str, shape))}), "
             f"got {tuple(target.shape)}"
         )
-    return _ik_jit(robot, target)
+    padding = _batching.shared_geometry(robot) and {"target": n}
+    return _ik_jit(robot, target, batch=target.shape[:-n], pad=padding)
 
 
 def dh(dtype, a: list, alpha: list, d: list, theta: list, joint_types: str) -> DHTable:

@@ -36,7 +36,7 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _batching, _validate
 from .._numerics import isotropy, safe_norm
 from ..jet import Jet, lift
 from ..result import FKResult, IKResult, forward_result
@@ -181,7 +181,7 @@ def _ik_jet_core(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult
     return IKResult(q, status, _margin(robot, q.p, target.p, status))
 
 
-_ik_jet_jit = jax.jit(_ik_jet_core, static_argnames="rates")
+_ik_jet_jit = _batching.PaddedJit(jax.jit(_ik_jet_core, static_argnames="rates"), {})
 
 
 def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IKResult:
@@ -212,14 +212,15 @@ def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IK
             f"got {target.shape}"
         )
     index = jnp.asarray(robot.branches.index(branch), jnp.int32)
-    return _ik_jet_jit(robot, target, index, rates)
+    padding = _batching.shared_geometry(robot) and {"target": len(shape)}
+    return _ik_jet_jit(robot, target, index, rates, batch=target.shape[: -len(shape)], pad=padding)
 
 
 def _fk_core(robot: Arm, q: Jet, rates: bool) -> FKResult:
     return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.TARGET_SHAPE))
 
 
-_fk_jit = jax.jit(_fk_core, static_argnames="rates")
+_fk_jit = _batching.PaddedJit(jax.jit(_fk_core, static_argnames="rates"), {"q": 1})
 
 
 def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
@@ -242,4 +243,4 @@ def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
     check_robot(robot, ARMS)
     rates = isinstance(q, Jet)
     q = _validate.as_jet(q, "q", coords=robot.N_JOINTS)
-    return _fk_jit(robot, q, rates)
+    return _fk_jit(robot, q, rates, batch=q.shape[:-1], pad=_batching.shared_geometry(robot))

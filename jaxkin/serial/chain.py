@@ -339,8 +339,9 @@ def _fk_core(chain: JointChain, q: Jet | Array, rates: bool, zero_rates: bool = 
 
 
 # Large batches split across host threads: FK is cheap per element, so the parts are large.
-_fk_jit = _batching.PartsJit(
-    _fk_core, static_argnames=("rates", "zero_rates"), batched_argnames=("q",)
+_fk_jit = _batching.PaddedJit(
+    _batching.PartsJit(_fk_core, static_argnames=("rates", "zero_rates"), batched_argnames=("q",)),
+    {"q": 1},
 )
 
 

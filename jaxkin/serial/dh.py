@@ -29,7 +29,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _batching, _validate
 from .._geometry import REAL, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
@@ -217,7 +217,8 @@ def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
     return frames[-1]
 
 
-_fk_dh_jit = jax.jit(_fk_dh_impl, static_argnames=("all_frames",))
+# The table has no batch axes: only the joints are padded.
+_fk_dh_jit = _batching.PaddedJit(jax.jit(_fk_dh_impl, static_argnames=("all_frames",)), {"q": 1})
 
 
 def check_q(q: ArrayLike, n: int, dtype) -> Array:
@@ -256,4 +257,4 @@ def fk_dh(table: DHTable, q: ArrayLike, all_frames: bool = False) -> Array:
         raise ValueError(f"table: expected a DHTable, got {type(table).__name__}")
     q = check_q(q, table.n_joints, table.dtype)
     table = _validate.cast_leaves(table, q.dtype)
-    return _fk_dh_jit(table, q, bool(all_frames))
+    return _fk_dh_jit(table, q, bool(all_frames), batch=q.shape[:-1])

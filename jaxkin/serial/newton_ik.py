@@ -267,7 +267,11 @@ def _limited(dq: Array, revolute: Array, max_step: Array) -> Array:
     return dq * jnp.where(too_long, max_step / jnp.where(too_long, largest, 1.0), 1.0)
 
 
-_ik_jit = jax.jit(_ik_impl, static_argnames=("max_iter", "frame"))
+_ik_jit = _batching.PaddedJit(
+    jax.jit(_ik_impl, static_argnames=("max_iter", "frame")),
+    {"target": 2, "q0": 1},
+    axes={"history": 1},
+)
 
 
 def _positive(x: ArrayLike, name: str, allow_zero: bool = False) -> None:
@@ -331,7 +335,7 @@ def ik_newton(
             f"q0: expected shape (..., {n}) (last axis = the chain's {n} joints), "
             f"got {tuple(q0.shape)}"
         )
-    _validate.batch_shape({"target": target.shape[:-2], "q0": q0.shape[:-1]})
+    batch = _validate.batch_shape({"target": target.shape[:-2], "q0": q0.shape[:-1]})
     _positive(eps_omega, "eps_omega")
     _positive(eps_v, "eps_v")
     _positive(damping, "damping", allow_zero=True)
@@ -373,6 +377,7 @@ def ik_newton(
         upper,
         int(max_iter),
         frame,
+        batch=batch,
     )
 
 

@@ -290,10 +290,12 @@ def _jacobian_impl(chain: PoEChain, q: Array, which: str) -> Array:
     return _fk_and_jacobian(chain, q, which)[2]
 
 
-_chain_fk_jit = jax.jit(_chain_fk_impl)
+# A chain has no batch axes: only the joints are padded.
+_chain_fk_jit = _batching.PaddedJit(jax.jit(_chain_fk_impl), {"q": 1})
 # Large batches split across host threads (memory-bound: 36-42 outputs per element).
-_jacobian_jit = _batching.PartsJit(
-    _jacobian_impl, static_argnames=("which",), batched_argnames=("q",)
+_jacobian_jit = _batching.PaddedJit(
+    _batching.PartsJit(_jacobian_impl, static_argnames=("which",), batched_argnames=("q",)),
+    {"q": 1},
 )
 
 
@@ -383,7 +385,7 @@ def chain_fk(chain: PoEChain | _dh.DHTable, q: ArrayLike) -> Array:
     if isinstance(chain, _dh.DHTable):
         return _dh.fk_dh(chain, q)
     chain, q = _prepare(chain, q)
-    return _chain_fk_jit(chain, q)
+    return _chain_fk_jit(chain, q, batch=q.shape[:-1])
 
 
 def fk_poe(screws: ArrayLike, home: ArrayLike, q: ArrayLike, frame: str = "space") -> Array:
@@ -428,7 +430,7 @@ def _fk_chain_core(chain: PoEChain | _dh.DHTable, q: Jet, rates: bool) -> FKResu
     return forward_result(pose, q, rates, 2)
 
 
-_fk_chain_jit = jax.jit(_fk_chain_core, static_argnames="rates")
+_fk_chain_jit = _batching.PaddedJit(jax.jit(_fk_chain_core, static_argnames="rates"), {"q": 1})
 
 
 def fk_chain(chain: PoEChain | _dh.DHTable, q: Jet | ArrayLike) -> FKResult:
@@ -453,4 +455,5 @@ def fk_chain(chain: PoEChain | _dh.DHTable, q: Jet | ArrayLike) -> FKResult:
     rates = isinstance(q, Jet)
     q = _validate.as_jet(q, "q", coords=chain.n_joints)
     dtype = jnp.result_type(q.dtype, chain.dtype)
-    return _fk_chain_jit(_validate.cast_leaves(chain, dtype), q.astype(dtype), rates)
+    chain, q = _validate.cast_leaves(chain, dtype), q.astype(dtype)
+    return _fk_chain_jit(chain, q, rates, batch=q.shape[:-1])
