@@ -48,6 +48,7 @@ SLOW = (
     "tests/test_docs.py::test_block_runs[docs/urdf.md-1]",
     "tests/test_docs.py::test_block_runs[docs/cli.md-1]",
     "tests/test_robot.py::test_rates_round_trip[stanford]",
+    "tests/test_urdf.py::test_host_thread_parts_give_the_results_of_one_thread",
 )
 
 
