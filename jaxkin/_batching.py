@@ -65,8 +65,8 @@ SHARED_ZEROS_MIN = 1 << 16
 # bounds (a few tens of MB of intermediates per call in float64).
 HOST_CHUNK = 1 << 16
 SWEEP_CHUNK = 1 << 18
-# Small batches are padded to a power of two, at least PAD_MIN, up to PAD_MAX elements: the
-# padded elements cost microseconds there, a compilation a fraction of a second.
+# Small batches are padded to a power of two, at least PAD_MIN, up to PAD_MAX elements: there
+# the padding costs about 0.1 ms per call, a compilation a fraction of a second or more.
 PAD_MIN = 64
 PAD_MAX = 1 << 12
 # The planner pads its candidates while the padded call holds at most this many samples
