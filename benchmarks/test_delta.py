@@ -51,7 +51,7 @@ def data(n: int) -> tuple[np.ndarray, np.ndarray]:
 def test_ik_jaxkin(measure, n):
     p, theta = data(n)
     p_dev = jnp.asarray(p)
-    result = measure(lambda: delta.ik(ROBOT, p_dev).theta.p, n, kernel="delta.ik", dtype="float64")
+    result = measure(lambda: delta.ik(ROBOT, p_dev).q.p, n, kernel="delta.ik", dtype="float64")
     assert np.abs(np.asarray(result) - theta).max() < 1e-9
 
 
@@ -69,7 +69,7 @@ def test_fk_cold_jaxkin(measure, n):
     fk = delta.fk(ROBOT, theta_dev)
     iterations = np.asarray(fk.iterations)
     result = measure(
-        lambda: delta.fk(ROBOT, theta_dev).p.p,
+        lambda: delta.fk(ROBOT, theta_dev).x.p,
         n,
         kernel="delta.fk (default guess)",
         dtype="float64",
@@ -87,7 +87,7 @@ def test_fk_cold_jaxkin_one_thread(measure, n):
     _batching.set_num_threads(1)
     try:
         result = measure(
-            lambda: delta.fk(ROBOT, theta_dev).p.p,
+            lambda: delta.fk(ROBOT, theta_dev).x.p,
             n,
             kernel="delta.fk (default guess, one host thread)",
             dtype="float64",
@@ -106,7 +106,7 @@ def test_fk_warm_jaxkin(measure, n):
     iterations = np.asarray(fk.iterations)
     assert iterations.max() <= 3
     result = measure(
-        lambda: delta.fk(ROBOT, theta, guess=guess).p.p,
+        lambda: delta.fk(ROBOT, theta, guess=guess).x.p,
         n,
         kernel="delta.fk (warm start)",
         dtype="float64",
@@ -136,7 +136,7 @@ def test_fk_closed_form_jaxkin(measure, n):
     p, theta = data(n)
     theta_dev = jnp.asarray(theta)
     result = measure(
-        lambda: delta.fk_closed_form(ROBOT, theta_dev).p, n, kernel="delta.fk_closed_form"
+        lambda: delta.fk_closed_form(ROBOT, theta_dev).x, n, kernel="delta.fk_closed_form"
     )
     assert np.abs(np.asarray(result) - p).max() < 1e-9
 
@@ -165,11 +165,11 @@ def test_ratio_summary_1e5(benchmark):
         return n / min(times)
 
     rows = {
-        "ik jaxkin": best(lambda: delta.ik(ROBOT, p_dev).theta.p),
+        "ik jaxkin": best(lambda: delta.ik(ROBOT, p_dev).q.p),
         "ik numpy": best(lambda: ref.ik_numpy(p)),
-        "fk jaxkin": best(lambda: delta.fk(ROBOT, theta_dev).p.p),
+        "fk jaxkin": best(lambda: delta.fk(ROBOT, theta_dev).x.p),
         "fk numpy newton x8": best(lambda: ref.fk_newton_numpy(theta)),
-        "fk_closed_form jaxkin": best(lambda: delta.fk_closed_form(ROBOT, theta_dev).p),
+        "fk_closed_form jaxkin": best(lambda: delta.fk_closed_form(ROBOT, theta_dev).x),
         "fk_closed_form numpy": best(lambda: ref.fk_closed_form_numpy(theta)),
     }
     benchmark.extra_info.update({k: v for k, v in rows.items() if math.isfinite(v)})

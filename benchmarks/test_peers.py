@@ -201,7 +201,7 @@ def delta_poses():
 def test_delta_ik_jaxkin(benchmark, delta_poses):
     robot, p = delta.Delta.paper(), jnp.asarray(delta_poses)
     res, rate = _run(benchmark, lambda: delta.ik(robot, p), DELTA_SIZE, "Delta IK", "jaxkin")
-    theta = np.asarray(res.theta.p)
+    theta = np.asarray(res.q.p)
     err = np.where(np.asarray(res.status) == 0, tasks.delta_error(theta, delta_poses), np.inf)
     _record(benchmark, "Delta IK", "jaxkin.delta.ik", DELTA_SIZE, rate, err, jaxkin=True)
 
@@ -211,7 +211,7 @@ def test_delta_ik_visual_kinematics(benchmark, delta_poses):
     robot = tasks.visual_kinematics_delta()
     # agreement on a few poses first (frames mapped as in peers_tasks), outside the timer
     theta_vk, _ = tasks.visual_kinematics_ik(robot, delta_poses[:8])
-    theta_jk = np.asarray(delta.ik(delta.Delta.paper(), delta_poses[:8]).theta.p)
+    theta_jk = np.asarray(delta.ik(delta.Delta.paper(), delta_poses[:8]).q.p)
     np.testing.assert_allclose(theta_vk, theta_jk, rtol=0, atol=1e-9)
     (theta, reached), rate = _run(
         benchmark,
@@ -378,7 +378,7 @@ def test_fk_jaxkin_fk_dh(benchmark, fk_configs):
 def test_fk_jaxkin_arm_fk(benchmark, fk_configs):
     q, targets = fk_configs
     arm, qj = serial.Puma560(), jnp.asarray(q)
-    t, rate = _run(benchmark, lambda: serial.fk(arm, qj), FK_SIZE, "PUMA FK", "fk", rounds=10)
+    t, rate = _run(benchmark, lambda: serial.fk(arm, qj).x.p, FK_SIZE, "PUMA FK", "fk", rounds=10)
     _fk_record(benchmark, "jaxkin.serial.fk", rate, t, targets)
 
 
