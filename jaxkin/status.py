@@ -35,6 +35,7 @@ class Status(enum.IntEnum):
     NOT_CONVERGED = 6
     OUT_OF_LIMITS = 7
     INVALID_INPUT = 8
+    UNTIMEABLE = 9
 
 
 _DESCRIPTIONS = {
@@ -53,6 +54,10 @@ _DESCRIPTIONS = {
     Status.NOT_CONVERGED: "an iterative solver stopped before reaching its tolerance",
     Status.OUT_OF_LIMITS: "solved, but a joint limit is violated",
     Status.INVALID_INPUT: "NaN or inf in this element's input",
+    Status.UNTIMEABLE: (
+        "the path cannot be timed within the velocity and acceleration limits (a joint that "
+        "must move has a zero limit, or the start or end speed cannot be reached)"
+    ),
 }
 
 
