@@ -70,6 +70,7 @@ __all__ = [
 ]
 
 SCHEMES = ("interpolation", "collocation")
+SPEED_BOUNDS = ("grid", "interval")
 
 
 @jax.tree_util.register_dataclass
@@ -315,8 +316,26 @@ class _Controllable:
     empty: Array
 
 
+def _peak_slope(q: Array, dq: Array, s: Array) -> Array:
+    """``max |dq/ds|`` of each joint over each interval of the Hermite path, ``(M - 1, n)``.
+
+    ``dq/ds`` is a quadratic in ``tau``: its extreme is at an end or at the vertex
+    ``tau* = -B / (2 A)`` when that lies inside.
+    """
+    h = (s[1:] - s[:-1])[:, None]
+    y0, y1, m0, m1 = q[:-1], q[1:], dq[:-1], dq[1:]
+    chord = 6.0 * (y0 - y1) / h
+    a = chord + 3.0 * m0 + 3.0 * m1
+    b = -chord - 4.0 * m0 - 2.0 * m1
+    vertex = jnp.clip(-b / (2.0 * jnp.where(a == 0, 1.0, a)), 0.0, 1.0)
+    vertex = jnp.where(a == 0, 0.0, vertex)
+    _, inside, _ = _hermite(y0, m0, y1, m1, h, vertex)
+    return jnp.maximum(jnp.maximum(jnp.abs(m0), jnp.abs(m1)), jnp.abs(inside))
+
+
 def _time_one(
     s: Array,
+    q: Array,
     dq: Array,
     ddq: Array,
     v_max: Array,
@@ -324,8 +343,10 @@ def _time_one(
     x_start: Array,
     x_end: Array,
     scheme: str,
+    speed_bound: str,
 ) -> tuple[Array, Array, Array, Array, Array]:
-    """TOPP-RA for one path: ``s (M,)``, ``dq, ddq (M, n)``, limits ``(n,)``, speeds squared.
+    """TOPP-RA for one path: ``s (M,)``, ``q, dq, ddq (M, n)``, limits ``(n,)``, speeds
+    squared.
 
     Returns ``(duration, status, t (M,), speed (M,), acceleration (M - 1,))``.
     """
@@ -335,12 +356,14 @@ def _time_one(
     big = float(jnp.finfo(dtype).max) ** 0.25
     finite = (
         jnp.all(jnp.isfinite(s))
+        & jnp.all(jnp.isfinite(q))
         & jnp.all(jnp.isfinite(dq))
         & jnp.all(jnp.isfinite(ddq))
         & ~jnp.any(jnp.isnan(v_max))
         & ~jnp.any(jnp.isnan(a_max))
     )
     s = jnp.where(finite, s, jnp.arange(s.shape[0], dtype=dtype))
+    q = jnp.where(finite, q, 0.0)
     dq = jnp.where(finite, dq, 0.0)
     ddq = jnp.where(finite, ddq, 0.0)
     v_max = jnp.minimum(jnp.where(finite, v_max, 1.0), big)
@@ -348,7 +371,13 @@ def _time_one(
     delta = jnp.diff(s)  # (M-1,)
 
     # Velocity bound per grid point: x <= (v_max / |q'|)^2; joints that do not move are free.
-    speed_sq = dq * dq
+    # With speed_bound="interval", |q'| is the peak over the adjacent intervals: x is linear
+    # in s on an interval, so the speed limits then hold all along it.
+    slope = dq
+    if speed_bound == "interval":
+        peak = _peak_slope(q, dq, s)
+        slope = jnp.concatenate([peak[:1], jnp.maximum(peak[:-1], peak[1:]), peak[-1:]])
+    speed_sq = slope * slope
     moving = speed_sq > 0
     ratio = jnp.where(moving, v_max * v_max / jnp.where(moving, speed_sq, 1.0), big)
     x_max = jnp.minimum(jnp.min(ratio, axis=-1), big)  # (M,)
@@ -411,9 +440,15 @@ def _time_one(
     return t[-1], status, t, speed, acceleration
 
 
-@functools.partial(jax.jit, static_argnames=("scheme",))
+@functools.partial(jax.jit, static_argnames=("scheme", "speed_bound"))
 def _retime(
-    path: JointPath, v_max: Array, a_max: Array, x_start: Array, x_end: Array, scheme: str
+    path: JointPath,
+    v_max: Array,
+    a_max: Array,
+    x_start: Array,
+    x_end: Array,
+    scheme: str,
+    speed_bound: str,
 ) -> Timing:
     batch = path.batch_shape
     flat = int(np.prod(batch, dtype=int))
@@ -422,9 +457,10 @@ def _retime(
     def rows(x: Array, tail: tuple[int, ...]) -> Array:
         return jnp.broadcast_to(x, (*batch, *tail)).reshape(flat, *tail)
 
-    kernel = jax.vmap(functools.partial(_time_one, scheme=scheme))
+    kernel = jax.vmap(functools.partial(_time_one, scheme=scheme, speed_bound=speed_bound))
     duration, status, t, speed, acceleration = kernel(
         rows(path.s, (m,)),
+        rows(path.q, (m, n)),
         rows(path.dq, (m, n)),
         rows(path.ddq, (m, n)),
         rows(v_max, (n,)),
@@ -469,6 +505,7 @@ def retime(
     start_speed: ArrayLike = 0.0,
     end_speed: ArrayLike = 0.0,
     scheme: str = "interpolation",
+    speed_bound: str = "grid",
 ) -> Timing:
     """The minimum-duration timing of every path of a batch under joint limits (TOPP-RA).
 
@@ -484,6 +521,10 @@ def retime(
             scalars or shape ``(...)``.
         scheme: ``"interpolation"`` (acceleration limits at both ends of every interval,
             toppra's default) or ``"collocation"`` (at its start only; faster).
+        speed_bound: ``"grid"`` (speed limits at the grid points, as toppra) or
+            ``"interval"`` (with each joint's peak ``|dq/ds|`` over the intervals next to a
+            grid point: the sampled speeds then stay within the limits everywhere, for a
+            slightly longer duration).
 
     Returns:
         ``Timing``: durations, statuses, grid times, path speeds and accelerations.
@@ -498,6 +539,7 @@ def retime(
             f"waypoints), got {type(path).__name__}"
         )
     _validate.choice(scheme, "scheme", SCHEMES)
+    _validate.choice(speed_bound, "speed_bound", SPEED_BOUNDS)
     q = jnp.asarray(path.q)
     if q.ndim < 2 or q.shape[-2] < 2:
         raise ValueError(f"path.q: expected shape (..., M, n) with M >= 2, got {q.shape}")
@@ -536,7 +578,10 @@ def retime(
         jnp.broadcast_to(jnp.asarray(path.dq, dtype), (*batch, m, n)),
         jnp.broadcast_to(jnp.asarray(path.ddq, dtype), (*batch, m, n)),
     )
-    return _retime(full, v, a, x_start, x_end, scheme)
+    # Broadcast here, so that shared and per-candidate limits use one compiled program.
+    v, a = (jnp.broadcast_to(x, (*batch, n)) for x in (v, a))
+    x_start, x_end = (jnp.broadcast_to(x, batch) for x in (x_start, x_end))
+    return _retime(full, v, a, x_start, x_end, scheme, speed_bound)
 
 
 # --------------------------------------------------------------------------------------------
