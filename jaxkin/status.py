@@ -3,6 +3,8 @@
 Failure is data: a solver never raises inside ``jit``; each element of a batch carries one of
 these codes (stored as ``int8``) beside finite placeholder values. When several conditions hold,
 the most basic one wins: ``INVALID_INPUT`` before ``UNREACHABLE`` before the singular cases.
+``UNTIMEABLE`` is the retiming's (``jaxkin.timing``): no timing within the joints' speed and
+acceleration limits follows the path.
 """
 
 from __future__ import annotations
