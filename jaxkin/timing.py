@@ -3,19 +3,19 @@
 Given a geometric joint path ``q(s)`` (``s`` the path parameter, ``q'`` and ``q''`` its
 derivatives with respect to ``s``), find the fastest timing ``s(t)`` that keeps every joint
 within ``|q_dot_j| <= v_max_j`` and ``|q_ddot_j| <= a_max_j``. With ``x = s_dot^2`` and
-``u = s_ddot``, the joint rates are linear in ``(u, x)`` [Pham & Pham 2018, eq. 3]::
+``u = s_ddot``, the joint rates are linear in ``(u, x)`` [Pham & Pham 2018]::
 
     q_dot  = q'(s) s_dot                 ->  x <= min_j (v_max_j / |q'_j(s)|)^2
     q_ddot = q'(s) u + q''(s) x          ->  -a_max_j <= q'_j u + q''_j x <= a_max_j
 
 On a grid ``s_0 < ... < s_M-1`` with constant ``u_i`` on each interval, ``x_{i+1} = x_i +
-2 (s_{i+1} - s_i) u_i``. TOPP-RA [Pham & Pham 2018, Alg. 1] runs two passes:
+2 (s_{i+1} - s_i) u_i``. TOPP-RA [Pham & Pham 2018] runs two passes:
 
 1. **backward**: the controllable sets ``K_i = [lo_i, hi_i]`` of path speeds squared from which
-   the end speed can be reached, from ``K_M-1 = {x_end}`` down to ``K_0`` (eq. 13); each step
+   the end speed can be reached, from ``K_M-1 = {x_end}`` down to ``K_0``; each step
    is a two-variable LP in ``(u, x)`` (maximise and minimise ``x``);
 2. **forward**: from ``x_0 = x_start`` take the largest ``u_i`` that keeps ``x_{i+1}`` in
-   ``K_{i+1}`` (eq. 17, greedy).
+   ``K_{i+1}`` (greedy).
 
 Every constraint of a stage is a *slab* ``lo <= p u + r x <= hi`` with ``p >= 0`` (a joint's
 acceleration limit; the next controllable set is the slab ``K_lo <= 2 delta u + x <= K_hi``).
@@ -28,16 +28,20 @@ the pairs with the controllable-set slab run inside the ``lax.scan``. Candidates
 with ``vmap``, so N paths are timed in one compiled call.
 
 The acceleration limits hold at both ends of each interval with that interval's ``u``
-(``scheme="interpolation"``, toppra's default; [Pham & Pham 2018, sec. VI-A]) or at its start
+(``scheme="interpolation"``, toppra's default [Pham & Pham 2018]) or at its start
 only (``"collocation"``). The retimed trajectory is ``s(t)`` with constant ``u_i`` per interval
 (interval durations ``2 delta_i / (sqrt(x_i) + sqrt(x_{i+1}))``), and between grid points the
 path is the cubic Hermite interpolant of ``q`` and ``q'`` at the interval's ends (exact for a
-path built by ``path_from_waypoints``). Limits are enforced on the grid: between grid points
-they hold up to the grid's resolution (``docs/timing.md`` gives measured excesses).
+path built by ``path_from_waypoints``). Limits are enforced on the grid; between grid points
+accelerations, and speeds with ``speed_bound="grid"``, hold up to the grid's resolution
+(``docs/timing.md`` gives measured excesses), while ``speed_bound="interval"`` bounds each
+grid point's speed by the peak ``|q'_j|`` of the intervals beside it, so that the speeds hold
+everywhere.
 
 Statuses per candidate: ``OK``; ``INVALID_INPUT`` (NaN or inf in the path or the limits);
-``UNTIMEABLE`` (no timing within the limits: a joint that must move has a zero velocity or
-acceleration limit, the start or end speed is not reachable, or the path stops inside).
+``UNTIMEABLE`` (no timing within the limits on this grid: a joint that must move has a zero
+velocity or acceleration limit, the start or end speed is not reachable, or the speed falls to
+zero at two neighbouring grid points, a grid too coarse for a sharp bend).
 Failed candidates get finite placeholders: zero times, speeds and duration.
 """
 
