@@ -206,6 +206,20 @@ def test_float32(solved):
     np.testing.assert_allclose(single.duration, result.duration, rtol=2e-5)
 
 
+def test_under_a_users_jit():
+    # Traced waypoints and limits: shape checks only, then the same numbers as eagerly. The
+    # straight line of length 2 over three waypoints (dq/ds = 1) with v = 1, a = 4 is a
+    # trapezoid: T = L / v + v / a.
+    way = np.array([[[0.0], [1.0], [2.0]]])
+
+    @jax.jit
+    def duration(way, v_max, a_max):
+        path = timing.path_from_waypoints(way, subdivisions=8)
+        return timing.retime(path, v_max, a_max).duration
+
+    np.testing.assert_allclose(duration(way, jnp.ones(1), jnp.full(1, 4.0)), [2.25], rtol=1e-12)
+
+
 def test_best(solved):
     *_, result = solved
     index, duration = timing.best(result, 3)
