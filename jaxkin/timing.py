@@ -678,7 +678,10 @@ def sample(
     """
     if not isinstance(timing, Timing):
         raise ValueError(f"timing must be a Timing from retime, got {type(timing).__name__}")
-    if not (isinstance(period, int | float) and math.isfinite(period) and period > 0):
+    real = isinstance(period, int | float | np.integer | np.floating) and not isinstance(
+        period, bool
+    )
+    if not (real and math.isfinite(period) and period > 0):
         raise ValueError(f"period must be a positive number, got {period!r}")
     if num is None:
         durations = np.asarray(timing.duration)

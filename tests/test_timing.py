@@ -257,6 +257,12 @@ def test_bad_input_names_the_argument(solved):
         timing.retime(path, v_max[:4], a_max)
     with pytest.raises(ValueError, match="period"):
         timing.sample(path, result, 0.0)
+    backwards = timing.JointPath(path.s[..., ::-1], path.q, path.dq, path.ddq)
+    with pytest.raises(ValueError, match="path.s must be strictly increasing"):
+        timing.retime(backwards, v_max, a_max)
+    short = timing.JointPath(path.s, path.q, path.dq[..., :2], path.ddq)
+    with pytest.raises(ValueError, match="path.dq"):
+        timing.retime(short, v_max, a_max)
 
 
 # --------------------------------------------------------------------------------------------
