@@ -220,6 +220,16 @@ def test_under_a_users_jit():
     np.testing.assert_allclose(duration(way, jnp.ones(1), jnp.full(1, 4.0)), [2.25], rtol=1e-12)
 
 
+def test_a_stop_between_neighbouring_grid_points_is_untimeable():
+    # One grid interval from rest to rest: the speed is zero at both of its grid points, and
+    # no time would cover the interval.
+    line = timing.JointPath(
+        jnp.array([0.0, 1.0]), jnp.array([[0.0], [1.0]]), jnp.ones((2, 1)), jnp.zeros((2, 1))
+    )
+    result = timing.retime(line, [1.0], [1.0])
+    assert result.status == Status.UNTIMEABLE and result.duration == 0.0
+
+
 def test_best(solved):
     *_, result = solved
     index, duration = timing.best(result, 3)
