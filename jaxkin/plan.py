@@ -56,6 +56,7 @@ __all__ = [
     "Costs",
     "Evaluation",
     "Limits",
+    "STEP_RTOL",
     "best",
     "continuous_signs",
     "evaluate",
@@ -66,6 +67,8 @@ __all__ = [
     "pose_from_quaternions",
     "quaternions_from_pose",
     "trajectory_costs",
+    "unexplained_steps",
+    "unwrapped",
 ]
 
 
@@ -174,8 +177,9 @@ class Evaluation(SolverResult):
 
 
 def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
-    """``limits`` (None: none) checked against the robot's joints and tightened by its own
-    position limits."""
+    """The limits the planner applies: the robot's own (``robot.joint_limits()``: position,
+    velocity, acceleration) intersected with the user's ``limits`` (None: none), so the tighter
+    bound of each kind wins; ``limits`` is checked against the robot's joints."""
     n = robot.n_joints
     if limits is None:
         limits = Limits.create(n)
@@ -184,7 +188,59 @@ def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
             f"limits must be a Limits for {n} joints (Limits.create({n}, ...)), got {limits!r}"
         )
     own = robot.joint_limits()
-    return limits.tightened(own.lower, own.upper)
+    return dataclasses.replace(
+        limits.tightened(own.lower, own.upper),
+        v_max=jnp.minimum(limits.v_max, own.velocity),
+        a_max=jnp.minimum(limits.a_max, own.acceleration),
+    )
+
+
+# ------------------------------------------------------------------ continuity
+# A step is unexplained when it misses the rates' prediction by half their reach (below).
+STEP_RTOL = 0.5
+
+
+def unwrapped(q: Array, revolute: Any) -> Array:
+    """Joint positions ``(..., T, n)`` made continuous along ``T``: every sample of a revolute
+    joint (``revolute``: ``(n,)`` bools) moved by a multiple of ``2 pi`` to the representative
+    nearest the previous (unwrapped) sample; the first sample keeps its own. That is
+    ``q[t] - 2 pi K[t]`` with ``K[t] = sum_{s <= t} round((q[s] - q[s-1]) / (2 pi))``: only
+    whole turns are subtracted, so the values are exact and the rates unchanged."""
+    turn = 2.0 * math.pi
+    turns = jnp.round((q[..., 1:, :] - q[..., :-1, :]) / turn)
+    turns = jnp.where(jnp.asarray(revolute) & jnp.isfinite(turns), turns, 0.0)
+    k = jnp.cumsum(turns, axis=-2)
+    return q - turn * jnp.concatenate([jnp.zeros_like(k[..., :1, :]), k], axis=-2)
+
+
+def unexplained_steps(q: Jet, dt: Any, unit: Any) -> Array:
+    """True where a step ``q[t+1] - q[t]`` of joints ``(..., T, n)`` is not explained by their
+    rates, shape ``(..., T - 1)``.
+
+    The rates at both ends predict the step by the corrected trapezoid rule (exact for a
+    quartic motion)::
+
+        predicted = dt (v[t] + v[t+1]) / 2 + dt^2 (a[t] - a[t+1]) / 12
+
+    and the step is unexplained when, for some joint,
+    ``|step - predicted| > STEP_RTOL * reach + sqrt(eps) * (|q[t]| + |q[t+1]| + unit)`` with
+    ``reach = dt (|v[t]| + |v[t+1]|) / 2 + dt^2 (|a[t]| + |a[t+1]|) / 12`` (how far the rates
+    can carry the joint in one step), ``eps`` the dtype's, and ``unit`` ``(n,)`` the size of a
+    joint (1 rad, or the robot's length) so that an iterative solution's round-off is no jump.
+    A smooth motion misses the prediction by ``O(dt^5)`` (a fraction ``(w dt)^4 / 720`` of the
+    reach for a sinusoid of frequency ``w``), far below ``STEP_RTOL``.
+    """
+    p, v, a = q.p, q.v, q.a
+    step = p[..., 1:, :] - p[..., :-1, :]
+    predicted = (
+        dt * (v[..., 1:, :] + v[..., :-1, :]) / 2 + dt * dt * (a[..., :-1, :] - a[..., 1:, :]) / 12
+    )
+    reach = dt * (jnp.abs(v[..., 1:, :]) + jnp.abs(v[..., :-1, :])) / 2
+    reach = reach + dt * dt * (jnp.abs(a[..., 1:, :]) + jnp.abs(a[..., :-1, :])) / 12
+    floor = math.sqrt(float(jnp.finfo(p.dtype).eps))
+    floor = floor * (jnp.abs(p[..., 1:, :]) + jnp.abs(p[..., :-1, :]) + unit)
+    bad = jnp.abs(step - predicted) > STEP_RTOL * reach + floor
+    return jnp.any(bad, axis=-1)
 
 
 # ------------------------------------------------------------------ costs (reused by optimize)
@@ -239,10 +295,20 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) ->
     path = path.astype(robot.work_dtype(path.dtype))
     res = robot.ik_path_kernel(path, branch_index, robot.IKOptions())
     q, status, margin = res.q, res.status, res.margin
+    revolute = np.array([kind == "R" for kind in robot.joint_types])
+    q = Jet(unwrapped(q.p, revolute), q.v, q.a)
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
+    solved = status == Status.OK
+    # A path at rest (every target rate zero, e.g. plain positions) has no rates to explain
+    # its steps: it is only unwrapped.
+    moving = jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))
+    unit = jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(q.p.dtype)
+    jumped = unexplained_steps(q, dt, unit) & solved[..., :-1] & moving[:, None]
+    jumped = jnp.concatenate([jnp.zeros_like(jumped[..., :1]), jumped], axis=-1)
     violated = limit_excess(q, limits) > 0
+    status = jnp.where(solved & jumped, jnp.int8(Status.DISCONTINUOUS), status)
     status = jnp.where(
         (status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status
     ).astype(STATUS_DTYPE)

@@ -11,7 +11,7 @@ command line are written against this interface alone and never ask which robot 
   a path (the SCARA's assembly modes ``+1``/``-1``, the Delta's ``"out"``/``"in"``, an arm's
   branch names);
 * ``robot.joint_names`` (hence ``n_joints``), ``robot.joint_types`` (``"R"``/``"P"`` per joint)
-  and ``robot.joint_limits()``;
+  and ``robot.joint_limits()`` (position, velocity and acceleration bounds);
 * ``robot.reachable``: the statuses that count as reachable in a workspace sweep;
 * ``robot.length_scale()``: a characteristic length (the robot's size),
   ``robot.workspace_box()``: the default box and voxel edge of a sweep, and
@@ -116,15 +116,22 @@ POSE = Target("pose", (4, 4), ("x", "y", "z", "qw", "qx", "qy", "qz"), False)
 
 @geometry
 class JointLimits(Geometry):
-    """Closed joint ranges ``lower <= q <= upper``.
+    """A robot's own joint limits: closed ranges ``lower <= q <= upper`` and bounds on the
+    joint rates ``|q_dot| <= velocity``, ``|q_ddot| <= acceleration`` (what the planner applies
+    by default).
 
     Attributes:
         lower: lower bounds, shape ``(n,)`` (rad or length); ``-inf`` for none.
         upper: upper bounds, shape ``(n,)``; ``+inf`` for none.
+        velocity: speed bounds, shape ``(n,)`` or a scalar for every joint (rad/s or length/s,
+            ``>= 0``); ``+inf`` (the default) for none.
+        acceleration: acceleration bounds, likewise (rad/s^2 or length/s^2); default none.
     """
 
     lower: Array = number(BOUND, (-1,))
     upper: Array = number(BOUND, (-1,))
+    velocity: Array = number(BOUND, None, default=math.inf)
+    acceleration: Array = number(BOUND, None, default=math.inf)
 
     def _validate(self) -> None:
         super()._validate()
@@ -133,6 +140,18 @@ class JointLimits(Geometry):
             raise ValueError(
                 f"JointLimits.upper must have the shape of lower {lower.shape}, got {upper.shape}"
             )
+        for name in ("velocity", "acceleration"):
+            bound = np.asarray(getattr(self, name), dtype=float)
+            try:
+                bound = np.broadcast_to(bound, lower.shape)
+            except ValueError:
+                raise ValueError(
+                    f"JointLimits.{name} must be a scalar or of shape {lower.shape}, got "
+                    f"{bound.shape}"
+                ) from None
+            if np.any(bound < 0):
+                raise ValueError(f"JointLimits.{name} must be >= 0, got {bound}")
+            object.__setattr__(self, name, jnp.asarray(bound))
         bad = np.flatnonzero(lower > upper)
         if bad.size:
             raise ValueError(
@@ -330,7 +349,8 @@ class Robot(Geometry, metaclass=abc.ABCMeta):
         return len(self.joint_names)
 
     def joint_limits(self) -> JointLimits:
-        """The robot's own position limits (``-inf``/``+inf`` where a joint has none)."""
+        """The robot's own position, velocity and acceleration limits (``inf`` where a joint
+        has none); the planner applies them by default."""
         return JointLimits.unbounded(self.n_joints)
 
     def length_scale(self) -> Any:

@@ -4,7 +4,9 @@ Failure is data: a solver never raises inside ``jit``; each element of a batch c
 these codes (stored as ``int8``) beside finite placeholder values. When several conditions hold,
 the most basic one wins: ``INVALID_INPUT`` before ``UNREACHABLE`` before the singular cases.
 ``UNTIMEABLE`` is the retiming's (``jaxkin.timing``): no timing within the joints' speed and
-acceleration limits follows the path.
+acceleration limits follows the path. ``DISCONTINUOUS`` is the planner's (``jaxkin.plan``): the
+joints jump between this sample and the previous one by a step their rates do not explain (the
+inverse kinematics switched solution).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ class Status(enum.IntEnum):
     OUT_OF_LIMITS = 7
     INVALID_INPUT = 8
     UNTIMEABLE = 9
+    DISCONTINUOUS = 10
 
 
 _DESCRIPTIONS = {
@@ -59,6 +62,10 @@ _DESCRIPTIONS = {
     Status.UNTIMEABLE: (
         "the path cannot be timed within the velocity and acceleration limits (a joint that "
         "must move has a zero limit, or the start or end speed cannot be reached)"
+    ),
+    Status.DISCONTINUOUS: (
+        "solved, but the joints jump from the previous sample by a step their rates do not "
+        "explain (the solution switched): the path cannot be followed continuously"
     ),
 }
 

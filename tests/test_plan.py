@@ -10,13 +10,19 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any, ClassVar
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxkin
 from jaxkin import Jet, Status, delta, plan, scara, serial
+from jaxkin._geometry import LENGTH, geometry, number
+from jaxkin.jet import lift
+from jaxkin.result import FKResult, IKResult
+from jaxkin.robot import PLANAR_POINT, Robot
 from tests.helpers import tree_allfinite
 from tests.references import delta as delta_ref
 from tests.references import scara as scara_ref
@@ -115,7 +121,7 @@ def test_unreachable_and_singular_samples_fail_at_the_right_index():
     # inside; plus one starting below the inner reach 30.
     start = np.array([60.0, 60.0, 60.0, 20.0, 60.0])
     path, r = radial_paths(start, np.array([150.0, 130.0, 120.0, 60.0, 100.0]))
-    ev = plan.evaluate(ROBOT, path)
+    ev = plan.evaluate(ROBOT, path, dt=1 / (T_SCARA - 1))  # s in [0, 1]: the rates' time
     expected_unreachable = int(np.argmax(r[0] > 130.0))
     assert ev.first_failure[0] == expected_unreachable
     assert ev.status[0, expected_unreachable] in (Status.UNREACHABLE, Status.SINGULAR_EXTENDED)
@@ -141,7 +147,8 @@ def test_position_and_velocity_limits_are_enforced():
     assert ev.status[failing, expected[failing]] == Status.OUT_OF_LIMITS
     speed = np.abs(np.asarray(free.q.v[..., 1]))
     v_cap = float(speed.max() * 0.9)
-    ev_v = plan.evaluate(ROBOT, path, limits=plan.Limits.create(3, v_max=[np.inf, v_cap, np.inf]))
+    v_limits = plan.Limits.create(3, v_max=[np.inf, v_cap, np.inf])
+    ev_v = plan.evaluate(ROBOT, path, limits=v_limits, dt=dt)
     np.testing.assert_array_equal(ev_v.feasible, ~(speed > v_cap).any(1))
     assert np.all(ev_v.costs.limit_violation[~np.asarray(ev_v.feasible)] > 0)
 
@@ -158,6 +165,183 @@ def test_robot_own_joint_limits_apply():
     expected = np.where((theta1 > cap).any(1), np.argmax(theta1 > cap, axis=1), -1)
     np.testing.assert_array_equal(ev.first_failure, expected)
     assert not np.all(ev.feasible) and np.any(ev.feasible)
+
+
+# ---------------------------------------------------------------------------- continuity
+
+
+def test_unwrapped_equals_numpy_unwrap():
+    """Revolute joints come back as ``np.unwrap`` along the samples (the first kept); a
+    prismatic joint is left alone even where it steps by more than pi."""
+    rng = np.random.default_rng(3)
+    true = np.cumsum(rng.uniform(-3.0, 3.0, (4, 30, 3)), axis=1)  # steps below pi
+    raw = np.concatenate([wrap(true[..., :2]), true[..., 2:]], -1)
+    got = np.asarray(plan.unwrapped(raw, np.array([True, True, False])))
+    np.testing.assert_allclose(got[..., :2], np.unwrap(raw[..., :2], axis=1), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(got[..., 2], raw[..., 2])
+    np.testing.assert_allclose(got[..., :2] - got[:, :1, :2], true[..., :2] - true[:, :1, :2],
+                               rtol=0, atol=1e-12)  # fmt: skip
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_unexplained_steps_are_exactly_the_jumps(dtype):
+    """Smooth sinusoids with exact rates (steps of up to 0.75 rad) are continuous; a jump on
+    one joint's positions is caught at its step, and only there, when it exceeds the stated
+    tolerance (``STEP_RTOL`` of the rates' reach, computed here by hand) and not below it; a
+    joint at rest with round-off noise of 1e-3 sqrt(eps) is not a jump."""
+    dt, t = 0.05, np.arange(40)[:, None] * 0.05
+    amp, w = np.array([1.0, 0.3, 2.0]), np.array([3.0, 7.0, 7.5])
+    p = amp * np.sin(w * t + 0.4)
+    v, a = amp * w * np.cos(w * t + 0.4), -amp * w * w * np.sin(w * t + 0.4)
+
+    def steps(p, v=v, a=a):
+        q = Jet(*(np.asarray(x, dtype) for x in (p, v, a)))
+        return np.asarray(plan.unexplained_steps(q, dt, np.ones(3, dtype)))
+
+    assert not steps(p).any()
+    reach = (
+        dt * (abs(v[16, 1]) + abs(v[17, 1])) / 2 + dt * dt * (abs(a[16, 1]) + abs(a[17, 1])) / 12
+    )
+    for factor, caught in ((0.8, []), (1.2, [16])):
+        jumped = p.copy()
+        jumped[17:, 1] += factor * plan.STEP_RTOL * reach
+        np.testing.assert_array_equal(np.flatnonzero(steps(jumped)), caught)
+    still = np.concatenate([p[:, :2], 0.5 + 1e-3 * np.sqrt(np.finfo(dtype).eps)
+                            * np.sin(100 * t)], -1)  # fmt: skip
+    assert not steps(still, v * [1, 1, 0], a * [1, 1, 0]).any()
+
+
+def arcs_behind_the_base(n_samples=T_SCARA):
+    """``N_SCARA`` arcs of radii 70..110 mm through the -x axis (theta1 crosses pi), at a
+    constant angular speed, exact rates."""
+    dt = 0.05
+    t = np.arange(n_samples) * dt
+    r = np.linspace(70.0, 110.0, N_SCARA)[:, None, None]
+    w = 2.4 / t[-1]  # 2.4 rad centred on pi: theta1 crosses pi on either branch
+    angle = (np.pi - 1.2 + w * t)[None, :, None]
+    c, s_ = np.cos(angle), np.sin(angle)
+    z = np.full((N_SCARA, n_samples, 1), 60.0)
+    p = np.concatenate([r * c, r * s_, z], -1)
+    v = np.concatenate([-r * w * s_, r * w * c, 0 * z], -1)
+    a = np.concatenate([-r * w * w * c, -r * w * w * s_, 0 * z], -1)
+    return Jet.of(p, v, a), dt
+
+
+@pytest.mark.parametrize("branch", [1, -1])
+def test_joints_of_an_arc_behind_the_base_are_continuous(branch):
+    """theta1 wraps from pi to -pi in the reference IK; the planner's joints are its
+    ``np.unwrap`` (continuous), and the candidates are feasible."""
+    path, dt = arcs_behind_the_base()
+    raw = scara_reference(path, branch)[0]
+    assert np.abs(np.diff(raw[..., 0], axis=1)).max() > np.pi  # the wrap is there
+    ev = plan.evaluate(ROBOT, path, branch=branch, dt=dt)
+    np.testing.assert_allclose(ev.q.p, np.unwrap(raw, axis=1), rtol=0, atol=1e-12)
+    assert np.all(ev.status == Status.OK) and np.all(ev.feasible)
+    assert np.abs(np.diff(np.asarray(ev.q.p), axis=1)).max() < 0.1
+
+
+@geometry
+class ElbowSwitcher(Robot):
+    """A planar 2R arm (links ``l1``, ``0.6 l1``) whose IK takes the elbow down (``q2 < 0``)
+    where the target's ``x < 0.5 l1`` and up beyond: an IK that switches solution mid-path.
+    Positions, rates and the FK are exact on either side."""
+
+    l1: Any = number(LENGTH, default=1.0)
+
+    target: ClassVar = PLANAR_POINT
+    branches: ClassVar = ("switching",)
+
+    @property
+    def joint_names(self):
+        return ("q1", "q2")
+
+    @property
+    def joint_types(self):
+        return "RR"
+
+    def length_scale(self):
+        return 1.6 * self.l1
+
+    def ik_kernel(self, target, branch, options, rates):
+        l1, l2 = self.l1, 0.6 * self.l1
+
+        def solve(x):
+            c = (jnp.sum(x * x, -1) - l1 * l1 - l2 * l2) / (2 * l1 * l2)
+            elbow = jnp.where(x[..., 0] < 0.5 * l1, -1.0, 1.0)
+            q2 = jnp.arctan2(elbow * jnp.sqrt(1 - c * c), c)
+            q1 = jnp.arctan2(x[..., 1], x[..., 0])
+            q1 = q1 - jnp.arctan2(l2 * jnp.sin(q2), l1 + l2 * jnp.cos(q2))
+            return jnp.stack([q1, q2], -1)
+
+        q = lift(solve)(target)
+        ok = jnp.zeros(q.p.shape[:-1], jnp.int8)
+        return IKResult(q, ok, jnp.ones(q.p.shape[:-1], q.p.dtype))
+
+    def fk_kernel(self, q, options, rates):
+        l1, l2 = self.l1, 0.6 * self.l1
+        x = l1 * jnp.cos(q.p[..., 0]) + l2 * jnp.cos(q.p[..., 0] + q.p[..., 1])
+        y = l1 * jnp.sin(q.p[..., 0]) + l2 * jnp.sin(q.p[..., 0] + q.p[..., 1])
+        return FKResult(Jet.constant(jnp.stack([x, y], -1)), jnp.zeros(x.shape, jnp.int8))
+
+
+def test_a_solution_switch_mid_path_is_discontinuous():
+    """Straight lines at y = 0.8: the one crossing x = 0.5 switches elbow at its first sample
+    with x >= 0.5, which is DISCONTINUOUS (the candidate infeasible there); the one staying
+    left of it, and the same line given at rest (no rates to explain the steps), are not."""
+    dt, t = 0.1, np.linspace(0.0, 1.0, 13)[:, None]
+    starts, ends = np.array([[0.2, 0.8], [0.0, 0.8]]), np.array([[0.9, 0.8], [0.45, 0.8]])
+    points = starts[:, None] + t * (ends - starts)[:, None]
+    ev = plan.evaluate(ElbowSwitcher(), plan.path_from_samples(points, dt), dt=dt)
+    switch = int(np.argmax(points[0, :, 0] >= 0.5))
+    expected = np.full(points.shape[:2], Status.OK)
+    expected[0, switch] = Status.DISCONTINUOUS
+    np.testing.assert_array_equal(ev.status, expected)
+    np.testing.assert_array_equal(ev.feasible, [False, True])
+    np.testing.assert_array_equal(ev.first_failure, [switch, -1])
+    assert np.isinf(ev.costs.total[0]) and np.isfinite(ev.costs.total[1])
+    at_rest = plan.evaluate(ElbowSwitcher(), points, dt=dt)
+    assert np.all(at_rest.status == Status.OK) and np.all(at_rest.feasible)
+
+
+# -------------------------------------------------------------------- the robot's own limits
+
+
+def test_robot_own_velocity_limits_apply_and_intersect_with_the_users():
+    """A theta2 speed bound on the robot fails the same candidates as the same bound given
+    to the planner; user limits intersect with the robot's (the tighter bound wins)."""
+    path, dt = spiral_candidates()
+    free = plan.evaluate(ROBOT, path, dt=dt)
+    speed = np.abs(np.asarray(free.q.v[..., 1]))
+    v_cap = float(np.median(speed.max(1)))
+    expected = ~(speed > v_cap).any(1)
+    assert np.any(expected) and not np.all(expected)
+    own = jaxkin.JointLimits(np.full(3, -np.inf), np.full(3, np.inf), [np.inf, v_cap, np.inf])
+    limited = scara.Scara(150.0, 80.0, 50.0, limits=own)
+    ev = plan.evaluate(limited, path, dt=dt)
+    np.testing.assert_array_equal(ev.feasible, expected)
+    first = np.where(expected, -1, np.argmax(speed > v_cap, axis=1))
+    np.testing.assert_array_equal(ev.first_failure, first)
+    looser = plan.Limits.create(3, v_max=[np.inf, 2 * v_cap, 1e9])
+    np.testing.assert_array_equal(plan.evaluate(limited, path, looser, dt=dt).feasible, expected)
+    tighter = plan.Limits.create(3, v_max=[np.inf, 0.0, np.inf])
+    assert not np.any(plan.evaluate(limited, path, tighter, dt=dt).feasible)
+    limits = plan.robot_limits(limited, looser)
+    np.testing.assert_array_equal(limits.v_max, [np.inf, v_cap, 1e9])
+    np.testing.assert_array_equal(limits.a_max, np.inf)
+
+
+def test_a_chains_velocity_is_its_own_limit():
+    chain = serial.JointChain.create(
+        [[0, 0, 1, 0, 0, 0], [0, 0, 1, 0, -1, 0]], np.eye(4), velocity=[0.84, np.inf]
+    )
+    own = chain.joint_limits()
+    np.testing.assert_array_equal(own.velocity, [0.84, np.inf])
+    np.testing.assert_array_equal(own.acceleration, [np.inf, np.inf])
+    np.testing.assert_array_equal(plan.robot_limits(chain, None).v_max, [0.84, np.inf])
+    with pytest.raises(ValueError, match="JointLimits.velocity"):
+        jaxkin.JointLimits([0.0, 0.0], [1.0, 1.0], velocity=[-1.0, 1.0])
+    with pytest.raises(ValueError, match="JointLimits.acceleration"):
+        jaxkin.JointLimits([0.0, 0.0], [1.0, 1.0], acceleration=[1.0, 1.0, 1.0])
 
 
 def test_best_branch_picks_the_feasible_lowest_cost_branch():
@@ -322,8 +506,12 @@ def forward(name, q):
     return Jet.of(*(np.stack([c[k] for c in out], -1) for k in range(3)))
 
 
+JOINT_PATH_DT = 1 / 24  # the time between samples of ``joint_path``
+
+
 def joint_path(q0, dq, n_samples=25):
-    """One candidate's joint trajectory ``q0 + dq sin(s)``, ``s`` in [0, 1], exact rates."""
+    """One candidate's joint trajectory ``q0 + dq sin(s)``, ``s`` in [0, 1] the time, exact
+    rates."""
     s = np.linspace(0.0, 1.0, n_samples)[:, None]
     q0, dq = np.asarray(q0, float), np.asarray(dq, float)
     return Jet.of(q0 + dq * np.sin(s), dq * np.cos(s) + 0 * s, -dq * np.sin(s))[None]
@@ -350,20 +538,20 @@ JOINT_PATHS = {  # each on the default branch
 
 
 def robot_case(name):
-    """``(robot, path, expected)``: a path inside the workspace and the joints it comes from
-    on the default branch, found independently of the robot's IK (a Jet)."""
+    """``(robot, path, expected, dt)``: a path inside the workspace, the joints it comes from
+    on the default branch, found independently of the robot's IK (a Jet), and its time step."""
     robot = ROBOTS[name]
     if name == "scara":
-        path, _ = spiral_candidates()
-        return robot, path, Jet.of(*scara_reference(path, 1))
+        path, dt = spiral_candidates()
+        return robot, path, Jet.of(*scara_reference(path, 1)), dt
     if name == "delta":
         p = delta_circles()
         theta = delta_ref.ik_numpy(p.reshape(-1, 3)).reshape(p.shape)  # elbow out [Cardona]
-        return robot, Jet.of(p), Jet.of(theta)
+        return robot, Jet.of(p), Jet.of(theta), 1.0
     q = joint_path(*JOINT_PATHS[name])
     if name == "puma560":  # poses as Jets of 4x4 matrices from the arm's own FK
-        return robot, jaxkin.fk(robot, q).x, q
-    return robot, forward(name, q), q
+        return robot, jaxkin.fk(robot, q).x, q, JOINT_PATH_DT
+    return robot, forward(name, q), q, JOINT_PATH_DT
 
 
 def assert_maps_to(name, robot, q, path):
@@ -402,9 +590,9 @@ def test_every_robot_with_default_arguments(name):
     """``evaluate(robot, path)`` returns, on the default branch, the joints the path was made
     from (rates included, 1e-9 of their scale) and they reach the path; zero candidates give
     empty arrays of the right trailing shapes."""
-    robot, path, expected = robot_case(name)
+    robot, path, expected, dt = robot_case(name)
     n, t = path.shape[:2]
-    ev = plan.evaluate(robot, path)
+    ev = plan.evaluate(robot, path, dt=dt)
     assert ev.q.shape == (n, t, robot.n_joints) and ev.status.shape == (n, t)
     assert np.all(ev.status == Status.OK) and np.all(ev.feasible)
     assert np.all(ev.first_failure == -1) and np.all(ev.branch == 0)
@@ -418,7 +606,7 @@ def test_every_robot_with_default_arguments(name):
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-9 * scale)
     assert_maps_to(name, robot, ev.q, path)
 
-    empty = plan.evaluate(robot, path[:0])
+    empty = plan.evaluate(robot, path[:0], dt=dt)
     assert empty.q.shape == (0, t, robot.n_joints) and empty.status.shape == (0, t)
     for leaf in (empty.feasible, empty.first_failure, empty.min_margin, empty.branch):
         assert leaf.shape == (0,)
@@ -429,9 +617,9 @@ def test_every_robot_with_default_arguments(name):
 def test_every_robot_best_branch(name):
     """``branch="best"`` keeps, per candidate, a branch of no greater cost than the default
     branch whose joints reach the path (positions and rates)."""
-    robot, path, _ = robot_case(name)
-    default = plan.evaluate(robot, path)
-    best = plan.evaluate(robot, path, branch="best")
+    robot, path, _, dt = robot_case(name)
+    default = plan.evaluate(robot, path, dt=dt)
+    best = plan.evaluate(robot, path, branch="best", dt=dt)
     assert best.q.shape == default.q.shape and best.branches == robot.branches
     assert np.all(best.feasible) and np.all(best.costs.total <= default.costs.total)
     assert np.all((best.branch >= 0) & (best.branch < len(robot.branches)))

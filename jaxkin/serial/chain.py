@@ -238,7 +238,7 @@ class JointChain(Robot):
         return "".join("P" if k == "prismatic" else "R" for k in self.kinds)
 
     def joint_limits(self) -> JointLimits:
-        return JointLimits(self.lower, self.upper)
+        return JointLimits(self.lower, self.upper, self.velocity)
 
     def length_scale(self) -> Any:
         """``|p_home|`` plus the distances of the revolute axes from the base origin (``|v_i|``
