@@ -21,9 +21,17 @@ sums run over joints and samples, ``dt`` is the sample spacing)::
 
 ``total`` ranks candidates in ``best`` and ``branch="best"``: the smoothest feasible joint
 motion wins. Jerk is the only finite difference (of the exact accelerations). Feasible means
-every sample's status is ``OK``: solved, regular, within every position, speed and acceleration
-limit (``OUT_OF_LIMITS`` otherwise). A candidate keeps one branch from start to end: a path that
-would need a switch passes through a singularity, which the kernel reports.
+every sample's status is ``OK``: solved, regular, continuous and within every position, speed
+and acceleration limit. The limits are the robot's own (``robot.joint_limits()``) intersected
+with the user's ``Limits``. A candidate keeps one branch from start to end: a path that would
+need a switch passes through a singularity, which the kernel reports.
+
+Continuity: revolute joints are unwrapped along each candidate (``unwrapped``: each sample the
+``2 pi`` representative nearest the previous one) before the limits are checked, and a sample
+whose step from the previous one its rates do not explain (``unexplained_steps``: the solution
+switched) is ``DISCONTINUOUS``, which wins over ``OUT_OF_LIMITS`` at the same sample. A
+candidate whose target rates are all zero (a path at rest) has no rates to explain its steps:
+it is only unwrapped.
 
 Scale: huge N is processed in chunks of about ``jaxkin._batching.plan_chunk_samples()`` samples,
 so memory stays bounded besides the returned arrays; the chunks run on the host threads. With
@@ -196,7 +204,7 @@ def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
 
 
 # ------------------------------------------------------------------ continuity
-# A step is unexplained when it misses the rates' prediction by half their reach (below).
+# A step is unexplained when it misses the rates' prediction by half their reach.
 STEP_RTOL = 0.5
 
 
@@ -370,11 +378,13 @@ def evaluate(
         path: Jet (or plain targets, at rest) of shape ``(N, T, *robot.target.shape)``; build
             one from sampled points with ``path_from_samples``. Host arrays (the same on every
             process), or global ``jax.Array``s split along the candidate axis only.
-        limits: joint ``Limits``; the robot's own position limits always apply too.
+        limits: joint ``Limits``, intersected with the robot's own position, velocity and
+            acceleration limits (``robot.joint_limits()``), which always apply.
         branch: the branch held along every candidate (one of ``robot.branches``; None for
             ``robot.default_branch``), or ``"best"``: every branch is evaluated and, per
             candidate, the feasible one with the lowest ``costs.total`` is kept.
-        dt: sample spacing in time (for the integrated costs and jerk).
+        dt: sample spacing in time (for the integrated costs, jerk and the continuity check:
+            it must be the spacing the path's rates were made with).
         chunk_size: candidates per call on one device (default
             ``_batching.plan_chunk_samples() // T``, divided by the number of branches for
             ``"best"``).

@@ -621,7 +621,8 @@ def test_every_robot_best_branch(name):
     default = plan.evaluate(robot, path, dt=dt)
     best = plan.evaluate(robot, path, branch="best", dt=dt)
     assert best.q.shape == default.q.shape and best.branches == robot.branches
-    assert np.all(best.feasible) and np.all(best.costs.total <= default.costs.total)
+    # another compiled program (every branch at once) may round the same cost in its last bits
+    assert np.all(best.feasible) and np.all(best.costs.total <= default.costs.total * (1 + 1e-13))
     assert np.all((best.branch >= 0) & (best.branch < len(robot.branches)))
     assert_maps_to(name, robot, best.q, path)
 
