@@ -27,11 +27,12 @@ with the user's ``Limits``. A candidate keeps one branch from start to end: a pa
 need a switch passes through a singularity, which the kernel reports.
 
 Continuity: revolute joints are unwrapped along each candidate (``unwrapped``: each sample the
-``2 pi`` representative nearest the previous one) before the limits are checked, and a sample
-whose step from the previous one its rates do not explain (``unexplained_steps``: the solution
-switched) is ``DISCONTINUOUS``, which wins over ``OUT_OF_LIMITS`` at the same sample. A
-candidate whose target rates are all zero (a path at rest) has no rates to explain its steps:
-it is only unwrapped.
+``2 pi`` representative nearest the previous one), a candidate that leaves a joint's range is
+moved by the whole turns (nearest zero) that bring it inside, if any (``within_turns``), and
+then the limits are checked. A sample whose step from the previous one its rates do not
+explain (``unexplained_steps``: the solution switched) is ``DISCONTINUOUS``, which wins over
+``OUT_OF_LIMITS`` at the same sample. A candidate whose target rates are all zero (a path at
+rest) has no rates to explain its steps: it is only unwrapped.
 
 Scale: huge N is processed in chunks of about ``jaxkin._batching.plan_chunk_samples()`` samples,
 so memory stays bounded besides the returned arrays; the chunks run on the host threads. With
@@ -77,6 +78,7 @@ __all__ = [
     "trajectory_costs",
     "unexplained_steps",
     "unwrapped",
+    "within_turns",
 ]
 
 
@@ -221,6 +223,25 @@ def unwrapped(q: Array, revolute: Any) -> Array:
     return q - turn * jnp.concatenate([jnp.zeros_like(k[..., :1, :]), k], axis=-2)
 
 
+def within_turns(q: Array, revolute: Any, solved: Array, lower: Array, upper: Array) -> Array:
+    """Continuous joints ``(..., T, n)`` shifted, per candidate and revolute joint, by the
+    whole number of turns nearest zero that puts their range (over the ``solved`` samples,
+    ``(..., T)``) within ``[lower, upper]``; unshifted when the range already fits or when no
+    whole turn makes it fit. The fitting shifts are ``[lower - min q, upper - max q]``."""
+    turn = 2.0 * math.pi
+    big = jnp.asarray(jnp.finfo(q.dtype).max, q.dtype)
+    inside = solved[..., None]
+    low = jnp.min(jnp.where(inside, q, big), axis=-2)
+    high = jnp.max(jnp.where(inside, q, -big), axis=-2)
+    first, last = lower - low, upper - high  # the shifts that fit
+    turns = jnp.where(
+        first > 0, jnp.ceil(first / turn), jnp.where(last < 0, jnp.floor(last / turn), 0.0)
+    )
+    fits = (turns * turn >= first) & (turns * turn <= last) & jnp.isfinite(turns)
+    turns = jnp.where(fits & jnp.asarray(revolute) & jnp.any(inside, axis=-2), turns, 0.0)
+    return q + turn * turns[..., None, :]
+
+
 def unexplained_steps(q: Jet, dt: Any, unit: Any) -> Array:
     """True where a step ``q[t+1] - q[t]`` of joints ``(..., T, n)`` is not explained by their
     rates, shape ``(..., T - 1)``.
@@ -304,11 +325,13 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) ->
     res = robot.ik_path_kernel(path, branch_index, robot.IKOptions())
     q, status, margin = res.q, res.status, res.margin
     revolute = np.array([kind == "R" for kind in robot.joint_types])
-    q = Jet(unwrapped(q.p, revolute), q.v, q.a)
+    solved = status == Status.OK
+    dtype = q.p.dtype
+    lower, upper = limits.q_min.astype(dtype), limits.q_max.astype(dtype)
+    q = Jet(within_turns(unwrapped(q.p, revolute), revolute, solved, lower, upper), q.v, q.a)
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
-    solved = status == Status.OK
     # A path at rest (every target rate zero, e.g. plain positions) has no rates to explain
     # its steps: it is only unwrapped.
     moving = jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))

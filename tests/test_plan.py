@@ -160,7 +160,8 @@ def test_robot_own_joint_limits_apply():
     free = plan.evaluate(ROBOT, path, dt=dt)
     theta1 = np.asarray(free.q.p[..., 0])
     cap = float(np.median(theta1.max(1)))
-    limited = scara.Scara(150.0, 80.0, 50.0, limits={"theta1": (-10.0, cap)})
+    # a range under one turn: no whole turn brings a candidate above the cap back inside
+    limited = scara.Scara(150.0, 80.0, 50.0, limits={"theta1": (cap - 6.0, cap)})
     ev = plan.evaluate(limited, path, dt=dt)
     expected = np.where((theta1 > cap).any(1), np.argmax(theta1 > cap, axis=1), -1)
     np.testing.assert_array_equal(ev.first_failure, expected)
@@ -181,6 +182,30 @@ def test_unwrapped_equals_numpy_unwrap():
     np.testing.assert_array_equal(got[..., 2], raw[..., 2])
     np.testing.assert_allclose(got[..., :2] - got[:, :1, :2], true[..., :2] - true[:, :1, :2],
                                rtol=0, atol=1e-12)  # fmt: skip
+
+
+def test_within_turns_moves_a_candidate_into_its_range_by_whole_turns():
+    """Hand cases (one joint, limits [-pi, pi] unless stated): a range above pi comes back by
+    one turn; a range that fits stays; one wider than the limits, a prismatic joint and an
+    unsolved sample's placeholder do not move anything; the range [-10, 0.3] takes a range
+    [0.1, 0.5] one turn down (the shift nearest zero that fits)."""
+    turn = 2 * np.pi
+
+    def moved(q, lower=-np.pi, upper=np.pi, revolute=True, solved=None):
+        q = np.asarray(q, float)[None, :, None]
+        solved = np.ones(q.shape[:2], bool) if solved is None else np.asarray(solved)[None]
+        out = plan.within_turns(
+            q, np.array([revolute]), solved, np.array([lower]), np.array([upper])
+        )
+        return np.asarray(out)[0, :, 0]
+
+    np.testing.assert_allclose(moved([5.9, 6.4]), [5.9 - turn, 6.4 - turn], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(moved([-3.0, 3.0]), [-3.0, 3.0])
+    np.testing.assert_array_equal(moved([-3.0, 3.5]), [-3.0, 3.5])  # 6.5 rad: never fits
+    np.testing.assert_array_equal(moved([5.9, 6.4], revolute=False), [5.9, 6.4])
+    unsolved = moved([5.9, 6.4, 90.0], solved=[True, True, False])
+    np.testing.assert_allclose(unsolved, np.array([5.9, 6.4, 90.0]) - turn, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(moved([0.1, 0.5], -10.0, 0.3), [0.1 - turn, 0.5 - turn], atol=1e-15)
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
