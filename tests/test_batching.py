@@ -227,10 +227,10 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts):
     guess = p + rng.normal(scale=0.5, size=p.shape)
     results = []
     for args, kwargs in [((jet,), {}), ((theta,), {"guess": guess})]:
-        before = forward._fk_jit.jitted._static._part._cache_size()
+        before = forward.fk_jit.jitted._static._part._cache_size()
         parts = delta.fk(ROBOT, *args, **kwargs)
         # the part kernel (not the whole-batch one) was compiled for this call
-        assert forward._fk_jit.jitted._static._part._cache_size() == before + 1
+        assert forward.fk_jit.jitted._static._part._cache_size() == before + 1
         whole = _whole(delta.fk, ROBOT, *args, **kwargs)
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype

@@ -377,13 +377,13 @@ def test_batch_shapes(shape):
 def test_jit_over_batch_and_time_without_recompilation():
     p = random_workspace_points(4 * 6, seed=10).reshape(4, 6, 3)  # (N, T, 3)
     theta = delta.ik(ROBOT, p).q.p
-    before_ik, before_fk = compile_count(inverse._ik_jit), compile_count(forward._fk_jit)
+    before_ik, before_fk = compile_count(inverse.ik_jit), compile_count(forward.fk_jit)
     delta.ik(ROBOT, p + 0.1)
     delta.ik(ROBOT, p - 0.1)
     delta.fk(ROBOT, theta)
     delta.fk(ROBOT, theta + 0.01)
-    assert compile_count(inverse._ik_jit) - before_ik <= 1
-    assert compile_count(forward._fk_jit) - before_fk <= 1
+    assert compile_count(inverse.ik_jit) - before_ik <= 1
+    assert compile_count(forward.fk_jit) - before_fk <= 1
     user = jax.jit(lambda th: delta.fk(ROBOT, th).x.p)
     np.testing.assert_allclose(user(theta), p, atol=1e-10)
     user(theta + 0.01)
@@ -391,7 +391,7 @@ def test_jit_over_batch_and_time_without_recompilation():
     # the geometry is a pytree: it can be vmapped (e.g. a batch of robots)
     robots = jax.tree.map(lambda x: jnp.stack([x, x * 1.01]), ROBOT)
     per_robot = jax.vmap(
-        lambda r: inverse._ik_jit.jitted(r, Jet(p[0], None, None), "out", "analytic", False)
+        lambda r: inverse.ik_jit.jitted(r, Jet(p[0], None, None), "out", "analytic", False)
     )
     assert per_robot(robots).q.p.shape == (2, 6, 3)
 

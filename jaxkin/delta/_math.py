@@ -1,4 +1,4 @@
-"""The Delta robot's geometry [Cardona]: frame, dimensions, limits and shared kernel pieces.
+"""The Delta's kit: its frame, constants and the pieces every Delta kernel shares.
 
 Frame (the paper's figures are not available; the convention is stated in
 ``docs/conventions.md``): origin at the centre of the fixed platform, z up, the moving platform
@@ -9,6 +9,10 @@ and radially outward, positive *downward*: the elbow is
 ``E_i = A_i + l_arm (cos theta_i u_i - sin theta_i e_z)``. The platform does not rotate; its
 joint i is at ``D_i = p + r_platform u_i`` and the parallelogram keeps ``|D_i - E_i| = l_rod``.
 The sphere centres ``C_i = E_i - r_platform u_i`` are the points ``p`` keeps at ``l_rod``.
+
+Every function here reads a robot by its fields alone (``r_base``, ``r_platform``, ``l_arm``,
+``l_rod``, ``theta_min``, ``theta_max``): this module sits below the kernels and the ``Delta``
+class (``jaxkin.delta.robot``) and imports neither.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
@@ -24,14 +28,41 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _batching
-from .._geometry import BOUND, LENGTH, concrete_scalars, geometry, number
+from .._geometry import concrete_scalars
 from .._numerics import computed_once, safe_sqrt
 from .._trig import cos_alone, sin_alone
 from ..jet import Jet
-from ..robot import POINT, JointLimits, Robot
 from ..status import Status
 
-__all__ = ["BRANCHES", "METHODS", "Delta"]
+if TYPE_CHECKING:
+    from .robot import Delta
+
+__all__ = [
+    "BRANCHES",
+    "FAR",
+    "FIELDS",
+    "JOINT_NAMES",
+    "METHODS",
+    "UX",
+    "UY",
+    "any3",
+    "as_coords",
+    "centre_components",
+    "compiled",
+    "components",
+    "cos_sin",
+    "dot3",
+    "far_away",
+    "finite3",
+    "float_dtype",
+    "frozen",
+    "home",
+    "in_own_units",
+    "params",
+    "radial",
+    "rates_ok",
+    "sanitise",
+]
 
 BRANCHES = ("out", "in")
 METHODS = ("analytic", "autodiff")
@@ -41,124 +72,33 @@ FIELDS = ("r_base", "r_platform", "l_arm", "l_rod", "theta_min", "theta_max")
 # Radial unit vectors u_i = (cos phi_i, sin phi_i), phi_i = -90, 30, 150 degrees.
 _SQRT3_2 = math.sqrt(3.0) / 2.0
 
-_UX = (0.0, _SQRT3_2, -_SQRT3_2)
+UX = (0.0, _SQRT3_2, -_SQRT3_2)
 
-_UY = (-1.0, 0.5, 0.5)
+UY = (-1.0, 0.5, 0.5)
 
 
-def _any3(x: Array) -> Array:
+def any3(x: Array) -> Array:
     """``any`` over a last axis of size 3, written elementwise: XLA on CPU runs reductions over
     a tiny minor axis as separate slow loops, elementwise ORs fuse with their producers."""
     return x[..., 0] | x[..., 1] | x[..., 2]
 
 
-def _finite3(x: Array) -> Array:
-    return ~_any3(~jnp.isfinite(x))
+def finite3(x: Array) -> Array:
+    """True where all three entries of the last axis are finite."""
+    return ~any3(~jnp.isfinite(x))
 
 
-def _radial(dtype) -> tuple[Array, Array]:
-    return jnp.asarray(_UX, dtype), jnp.asarray(_UY, dtype)
+def radial(dtype) -> tuple[Array, Array]:
+    """The x and y components of the three radial unit vectors ``u_i``, ``(3,)`` each."""
+    return jnp.asarray(UX, dtype), jnp.asarray(UY, dtype)
 
 
-@geometry
-class Delta(Robot):
-    """Geometry of a Delta robot (frame in the module docstring); a validated frozen pytree.
-
-    Attributes:
-        r_base: radius of the fixed platform, centre to actuator axis (positive, length).
-        r_platform: radius of the moving platform, centre to rod joint (positive, length).
-        l_arm: length of the actuated arm, actuator axis to elbow (positive, length).
-        l_rod: length of the parallelogram rods, elbow to platform joint (positive, length).
-        theta_min: lower actuator limit (rad), ``-inf`` for none.
-        theta_max: upper actuator limit (rad), ``+inf`` for none; ``theta_min < theta_max``.
-
-    Every field is a scalar pytree leaf (differentiable, e.g. for calibration; vmappable over
-    a batch of robots). A ``Delta`` of Python numbers is compiled into the kernels as
-    constants (one compilation per geometry); a traced one is passed as data.
-    """
-
-    r_base: Any = number(LENGTH)
-    r_platform: Any = number(LENGTH)
-    l_arm: Any = number(LENGTH)
-    l_rod: Any = number(LENGTH)
-    theta_min: Any = number(BOUND, default=-math.inf)
-    theta_max: Any = number(BOUND, default=math.inf)
-
-    target: ClassVar = POINT
-    branches: ClassVar = BRANCHES
-    reachable: ClassVar = (Status.OK, Status.SINGULAR)
-
-    def _validate(self) -> None:
-        super()._validate()
-        if not float(self.theta_min) < float(self.theta_max):
-            raise ValueError(
-                f"Delta.theta_min must be < theta_max, got {self.theta_min} and {self.theta_max}"
-            )
-
-    @classmethod
-    def paper(cls) -> Delta:
-        """The robot of [Cardona, sec. V], in cm: ``(7, 2.5, 15.5, 30)``."""
-        return cls(7.0, 2.5, 15.5, 30.0)
-
-    def with_limits(self, theta_min: float, theta_max: float) -> Delta:
-        """The same robot with actuator limits (rad)."""
-        return self.replace(theta_min=theta_min, theta_max=theta_max)
-
-    @property
-    def joint_names(self) -> tuple[str, ...]:
-        return JOINT_NAMES
-
-    @property
-    def joint_types(self) -> str:
-        return "RRR"
-
-    def joint_limits(self) -> JointLimits:
-        return JointLimits(jnp.full(3, self.theta_min, float), jnp.full(3, self.theta_max, float))
-
-    def length_scale(self) -> Any:
-        return self.l_arm + self.l_rod
-
-    def workspace_box(self) -> tuple[tuple[tuple[float, float], ...], float]:
-        """``x, y`` in ``[-R, R]`` with ``R = r_base - r_platform + l_arm + l_rod`` (the largest
-        horizontal reach), ``z`` in ``[-0.9 R, 0.9 R]``, voxel edge ``R / 50``: for the paper's
-        robot the 101 x 101 x 91 grid of 1 cm [Cardona, sec. V]."""
-        reach = float(self.r_base) - float(self.r_platform) + float(self.l_arm)
-        reach += float(self.l_rod)
-        return ((-reach, reach), (-reach, reach), (-0.9 * reach, 0.9 * reach)), reach / 50.0
-
-    def link_segments(self, q: Array, x: Array) -> Array:
-        """Per chain the arm ``A_i -> E_i`` and the rod's centre line ``E_i -> D_i``, at
-        actuator angles ``q`` with the platform at ``x``: ``(..., 6, 2, 3)``."""
-        segments = []
-        for i in range(3):
-            u = jnp.asarray([_UX[i], _UY[i], 0.0], q.dtype)
-            axis = self.r_base * u
-            cos_t, sin_t = jnp.cos(q[..., i, None]), jnp.sin(q[..., i, None])
-            elbow = axis + self.l_arm * (cos_t * u - sin_t * jnp.asarray([0.0, 0.0, 1.0], q.dtype))
-            joint = x + self.r_platform * u
-            axis = jnp.broadcast_to(axis, elbow.shape)
-            segments += [jnp.stack([axis, elbow], -2), jnp.stack([elbow, joint], -2)]
-        return jnp.stack(segments, -3)
-
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .inverse import ik
-
-        return ik(self, target, branch=branch, **options)
-
-    def _fk(self, q: Any, **options: Any) -> Any:
-        from .forward import fk
-
-        return fk(self, q, **options)
+def params(robot: Delta, dtype) -> tuple[Array, ...]:
+    """The robot's fields (``FIELDS`` order) as scalars of ``dtype``."""
+    return tuple(jnp.asarray(getattr(robot, f), dtype) for f in FIELDS)
 
 
-def _params(robot: Delta, dtype) -> tuple[Array, ...]:
-    return tuple(
-        jnp.asarray(getattr(robot, f), dtype)
-        for f in ("r_base", "r_platform", "l_arm", "l_rod", "theta_min", "theta_max")
-    )
-
-
-def _cos_sin(theta: Array) -> tuple[tuple[Array, ...], tuple[Array, ...]]:
+def cos_sin(theta: Array) -> tuple[tuple[Array, ...], tuple[Array, ...]]:
     """``(cos theta_i, sin theta_i)`` of the three actuators as components, computed once.
 
     Stored once (``computed_once``): XLA would otherwise evaluate them in every loop that reads
@@ -170,41 +110,39 @@ def _cos_sin(theta: Array) -> tuple[tuple[Array, ...], tuple[Array, ...]]:
     return tuple(rows[:3]), tuple(rows[3:])
 
 
-def _centre_components(robot: Delta, theta: Array, cos_sin=None) -> tuple[tuple[Array, ...], ...]:
+def centre_components(robot: Delta, theta: Array, cosines=None) -> tuple[tuple[Array, ...], ...]:
     """The sphere centres ``C_i = E_i - r_platform u_i`` as components ``C[i][k]`` (chain i,
     coordinate k), batch-shaped: ``p`` lies at distance ``l_rod`` from each.
 
-    ``cos_sin``: ``_cos_sin(theta)`` when the caller has it already.
+    ``cosines``: ``cos_sin(theta)`` when the caller has it already.
     """
-    r_base, r_platform, l_arm, _, _, _ = _params(robot, theta.dtype)
-    cos_theta, sin_theta = _cos_sin(theta) if cos_sin is None else cos_sin
+    r_base, r_platform, l_arm, _, _, _ = params(robot, theta.dtype)
+    cos_theta, sin_theta = cos_sin(theta) if cosines is None else cosines
     out = []
     for i in range(3):
-        radial = r_base - r_platform + l_arm * cos_theta[i]
-        out.append((radial * _UX[i], radial * _UY[i], -l_arm * sin_theta[i]))
+        reach = r_base - r_platform + l_arm * cos_theta[i]
+        out.append((reach * UX[i], reach * UY[i], -l_arm * sin_theta[i]))
     return tuple(out)
 
 
-def _cross3(u, v):
-    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
-
-
-def _components(x: Array) -> tuple[Array, Array, Array]:
+def components(x: Array) -> tuple[Array, Array, Array]:
+    """The three coordinates of ``(..., 3)`` as batch-shaped arrays."""
     return x[..., 0], x[..., 1], x[..., 2]
 
 
-def _dot3(u, v) -> Array:
+def dot3(u, v) -> Array:
+    """Dot product of two vectors given as components."""
     return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
 
 
-def _sanitise(x: Jet, fill: Array, rates: bool = True) -> tuple[Jet, Array]:
+def sanitise(x: Jet, fill: Array, rates: bool = True) -> tuple[Jet, Array]:
     """Double-where, step 1: replace non-finite elements by ``fill`` (position) and 0 (rates).
 
     Without rates, ``x.v`` and ``x.a`` are ``None`` (positions only, nothing else allocated).
     """
-    valid = _finite3(x.p)
+    valid = finite3(x.p)
     if rates:
-        valid = valid & _finite3(x.v) & _finite3(x.a)
+        valid = valid & finite3(x.v) & finite3(x.a)
     vc = valid[..., None]
     p = jnp.where(vc, x.p, fill)
     if not rates:
@@ -212,8 +150,10 @@ def _sanitise(x: Jet, fill: Array, rates: bool = True) -> tuple[Jet, Array]:
     return Jet(p, jnp.where(vc, x.v, 0.0), jnp.where(vc, x.a, 0.0)), valid
 
 
-def _home(robot: Delta, dtype) -> Array:
-    r_base, r_platform, l_arm, l_rod, _, _ = _params(robot, dtype)
+def home(robot: Delta, dtype) -> Array:
+    """The platform position with every arm horizontal (``theta = 0``), ``(3,)``: a finite
+    point substituted for invalid input."""
+    r_base, r_platform, l_arm, l_rod, _, _ = params(robot, dtype)
     reach = r_base - r_platform + l_arm
     z = -safe_sqrt(l_rod * l_rod - reach * reach)
     return jnp.stack([0.0 * z, 0.0 * z, jnp.where(z < 0, z, -l_rod)])
@@ -242,8 +182,8 @@ def far_away(p: Array) -> Array:
     )
 
 
-def _rates_ok(status: Array) -> Array:
-    # Rates are defined where the position is solved and the relevant Jacobian is regular.
+def rates_ok(status: Array) -> Array:
+    """Where rates are defined: the position is solved and the relevant Jacobian is regular."""
     return (status == Status.OK) | (status == Status.OUT_OF_LIMITS)
 
 
@@ -289,17 +229,13 @@ def compiled(
     return call
 
 
-def check_robot(robot: Any) -> Delta:
-    if not isinstance(robot, Delta):
-        raise ValueError(f"robot must be a jaxkin.delta.Delta, got {type(robot).__name__}")
-    return robot
-
-
 def float_dtype(*xs: Any) -> Any:
+    """The floating dtype of the inputs (float for integers)."""
     return jnp.result_type(*xs, float)
 
 
 def as_coords(x: ArrayLike, name: str) -> Array:
+    """``x`` as a float array of shape ``(..., 3)``; ``ValueError`` naming ``name`` if not."""
     x = jnp.asarray(x)
     if not jnp.issubdtype(x.dtype, jnp.inexact):
         x = x.astype(jnp.result_type(float))
