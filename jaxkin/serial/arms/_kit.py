@@ -1,152 +1,44 @@
-"""Shared pieces of the analytic arm solvers (``jaxkin.serial.arms``): the result type, the ``Arm``
-base class (the robot protocol), the planar two-link sub-problem, the ZYZ spherical wrist and
-the generic jitted drivers.
+"""The analytic arms' kit: the planar two-link sub-problem, the ZYZ spherical wrist, polar
+coordinates, angle wrapping, the status rule and a DH-table builder.
 
-Conventions shared by every arm:
-
-* ``ik`` returns *every* solution branch: ``q`` ``(..., n_branches, n_joints)``, ``valid`` and
-  ``status`` ``(..., n_branches)``; the static ``branches`` tuple names them.
-* ``status`` per branch: ``OK``; ``SINGULAR`` (the branch reproduces the target, but a joint is
-  free or two branches coincide: the documented choice is returned); ``UNREACHABLE`` (``q``
-  is the nearest aligned placeholder configuration); ``INVALID_INPUT`` (NaN/inf in the target,
-  ``q`` = 0). ``valid = status in (OK, SINGULAR)``.
-* Singular tests use ``tol = sqrt(eps(dtype)) * L``, ``L`` a length scale of the arm (the sum
-  of its link lengths), so a target within ``tol`` outside the workspace is clamped onto its
-  boundary (``SINGULAR``, position error <= tol) rather than flagged unreachable.
-* Revolute outputs are wrapped to ``[-pi, pi]``.
+Shared conventions of the arm kernels (``jaxkin.serial.arms``): singular tests use
+``tol = sqrt(eps(dtype)) * L``, ``L`` a length scale of the sub-problem (the sum of its link
+lengths), so a target within ``tol`` outside the workspace is clamped onto its boundary
+(``SINGULAR``, position error <= tol) rather than flagged unreachable; revolute outputs are
+wrapped to ``[-pi, pi]``; an undetermined angle is set by ``guarded_atan2`` (double-where, finite
+gradients). Nothing here knows an arm class.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, ClassVar
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
-from .._numerics import safe_sqrt, singular_rtol
-from ..result import SolverResult
-from ..robot import Robot
-from ..status import STATUS_DTYPE, Status
-from .dh import DHTable, fk_dh
+from ..._numerics import safe_sqrt, singular_rtol
+from ...status import STATUS_DTYPE, Status
+from ..dh import DHTable
+
+__all__ = [
+    "HALF_PI",
+    "PI",
+    "TWO_PI",
+    "TwoLinkSolution",
+    "dh",
+    "guarded_atan2",
+    "polar",
+    "status_from",
+    "two_link",
+    "wrap_angle",
+    "zyz_wrist",
+]
 
 PI = float(np.pi)
 TWO_PI = 2.0 * PI
-
-
-@jax.tree_util.register_dataclass
-@dataclasses.dataclass(frozen=True)
-class ArmIKResult(SolverResult):
-    """Every analytic inverse-kinematics branch of an arm.
-
-    Attributes:
-        q: joint values, shape ``(..., n_branches, n_joints)`` (radians for revolute joints,
-            wrapped to ``[-pi, pi]``; length units for prismatic ones).
-        valid: ``(..., n_branches)``, True where ``fk(robot, q)`` reproduces the target
-            (status ``OK`` or ``SINGULAR``).
-        status: ``(..., n_branches)`` ``int8`` codes of ``jaxkin.Status``.
-        branches: static tuple naming the branches (length ``n_branches``).
-    """
-
-    q: Array
-    valid: Array
-    status: Array
-    branches: tuple[str, ...] = dataclasses.field(metadata=dict(static=True))
-
-    def branch(self, name: str) -> ArmIKResult:
-        """The single named branch: ``q`` ``(..., n_joints)``, ``valid``/``status`` ``(...)``."""
-        i = self.branches.index(_validate.choice(name, "name", self.branches))
-        return ArmIKResult(self.q[..., i, :], self.valid[..., i], self.status[..., i], (name,))
-
-
-class Arm(Robot):
-    """Base class of the analytic arms: the robot protocol and the per-arm IK kernel.
-
-    Subclasses are ``@geometry`` dataclasses whose fields are scalar lengths (``number``) and
-    set ``N_JOINTS``, ``JOINT_TYPES``, ``BRANCHES``, ``TARGET_SHAPE`` and ``target``.
-    """
-
-    N_JOINTS: ClassVar[int]
-    JOINT_TYPES: ClassVar[str]
-    BRANCHES: ClassVar[tuple[str, ...]]
-    TARGET_SHAPE: ClassVar[tuple[int, ...]]
-    reachable: ClassVar = (Status.OK, Status.SINGULAR)
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        if "BRANCHES" in cls.__dict__:
-            cls.branches = cls.BRANCHES
-
-    @property
-    def joint_names(self) -> tuple[str, ...]:
-        return tuple(f"q{i + 1}" for i in range(self.N_JOINTS))
-
-    @property
-    def joint_types(self) -> str:
-        return self.JOINT_TYPES
-
-    def lengths(self, dtype) -> tuple[Array, ...]:
-        """Every field cast to ``dtype`` (in field order)."""
-        return tuple(
-            jnp.asarray(getattr(self, f.name)).astype(dtype)
-            for f in dataclasses.fields(self)  # type: ignore[arg-type]
-        )
-
-    def length_scale(self) -> Any:
-        """The sum of the absolute values of the arm's lengths."""
-        return sum(jnp.abs(x) for x in self.lengths(jnp.result_type(float)))
-
-    def workspace_box(self) -> tuple[tuple[tuple[float, float], ...], float]:
-        """A cube (square for planar arms) of half-side the arm's length scale around the base;
-        voxel edge a 25th of it."""
-        if not self.target.is_point:
-            return super().workspace_box()
-        reach = float(self.length_scale())
-        return ((-reach, reach),) * self.target.shape[0], reach / 25.0
-
-    def dh_table(self, dtype=None) -> DHTable:  # pragma: no cover - overridden
-        raise NotImplementedError
-
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:  # pragma: no cover
-        """``(q (..., n_branches, n_joints), status (..., n_branches))`` for finite targets."""
-        raise NotImplementedError
-
-    def _placeholder_target(self, dtype) -> Array:
-        """A finite target substituted for non-finite input before any math."""
-        if self.TARGET_SHAPE == (4, 4):
-            return jnp.eye(4, dtype=dtype)
-        return jnp.zeros(self.TARGET_SHAPE, dtype)
-
-    def link_segments(self, q: Array, x: Array) -> Array:
-        """Base -> the origin of each DH frame in turn, ``(..., n, 2, d)``."""
-        frames = fk_dh(self.dh_table(q.dtype), q, all_frames=True)[..., :3, 3]
-        points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
-        points = points[
-            ..., : 2 if self.target.shape == (2,) or self.target.name == "planar pose" else 3
-        ]
-        return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
-
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .arms import ik_jet
-
-        return ik_jet(self, target, branch, **options)
-
-    def _fk(self, q: Any, **options: Any) -> Any:
-        from .arms import fk
-
-        return fk(self, q, **options)
-
-    def _ik_indexed(self, target: Any, index: Any) -> Any:
-        from .arms import _ik_jet_core
-
-        return _ik_jet_core(self, target, index, True)  # the branch is data: one program
-
-
-# --------------------------------------------------------------------------- small math
+HALF_PI = 0.5 * PI
 
 
 def wrap_angle(x: Array) -> Array:
@@ -228,22 +120,6 @@ def two_link(x: Array, y: Array, l1: Array, l2: Array, elbow: ArrayLike) -> TwoL
     return TwoLinkSolution(q1, q2, c2, s2, unreachable, singular)
 
 
-# --------------------------------------------------------------------------- rotations
-
-
-def rot_z(c: Array, s: Array) -> Array:
-    """Rotation about z from its cosine and sine: ``(...) -> (..., 3, 3)``."""
-    zero, one = jnp.zeros_like(c), jnp.ones_like(c)
-    return jnp.stack(
-        [
-            jnp.stack([c, -s, zero], axis=-1),
-            jnp.stack([s, c, zero], axis=-1),
-            jnp.stack([zero, zero, one], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
 def zyz_wrist(rot: Array, sign: float, branch: ArrayLike) -> tuple[Array, Array, Array, Array]:
     """Spherical wrist: solve ``rot = Rz(t4) Ry(sign * t5) Rz(t6)`` for ``(t4, t5, t6)``.
 
@@ -283,92 +159,6 @@ def zyz_wrist(rot: Array, sign: float, branch: ArrayLike) -> tuple[Array, Array,
     return t4, sign * beta, t6, singular
 
 
-# --------------------------------------------------------------------------- drivers
-
-
-# Beyond this many robot sizes from the base a target is reported unreachable (tested before
-# any square; an arm's prismatic strokes are unbounded in the kernels, but not in practice).
-FAR = 1e6
-
-
-def _split_target(robot: Arm, target: Array) -> tuple[Array, Array | None]:
-    """The length coordinates of a target, and its angular rest (None for a point)."""
-    if robot.TARGET_SHAPE == (4, 4):
-        return target[..., :3, 3], target
-    if robot.target.name == "planar pose":
-        return target[..., :2], target
-    return target, None
-
-
-def _join_target(robot: Arm, lengths: Array, target: Array | None) -> Array:
-    if robot.TARGET_SHAPE == (4, 4):
-        return target.at[..., :3, 3].set(lengths)
-    if robot.target.name == "planar pose":
-        return jnp.concatenate([lengths, target[..., 2:]], axis=-1)
-    return lengths
-
-
-def _ik_impl(robot: Arm, target: Array) -> ArmIKResult:
-    """Every branch, in units of the arm's size (no overflow or underflow at any scale)."""
-    dtype = target.dtype
-    n_target = len(robot.TARGET_SHAPE)
-    axes = tuple(range(-n_target, 0))
-    lengths = jnp.stack([jnp.asarray(x, dtype) for x in robot.lengths(dtype)])
-    valid_in = jnp.all(jnp.isfinite(target), axis=axes) & jnp.all(jnp.isfinite(lengths))
-    scale = jnp.sum(jnp.where(jnp.isfinite(lengths), jnp.abs(lengths), 0.0))
-    scale = jnp.where(scale > 0, scale, 1.0)
-    # Double-where: non-finite targets are replaced before any arithmetic (their gradient
-    # would otherwise reach the lengths through the division below).
-    placeholder = robot._placeholder_target(dtype)
-    shape_mask = (1,) * n_target
-    target = jnp.where(valid_in.reshape(valid_in.shape + shape_mask), target, placeholder)
-    point, rest = _split_target(robot, target)
-    point = point / scale
-    far = ~jnp.all(jnp.abs(point) <= FAR, axis=-1)
-    target = _join_target(robot, point, rest)
-    unit = jax.tree.map(lambda x: jnp.asarray(x, dtype) / scale, robot)
-    safe_target = jnp.where(far.reshape(far.shape + shape_mask), placeholder, target)
-    q, status = unit._ik_kernel(safe_target)
-    status = jnp.broadcast_to(status, q.shape[:-1])
-    status = jnp.where(far[..., None], Status.UNREACHABLE, status)
-    status = jnp.where(valid_in[..., None], status, Status.INVALID_INPUT).astype(STATUS_DTYPE)
-    prismatic = jnp.asarray([kind == "P" for kind in robot.JOINT_TYPES])
-    q = q * jnp.where(prismatic, scale, 1.0)
-    q = jnp.where(valid_in[..., None, None], q, 0.0)
-    valid = (status == Status.OK) | (status == Status.SINGULAR)
-    return ArmIKResult(q, valid, status, robot.BRANCHES)
-
-
-_ik_jit = _batching.PaddedJit(jax.jit(_ik_impl), {})
-
-
-def check_robot(robot: Any, kinds: tuple[type, ...]) -> None:
-    if not isinstance(robot, kinds):
-        names = ", ".join(k.__name__ for k in kinds)
-        raise ValueError(f"robot: expected one of {names}, got {type(robot).__name__}")
-
-
-def _as_float(x: ArrayLike) -> Array:
-    arr = jnp.asarray(x)
-    if not jnp.issubdtype(arr.dtype, jnp.inexact):
-        arr = arr.astype(jnp.result_type(float))
-    return arr
-
-
-def ik_arm(robot: Arm, target: ArrayLike) -> ArmIKResult:
-    """Validate ``target``'s shape and run the jitted analytic IK of ``robot``."""
-    target = _as_float(target)
-    shape = robot.TARGET_SHAPE
-    n = len(shape)
-    if target.ndim < n or tuple(target.shape[-n:]) != shape:
-        raise ValueError(
-            f"target: {type(robot).__name__} expects shape (..., {', '.join(map(str, shape))}), "
-            f"got {tuple(target.shape)}"
-        )
-    padding = _batching.shared_geometry(robot) and {"target": n}
-    return _ik_jit(robot, target, batch=target.shape[:-n], pad=padding)
-
-
 def dh(dtype, a: list, alpha: list, d: list, theta: list, joint_types: str) -> DHTable:
     """A ``DHTable`` from lists mixing Python floats and scalar arrays (works on tracers)."""
 
@@ -378,4 +168,24 @@ def dh(dtype, a: list, alpha: list, d: list, theta: list, joint_types: str) -> D
     return DHTable(col(a), col(alpha), col(d), col(theta), tuple(joint_types))
 
 
-HALF_PI = 0.5 * PI
+def polar(p: Array, height: Array, dtype) -> tuple[Array, Array]:
+    """Front/back ``(q1, q2, rho)`` of a point seen from a shoulder at ``(0, 0, height)``.
+
+    ``q1 = atan2(py, px)`` or ``+ pi``; ``q2 = atan2(s, +-r)`` (elevation, [Pineiro]'s Stanford
+    ``theta2 = atan2(s, r)``, ``theta2' = pi - atan2(s, r)``); ``rho = sqrt(r^2 + s^2)``.
+    Returns ``q`` ``(..., 2, 3)`` and the singular flag ``(..., 1)`` (on the base axis, or
+    at the shoulder).
+    """
+    px, py, pz = p[..., 0], p[..., 1], p[..., 2]
+    s = pz - height
+    r = safe_sqrt(px * px + py * py)
+    rho = safe_sqrt(r * r + s * s)
+    tol = singular_rtol(dtype) * (jnp.abs(height) + rho)
+    on_axis = r <= tol
+    at_shoulder = rho <= tol
+    q1_front = guarded_atan2(py, px, on_axis)
+    q1 = jnp.stack([q1_front, wrap_angle(q1_front + PI)], axis=-1)
+    q2 = guarded_atan2(s[..., None], jnp.stack([r, -r], axis=-1), at_shoulder[..., None])
+    rho2 = jnp.broadcast_to(rho[..., None], q1.shape)
+    q = jnp.stack([q1, q2, rho2], axis=-1)
+    return q, (on_axis | at_shoulder)[..., None]

@@ -1,78 +1,139 @@
-"""Analytic inverse kinematics of the textbook arms, every branch at once, and their FK.
+"""The analytic arms' kernels, written once for every arm: every branch's IK in units of the
+arm's size, one branch with rates and a margin, and the FK in the form of the targets.
 
-=========================  ====================  ==============  ========  ========
-arm                        module                target          branches  joints
-=========================  ====================  ==============  ========  ========
-``Planar2R(l1, l2)``       ``arms_planar``       ``(x, y)``      2         RR
-``Planar3R(l1, l2, l3)``   ``arms_planar``       ``(x, y, phi)`` 2         RRR
-``Anthropomorphic``        ``arms_3dof``         point           4         RRR
-``Cylindrical(h)``         ``arms_3dof``         point           1         RPP
-``Spherical(h)``           ``arms_3dof``         point           2         RRP
-``Puma560(...)``           ``arms_6dof``         4x4 pose        8         6R
-``Stanford(d1, a2)``       ``arms_6dof``         4x4 pose        4         RRPRRR
-=========================  ====================  ==============  ========  ========
-
-``ik(robot, target)``: every branch, ``ArmIKResult`` with ``q`` ``(..., n_branches, n_joints)``,
-``valid`` and ``status`` ``(..., n_branches)``; ``branch="front_up"`` (or
-``result.branch("front_up")``) selects one. ``ik_jet(robot, target, branch)`` (what
-``jaxkin.ik`` calls): one branch with joint rates (``jaxkin.lift`` of the position IK; a pose
-target is a Jet of 4x4 matrices) and a margin. ``fk(robot, q)``: an ``FKResult`` whose ``x`` is
-in the form of the targets (``fk_dh(robot.dh_table(), q)`` gives the 4x4 transform).
+A kernel reads an arm through the robot protocol (``target``, ``branches``, ``joint_types``,
+``length_scale()``) and three methods of ``jaxkin.serial.arms.base.Arm``: ``lengths(dtype)``,
+``dh_table(dtype)`` and ``ik_branches(target)`` (the arm's own closed form); it never imports
+an arm class.
 
 Statuses per branch: ``OK``; ``SINGULAR`` (the target is reproduced but a joint is free or
 branches coincide: the documented choice is returned); ``UNREACHABLE`` (``q`` is the clamped,
 aligned placeholder); ``INVALID_INPUT`` (NaN/inf in the target: ``q = 0``). Rates are 0 where
 not OK; everything is finite and so are gradients of status-masked losses (double-where).
-The margin is the isotropy (``jaxkin._numerics.isotropy``) of the task Jacobian in
-units of the arm's size: in [0, 1], 0 at a singularity; minus the distance to the target in
-units of that size where unreachable; -1 for invalid input. Accuracy in float64 and float32:
-``docs/performance.md``; formulas: ``docs/robots.md``.
+The margin is the isotropy (``jaxkin._numerics.isotropy``) of the task Jacobian in units of the
+arm's size: in [0, 1], 0 at a singularity; minus the distance to the target in units of that
+size where unreachable; -1 for invalid input.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from typing import TYPE_CHECKING
+
 import jax
 import jax.numpy as jnp
 from jax import Array
-from jax.typing import ArrayLike
 
-from .. import _batching, _validate
-from .._numerics import isotropy, safe_norm
-from ..jet import Jet, lift
-from ..result import FKResult, IKResult, forward_result
-from ..robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
-from ..status import Status
-from . import poe as _poe
-from ._arms_common import Arm, ArmIKResult, _ik_impl, check_robot, ik_arm
-from .arms_3dof import Anthropomorphic, Cylindrical, Spherical
-from .arms_6dof import Puma560, Stanford
-from .arms_planar import Planar2R, Planar3R
-from .dh import fk_dh
+from ... import _batching, _validate
+from ..._numerics import isotropy, safe_norm
+from ...jet import Jet, lift
+from ...result import FKResult, IKResult, SolverResult, forward_result
+from ...robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
+from ...status import STATUS_DTYPE, Status
+from .. import poe as _poe
+from ..dh import fk_dh
+
+if TYPE_CHECKING:
+    from .base import Arm
 
 __all__ = [
-    "ARMS",
-    "Anthropomorphic",
+    "FAR",
     "ArmIKResult",
-    "Cylindrical",
-    "Planar2R",
-    "Planar3R",
-    "Puma560",
-    "Spherical",
-    "Stanford",
-    "fk",
-    "ik",
-    "ik_jet",
+    "fk_jit",
+    "fk_kernel",
+    "ik_all_jit",
+    "ik_all_kernel",
+    "ik_jit",
+    "ik_kernel",
 ]
 
-ARMS: tuple[type[Arm], ...] = (
-    Planar2R,
-    Planar3R,
-    Anthropomorphic,
-    Cylindrical,
-    Spherical,
-    Puma560,
-    Stanford,
-)
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class ArmIKResult(SolverResult):
+    """Every analytic inverse-kinematics branch of an arm.
+
+    Attributes:
+        q: joint values, shape ``(..., n_branches, n_joints)`` (radians for revolute joints,
+            wrapped to ``[-pi, pi]``; length units for prismatic ones).
+        valid: ``(..., n_branches)``, True where ``fk(robot, q)`` reproduces the target
+            (status ``OK`` or ``SINGULAR``).
+        status: ``(..., n_branches)`` ``int8`` codes of ``jaxkin.Status``.
+        branches: static tuple naming the branches (length ``n_branches``).
+    """
+
+    q: Array
+    valid: Array
+    status: Array
+    branches: tuple[str, ...] = dataclasses.field(metadata=dict(static=True))
+
+    def branch(self, name: str) -> ArmIKResult:
+        """The single named branch: ``q`` ``(..., n_joints)``, ``valid``/``status`` ``(...)``."""
+        i = self.branches.index(_validate.choice(name, "name", self.branches))
+        return ArmIKResult(self.q[..., i, :], self.valid[..., i], self.status[..., i], (name,))
+
+
+# Beyond this many robot sizes from the base a target is reported unreachable (tested before
+# any square; an arm's prismatic strokes are unbounded in the kernels, but not in practice).
+FAR = 1e6
+
+
+def _placeholder_target(robot: Arm, dtype) -> Array:
+    """A finite target substituted for non-finite input before any math."""
+    if robot.target.shape == (4, 4):
+        return jnp.eye(4, dtype=dtype)
+    return jnp.zeros(robot.target.shape, dtype)
+
+
+def _split_target(robot: Arm, target: Array) -> tuple[Array, Array | None]:
+    """The length coordinates of a target, and its angular rest (None for a point)."""
+    if robot.target.shape == (4, 4):
+        return target[..., :3, 3], target
+    if robot.target.name == "planar pose":
+        return target[..., :2], target
+    return target, None
+
+
+def _join_target(robot: Arm, lengths: Array, target: Array | None) -> Array:
+    if robot.target.shape == (4, 4):
+        return target.at[..., :3, 3].set(lengths)
+    if robot.target.name == "planar pose":
+        return jnp.concatenate([lengths, target[..., 2:]], axis=-1)
+    return lengths
+
+
+def ik_all_kernel(robot: Arm, target: Array) -> ArmIKResult:
+    """Every branch, in units of the arm's size (no overflow or underflow at any scale)."""
+    dtype = target.dtype
+    n_target = len(robot.target.shape)
+    axes = tuple(range(-n_target, 0))
+    lengths = jnp.stack([jnp.asarray(x, dtype) for x in robot.lengths(dtype)])
+    valid_in = jnp.all(jnp.isfinite(target), axis=axes) & jnp.all(jnp.isfinite(lengths))
+    scale = jnp.sum(jnp.where(jnp.isfinite(lengths), jnp.abs(lengths), 0.0))
+    scale = jnp.where(scale > 0, scale, 1.0)
+    # Double-where: non-finite targets are replaced before any arithmetic (their gradient
+    # would otherwise reach the lengths through the division below).
+    placeholder = _placeholder_target(robot, dtype)
+    shape_mask = (1,) * n_target
+    target = jnp.where(valid_in.reshape(valid_in.shape + shape_mask), target, placeholder)
+    point, rest = _split_target(robot, target)
+    point = point / scale
+    far = ~jnp.all(jnp.abs(point) <= FAR, axis=-1)
+    target = _join_target(robot, point, rest)
+    unit = jax.tree.map(lambda x: jnp.asarray(x, dtype) / scale, robot)
+    safe_target = jnp.where(far.reshape(far.shape + shape_mask), placeholder, target)
+    q, status = unit.ik_branches(safe_target)
+    status = jnp.broadcast_to(status, q.shape[:-1])
+    status = jnp.where(far[..., None], Status.UNREACHABLE, status)
+    status = jnp.where(valid_in[..., None], status, Status.INVALID_INPUT).astype(STATUS_DTYPE)
+    prismatic = jnp.asarray([kind == "P" for kind in robot.joint_types])
+    q = q * jnp.where(prismatic, scale, 1.0)
+    q = jnp.where(valid_in[..., None, None], q, 0.0)
+    valid = (status == Status.OK) | (status == Status.SINGULAR)
+    return ArmIKResult(q, valid, status, robot.branches)
+
+
+ik_all_jit = _batching.PaddedJit(jax.jit(ik_all_kernel), {})
 
 
 def _task(robot: Arm, q: Array) -> Array:
@@ -117,7 +178,7 @@ def _scaled_jacobian(robot: Arm, q: Array, scale: Array) -> tuple[Array, Array]:
         rows = jnp.concatenate([p_dot[..., :2, :] * inv, omega[..., 2:, :]], axis=-2)
     else:
         rows = p_dot[..., : robot.target.shape[0], :] * inv
-    prismatic = jnp.asarray([kind == "P" for kind in robot.JOINT_TYPES])
+    prismatic = jnp.asarray([kind == "P" for kind in robot.joint_types])
     rows = rows * jnp.where(prismatic, scale[..., None], 1.0)[..., None, :]
     return rows, p
 
@@ -140,31 +201,13 @@ def _margin(robot: Arm, q: Array, target: Array, status: Array) -> Array:
     ).astype(dtype)
 
 
-def ik(robot: Arm, target: ArrayLike, branch: str | None = None) -> ArmIKResult:
-    """The analytic IK of ``robot``: every branch at once, or the one named by ``branch``.
+def ik_kernel(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult:
+    """One branch, ``robot.branches[index]`` (``index`` an ``int32`` scalar, possibly traced),
+    with joint rates by ``jaxkin.lift`` of ``ik_all_kernel`` where ``rates`` (else ``target``'s
+    rates are not read and the result's are 0) and the margin (module docstring)."""
 
-    Args:
-        robot: one of ``ARMS`` (e.g. ``Anthropomorphic(l1, l2, l3)``).
-        target: ``(..., *robot.TARGET_SHAPE)``: ``(x, y)`` for ``Planar2R``, ``(x, y, phi)``
-            for ``Planar3R``, the wrist position ``(x, y, z)`` for the 3-joint arms and a 4x4
-            homogeneous transform for ``Puma560`` and ``Stanford``.
-        branch: None for every branch (``q`` ``(..., n_branches, n_joints)``), or a branch
-            name (``q`` ``(..., n_joints)``).
-
-    Returns:
-        ``ArmIKResult`` (``q``, ``valid``, ``status``, ``branches``); dtype follows ``target``.
-
-    Raises:
-        ValueError: unknown robot type or branch, or a target of the wrong trailing shape.
-    """
-    check_robot(robot, ARMS)
-    result = ik_arm(robot, target)
-    return result if branch is None else result.branch(branch)
-
-
-def _ik_jet_core(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult:
     def position(x):
-        res = _ik_impl(robot, x)
+        res = ik_all_kernel(robot, x)
         return res.q, res.status
 
     # Every branch is solved anyway; the branch is picked by a traced index (one compilation
@@ -181,66 +224,12 @@ def _ik_jet_core(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult
     return IKResult(q, status, _margin(robot, q.p, target.p, status))
 
 
-_ik_jet_jit = _batching.PaddedJit(jax.jit(_ik_jet_core, static_argnames="rates"), {})
+ik_jit = _batching.PaddedJit(jax.jit(ik_kernel, static_argnames="rates"), {})
 
 
-def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IKResult:
-    """One branch of the analytic IK with joint velocity and acceleration, and a margin.
-
-    The rates come from ``jaxkin.lift`` (nested forward-mode jvp) of the position-level IK,
-    compiled once; they are 0 where the branch's status is not ``OK``. A pose target's Jet holds
-    4x4 matrices and their time derivatives.
-
-    Args:
-        robot: one of ``ARMS``.
-        target: Jet (or array, at rest) of shape ``(..., *robot.TARGET_SHAPE)``.
-        branch: one of the robot's branch names (None: the first, ``robot.default_branch``).
-
-    Returns:
-        ``IKResult``: ``q`` (Jet ``(..., n_joints)``), ``status`` and ``margin`` (``(...)``;
-        see ``_margin``: the Jacobian's isotropy in [0, 1] where solved, negative outside
-        the workspace, -1 for invalid input).
-    """
-    check_robot(robot, ARMS)
-    branch = robot.check_branch(branch)
-    shape = robot.TARGET_SHAPE
-    rates = isinstance(target, Jet)
-    target = _validate.as_jet(target, "target", coords=None)
-    if target.p.ndim < len(shape) or target.shape[-len(shape) :] != shape:
-        raise ValueError(
-            f"target: {type(robot).__name__} expects shape (..., {', '.join(map(str, shape))}), "
-            f"got {target.shape}"
-        )
-    index = jnp.asarray(robot.branches.index(branch), jnp.int32)
-    padding = _batching.shared_geometry(robot) and {"target": len(shape)}
-    return _ik_jet_jit(robot, target, index, rates, batch=target.shape[: -len(shape)], pad=padding)
+def fk_kernel(robot: Arm, q: Jet, rates: bool) -> FKResult:
+    """The arm's FK in the form of its targets (rates by ``jaxkin.lift`` where ``rates``)."""
+    return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.target.shape))
 
 
-def _fk_core(robot: Arm, q: Jet, rates: bool) -> FKResult:
-    return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.TARGET_SHAPE))
-
-
-_fk_jit = _batching.PaddedJit(jax.jit(_fk_core, static_argnames="rates"), {"q": 1})
-
-
-def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
-    """Forward kinematics of an analytic arm in the form of its targets.
-
-    Args:
-        robot: one of ``ARMS``.
-        q: joint coordinates ``(..., n_joints)``: a Jet (rates by ``jaxkin.lift``) or an
-            array (at rest).
-
-    Returns:
-        ``FKResult``: ``x`` (Jet ``(..., *robot.TARGET_SHAPE)``: the point, the planar pose
-        ``(x, y, phi)`` with phi in (-pi, pi], or the 4x4 pose) and ``status`` (``OK``, or
-        ``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``). The
-        4x4 transform of the last DH frame is ``fk_dh(robot.dh_table(), q)``.
-
-    Raises:
-        ValueError: ``robot`` is not one of ``ARMS`` or ``q``'s last axis is not ``n_joints``.
-    """
-    check_robot(robot, ARMS)
-    rates = isinstance(q, Jet)
-    q = _validate.as_jet(q, "q", coords=robot.N_JOINTS)
-    return _fk_jit(robot, q, rates, batch=q.shape[:-1], pad=_batching.shared_geometry(robot))
+fk_jit = _batching.PaddedJit(jax.jit(fk_kernel, static_argnames="rates"), {"q": 1})
