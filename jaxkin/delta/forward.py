@@ -54,6 +54,7 @@ from ._math import (
 from .jacobians import fk_rates
 
 if TYPE_CHECKING:
+    from .options import DeltaFKOptions
     from .robot import Delta
 
 __all__ = [
@@ -63,8 +64,8 @@ __all__ = [
     "NewtonFKResult",
     "branch_jit",
     "closed_form_jit",
-    "default_tol",
-    "fk_jit",
+    "fk_guess_jit",
+    "fk_kernel",
 ]
 
 LOWER = 0
@@ -354,8 +355,9 @@ def _fk_chunked(
     return dataclasses.replace(result, x=Jet.constant(result.x.p))
 
 
-# The Newton loop runs on one core per program: large batches are split across host threads.
-fk_jit = _batching.PaddedJit(
+# Warm-started FK (``jaxkin.delta.fk`` with a guess): the Newton loop runs on one core per
+# program, so large batches are split across host threads.
+fk_guess_jit = _batching.PaddedJit(
     compiled(_fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"), ("theta", "guess")),
     {"theta": 1, "guess": 1},
 )
@@ -363,7 +365,11 @@ closed_form_jit = compiled(_fk_closed_form_impl)
 branch_jit = compiled(_branch_impl)
 
 
-def default_tol(dtype) -> float:
-    """The Newton FK's default tolerance, ``max(1e-12, 8 eps(dtype))``: 1e-12 in float64,
-    9.5e-7 in float32 (1e-12 is below float32 resolution)."""
-    return max(1e-12, 8.0 * float(jnp.finfo(dtype).eps))
+def fk_kernel(robot: Delta, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:
+    """The robot protocol's FK kernel (``Delta.fk_kernel``): Newton from the default guess;
+    at rest no rate is read or written (the pipeline writes the zero rates)."""
+    tol = options.tolerance(theta.dtype)
+    theta = theta if rates else Jet(theta.p, None, None)
+    return _fk_chunked(
+        robot, theta, None, tol, options.max_iter, options.method, rates, zero_rates=False
+    )

@@ -27,14 +27,12 @@ from typing import TYPE_CHECKING
 import jax.numpy as jnp
 from jax import Array
 
-from .. import _batching
 from .._numerics import safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..result import IKResult
 from ..status import STATUS_DTYPE, Status
 from ._math import (
     any3,
-    compiled,
     far_away,
     home,
     in_own_units,
@@ -46,9 +44,10 @@ from ._math import (
 from .jacobians import ik_rates
 
 if TYPE_CHECKING:
+    from .options import DeltaIKOptions
     from .robot import Delta
 
-__all__ = ["ik_jit", "ik_kernel"]
+__all__ = ["ik_kernel"]
 
 
 def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
@@ -113,7 +112,7 @@ def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array
     ).astype(STATUS_DTYPE)
 
 
-def ik_kernel(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
     """Actuator angles (rates where ``rates``; else ``p.v``, ``p.a`` are None and the result's
     rates are 0) for platform positions ``p`` ``(..., 3)`` on ``branch`` ("out" or "in").
     """
@@ -160,4 +159,6 @@ def ik_kernel(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IK
     return IKResult(theta_jet, status, margin)
 
 
-ik_jit = _batching.PaddedJit(compiled(ik_kernel, ("branch", "method", "rates")), {"p": 1})
+def ik_kernel(robot: Delta, p: Jet, branch: str, options: DeltaIKOptions, rates: bool) -> IKResult:
+    """The robot protocol's IK kernel (``Delta.ik_kernel``): at rest no rate is read."""
+    return _ik_impl(robot, p if rates else Jet(p.p, None, None), branch, options.method, rates)

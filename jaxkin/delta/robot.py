@@ -28,10 +28,11 @@ from .. import workspace as _workspace
 from .._geometry import BOUND, LENGTH, geometry, number
 from ..jet import Jet
 from ..result import IKResult
-from ..robot import POINT, JointLimits, Robot
+from ..robot import POINT, CompilePolicy, JointLimits, Robot, solve_fk, solve_ik
 from ..status import Status
 from . import forward, inverse, jacobians
-from ._math import BRANCHES, JOINT_NAMES, METHODS, UX, UY, as_coords, float_dtype
+from ._math import BRANCHES, JOINT_NAMES, UX, UY, as_coords, float_dtype
+from .options import DeltaFKOptions, DeltaIKOptions
 
 __all__ = ["Delta", "fk", "fk_closed_form", "ik", "singularity", "which_branch", "workspace"]
 
@@ -63,6 +64,12 @@ class Delta(Robot):
     target: ClassVar = POINT
     branches: ClassVar = BRANCHES
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
+    IKOptions: ClassVar = DeltaIKOptions
+    FKOptions: ClassVar = DeltaFKOptions
+    # Concrete geometry compiled in as constants; the Newton FK loop runs on one core per
+    # program, so large batches are split across host threads.
+    ik_policy: ClassVar = CompilePolicy(constant_geometry=True)
+    fk_policy: ClassVar = CompilePolicy(constant_geometry=True, threads=True)
 
     def _validate(self) -> None:
         super()._validate()
@@ -116,11 +123,11 @@ class Delta(Robot):
             segments += [jnp.stack([axis, elbow], -2), jnp.stack([elbow, joint], -2)]
         return jnp.stack(segments, -3)
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        return ik(self, target, branch=branch, **options)
+    def ik_kernel(self, target: Jet, branch: Any, options: DeltaIKOptions, rates: bool) -> IKResult:
+        return inverse.ik_kernel(self, target, branch, options, rates)
 
-    def _fk(self, q: Any, **options: Any) -> Any:
-        return fk(self, q, **options)
+    def fk_kernel(self, q: Jet, options: DeltaFKOptions, rates: bool) -> forward.NewtonFKResult:
+        return forward.fk_kernel(self, q, options, rates)
 
 
 def check_robot(robot: Any) -> Delta:
@@ -133,7 +140,7 @@ def check_robot(robot: Any) -> Delta:
 def ik(
     robot: Delta, p: Jet | ArrayLike, branch: str | None = None, method: str = "analytic"
 ) -> IKResult:
-    """Actuator angles (and rates) for platform positions.
+    """Actuator angles (and rates) for platform positions (``jaxkin.ik`` of a ``Delta``).
 
     Args:
         robot: the geometry.
@@ -152,16 +159,7 @@ def ik(
     """
     robot = check_robot(robot)
     branch = _validate.choice(BRANCHES[0] if branch is None else branch, "branch", BRANCHES)
-    method = _validate.choice(method, "method", METHODS)
-    pad = _batching.shared_geometry(robot)
-    if isinstance(p, Jet):
-        p = _validate.as_jet(p, "p", coords=3)
-        p = p.astype(float_dtype(p.p))
-        return inverse.ik_jit(robot, p, branch, method, True, batch=p.shape[:-1], pad=pad)
-    # Positions only: no rate arrays are built or passed (the result has zero rates).
-    p = as_coords(p, "p")
-    batch = p.shape[:-1]
-    return inverse.ik_jit(robot, Jet(p, None, None), branch, method, False, batch=batch, pad=pad)
+    return solve_ik(robot, p, branch, DeltaIKOptions(method), name="p")
 
 
 def fk(
@@ -198,30 +196,24 @@ def fk(
         ValueError: bad shapes, ``tol <= 0``, ``max_iter < 1``, unknown method.
     """
     robot = check_robot(robot)
-    method = _validate.choice(method, "method", METHODS)
+    options = DeltaFKOptions(tol, max_iter, method)
+    if guess is None:
+        return solve_fk(robot, theta, options, name="theta")
     rates = isinstance(theta, Jet)
     if rates:
         theta = _validate.as_jet(theta, "theta", coords=3)
     else:
         theta = Jet(as_coords(theta, "theta"), None, None)
-    if tol is not None and not (isinstance(tol, int | float) and math.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a positive finite float or None, got {tol!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
     dtype = float_dtype(theta.p)
-    if tol is None:
-        tol = forward.default_tol(dtype)
-    if guess is not None:
-        guess = jnp.asarray(guess, dtype)
-        if guess.ndim == 0 or guess.shape[-1] != 3:
-            raise ValueError(f"guess: expected shape (..., 3), got {tuple(guess.shape)}")
-        shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
-        theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)), theta)
-    theta = jax.tree.map(lambda x: x.astype(dtype), theta)
+    guess = jnp.asarray(guess, dtype)
+    if guess.ndim == 0 or guess.shape[-1] != 3:
+        raise ValueError(f"guess: expected shape (..., 3), got {tuple(guess.shape)}")
+    shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
+    theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)).astype(dtype), theta)
     batch = theta.shape[:-1]
     outside = _batching.zero_rates_outside(rates, batch)
-    result = forward.fk_jit(
-        robot, theta, guess, float(tol), max_iter, method, rates, not outside,
+    result = forward.fk_guess_jit(
+        robot, theta, guess, options.tolerance(dtype), max_iter, method, rates, not outside,
         batch=batch, pad=_batching.shared_geometry(robot),
     )  # fmt: skip
     return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result

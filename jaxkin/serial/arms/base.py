@@ -18,18 +18,18 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from ... import _batching, _validate
+from ... import _batching
 from ...jet import Jet
 from ...result import FKResult, IKResult
-from ...robot import Robot
+from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
 from ...status import Status
 from ..dh import DHTable, fk_dh
-from .kernels import ArmIKResult, fk_jit, ik_all_jit, ik_jit, ik_kernel
+from .kernels import ArmIKResult, fk_kernel, ik_all_jit, ik_branch_kernel
 
 __all__ = ["Arm", "fk", "ik_all_branches", "ik_jet"]
 
 
-class Arm(Robot):
+class Arm(Robot, abstract=True):
     """Base class of the analytic arms: the robot protocol on top of the shared kernels.
 
     Subclasses set ``target``, ``branches`` and ``joint_types`` (class attributes) and
@@ -39,6 +39,8 @@ class Arm(Robot):
 
     joint_types: ClassVar[str]
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
+    # Every branch is solved anyway: the branch is picked by a traced index, one program.
+    ik_policy: ClassVar = CompilePolicy(branch_as_data=True)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -81,14 +83,17 @@ class Arm(Robot):
         ]
         return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        return ik_jet(self, target, branch, **options)
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> IKResult:
+        index = jnp.asarray(self.branches.index(branch), jnp.int32)
+        return self.ik_kernel_indexed(target, index, options, rates)
 
-    def _fk(self, q: Any, **options: Any) -> Any:
-        return fk(self, q, **options)
+    def ik_kernel_indexed(
+        self, target: Jet, index: Array, options: Any, rates: bool = True
+    ) -> IKResult:
+        return ik_branch_kernel(self, target, index, rates)  # the branch is data: one program
 
-    def _ik_indexed(self, target: Any, index: Any) -> Any:
-        return ik_kernel(self, target, index, True)  # the branch is data: one program
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
+        return fk_kernel(self, q, rates)
 
 
 def _check_arm(robot: Any) -> Arm:
@@ -141,7 +146,7 @@ def ik_all_branches(robot: Arm, target: ArrayLike) -> ArmIKResult:
 
 def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IKResult:
     """One branch of the analytic IK with joint velocity and acceleration, and a margin
-    (what ``jaxkin.ik`` calls for an arm).
+    (``jaxkin.ik`` of an arm).
 
     The rates come from ``jaxkin.lift`` (nested forward-mode jvp) of the position-level IK,
     compiled once; they are 0 where the branch's status is not ``OK``. A pose target's Jet holds
@@ -158,18 +163,11 @@ def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IK
         invalid input; ``jaxkin.serial.arms.kernels``).
     """
     robot = _check_arm(robot)
-    branch = robot.check_branch(branch)
-    shape = robot.target.shape
-    rates = isinstance(target, Jet)
-    target = _validate.as_jet(target, "target", coords=None)
-    _check_target_shape(robot, target.shape)
-    index = jnp.asarray(robot.branches.index(branch), jnp.int32)
-    padding = _batching.shared_geometry(robot) and {"target": len(shape)}
-    return ik_jit(robot, target, index, rates, batch=target.shape[: -len(shape)], pad=padding)
+    return solve_ik(robot, target, branch, robot.IKOptions())
 
 
 def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
-    """Forward kinematics of an analytic arm in the form of its targets.
+    """Forward kinematics of an analytic arm in the form of its targets (``jaxkin.fk``).
 
     Args:
         robot: an analytic arm.
@@ -186,6 +184,4 @@ def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
         ValueError: ``robot`` is not an analytic arm or ``q``'s last axis is not ``n_joints``.
     """
     robot = _check_arm(robot)
-    rates = isinstance(q, Jet)
-    q = _validate.as_jet(q, "q", coords=robot.n_joints)
-    return fk_jit(robot, q, rates, batch=q.shape[:-1], pad=_batching.shared_geometry(robot))
+    return solve_fk(robot, q, robot.FKOptions())

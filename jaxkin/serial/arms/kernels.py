@@ -39,12 +39,10 @@ if TYPE_CHECKING:
 __all__ = [
     "FAR",
     "ArmIKResult",
-    "fk_jit",
     "fk_kernel",
     "ik_all_jit",
     "ik_all_kernel",
-    "ik_jit",
-    "ik_kernel",
+    "ik_branch_kernel",
 ]
 
 
@@ -201,7 +199,7 @@ def _margin(robot: Arm, q: Array, target: Array, status: Array) -> Array:
     ).astype(dtype)
 
 
-def ik_kernel(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult:
+def ik_branch_kernel(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult:
     """One branch, ``robot.branches[index]`` (``index`` an ``int32`` scalar, possibly traced),
     with joint rates by ``jaxkin.lift`` of ``ik_all_kernel`` where ``rates`` (else ``target``'s
     rates are not read and the result's are 0) and the margin (module docstring)."""
@@ -224,12 +222,6 @@ def ik_kernel(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult:
     return IKResult(q, status, _margin(robot, q.p, target.p, status))
 
 
-ik_jit = _batching.PaddedJit(jax.jit(ik_kernel, static_argnames="rates"), {})
-
-
 def fk_kernel(robot: Arm, q: Jet, rates: bool) -> FKResult:
     """The arm's FK in the form of its targets (rates by ``jaxkin.lift`` where ``rates``)."""
     return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.target.shape))
-
-
-fk_jit = _batching.PaddedJit(jax.jit(fk_kernel, static_argnames="rates"), {"q": 1})
