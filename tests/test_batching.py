@@ -369,13 +369,13 @@ def test_padding_broadcasts_batched_arguments_and_leaves_the_rest_alone(monkeypa
 def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_axis():
     """The planner pads its candidates (5 and 7 share one program; a path's samples are not
     a batch axis); the Newton IK's history keeps its step axis first."""
-    from jaxkin import plan, scara
+    from jaxkin import paths, plan, scara
 
     robot = scara.Scara.paper()
     rng = np.random.default_rng(6)
     t = np.linspace(0.0, 1.0, 9)[:, None]
     start = rng.uniform([60.0, -20.0, 40.0], [90.0, 20.0, 80.0], (7, 1, 3))
-    path = plan.path_from_samples(start + t * [10.0, 5.0, -5.0], dt=0.1)
+    path = paths.path_from_samples(start + t * [10.0, 5.0, -5.0], dt=0.1)
     parts = [jax.tree.map(lambda x, n=n: x[:n], path) for n in (5, 7)]
     results, counts = [], []
     for part in parts:

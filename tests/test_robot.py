@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 import jaxkin
-from jaxkin import Jet, Status, delta, optimize, plan, scara, serial, workspace
+from jaxkin import Jet, Status, delta, optimize, paths, plan, scara, serial, workspace
 from jaxkin._geometry import LENGTH, geometry, number
 from jaxkin.result import FKResult, IKResult
 from jaxkin.robot import PLANAR_POINT, POINT, POSE, Robot
@@ -229,8 +229,8 @@ def test_a_new_robot_needs_only_the_protocol():
     assert list(np.asarray(res.status)) == [Status.OK, Status.UNREACHABLE]
     s = np.linspace(0.0, 1.0, 11)[None, :, None]
     goals = np.array([[4.0, 3.0], [2.0, -1.0], [12.0, 0.0]])  # the last leaves x - 1 <= 5
-    paths = plan.path_from_samples(goals[:, None, :] * s, dt=0.1)
-    ev = plan.evaluate(robot, paths, dt=0.1, branch="best")
+    path = paths.path_from_samples(goals[:, None, :] * s, dt=0.1)
+    ev = plan.evaluate(robot, path, dt=0.1, branch="best")
     assert list(np.asarray(ev.feasible)) == [True, True, False]
     ws = workspace.sweep(robot)
     assert ws.mask.shape == (17, 17) and ws.n_reachable == 11 * 11  # x - 1 in [-5, 5]

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from jaxkin.serial import dh, lie, poe
+from jaxkin import lie
+from jaxkin.serial import dh, poe
 from tests.helpers import BATCH_SHAPES, compile_count
 
 # PUMA-560-type arm, standard DH (Corke's Robotics Toolbox p560 kinematic parameters, metres).

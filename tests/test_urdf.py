@@ -21,7 +21,7 @@ import yourdfpy
 from scipy.spatial.transform import Rotation
 
 import jaxkin
-from jaxkin import Jet, Status, plan, serial
+from jaxkin import Jet, Status, paths, plan, serial
 
 ROBOTS = importlib.metadata.distribution("example-robot-data").locate_file(
     "cmeel.prefix/share/example-robot-data/robots"
@@ -153,7 +153,7 @@ def test_pose_paths_through_the_planner(arm):
     assert regular.sum() >= 3
     quat = Rotation.from_matrix(poses[..., :3, :3].reshape(-1, 3, 3)).as_quat()
     quat = quat.reshape(n, t, 4)[..., [3, 0, 1, 2]]
-    path = plan.path_from_poses(poses[..., :3, 3], quat, dt)
+    path = paths.path_from_poses(poses[..., :3, 3], quat, dt)
     ev = plan.evaluate(chain, path, dt=dt)
     assert np.all(np.asarray(ev.status)[regular] == Status.OK) and np.all(ev.feasible[regular])
     assert np.all(np.asarray(ev.min_margin)[regular] > 0)

@@ -185,10 +185,6 @@ def _centre_components(robot: Delta, theta: Array, cos_sin=None) -> tuple[tuple[
     return tuple(out)
 
 
-def _cross3(u, v):
-    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
-
-
 def _components(x: Array) -> tuple[Array, Array, Array]:
     return x[..., 0], x[..., 1], x[..., 2]
 

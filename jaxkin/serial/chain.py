@@ -37,14 +37,13 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _batching, _validate, lie
 from .._geometry import BOUND, REAL, geometry, number, static
 from ..jet import Jet
 from ..result import FKResult, forward_result
 from ..robot import POSE, JointLimits, Robot
 from ..status import Status
 from . import dh as _dh
-from . import lie
 from . import poe as _poe
 
 __all__ = ["JOINT_KINDS", "JointChain"]

@@ -29,13 +29,12 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _batching, _validate, lie
 from .._geometry import REAL, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
 from ..robot import POSE, Robot
 from ..status import Status
-from . import lie
 
 __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]
 

@@ -58,14 +58,13 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _batching, _validate, lie
 from .._numerics import all_finite, computed_once, eps, isotropy, safe_sqrt, singular_rtol
 from ..jet import Jet
 from ..result import IKResult, SolverResult
 from ..status import STATUS_DTYPE, Status
 from . import chain as _chain
 from . import dh as _dh
-from . import lie
 from . import poe as _poe
 
 __all__ = ["NewtonIKResult", "ik_chain", "ik_chain_path", "ik_newton"]
