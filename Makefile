@@ -18,7 +18,7 @@ demo: $(STAMP)
 	$(BIN)/jaxkin demo
 
 # Two worker processes (pytest-xdist), one file per worker at a time so that a file's tests
-# share their compilations. The slow tests (tests/conftest.py) run with `make test-slow`.
+# share their compilations. The slow tests (`@pytest.mark.slow`) run with `make test-slow`.
 # Python's bytecode caches are written even where the environment turns them off, so that
 # later processes (workers, the command-line tests' subprocesses) load modules compiled once.
 PYTEST := PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q -n 2 --dist loadfile

@@ -6,11 +6,13 @@ of ``serial``. Kernels: ``dyad`` (the RRR dyad), ``scara``, ``delta``, ``serial`
 analytic and Newton IK), ``newton`` (batched Newton-Raphson), ``planar`` (angle and distance
 rates), ``lie`` (every rotation: SO(3)/SE(3), quaternions). Built on them: ``paths`` (paths
 from samples or poses), ``plan`` (the planner backend), ``optimize`` (trajectory optimisation
-with optax), ``workspace`` (voxel sweeps), ``fixedpoint`` (bit-width studies), ``plot`` (needs
-the ``plot`` extra; imported on demand). ``set_num_threads``: the host threads a large batch of
+with optax; its cost terms in ``costs``), ``workspace`` (voxel sweeps), ``fixedpoint``
+(bit-width studies), ``plot`` (needs the ``plot`` extra; imported on demand).
+``set_num_threads``: the host threads a large batch of
 a loop-bound kernel is split across.
 """
 
+from . import costs as costs
 from . import delta as delta
 from . import dyad as dyad
 from . import fixedpoint as fixedpoint
@@ -49,6 +51,7 @@ __all__ = [
     "SolverResult",
     "Status",
     "__version__",
+    "costs",
     "delta",
     "describe",
     "dyad",

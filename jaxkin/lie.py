@@ -42,6 +42,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from ._numerics import computed_once, eps, safe_norm, safe_sqrt
+from ._validate import as_float
 
 __all__ = [
     "adjoint",
@@ -68,13 +69,6 @@ __all__ = [
 ]
 
 
-def _float(x: ArrayLike) -> Array:
-    x = jnp.asarray(x)
-    if not jnp.issubdtype(x.dtype, jnp.inexact):
-        x = x.astype(jnp.result_type(float))
-    return x
-
-
 def _small_angle(dtype) -> float:
     """Angle below which the Taylor series of A, B, C, D are used (see module docstring)."""
     return 5.0 * eps(dtype) ** 0.125
@@ -83,7 +77,7 @@ def _small_angle(dtype) -> float:
 @jax.jit
 def hat(omega: ArrayLike) -> Array:
     """Skew-symmetric matrix of a 3-vector: ``(..., 3) -> (..., 3, 3)``, ``hat(a) b = a x b``."""
-    omega = _float(omega)
+    omega = as_float(omega)
     x, y, z = omega[..., 0], omega[..., 1], omega[..., 2]
     zero = jnp.zeros_like(x)
     return jnp.stack(
@@ -102,7 +96,7 @@ def vee(mat: ArrayLike, *, xp: Any = jnp, skew: bool = False) -> Array:
     Reads the antisymmetric part ``(M - M^T) / 2``; with ``skew`` it reads ``(M_21, M_02,
     M_10)`` of a matrix skew-symmetric by construction (as ``R_dot R^T``) as it is.
     """
-    mat = _float(mat) if xp is jnp else np.asarray(mat, dtype=float)
+    mat = as_float(mat) if xp is jnp else np.asarray(mat, dtype=float)
     if skew:
         return xp.stack([mat[..., 2, 1], mat[..., 0, 2], mat[..., 1, 0]], -1)
     return 0.5 * xp.stack(
@@ -118,7 +112,7 @@ def vee(mat: ArrayLike, *, xp: Any = jnp, skew: bool = False) -> Array:
 @jax.jit
 def se3_hat(xi: ArrayLike) -> Array:
     """4x4 matrix of a twist ``(omega, v)``: ``(..., 6) -> (..., 4, 4)``."""
-    xi = _float(xi)
+    xi = as_float(xi)
     top = jnp.concatenate([hat(xi[..., :3]), xi[..., 3:, None]], axis=-1)
     bottom = jnp.zeros((*xi.shape[:-1], 1, 4), xi.dtype)
     return jnp.concatenate([top, bottom], axis=-2)
@@ -127,7 +121,7 @@ def se3_hat(xi: ArrayLike) -> Array:
 @jax.jit
 def se3_vee(mat: ArrayLike) -> Array:
     """Inverse of ``se3_hat``: ``(..., 4, 4) -> (..., 6)`` ordered ``(omega, v)``."""
-    mat = _float(mat)
+    mat = as_float(mat)
     return jnp.concatenate([vee(mat[..., :3, :3]), mat[..., :3, 3]], axis=-1)
 
 
@@ -155,7 +149,7 @@ def _exp_coefficients(theta_sq: Array) -> tuple[Array, Array, Array]:
 @jax.jit
 def so3_exp(omega: ArrayLike) -> Array:
     """Rotation matrix of a rotation vector (Rodrigues): ``(..., 3) -> (..., 3, 3)``."""
-    omega = _float(omega)
+    omega = as_float(omega)
     a, b, _ = _exp_coefficients(jnp.sum(omega * omega, axis=-1))
     k = hat(omega)
     eye = jnp.eye(3, dtype=omega.dtype)
@@ -169,7 +163,7 @@ def se3_exp(xi: ArrayLike) -> Array:
     ``expm(se3_hat(xi))`` in closed form: ``R = I + A W + B W^2``, ``p = (I + B W + C W^2) v``
     with ``W = hat(omega)``.
     """
-    xi = _float(xi)
+    xi = as_float(xi)
     omega, v = xi[..., :3], xi[..., 3:]
     a, b, c = _exp_coefficients(jnp.sum(omega * omega, axis=-1))
     k = hat(omega)
@@ -184,7 +178,7 @@ def se3_exp(xi: ArrayLike) -> Array:
 @jax.jit
 def from_rotation_translation(rot: ArrayLike, p: ArrayLike) -> Array:
     """Assemble ``[[R, p], [0, 1]]`` from ``R`` (..., 3, 3) and ``p`` (..., 3)."""
-    rot, p = _float(rot), _float(p)
+    rot, p = as_float(rot), as_float(p)
     batch = jnp.broadcast_shapes(rot.shape[:-2], p.shape[:-1])
     dtype = jnp.result_type(rot, p)
     rot = jnp.broadcast_to(rot, (*batch, 3, 3)).astype(dtype)
@@ -352,7 +346,7 @@ def so3_log(rot: ArrayLike) -> Array:
 
     Finite values and gradients at the identity and at half-turns (see module docstring).
     """
-    rot = _float(rot)
+    rot = as_float(rot)
     omega, _, _, _ = so3_log_soa([[rot[..., r, c] for c in range(3)] for r in range(3)])
     return jnp.stack(omega, axis=-1)
 
@@ -363,13 +357,13 @@ def se3_log(transform: ArrayLike) -> Array:
 
     Inverse of ``se3_exp`` for rotation angles in [0, pi].
     """
-    return jnp.stack(se3_log_soa(*unpack(_float(transform))), axis=-1)
+    return jnp.stack(se3_log_soa(*unpack(as_float(transform))), axis=-1)
 
 
 @jax.jit
 def se3_inverse(transform: ArrayLike) -> Array:
     """Inverse of a homogeneous transform: ``[[R^T, -R^T p], [0, 1]]``, ``(..., 4, 4)``."""
-    transform = _float(transform)
+    transform = as_float(transform)
     rot_t = jnp.swapaxes(transform[..., :3, :3], -1, -2)
     p = -jnp.einsum("...ij,...j->...i", rot_t, transform[..., :3, 3])
     return from_rotation_translation(rot_t, p)
@@ -381,7 +375,7 @@ def adjoint(transform: ArrayLike) -> Array:
 
     ``[[R, 0], [hat(p) R, R]]``.
     """
-    transform = _float(transform)
+    transform = as_float(transform)
     rot = transform[..., :3, :3]
     p_rot = hat(transform[..., :3, 3]) @ rot
     zero = jnp.zeros_like(rot)

@@ -36,6 +36,7 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
+from . import _validate
 from ._numerics import singular_rtol
 from .lie import cross_soa
 from .result import SolverResult
@@ -266,8 +267,7 @@ def solve(
     x0 = jnp.asarray(x0)
     if x0.ndim == 0:
         raise ValueError(f"x0: expected shape (..., n), got {tuple(x0.shape)}")
-    if not jnp.issubdtype(x0.dtype, jnp.inexact):
-        x0 = x0.astype(jnp.result_type(float))
+    x0 = _validate.as_float(x0)
     if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
         raise ValueError(f"max_iter must be an int >= 0, got {max_iter!r}")
     if not tol > 0:

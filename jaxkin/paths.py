@@ -12,19 +12,36 @@ their rates between ``(x, y, z, qw, qx, qy, qz)`` rows and ``(..., 4, 4)`` trans
 Everything runs in NumPy float64 on the host, whatever JAX's x64 setting; the results are
 ``Jet``s for ``jaxkin.plan.evaluate``. A candidate with a NaN or inf sample gets NaN rates
 (its samples are ``INVALID_INPUT`` in ``evaluate``); the other candidates are unaffected.
+
+Bezier paths (trajectory optimisation): ``p(s) = sum_i B_i(s) P_i`` with Bernstein
+polynomials ``B_i`` of degree ``K - 1`` and ``s = t / duration``; ``bezier_basis`` tabulates
+the basis and its first two derivatives on the host, ``bezier_path`` evaluates a ``Jet`` (in
+JAX, differentiable in the control points), ``bezier_controls`` adds the fixed end points and
+``straight_line_guess`` makes initial interior points.
 """
 
 from __future__ import annotations
 
 import math
 
+import jax.numpy as jnp
 import numpy as np
+from jax import Array
 from jax.typing import ArrayLike
 
 from . import _splines, lie
 from .jet import Jet
 
-__all__ = ["path_from_poses", "path_from_samples", "pose_from_quaternions", "quaternions_from_pose"]
+__all__ = [
+    "bezier_basis",
+    "bezier_controls",
+    "bezier_path",
+    "path_from_poses",
+    "path_from_samples",
+    "pose_from_quaternions",
+    "quaternions_from_pose",
+    "straight_line_guess",
+]
 
 
 def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") -> Jet:
@@ -145,3 +162,57 @@ def quaternions_from_pose(pose: Jet) -> tuple[np.ndarray, np.ndarray, np.ndarray
     v = np.concatenate([d_r[..., :3, 3], d_quat], -1)
     a = np.concatenate([dd_r[..., :3, 3], dd_quat], -1)
     return p, v, a
+
+
+def bezier_basis(n_ctrl: int, n_samples: int) -> np.ndarray:
+    """Bernstein basis and its first two derivatives in ``s``: shape ``(3, n_samples, n_ctrl)``.
+
+    ``B_i(s) = C(K-1, i) s^i (1 - s)^(K-1-i)`` at ``s = linspace(0, 1, n_samples)``; the
+    derivatives use ``B'_{i,n} = n (B_{i-1,n-1} - B_{i,n-1})`` (host-side setup, float64).
+    """
+
+    def bernstein(degree: int, s: np.ndarray) -> np.ndarray:
+        i = np.arange(degree + 1)
+        coef = np.array([math.comb(degree, k) for k in i], float)
+        return coef * s[:, None] ** i * (1.0 - s[:, None]) ** (degree - i)
+
+    def derivative(values: np.ndarray, degree: int) -> np.ndarray:
+        padded = np.pad(values, ((0, 0), (1, 1)))
+        return degree * (padded[:, :-1] - padded[:, 1:])
+
+    s = np.linspace(0.0, 1.0, n_samples)
+    n = n_ctrl - 1
+    b0 = bernstein(n, s)
+    b1 = derivative(bernstein(n - 1, s), n) if n >= 1 else np.zeros_like(b0)
+    b2 = derivative(derivative(bernstein(n - 2, s), n - 1), n) if n >= 2 else np.zeros_like(b0)
+    return np.stack([b0, b1, b2])
+
+
+def bezier_controls(interior: Array, start: Array, goal: Array, rest_to_rest: bool) -> Array:
+    """Every control point ``(..., K, d)`` from the interior ones ``(..., K', d)``: ``start``
+    first and ``goal`` last (each twice with ``rest_to_rest``: the path starts and ends at
+    rest)."""
+    batch = interior.shape[:-2]
+    ends = [jnp.broadcast_to(x, (*batch, 1, x.shape[-1])) for x in (start, goal)]
+    if rest_to_rest:
+        ends = [jnp.concatenate([e, e], axis=-2) for e in ends]
+    return jnp.concatenate([ends[0], interior, ends[1]], axis=-2)
+
+
+def bezier_path(controls: Array, basis: Array, duration: float) -> Jet:
+    """Jet of the Bezier path, shape ``(..., T, d)``, from controls ``(..., K, d)``."""
+    p = jnp.einsum("tk,...kc->...tc", basis[0], controls)
+    v = jnp.einsum("tk,...kc->...tc", basis[1], controls) / duration
+    a = jnp.einsum("tk,...kc->...tc", basis[2], controls) / duration**2
+    return Jet(p, v, a)
+
+
+def straight_line_guess(
+    start: ArrayLike, goal: ArrayLike, n_interior: int, n_guesses: int = 1, noise=0.0, seed=0
+) -> np.ndarray:
+    """Interior control points on the segment start-goal, plus Gaussian noise: (B, K-2, d)."""
+    start, goal = np.asarray(start, float), np.asarray(goal, float)
+    s = np.linspace(0.0, 1.0, n_interior + 2)[1:-1, None]
+    line = start + s * (goal - start)
+    rng = np.random.default_rng(seed)
+    return line + noise * rng.normal(size=(n_guesses, n_interior, start.shape[-1]))

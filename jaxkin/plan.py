@@ -182,7 +182,7 @@ def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
     return limits.tightened(own.lower, own.upper)
 
 
-# ------------------------------------------------------------------ costs (reused by optimize)
+# ------------------------------------------------------------------ costs (reused by jaxkin.costs)
 def limit_excess(q: Jet, limits: Limits) -> Array:
     """How far each sample exceeds its limits, summed over joints: shape ``q.shape[:-1]``."""
     dtype = q.p.dtype

@@ -129,7 +129,7 @@ def run(out_dir: Path, distributed: bool) -> dict[str, np.ndarray]:
             out[f"{name}.volume"] = np.asarray(sweep.volume)
             out[f"{name}.slice_areas"] = sweep.slice_areas
 
-        guesses = optimize.straight_line_guess(START, GOAL, 3, n_guesses=4, noise=10.0, seed=1)
+        guesses = paths.straight_line_guess(START, GOAL, 3, n_guesses=4, noise=10.0, seed=1)
         adam = optimize.Adam(1e-2)  # compiles in half the time of L-BFGS's line search
         result = optimize.optimize(
             ROBOT, START, GOAL, guesses, n_samples=T, steps=8, optimizer=adam

@@ -3,13 +3,24 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator
+from typing import Any
 
 import jax
 import numpy as np
+import pytest
 from jax import monitoring
 
 BATCH_SHAPES = [(), (1,), (7,), (3, 5)]
+
+
+def marked_slow(values: Iterable[Any], slow: Collection[Any]) -> list[Any]:
+    """``values`` for ``pytest.mark.parametrize`` with those in ``slow`` marked
+    ``pytest.mark.slow`` (left out of ``make test``; their ids stay the values')."""
+    slow = set(slow)
+    unknown = slow.difference(values := list(values))
+    assert not unknown, f"marked slow but not parametrised: {sorted(unknown)}"
+    return [pytest.param(v, marks=pytest.mark.slow) if v in slow else v for v in values]
 
 
 def central_differences(

@@ -17,7 +17,7 @@ import pytest
 
 import jaxkin
 from jaxkin import Jet, Status, delta, plan, scara, serial
-from tests.helpers import tree_allfinite
+from tests.helpers import marked_slow, tree_allfinite
 from tests.references import delta as delta_ref
 from tests.references import scara as scara_ref
 
@@ -204,6 +204,7 @@ def test_chunking_equals_one_call():
         assert_same_result(x, y)
 
 
+@pytest.mark.slow
 def test_sharded_equals_unsharded(tmp_path):
     """Evaluate on 2 forced CPU devices in a subprocess, in overlapping chunks (5 candidates
     padded to 6, chunks of 4 starting at 0 and 2), and compare with one call in this process
@@ -397,7 +398,7 @@ def test_delta_evaluation_equals_the_reference_ik():
     np.testing.assert_allclose(ev.q.p[:2], reference, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", marked_slow(ROBOTS, ["dh-table"]))
 def test_every_robot_with_default_arguments(name):
     """``evaluate(robot, path)`` returns, on the default branch, the joints the path was made
     from (rates included, 1e-9 of their scale) and they reach the path; zero candidates give
@@ -425,6 +426,7 @@ def test_every_robot_with_default_arguments(name):
     assert empty.costs.total.shape == (0,) and plan.best(empty, 1)[0].size == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(ROBOTS))
 def test_every_robot_best_branch(name):
     """``branch="best"`` keeps, per candidate, a branch of no greater cost than the default

@@ -26,7 +26,7 @@ from jaxkin import Jet, Status, delta, optimize, paths, plan, scara, serial, wor
 from jaxkin._geometry import LENGTH, geometry, number
 from jaxkin.result import FKResult, IKResult
 from jaxkin.robot import PLANAR_POINT, POINT, POSE, Robot
-from tests.helpers import compilations
+from tests.helpers import compilations, marked_slow
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -85,6 +85,10 @@ def _close(a, b, atol):
     np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=atol)
 
 
+# Their round trips repeat, for another chain of the same kind, what the others check.
+SLOW_CHAINS = ("poe-chain", "dh-table", "stanford")
+
+
 @pytest.mark.parametrize("name", list(ROBOTS))
 def test_protocol_attributes(name):
     robot = ROBOTS[name][0]()
@@ -99,7 +103,7 @@ def test_protocol_attributes(name):
     assert all(isinstance(s, Status) for s in robot.reachable)
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", marked_slow(ROBOTS, SLOW_CHAINS))
 def test_round_trip_every_branch(name):
     """fk(ik(t)).x == t (1e-9 of the robot's size) on every branch that solves the target; the
     default branch reproduces the targets made from the sampled joints."""
@@ -122,7 +126,7 @@ def test_round_trip_every_branch(name):
     assert np.all(np.asarray(jaxkin.ik(robot, t).status) == Status.OK) or name == "scara"
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", marked_slow(ROBOTS, SLOW_CHAINS))
 def test_rates_round_trip(name):
     """Joint rates from the IK of a target Jet, pushed through the FK's rates, give back the
     target's velocity and acceleration (both computed by the library, by different formulas:
@@ -140,7 +144,7 @@ def test_rates_round_trip(name):
         _close(np.asarray(got)[ok], np.asarray(want)[ok], 1e-7 * scale * (1 + np.abs(want).max()))
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", marked_slow(ROBOTS, SLOW_CHAINS))
 def test_plain_arrays_are_at_rest_and_errors_name_the_argument(name):
     robot, q, t = _targets(name)
     res = jaxkin.ik(robot, t)
@@ -158,7 +162,9 @@ def test_plain_arrays_are_at_rest_and_errors_name_the_argument(name):
         jaxkin.ik(object(), t)
 
 
-@pytest.mark.parametrize("name", ["scara", "delta", "anthropomorphic", "puma560", "dh-table"])
+@pytest.mark.parametrize(
+    "name", marked_slow(["scara", "delta", "anthropomorphic", "puma560", "dh-table"], ["dh-table"])
+)
 def test_jit_vmap_and_no_recompilation(name):
     """Under a user's jit and vmap the protocol gives the eager values; a repeated call with new
     values and a freshly built robot compiles (and traces) nothing."""
@@ -242,7 +248,8 @@ def test_consumers_never_ask_which_robot():
     """The planner, optimiser, workspace sweeps and the command's solvers import no robot
     module: they are written against the protocol alone."""
     robot_modules = {"scara", "delta", "serial", "dyad"}
-    for path in ("plan.py", "optimize.py", "workspace.py", "cli/commands.py", "cli/files.py"):
+    consumers = ("plan.py", "paths.py", "costs.py", "optimize.py", "workspace.py")
+    for path in (*consumers, "cli/commands.py", "cli/files.py"):
         tree = ast.parse((ROOT / "jaxkin" / path).read_text())
         imported = set()
         for node in ast.walk(tree):

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching
+from .. import _batching, _validate
 from .._geometry import BOUND, LENGTH, concrete_scalars, geometry, number
 from .._numerics import computed_once, safe_sqrt
 from .._trig import cos_alone, sin_alone
@@ -296,9 +296,7 @@ def float_dtype(*xs: Any) -> Any:
 
 
 def as_coords(x: ArrayLike, name: str) -> Array:
-    x = jnp.asarray(x)
-    if not jnp.issubdtype(x.dtype, jnp.inexact):
-        x = x.astype(jnp.result_type(float))
+    x = _validate.as_float(x)
     if x.ndim == 0 or x.shape[-1] != 3:
         raise ValueError(f"{name}: expected shape (..., 3), got {tuple(x.shape)}")
     return x
