@@ -15,10 +15,7 @@ import pytest
 
 import jaxkin
 from jaxkin import Jet, Status, _batching, delta, serial
-from jaxkin.delta import forward
-from jaxkin.serial import chain as joint_chain
-from jaxkin.serial import poe
-from tests.helpers import tree_allfinite
+from tests.helpers import compilations, tree_allfinite
 
 ROBOT = delta.Delta.paper()
 CHUNK = _batching.CHUNK
@@ -96,6 +93,20 @@ def small_parts(monkeypatch):
     _batching.set_num_threads(None)
 
 
+@pytest.fixture
+def splits(monkeypatch):
+    """The number of parts of every batch split across threads (``_batching.run_parts``)."""
+    seen: list[int] = []
+    run_parts = _batching.run_parts
+
+    def spy(run, starts):
+        seen.append(len(starts))
+        return run_parts(run, starts)
+
+    monkeypatch.setattr(_batching, "run_parts", spy)
+    return seen
+
+
 def _whole(fn, *args, **kwargs):
     _batching.set_num_threads(1)
     try:
@@ -149,9 +160,10 @@ def test_parts_equal_whole_batch(small_parts, batch, threads):
     x, y = _pair(batch)
     kernel = _batching.PartsJit(_toy, ("mode",), ("x", "y"))
     _batching.set_num_threads(threads)
-    parts = kernel(x, y, jnp.asarray(2.0), 3, batch=batch)
+    with compilations() as count:
+        parts = kernel(x, y, jnp.asarray(2.0), 3, batch=batch)
     whole = kernel.whole(x, y, jnp.asarray(2.0), 3)
-    assert kernel._part._cache_size() == 1  # the parts ran (one shared compilation)
+    assert count.compiled("_part_impl") == 1  # the parts ran (one shared compilation)
     for key in whole:
         assert parts[key].shape == whole[key].shape
         np.testing.assert_array_equal(parts[key], whole[key])
@@ -178,16 +190,17 @@ def test_whole_batch_when_splitting_does_not_apply(small_parts):
 
     split = _batching.PartsJit(kernel, (), ("x", "y"))
     x = jnp.ones((64, 2))
-    out = [
-        split(x, jnp.ones((1, 2)), batch=(64,)),  # y only broadcasts to the batch
-        jax.jit(lambda x: split(x, x, batch=(64,)))(x),  # tracers inside a user's jit
-    ]
-    _batching.set_num_threads(1)
-    out.append(split(x, x, batch=(64,)))  # one thread
+    with compilations() as count:
+        out = [
+            split(x, jnp.ones((1, 2)), batch=(64,)),  # y only broadcasts to the batch
+            jax.jit(lambda x: split(x, x, batch=(64,)))(x),  # tracers inside a user's jit
+        ]
+        _batching.set_num_threads(1)
+        out.append(split(x, x, batch=(64,)))  # one thread
     for result in out:
         np.testing.assert_array_equal(result, 2.0 * np.ones((64, 2)))
     assert calls and all(shape == (64, 2) for shape in calls)
-    assert split._part._cache_size() == 0
+    assert count.compiled("_part_impl") == 0
 
 
 def test_errors_reach_the_caller(small_parts):
@@ -216,7 +229,7 @@ def test_thread_count_setting(monkeypatch):
             _batching.set_num_threads(bad)
 
 
-def test_delta_fk_in_parts_equals_whole_batch(small_parts):
+def test_delta_fk_in_parts_equals_whole_batch(small_parts, splits):
     """The real kernel: Newton iterations, statuses, rates, a warm start, bad elements."""
     rng = np.random.default_rng(3)
     p = np.stack([rng.uniform(-8, 8, 101), rng.uniform(-8, 8, 101), rng.uniform(-38, -22, 101)], -1)
@@ -227,10 +240,9 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts):
     guess = p + rng.normal(scale=0.5, size=p.shape)
     results = []
     for args, kwargs in [((jet,), {}), ((theta,), {"guess": guess})]:
-        before = forward._fk_jit.jitted._static._part._cache_size()
+        splits.clear()
         parts = delta.fk(ROBOT, *args, **kwargs)
-        # the part kernel (not the whole-batch one) was compiled for this call
-        assert forward._fk_jit.jitted._static._part._cache_size() == before + 1
+        assert splits and max(splits) >= 2  # the batch ran in parts on the threads
         whole = _whole(delta.fk, ROBOT, *args, **kwargs)
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype
@@ -242,7 +254,7 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts):
     assert tree_allfinite(results)
 
 
-def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, monkeypatch):
+def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, splits, monkeypatch):
     """A chain's FK (at rest, its zero rates then written outside the kernel; and with rates)
     and both Jacobians, split in parts, equal the whole batch bit for bit."""
     monkeypatch.setattr(_batching, "SHARED_ZEROS_MIN", 16)
@@ -251,9 +263,8 @@ def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, monkeypa
     q = rng.uniform(-2, 2, (101, 6))
     q[7] = np.nan
     jet = Jet.of(q, rng.normal(size=q.shape), rng.normal(size=q.shape))
-    before = joint_chain._fk_jit.jitted._part._cache_size()
     at_rest = jaxkin.fk(chain, q)
-    assert joint_chain._fk_jit.jitted._part._cache_size() == before + 1  # the part kernel ran
+    assert splits and max(splits) >= 2  # the batch ran in parts on the threads
     calls = [
         (jaxkin.fk, q),
         (jaxkin.fk, jet),
@@ -261,11 +272,13 @@ def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, monkeypa
         (serial.body_jacobian, q),
     ]
     for fn, arg in calls:
-        parts, whole = fn(chain, arg), _whole(fn, chain, arg)
+        splits.clear()
+        parts = fn(chain, arg)
+        assert splits and max(splits) >= 2, fn.__name__
+        whole = _whole(fn, chain, arg)
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype
             np.testing.assert_array_equal(a, b)
-    assert poe._jacobian_jit.jitted._part._cache_size() >= 1
     status = np.asarray(at_rest.status)
     assert status[7] == Status.INVALID_INPUT and np.all(np.delete(status, 7) == Status.OK)
     assert not np.any(at_rest.x.v) and not np.any(at_rest.x.a)
@@ -313,9 +326,10 @@ def test_small_batches_of_any_shape_share_one_padded_compilation():
     kernel = dyad._solve_jit.jitted
     for k, batch in enumerate([(3, 5), (15,), (2, 7)]):
         a, b = _dyad_inputs(batch, k)
-        before = kernel._cache_size()
-        result = dyad.solve(a, b, 1.3, 1.1)
-        assert k == 0 or kernel._cache_size() == before  # the first shape compiles the kernel
+        with compilations() as count:
+            result = dyad.solve(a, b, 1.3, 1.1)
+        # the first shape compiles the kernel
+        assert k == 0 or count.compiled(kernel.__name__) == 0
         size = int(np.prod(batch))
         by_hand = [jax.tree.map(lambda x: _pad_by_hand(x, 64), jet) for jet in (a, b)]
         padded = kernel(*by_hand, 1.3, 1.1, 1, "analytic")
@@ -356,10 +370,8 @@ def test_padding_broadcasts_batched_arguments_and_leaves_the_rest_alone(monkeypa
 
     robots = scara.Scara(l_oa=1.5, l_ab=jnp.array([0.8, 0.9, 1.0]), l_bc=0.5)
     d = jnp.array([[0.9, 0.3, 1.0], [1.0, -0.2, 1.2], [0.7, 0.7, 1.1]])
-    before = scara._ik_jit._cache_size()
     solved = scara.ik(robots, d)  # batch (3,) from the geometry: run as it is
     np.testing.assert_allclose(jaxkin.fk(robots, solved.q).x.p, d, rtol=0, atol=1e-13)
-    assert scara._ik_jit._cache_size() == before + 1
 
     size = _batching.PAD_MAX + 1
     large = dyad.position(np.zeros((size, 2)), np.ones((size, 2)), 1.0, 1.0)
@@ -377,11 +389,11 @@ def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_ax
     start = rng.uniform([60.0, -20.0, 40.0], [90.0, 20.0, 80.0], (7, 1, 3))
     path = paths.path_from_samples(start + t * [10.0, 5.0, -5.0], dt=0.1)
     parts = [jax.tree.map(lambda x, n=n: x[:n], path) for n in (5, 7)]
-    results, counts = [], []
-    for part in parts:
-        results.append(plan.evaluate(robot, part))
-        counts.append(plan._evaluate_jit._cache_size())
-    assert counts[1] == counts[0]  # 7 candidates reuse the program compiled for 5
+    results = [plan.evaluate(robot, parts[0])]
+    with compilations() as count:
+        results.append(plan.evaluate(robot, parts[1]))
+    # 7 candidates reuse the program compiled for 5
+    assert count.compiled(plan._evaluate_jit.jitted.__name__) == 0
     for part, got in zip(parts, results, strict=True):
         want = plan._evaluate_jit.jitted(robot, part, plan.robot_limits(robot, None), 1.0, 1)
         n = part.shape[0]

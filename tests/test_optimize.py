@@ -184,7 +184,7 @@ def test_second_call_compiles_nothing(problem):
     new = [np.asarray(x) for x in new]
     with compilations() as count:
         optimize.optimize(ROBOT, *new, cost=costs.acceleration, **KWARGS)
-    assert count["n"] == 0
+    assert count.n == 0
 
     # A composed cost with new weights, a new threshold and moved obstacles: one compilation
     # for the first, none for the others.
@@ -198,7 +198,7 @@ def test_second_call_compiles_nothing(problem):
     with compilations() as count:
         for c in moved:
             optimize.optimize(ROBOT, START, GOAL, guesses, cost=c, **KWARGS)
-    assert count["n"] == 0
+    assert count.n == 0
 
 
 def test_guesses_are_independent(problem):
@@ -271,7 +271,7 @@ def test_other_robots_and_joint_space_ends(robot, start, goal):
         joint = optimize.optimize(
             robot, q_start, q_goal, guesses, n_samples=30, steps=60, space="joint"
         )
-    assert count["n"] == 0
+    assert count.n == 0
     np.testing.assert_allclose(joint.path.p[:, 0], np.broadcast_to(start, (2, 3)), atol=1e-9)
     np.testing.assert_allclose(joint.path.p[:, -1], np.broadcast_to(goal, (2, 3)), atol=1e-9)
     np.testing.assert_allclose(joint.cost, res.cost, rtol=1e-9)

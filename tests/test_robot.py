@@ -180,7 +180,7 @@ def test_jit_vmap_and_no_recompilation(name):
     jax.block_until_ready(t2)
     with compilations() as count:
         jax.block_until_ready(jaxkin.fk(fresh, jaxkin.ik(fresh, t2).q).x.p)
-    assert count["n"] == 0
+    assert count.n == 0
 
 
 # ------------------------------------------------------------------------- a robot of our own

@@ -280,8 +280,6 @@ def compiled(
         return static(concrete, *args, **kwargs)
 
     call.takes_batch = bool(batched_argnames)
-    call._cache_size = static._cache_size  # for tests (both jits share one cache)
-    call._static = static  # for tests: the concrete-geometry kernel (a PartsJit when split)
     return call
 
 
