@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow docs docs-serve bench bench-peers lint format clean
+.PHONY: demo test test-slow docs docs-serve bench bench-peers lint lint-imports format clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -23,8 +23,10 @@ demo: $(STAMP)
 # later processes (workers, the command-line tests' subprocesses) load modules compiled once.
 PYTEST := PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q -n 2 --dist loadfile
 
+# lint-imports checks the import layers and cycles of pyproject.toml's [tool.importlinter].
 test: $(STAMP)
 	$(PYTEST) -m "not slow" tests
+	$(BIN)/lint-imports
 
 test-slow: $(STAMP)
 	$(PYTEST) -m slow tests
@@ -54,6 +56,10 @@ bench-peers: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports
+
+lint-imports: $(STAMP)
+	$(BIN)/lint-imports
 
 format: $(STAMP)
 	$(BIN)/ruff format .

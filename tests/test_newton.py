@@ -110,8 +110,9 @@ def test_jit_and_vmap_match_eager_without_recompiling():
     eager = newton.solve(circle_line, jnp.ones((6, 2)), c).x
     jitted = jax.jit(lambda c: newton.solve(circle_line, jnp.ones((6, 2)), c).x)
     np.testing.assert_allclose(jitted(c), eager, rtol=1e-14)
+    shifted = c + 1.0
     with compilations() as count:
-        jitted(c + 1.0)
+        jitted(shifted)
     assert count.n == 0
     vmapped = jax.vmap(lambda c: newton.solve(circle_line, jnp.ones(2), c).x)(c)
     np.testing.assert_allclose(vmapped, eager, rtol=1e-14)

@@ -549,8 +549,9 @@ def test_no_recompilation_and_vmap_over_geometries():
     robot = Anthropomorphic(0.3, 0.25, 0.2)
     targets = target_of(robot, _sample(robot, np.random.default_rng(4), 6))
     ik(robot, targets)
+    other, moved = Anthropomorphic(0.4, 0.3, 0.25), targets + 0.01
     with compilations() as count:
-        ik(Anthropomorphic(0.4, 0.3, 0.25), targets + 0.01)
+        ik(other, moved)
     assert count.n == 0
     # vmap over a batch of geometries equals a Python loop (geometry leaves are tracers).
     lengths = np.array([[0.3, 0.25, 0.2], [0.35, 0.3, 0.2], [0.2, 0.3, 0.25]])

@@ -222,8 +222,9 @@ def test_no_recompilation_and_user_jit():
     q = RNG.normal(size=(4, 6))
     dh.fk_dh(table, q)
     other = dh.DHTable.create(**{**PUMA, "a": [0.1, 0.5, 0.0, 0.0, 0.0, 0.0]})
+    shifted = q + 1.0
     with compilations() as count:
-        dh.fk_dh(other, q + 1.0)
+        dh.fk_dh(other, shifted)
     assert count.n == 0
     chain = poe.poe_from_dh(table)
     poe.chain_fk(chain, q)
