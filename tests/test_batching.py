@@ -94,17 +94,17 @@ def small_parts(monkeypatch):
 
 
 @pytest.fixture
-def splits(monkeypatch):
-    """The number of parts of every batch split across threads (``_batching.run_parts``)."""
-    seen: list[int] = []
-    run_parts = _batching.run_parts
+def parts_ran(monkeypatch):
+    """A list that records the number of host-thread parts of every split call."""
+    calls = []
+    original = _batching.run_parts
 
     def spy(run, starts):
-        seen.append(len(starts))
-        return run_parts(run, starts)
+        calls.append(len(starts))
+        return original(run, starts)
 
     monkeypatch.setattr(_batching, "run_parts", spy)
-    return seen
+    return calls
 
 
 def _whole(fn, *args, **kwargs):
@@ -229,7 +229,7 @@ def test_thread_count_setting(monkeypatch):
             _batching.set_num_threads(bad)
 
 
-def test_delta_fk_in_parts_equals_whole_batch(small_parts, splits):
+def test_delta_fk_in_parts_equals_whole_batch(small_parts, parts_ran):
     """The real kernel: Newton iterations, statuses, rates, a warm start, bad elements."""
     rng = np.random.default_rng(3)
     p = np.stack([rng.uniform(-8, 8, 101), rng.uniform(-8, 8, 101), rng.uniform(-38, -22, 101)], -1)
@@ -240,9 +240,9 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts, splits):
     guess = p + rng.normal(scale=0.5, size=p.shape)
     results = []
     for args, kwargs in [((jet,), {}), ((theta,), {"guess": guess})]:
-        splits.clear()
+        parts_ran.clear()
         parts = delta.fk(ROBOT, *args, **kwargs)
-        assert splits and max(splits) >= 2  # the batch ran in parts on the threads
+        assert parts_ran and parts_ran[0] >= 2  # the batch ran in parts
         whole = _whole(delta.fk, ROBOT, *args, **kwargs)
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype
@@ -254,7 +254,7 @@ def test_delta_fk_in_parts_equals_whole_batch(small_parts, splits):
     assert tree_allfinite(results)
 
 
-def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, splits, monkeypatch):
+def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, parts_ran, monkeypatch):
     """A chain's FK (at rest, its zero rates then written outside the kernel; and with rates)
     and both Jacobians, split in parts, equal the whole batch bit for bit."""
     monkeypatch.setattr(_batching, "SHARED_ZEROS_MIN", 16)
@@ -264,7 +264,7 @@ def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, splits, 
     q[7] = np.nan
     jet = Jet.of(q, rng.normal(size=q.shape), rng.normal(size=q.shape))
     at_rest = jaxkin.fk(chain, q)
-    assert splits and max(splits) >= 2  # the batch ran in parts on the threads
+    assert parts_ran and parts_ran[0] >= 2  # the batch ran in parts
     calls = [
         (jaxkin.fk, q),
         (jaxkin.fk, jet),
@@ -272,13 +272,11 @@ def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, splits, 
         (serial.body_jacobian, q),
     ]
     for fn, arg in calls:
-        splits.clear()
-        parts = fn(chain, arg)
-        assert splits and max(splits) >= 2, fn.__name__
-        whole = _whole(fn, chain, arg)
+        parts, whole = fn(chain, arg), _whole(fn, chain, arg)
         for a, b in zip(jax.tree.leaves(parts), jax.tree.leaves(whole), strict=True):
             assert a.shape == b.shape and a.dtype == b.dtype
             np.testing.assert_array_equal(a, b)
+    assert len(parts_ran) == 1 + len(calls)  # every call ran in parts
     status = np.asarray(at_rest.status)
     assert status[7] == Status.INVALID_INPUT and np.all(np.delete(status, 7) == Status.OK)
     assert not np.any(at_rest.x.v) and not np.any(at_rest.x.a)

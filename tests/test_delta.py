@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from jaxkin import Jet, Status, _batching, delta
-from jaxkin.delta import inverse
 from tests.helpers import BATCH_SHAPES, compilations, fd_rates, tree_allfinite
 from tests.references import delta as reference_delta
 
@@ -391,9 +390,7 @@ def test_jit_over_batch_and_time_without_recompilation():
     assert count.n == 0
     # the geometry is a pytree: it can be vmapped (e.g. a batch of robots)
     robots = jax.tree.map(lambda x: jnp.stack([x, x * 1.01]), ROBOT)
-    per_robot = jax.vmap(
-        lambda r: inverse._ik_jit.jitted(r, Jet(p[0], None, None), "out", "analytic", False)
-    )
+    per_robot = jax.vmap(lambda r: delta.ik(r, p[0]))
     assert per_robot(robots).q.p.shape == (2, 6, 3)
 
 
