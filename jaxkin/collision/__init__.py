@@ -1,0 +1,1 @@
+"""Collision geometry: primitives, exact signed distances, the world, robot bodies as data."""
