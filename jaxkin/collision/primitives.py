@@ -28,6 +28,8 @@ def _floats(x: ArrayLike, name: str, shape_tail: tuple[int, ...], dtype=None) ->
     arr = np.asarray(x)
     if arr.dtype.kind not in "fiu":
         raise ValueError(f"{name} must hold real numbers, got dtype {arr.dtype}")
+    if shape_tail and arr.shape == shape_tail:
+        arr = arr[None]  # one primitive
     tail = arr.shape[arr.ndim - len(shape_tail) :] if len(shape_tail) else ()
     if arr.ndim < len(shape_tail) + 1 or tail != shape_tail:
         want = ", ".join(["n", *map(str, shape_tail)])
@@ -150,8 +152,8 @@ class Boxes:
 @dataclasses.dataclass(frozen=True)
 class HalfSpaces:
     """Half-spaces ``{x : normal . x <= offset}``: ``normal`` ``(..., n, 3)`` (unit; ``create``
-    normalises it), ``offset`` ``(..., n)``. The floor ``z <= 0`` is ``normal=(0, 0, 1),
-    offset=0``."""
+    divides both by the normal's length), ``offset`` ``(..., n)``. The floor ``z <= 0`` is
+    ``normal=(0, 0, 1), offset=0``."""
 
     normal: jax.Array
     offset: jax.Array
@@ -163,7 +165,7 @@ class HalfSpaces:
         if np.any(length == 0):
             raise ValueError("normal must be non-zero vectors")
         o = _floats(np.broadcast_to(offset, n.shape[:-1]), "offset", (), dtype)
-        return cls(jnp.asarray(n / length), jnp.asarray(o))
+        return cls(jnp.asarray(n / length), jnp.asarray(o / length[..., 0]))
 
     @classmethod
     def empty(cls, dtype=None) -> HalfSpaces:

@@ -58,7 +58,7 @@ class World:
             leaves = [leaf for v in given.values() if v is not None for leaf in jax.tree.leaves(v)]
             dtype = jnp.result_type(*leaves) if leaves else jnp.result_type(float)
         parts = {
-            name: jax.tree.map(lambda x: x.astype(dtype), value)
+            name: jax.tree.map(lambda x: x if x.dtype == dtype else x.astype(dtype), value)
             if value is not None
             else kinds[name].empty(dtype)
             for name, value in given.items()
