@@ -596,3 +596,26 @@ def test_propose_disabled_from_samples():
     proposed = col.propose_disabled(body, _toy_poses, q, chunk=32)
     assert ("l0", "l2") in proposed["never"] and ("l0", "l3") in proposed["never"]
     assert ("l0", "l1") in proposed["always"]  # they share a joint: always touching
+
+
+def test_panda_srdf_pairs_and_moveit_adjacency():
+    """example-robot-data's Panda: the SRDF disables 35 pairs; the adjacency rule gives exactly
+    the pairs MoveIt's setup assistant marked "Adjacent"; 20 link pairs remain to check."""
+    import sys
+    from pathlib import Path
+
+    pytest.importorskip("yourdfpy")
+    roots = [Path(p) / "cmeel.prefix/share/example-robot-data/robots" for p in sys.path]
+    root = next((r for r in roots if r.is_dir()), None)
+    if root is None:
+        pytest.skip("example-robot-data is not installed")
+    read = col.body_from_urdf(root / "panda_description/urdf/panda_collision.urdf")
+    disabled = col.read_srdf_disabled(root / "panda_description/srdf/panda.srdf")
+    assert len(disabled) == 35
+    adjacent = col.adjacent_links(read.body, read.joints)
+    assert adjacent == {frozenset(d[:2]) for d in disabled if d[2] == "Adjacent"}
+    pairs = col.self_collision_link_pairs(read.body, read.joints, disabled)
+    assert len(pairs) == 20
+    names = {frozenset((read.body.links[i], read.body.links[j])) for i, j in pairs}
+    assert frozenset(("panda_link2", "panda_hand")) in names
+    assert not names & {frozenset(d[:2]) for d in disabled}

@@ -26,11 +26,11 @@ outside), so every pair reduces to a point or segment against the other shape:
   piecewise quadratic in ``t`` whose pieces change where ``u_i(t) = +-h_i``: on each of the
   seven intervals between the sorted breakpoints (and 0, 1) the active faces are fixed, the
   quadratic's minimiser is closed form, and the smallest of the seven is the exact minimum.
-  Inside (``f = 0`` somewhere) the penetration depth is the distance from the origin to the
-  boundary of the Minkowski difference ``box - segment``, a zonotope whose facet normals are the
-  box axes and the cross products of the segment's direction with them: the depth is the
-  smallest support value ``sum_i h_i |m_i| - min(m . u(0), m . u(1))`` over those six unit
-  normals ``m`` and their opposites;
+  The Minkowski difference ``box - segment`` is a zonotope whose facet normals are the box axes
+  and the cross products of the segment's direction with them; its smallest support value
+  ``sum_i h_i |m_i| - min(m . u(0), m . u(1))`` over those six unit normals ``m`` and their
+  opposites is positive exactly when the shapes overlap (separating axes), and is then the
+  penetration depth (the distance from the origin to the zonotope's boundary);
 - point/segment against half-space: ``min(n . a, n . b) - o``.
 
 Gradients: the closest-point parameters are minimisers, so (Danskin's theorem) the gradient of
@@ -225,10 +225,11 @@ def segment_box(
     u1 = _to_box(b, center, rotation)
     du = u1 - u0
     t = jax.lax.stop_gradient(_segment_box_parameter(u0, du, half))
-    excess = jnp.maximum(jnp.abs(u0 + t[..., None] * du) - half, 0.0)
-    outside = _norm(excess)
-    apart = jnp.any(excess > 0.0, axis=-1)
-    return jnp.where(apart, outside, -_segment_box_depth(u0, u1, half))
+    outside = _norm(jnp.maximum(jnp.abs(u0 + t[..., None] * du) - half, 0.0))
+    # overlap test by separating axes (origin inside the zonotope: every support value > 0),
+    # not by the excess at t: at a face the excess can round to either side of zero
+    depth = _segment_box_depth(u0, u1, half)
+    return jnp.where(depth > 0.0, -depth, outside)
 
 
 def sphere_sphere(c1: jax.Array, r1: jax.Array, c2: jax.Array, r2: jax.Array) -> jax.Array:
