@@ -79,7 +79,11 @@ def _coal_loop(queries):
     request, result = coal.DistanceRequest(), coal.DistanceResult()
 
     def run():
-        return [coal.distance(g1, t1, g2, t2, request, result) for g1, t1, g2, t2 in queries]
+        out = []
+        for g1, t1, g2, t2 in queries:
+            result.clear()  # a result keeps the smallest distance of every query it has seen
+            out.append(coal.distance(g1, t1, g2, t2, request, result))
+        return out
 
     return run
 

@@ -62,7 +62,8 @@ __all__ = [
 
 
 def _dot(x: jax.Array, y: jax.Array) -> jax.Array:
-    return jnp.sum(x * y, axis=-1)
+    # three products, not a reduction: XLA on CPU vectorises elementwise code, not size-3 sums
+    return x[..., 0] * y[..., 0] + x[..., 1] * y[..., 1] + x[..., 2] * y[..., 2]
 
 
 def _norm(x: jax.Array) -> jax.Array:
@@ -100,7 +101,6 @@ def segment_segment(a0: jax.Array, a1: jax.Array, b0: jax.Array, b1: jax.Array) 
     lies inside the square), else the best of the four edges (an endpoint against the other
     segment). Exact for parallel and degenerate segments.
     """
-    a0, a1, b0, b1 = jnp.broadcast_arrays(a0, a1, b0, b1)
     da, db = a1 - a0, b1 - b0
     r = a0 - b0
     a, b, e = _dot(da, da), _dot(da, db), _dot(db, db)
@@ -111,49 +111,41 @@ def segment_segment(a0: jax.Array, a1: jax.Array, b0: jax.Array, b1: jax.Array) 
     inside = (den > 0.0) & (s_in >= 0.0) & (s_in <= 1.0) & (t_in >= 0.0) & (t_in <= 1.0)
     zero, one = jnp.zeros_like(a), jnp.ones_like(a)
     # candidates (s, t): interior, then a0 / a1 against segment b, b0 / b1 against segment a
-    s_cand = jnp.stack(
-        [
-            s_in,
-            zero,
-            one,
-            _segment_parameter(b0, a0, da),
-            _segment_parameter(b1, a0, da),
-        ],
-        axis=-1,
-    )
-    t_cand = jnp.stack(
-        [
-            t_in,
-            _segment_parameter(a0, b0, db),
-            _segment_parameter(a1, b0, db),
-            zero,
-            one,
-        ],
-        axis=-1,
-    )
-    gap = (
-        r[..., None, :]
-        + s_cand[..., None] * da[..., None, :]
-        - t_cand[..., None] * db[..., None, :]
-    )
-    sq = _dot(gap, gap)
-    sq = sq.at[..., 0].set(jnp.where(inside, sq[..., 0], jnp.inf))
-    best = jnp.argmin(sq, axis=-1)[..., None]
-    s = jax.lax.stop_gradient(jnp.take_along_axis(s_cand, best, axis=-1))
-    t = jax.lax.stop_gradient(jnp.take_along_axis(t_cand, best, axis=-1))
-    return _norm(r + s * da - t * db)
+    candidates = [
+        (s_in, t_in),
+        (zero, jnp.clip(_safe_ratio(f, e), 0.0, 1.0)),
+        (one, jnp.clip(_safe_ratio(f + b, e), 0.0, 1.0)),
+        (jnp.clip(_safe_ratio(-c, a), 0.0, 1.0), zero),
+        (jnp.clip(_safe_ratio(b - c, a), 0.0, 1.0), one),
+    ]
+    rx, ry, rz = _coords(r)
+    ax, ay, az = _coords(da)
+    bx, by, bz = _coords(db)
+    best = None
+    for k, (s, t) in enumerate(candidates):
+        # the parameters are stopped: the min's gradient is the partial one at the closest pair
+        s, t = jax.lax.stop_gradient(s), jax.lax.stop_gradient(t)
+        sq = (rx + s * ax - t * bx) ** 2 + (ry + s * ay - t * by) ** 2 + (rz + s * az - t * bz) ** 2
+        if k == 0:
+            best = jnp.where(inside, sq, jnp.inf)
+        else:
+            best = jnp.minimum(best, sq)
+    positive = best > 0.0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, best, 1.0)), 0.0)
 
 
-def _to_box(p: jax.Array, center: jax.Array, rotation: jax.Array) -> jax.Array:
-    """Coordinates of world points ``p`` in a box's frame: ``R^T (p - c)``."""
-    return jnp.einsum("...ji,...j->...i", rotation, p - center)
+def _to_box(p: jax.Array, center: jax.Array, rotation: jax.Array) -> list[jax.Array]:
+    """Coordinates of world points ``p`` in a box's frame, ``R^T (p - c)``, as three arrays.
+
+    Written out per coordinate: a batched 3x3 product is an unfused dot on CPU, and the
+    kernels below run fastest on separate coordinate arrays (elementwise code vectorises).
+    """
+    x = p - center
+    return [_dot(rotation[..., :, i], x) for i in range(3)]
 
 
-def _box_local_signed(u: jax.Array, half: jax.Array) -> jax.Array:
-    """Signed distance of box-frame points ``u`` to the box ``|u_i| <= h_i``."""
-    q = jnp.abs(u) - half
-    outside = _norm(jnp.maximum(q, 0.0))
-    return jnp.where(jnp.all(q <= 0.0, axis=-1), jnp.max(q, axis=-1), outside)
+def _coords(x: jax.Array) -> list[jax.Array]:
+    return [x[..., i] for i in range(3)]
 
 
 def point_box(p: jax.Array, center: jax.Array, rotation: jax.Array, half: jax.Array) -> jax.Array:
@@ -161,57 +153,75 @@ def point_box(p: jax.Array, center: jax.Array, rotation: jax.Array, half: jax.Ar
 
     ``p, center, half``: ``(..., 3)``; ``rotation``: ``(..., 3, 3)``; returns ``(...)``.
     """
-    return _box_local_signed(_to_box(p, center, rotation), half)
+    u, h = _to_box(p, center, rotation), _coords(half)
+    q = [jnp.abs(u[i]) - h[i] for i in range(3)]
+    out_sq = sum(jnp.maximum(qi, 0.0) ** 2 for qi in q)
+    positive = out_sq > 0.0
+    outside = jnp.where(positive, jnp.sqrt(jnp.where(positive, out_sq, 1.0)), 0.0)
+    inside = jnp.maximum(jnp.maximum(q[0], q[1]), q[2])
+    return jnp.where(positive, outside, inside)
 
 
-def _segment_box_parameter(u0: jax.Array, du: jax.Array, half: jax.Array) -> jax.Array:
+def _segment_box_parameter(u: list, d: list, h: list) -> jax.Array:
     """The ``t in [0, 1]`` minimising the squared distance from ``u0 + t du`` to the box.
 
-    ``f(t) = sum_i max(|u0_i + t du_i| - h_i, 0)^2`` is convex and quadratic between the
-    breakpoints ``t = (+-h_i - u0_i) / du_i``; on each interval the active faces (sign ``s_i``
-    where ``|u_i| > h_i`` at its midpoint) give ``t* = sum_i (s_i h_i - u0_i) du_i / sum_i
-    du_i^2``, clipped to the interval. The best of the seven clipped minimisers is exact.
+    ``f(t) = sum_i max(|u0_i + t du_i| - h_i, 0)^2`` is convex, C1, and quadratic between the
+    knots ``0, 1`` and ``t = (+-h_i - u0_i) / du_i``, so ``f'`` is nondecreasing: the minimiser
+    lies between the last knot with ``f' <= 0`` and the first with ``f' > 0``, an interval
+    with no knot inside. There the active faces (sign ``s_i`` where ``|u_i| > h_i`` at its
+    midpoint) are fixed and ``t* = sum_i (s_i h_i - u0_i) du_i / sum_i du_i^2``, clipped to
+    the interval (its midpoint when no face is active). No sort: two running extrema, written
+    per coordinate (elementwise code vectorises on CPU; size-3 axes do not).
     """
-    breaks = jnp.concatenate([_safe_ratio(half - u0, du), _safe_ratio(-half - u0, du)], axis=-1)
-    zero = jnp.zeros_like(breaks[..., :1])
-    knots = jnp.sort(jnp.concatenate([zero, zero + 1.0, jnp.clip(breaks, 0.0, 1.0)], -1), -1)
-    lo, hi = knots[..., :-1], knots[..., 1:]  # (..., 7)
+    knots = [jnp.zeros_like(u[0]), jnp.ones_like(u[0])]
+    for i in range(3):
+        knots += [jnp.clip(_safe_ratio(h[i] - u[i], d[i]), 0.0, 1.0)]
+        knots += [jnp.clip(_safe_ratio(-h[i] - u[i], d[i]), 0.0, 1.0)]
+    lo, hi = jnp.zeros_like(u[0]), jnp.ones_like(u[0])
+    for t in knots:
+        slope = 0.0  # f'(t) / 2
+        for i in range(3):
+            ui = u[i] + t * d[i]
+            slope = slope + jnp.sign(ui) * jnp.maximum(jnp.abs(ui) - h[i], 0.0) * d[i]
+        lo = jnp.where(slope <= 0.0, jnp.maximum(lo, t), lo)
+        hi = jnp.where(slope > 0.0, jnp.minimum(hi, t), hi)
+    hi = jnp.maximum(hi, lo)
     mid = 0.5 * (lo + hi)
-    u_mid = u0[..., None, :] + mid[..., None] * du[..., None, :]  # (..., 7, 3)
-    h = half[..., None, :]
-    sign = jnp.where(u_mid > h, 1.0, jnp.where(u_mid < -h, -1.0, 0.0))
-    active = sign != 0.0
-    du7 = du[..., None, :]
-    num = jnp.sum(jnp.where(active, (sign * h - u0[..., None, :]) * du7, 0.0), axis=-1)
-    den = jnp.sum(jnp.where(active, du7 * du7, 0.0), axis=-1)
-    t = jnp.clip(jnp.where(den > 0.0, _safe_ratio(num, den), mid), lo, hi)
-    u_t = u0[..., None, :] + t[..., None] * du7
-    excess = jnp.maximum(jnp.abs(u_t) - h, 0.0)
-    best = jnp.argmin(_dot(excess, excess), axis=-1)[..., None]
-    return jnp.take_along_axis(t, best, axis=-1)[..., 0]
+    num, den = 0.0, 0.0
+    for i in range(3):
+        ui = u[i] + mid * d[i]
+        sign = jnp.where(ui > h[i], 1.0, jnp.where(ui < -h[i], -1.0, 0.0))
+        num = num + jnp.abs(sign) * (sign * h[i] - u[i]) * d[i]
+        den = den + jnp.abs(sign) * d[i] * d[i]
+    return jnp.clip(jnp.where(den > 0.0, _safe_ratio(num, den), mid), lo, hi)
 
 
-def _segment_box_depth(u0: jax.Array, u1: jax.Array, half: jax.Array) -> jax.Array:
-    """Penetration depth of a box-frame segment ``u0``-``u1`` into the box (>= 0 inside).
+def _segment_box_depth(u: list, v: list, h: list) -> jax.Array:
+    """The smallest support value of the zonotope ``box - segment`` over its facet normals
+    (positive exactly when the box-frame segment ``u0``-``u1`` overlaps the box, and then its
+    penetration depth).
 
-    The smallest support value of the zonotope ``box - segment`` over its facet normals: the
-    three box axes and the unit cross products of the segment direction with them (a zero cross
-    product, for a segment along an axis or of zero length, falls back to that box axis).
+    Normals: the box axes ``+-e_i``, with support values ``h_i - min(u0_i, u1_i)`` and
+    ``h_i + max(u0_i, u1_i)``; and the unit cross products ``m = d x e_i / |d x e_i|``
+    (``d = u1 - u0``), perpendicular to ``d`` so ``m . u0 = m . u1``, with support value
+    ``sum_j h_j |m_j| - |m . u0|`` over the pair ``+-m``. A zero cross product (the segment
+    along that axis, or a point) adds no facet.
     """
-    eye = jnp.eye(3, dtype=u0.dtype)
-    du = u1 - u0
-    cross = jnp.cross(du[..., None, :], eye)  # (..., 3, 3): du x e_i
-    length = _norm(cross)
-    valid = length > 0.0
-    normals = jnp.where(valid[..., None], cross / jnp.where(valid, length, 1.0)[..., None], eye)
-    normals = jnp.concatenate([eye + jnp.zeros_like(normals), normals], axis=-2)  # (..., 6, 3)
-    box_support = jnp.sum(half[..., None, :] * jnp.abs(normals), axis=-1)
-    m0 = _dot(normals, u0[..., None, :])
-    m1 = _dot(normals, u1[..., None, :])
-    # facet m: h_M(m) = |box|_m - min(m.u0, m.u1); facet -m: |box|_m + max(m.u0, m.u1)
-    plus = box_support - jnp.minimum(m0, m1)
-    minus = box_support + jnp.maximum(m0, m1)
-    return jnp.minimum(jnp.min(plus, axis=-1), jnp.min(minus, axis=-1))
+    d = [v[i] - u[i] for i in range(3)]
+    depth = jnp.minimum(h[0] - jnp.minimum(u[0], v[0]), h[0] + jnp.maximum(u[0], v[0]))
+    for i in (1, 2):
+        depth = jnp.minimum(depth, h[i] - jnp.minimum(u[i], v[i]))
+        depth = jnp.minimum(depth, h[i] + jnp.maximum(u[i], v[i]))
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        # d x e_i has components d_k along j and -d_j along k (cyclic order i, j, k)
+        length_sq = d[j] * d[j] + d[k] * d[k]
+        valid = length_sq > 0.0
+        length = jnp.sqrt(jnp.where(valid, length_sq, 1.0))
+        support = (h[j] * jnp.abs(d[k]) + h[k] * jnp.abs(d[j])) / length
+        along = jnp.abs(d[k] * u[j] - d[j] * u[k]) / length
+        depth = jnp.where(valid, jnp.minimum(depth, support - along), depth)
+    return depth
 
 
 def segment_box(
@@ -221,14 +231,15 @@ def segment_box(
 
     ``a, b, center, half``: ``(..., 3)``; ``rotation``: ``(..., 3, 3)``; returns ``(...)``.
     """
-    u0 = _to_box(a, center, rotation)
-    u1 = _to_box(b, center, rotation)
-    du = u1 - u0
-    t = jax.lax.stop_gradient(_segment_box_parameter(u0, du, half))
-    outside = _norm(jnp.maximum(jnp.abs(u0 + t[..., None] * du) - half, 0.0))
+    u, v, h = _to_box(a, center, rotation), _to_box(b, center, rotation), _coords(half)
+    d = [v[i] - u[i] for i in range(3)]
+    t = jax.lax.stop_gradient(_segment_box_parameter(u, d, h))
+    out_sq = sum(jnp.maximum(jnp.abs(u[i] + t * d[i]) - h[i], 0.0) ** 2 for i in range(3))
+    positive = out_sq > 0.0
+    outside = jnp.where(positive, jnp.sqrt(jnp.where(positive, out_sq, 1.0)), 0.0)
     # overlap test by separating axes (origin inside the zonotope: every support value > 0),
     # not by the excess at t: at a face the excess can round to either side of zero
-    depth = _segment_box_depth(u0, u1, half)
+    depth = _segment_box_depth(u, v, h)
     return jnp.where(depth > 0.0, -depth, outside)
 
 
