@@ -22,10 +22,11 @@ outside), so every pair reduces to a point or segment against the other shape:
   point of ``|p(s) - q(t)|^2`` and the four edges of ``[0, 1]^2``, each a point-segment
   projection; the smallest is exact, also for parallel segments);
 - point against box: ``|max(|u| - h, 0)|`` outside, ``max_i(|u_i| - h_i)`` inside;
-- segment against box: outside, ``f(t) = sum_i max(|u_i(t)| - h_i, 0)^2`` is a convex
-  piecewise quadratic in ``t`` whose pieces change where ``u_i(t) = +-h_i``: on each of the
-  seven intervals between the sorted breakpoints (and 0, 1) the active faces are fixed, the
-  quadratic's minimiser is closed form, and the smallest of the seven is the exact minimum.
+- segment against box: outside, ``f(t) = sum_i max(|u_i(t)| - h_i, 0)^2`` is a convex, C1,
+  piecewise quadratic in ``t`` whose pieces change at the knots where ``u_i(t) = +-h_i``;
+  ``f'`` is nondecreasing, so the minimiser lies between the last knot with ``f' <= 0`` and
+  the first with ``f' > 0``, where the active faces are fixed and the quadratic's minimiser is
+  closed form: exact, with no sort.
   The Minkowski difference ``box - segment`` is a zonotope whose facet normals are the box axes
   and the cross products of the segment's direction with them; its smallest support value
   ``sum_i h_i |m_i| - min(m . u(0), m . u(1))`` over those six unit normals ``m`` and their
