@@ -207,3 +207,53 @@ def test_panda_collision_primitives(robots):
     np.testing.assert_allclose(np.asarray(body.capsule_a[k]), [0, 0, -0.1915 - 0.1415], atol=1e-12)
     np.testing.assert_allclose(np.asarray(body.capsule_b[k]), [0, 0, -0.1915 + 0.1415], atol=1e-12)
     assert float(body.capsule_radius[k]) == 0.09
+
+
+def test_panda_self_distances_bound_coal_with_meshes(robots):
+    """Random Panda configurations (Pinocchio's FK), the SRDF's remaining link pairs: the
+    sphere covers' distance never exceeds coal's distance between the original meshes (the
+    covers contain them), so no collision coal finds is missed."""
+    pin = pytest.importorskip("pinocchio")
+    path = robots / "panda_description/urdf/panda.urdf"
+    read = col.body_from_urdf(path)
+    body = read.body
+    disabled = col.read_srdf_disabled(robots / "panda_description/srdf/panda.srdf")
+    link_pairs = col.self_collision_link_pairs(body, read.joints, disabled)
+    pairs = col.SelfPairs.create(body, link_pairs)
+    model, cmodel, _ = pin.buildModelsFromUrdf(str(path), str(robots.parent.parent))
+    data, cdata = model.createData(), pin.GeometryData(cmodel)
+    frames = [model.getFrameId(name) for name in body.links]
+    geoms: dict[str, list[int]] = {}
+    for g, obj in enumerate(cmodel.geometryObjects):
+        geoms.setdefault(model.frames[obj.parentFrame].name, []).append(g)
+    rng = np.random.default_rng(22)
+    n = 300
+    qs = rng.uniform(model.lowerPositionLimit, model.upperPositionLimit, (n, model.nq))
+    poses = np.zeros((n, len(frames), 4, 4))
+    reference = np.zeros((n, len(link_pairs)))
+    request, result = coal.DistanceRequest(), coal.DistanceResult()
+    for k, q in enumerate(qs):
+        pin.framesForwardKinematics(model, data, q)
+        pin.updateGeometryPlacements(model, data, cmodel, cdata, q)
+        poses[k] = [data.oMf[f].homogeneous for f in frames]
+        placed = [coal.Transform3s(m.rotation, m.translation) for m in cdata.oMg]
+        for p, (i, j) in enumerate(link_pairs):
+            best = np.inf
+            for gi in geoms[body.links[i]]:
+                for gj in geoms[body.links[j]]:
+                    result.clear()
+                    d = coal.distance(
+                        cmodel.geometryObjects[gi].geometry,
+                        placed[gi],
+                        cmodel.geometryObjects[gj].geometry,
+                        placed[gj],
+                        request,
+                        result,
+                    )
+                    best = min(best, d)
+            reference[k, p] = best
+    mine = np.asarray(jax.jit(lambda x: col.self_distances(*body.place(x), pairs))(poses))
+    colliding = reference <= 0.0
+    assert colliding.sum() >= 5  # the samples do reach self-collisions
+    assert np.all(mine[colliding] <= 0.0)  # no missed collision
+    assert np.all(mine <= np.maximum(reference, 0.0) + 1e-9)  # the covers' distance is a bound
