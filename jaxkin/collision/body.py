@@ -157,8 +157,16 @@ class Body:
 
         def to_world(points: jax.Array, link: tuple[int, ...]) -> jax.Array:
             pose = link_poses[..., np.asarray(link, dtype=np.int32), :, :]
-            rot, trans = pose[..., :3, :3], pose[..., :3, 3]
-            return jnp.einsum("...ij,...j->...i", rot, points.astype(pose.dtype)) + trans
+            p = points.astype(pose.dtype)
+            # written out: a batched 3x3 product is an unfused, slow dot on CPU
+            rows = [
+                pose[..., i, 0] * p[..., 0]
+                + pose[..., i, 1] * p[..., 1]
+                + pose[..., i, 2] * p[..., 2]
+                + pose[..., i, 3]
+                for i in range(3)
+            ]
+            return jnp.stack(rows, axis=-1)
 
         dtype = link_poses.dtype
         batch = link_poses.shape[:-3]
