@@ -141,8 +141,8 @@ def _to_box(p: jax.Array, center: jax.Array, rotation: jax.Array) -> list[jax.Ar
     Written out per coordinate: a batched 3x3 product is an unfused dot on CPU, and the
     kernels below run fastest on separate coordinate arrays (elementwise code vectorises).
     """
-    x = p - center
-    return [_dot(rotation[..., :, i], x) for i in range(3)]
+    x = [p[..., j] - center[..., j] for j in range(3)]  # split first: no (..., 3) temporary
+    return [sum(rotation[..., j, i] * x[j] for j in range(3)) for i in range(3)]
 
 
 def _coords(x: jax.Array) -> list[jax.Array]:
@@ -246,7 +246,9 @@ def segment_box(
 
 def sphere_sphere(c1: jax.Array, r1: jax.Array, c2: jax.Array, r2: jax.Array) -> jax.Array:
     """Signed distance between spheres: ``|c1 - c2| - r1 - r2``."""
-    return _norm(c1 - c2) - r1 - r2
+    sq = sum((c1[..., i] - c2[..., i]) ** 2 for i in range(3))
+    positive = sq > 0.0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, sq, 1.0)), 0.0) - r1 - r2
 
 
 def sphere_capsule(
