@@ -431,7 +431,10 @@ def _time_one(
     x = jnp.concatenate([x0[None], xs])
     speed = jnp.sqrt(x)
     total = speed[:-1] + speed[1:]
-    stalled = jnp.any(total <= 0)
+    # Two neighbouring speeds that are zero to round-off (relative to the path's top speed):
+    # the motion stops on that interval, and its duration would be round-off's.
+    still = x <= 64.0 * eps * jnp.max(x)
+    stalled = jnp.any(still[:-1] & still[1:]) | jnp.any(total <= 0)
     steps = 2.0 * delta / jnp.where(total > 0, total, 1.0)
     t = jnp.concatenate([jnp.zeros((1,), dtype), jnp.cumsum(steps)])
     ok = finite & ~last.empty & start_ok & ~stalled & jnp.isfinite(t[-1])
@@ -678,7 +681,10 @@ def sample(
     """
     if not isinstance(timing, Timing):
         raise ValueError(f"timing must be a Timing from retime, got {type(timing).__name__}")
-    if not (isinstance(period, int | float) and math.isfinite(period) and period > 0):
+    real = isinstance(period, int | float | np.integer | np.floating) and not isinstance(
+        period, bool
+    )
+    if not (real and math.isfinite(period) and period > 0):
         raise ValueError(f"period must be a positive number, got {period!r}")
     if num is None:
         durations = np.asarray(timing.duration)

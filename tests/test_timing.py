@@ -206,6 +206,30 @@ def test_float32(solved):
     np.testing.assert_allclose(single.duration, result.duration, rtol=2e-5)
 
 
+def test_under_a_users_jit():
+    # Traced waypoints and limits: shape checks only, then the same numbers as eagerly. The
+    # straight line of length 2 over three waypoints (dq/ds = 1) with v = 1, a = 4 is a
+    # trapezoid: T = L / v + v / a.
+    way = np.array([[[0.0], [1.0], [2.0]]])
+
+    @jax.jit
+    def duration(way, v_max, a_max):
+        path = timing.path_from_waypoints(way, subdivisions=8)
+        return timing.retime(path, v_max, a_max).duration
+
+    np.testing.assert_allclose(duration(way, jnp.ones(1), jnp.full(1, 4.0)), [2.25], rtol=1e-12)
+
+
+def test_a_stop_between_neighbouring_grid_points_is_untimeable():
+    # One grid interval from rest to rest: the speed is zero at both of its grid points, and
+    # no time would cover the interval.
+    line = timing.JointPath(
+        jnp.array([0.0, 1.0]), jnp.array([[0.0], [1.0]]), jnp.ones((2, 1)), jnp.zeros((2, 1))
+    )
+    result = timing.retime(line, [1.0], [1.0])
+    assert result.status == Status.UNTIMEABLE and result.duration == 0.0
+
+
 def test_best(solved):
     *_, result = solved
     index, duration = timing.best(result, 3)
@@ -243,6 +267,12 @@ def test_bad_input_names_the_argument(solved):
         timing.retime(path, v_max[:4], a_max)
     with pytest.raises(ValueError, match="period"):
         timing.sample(path, result, 0.0)
+    backwards = timing.JointPath(path.s[..., ::-1], path.q, path.dq, path.ddq)
+    with pytest.raises(ValueError, match="path.s must be strictly increasing"):
+        timing.retime(backwards, v_max, a_max)
+    short = timing.JointPath(path.s, path.q, path.dq[..., :2], path.ddq)
+    with pytest.raises(ValueError, match="path.dq"):
+        timing.retime(short, v_max, a_max)
 
 
 # --------------------------------------------------------------------------------------------
