@@ -20,22 +20,20 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching
+from .. import _batching, _validate
 from .._geometry import concrete_scalars
 from .._numerics import computed_once, safe_sqrt
 from .._trig import cos_alone, sin_alone
 from ..jet import Jet
+from ..robot import Robot
 from ..status import Status
-
-if TYPE_CHECKING:
-    from .robot import Delta
 
 __all__ = [
     "BRANCHES",
@@ -93,7 +91,7 @@ def radial(dtype) -> tuple[Array, Array]:
     return jnp.asarray(UX, dtype), jnp.asarray(UY, dtype)
 
 
-def params(robot: Delta, dtype) -> tuple[Array, ...]:
+def params(robot: Robot, dtype) -> tuple[Array, ...]:
     """The robot's fields (``FIELDS`` order) as scalars of ``dtype``."""
     return tuple(jnp.asarray(getattr(robot, f), dtype) for f in FIELDS)
 
@@ -110,7 +108,7 @@ def cos_sin(theta: Array) -> tuple[tuple[Array, ...], tuple[Array, ...]]:
     return tuple(rows[:3]), tuple(rows[3:])
 
 
-def centre_components(robot: Delta, theta: Array, cosines=None) -> tuple[tuple[Array, ...], ...]:
+def centre_components(robot: Robot, theta: Array, cosines=None) -> tuple[tuple[Array, ...], ...]:
     """The sphere centres ``C_i = E_i - r_platform u_i`` as components ``C[i][k]`` (chain i,
     coordinate k), batch-shaped: ``p`` lies at distance ``l_rod`` from each.
 
@@ -150,7 +148,7 @@ def sanitise(x: Jet, fill: Array, rates: bool = True) -> tuple[Jet, Array]:
     return Jet(p, jnp.where(vc, x.v, 0.0), jnp.where(vc, x.a, 0.0)), valid
 
 
-def home(robot: Delta, dtype) -> Array:
+def home(robot: Robot, dtype) -> Array:
     """The platform position with every arm horizontal (``theta = 0``), ``(3,)``: a finite
     point substituted for invalid input."""
     r_base, r_platform, l_arm, l_rod, _, _ = params(robot, dtype)
@@ -159,7 +157,7 @@ def home(robot: Delta, dtype) -> Array:
     return jnp.stack([0.0 * z, 0.0 * z, jnp.where(z < 0, z, -l_rod)])
 
 
-def in_own_units(robot: Delta) -> tuple[Delta, Any]:
+def in_own_units(robot: Robot) -> tuple[Robot, Any]:
     """The robot with its lengths divided by ``l_arm + l_rod``, and that scale.
 
     The kernels work in these units, so no square or product of rates over- or underflows
@@ -187,7 +185,7 @@ def rates_ok(status: Array) -> Array:
     return (status == Status.OK) | (status == Status.OUT_OF_LIMITS)
 
 
-def frozen(robot: Delta) -> Delta | None:
+def frozen(robot: Robot) -> Robot | None:
     """The robot with Python-float fields when every field is a concrete scalar, else None."""
     values = concrete_scalars(robot, FIELDS)
     if values is None:
@@ -217,15 +215,13 @@ def compiled(
         static = jax.jit(fn, static_argnames=("robot", *static_argnames))
 
     @functools.wraps(fn)
-    def call(robot: Delta, *args: Any, **kwargs: Any) -> Any:
+    def call(robot: Robot, *args: Any, **kwargs: Any) -> Any:
         concrete = frozen(robot)
         if concrete is None:
             return dynamic(robot, *args, **kwargs)
         return static(concrete, *args, **kwargs)
 
     call.takes_batch = bool(batched_argnames)
-    call._cache_size = static._cache_size  # for tests (both jits share one cache)
-    call._static = static  # for tests: the concrete-geometry kernel (a PartsJit when split)
     return call
 
 
@@ -236,9 +232,7 @@ def float_dtype(*xs: Any) -> Any:
 
 def as_coords(x: ArrayLike, name: str) -> Array:
     """``x`` as a float array of shape ``(..., 3)``; ``ValueError`` naming ``name`` if not."""
-    x = jnp.asarray(x)
-    if not jnp.issubdtype(x.dtype, jnp.inexact):
-        x = x.astype(jnp.result_type(float))
+    x = _validate.as_float(x)
     if x.ndim == 0 or x.shape[-1] != 3:
         raise ValueError(f"{name}: expected shape (..., 3), got {tuple(x.shape)}")
     return x

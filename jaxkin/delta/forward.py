@@ -27,7 +27,6 @@ centres or ``|w| <= sqrt(eps)``), ``OUT_OF_LIMITS``, ``OK``. Rates are 0 where n
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import jax
 import jax.numpy as jnp
@@ -36,8 +35,9 @@ from jax import Array
 from .. import _batching, newton
 from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
 from ..jet import Jet, lift
+from ..lie import cross_soa
 from ..result import FKResult, SolverResult
-from ..serial.lie import cross_soa
+from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
 from ._math import (
     any3,
@@ -52,10 +52,7 @@ from ._math import (
     sanitise,
 )
 from .jacobians import fk_rates
-
-if TYPE_CHECKING:
-    from .options import DeltaFKOptions
-    from .robot import Delta
+from .options import DeltaFKOptions
 
 __all__ = [
     "LOWER",
@@ -134,7 +131,7 @@ def _reduced_residual(p, planes, rod: tuple[Array, Array]) -> tuple[Array, Array
     return r_1, r_2, r_3
 
 
-def _default_guess(robot: Delta, centres: tuple[tuple[Array, ...], ...]) -> Array:
+def _default_guess(robot: Robot, centres: tuple[tuple[Array, ...], ...]) -> Array:
     """Centroid of the sphere centres, lowered by ``sqrt(max(l_rod^2 - spread, l_rod^2/4))``."""
     l_rod = jnp.asarray(robot.l_rod, centres[0][0].dtype)
     mean = [(centres[0][k] + centres[1][k] + centres[2][k]) / 3.0 for k in range(3)]
@@ -150,7 +147,7 @@ def _default_guess(robot: Delta, centres: tuple[tuple[Array, ...], ...]) -> Arra
 
 
 def _fk_newton(
-    robot: Delta, theta: Array, guess: Array | None, tol: float, max_iter: int, cosines=None
+    robot: Robot, theta: Array, guess: Array | None, tol: float, max_iter: int, cosines=None
 ):
     """Newton on ``_reduced_residual``; every reported field refers to the original ``r``.
 
@@ -259,7 +256,7 @@ def _fk_impl(
     )
 
 
-def _sphere_intersection(robot: Delta, theta: Array):
+def _sphere_intersection(robot: Robot, theta: Array):
     """Closed-form FK: lower and upper solutions, the circumcentre, ``n`` and the status parts.
 
     Written on components (batch-shaped arrays per coordinate), which XLA fuses into one loop;
@@ -291,7 +288,7 @@ def _sphere_intersection(robot: Delta, theta: Array):
     return lower, upper, jnp.stack(centre, -1), jnp.stack(n, -1), w, collinear
 
 
-def _fk_closed_form_impl(robot: Delta, theta: Array) -> ClosedFormFKResult:
+def _fk_closed_form_impl(robot: Robot, theta: Array) -> ClosedFormFKResult:
     robot, scale = in_own_units(robot)
     valid = finite3(theta)
     theta = jnp.where(valid[..., None], theta, 0.0)
@@ -322,7 +319,7 @@ def _fk_closed_form_impl(robot: Delta, theta: Array) -> ClosedFormFKResult:
     return ClosedFormFKResult(lower, upper, status)
 
 
-def _branch_impl(robot: Delta, theta: Array, p: Array) -> Array:
+def _branch_impl(robot: Robot, theta: Array, p: Array) -> Array:
     robot, scale = in_own_units(robot)
     p = p * (1.0 / jnp.asarray(scale, p.dtype))
     _, _, centre, n, _, _ = _sphere_intersection(robot, theta)
@@ -331,7 +328,7 @@ def _branch_impl(robot: Delta, theta: Array, p: Array) -> Array:
 
 
 def _fk_chunked(
-    robot: Delta,
+    robot: Robot,
     theta: Jet,
     guess,
     tol: float,
@@ -365,7 +362,7 @@ closed_form_jit = compiled(_fk_closed_form_impl)
 branch_jit = compiled(_branch_impl)
 
 
-def fk_kernel(robot: Delta, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:
+def fk_kernel(robot: Robot, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:
     """The robot protocol's FK kernel (``Delta.fk_kernel``): Newton from the default guess;
     at rest no rate is read or written (the pipeline writes the zero rates)."""
     tol = options.tolerance(theta.dtype)

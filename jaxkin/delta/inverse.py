@@ -22,14 +22,13 @@ Unreachable targets get the angle of the nearest (tangent) configuration.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import jax.numpy as jnp
 from jax import Array
 
 from .._numerics import safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..result import IKResult
+from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
 from ._math import (
     any3,
@@ -42,15 +41,12 @@ from ._math import (
     sanitise,
 )
 from .jacobians import ik_rates
-
-if TYPE_CHECKING:
-    from .options import DeltaIKOptions
-    from .robot import Delta
+from .options import DeltaIKOptions
 
 __all__ = ["ik_kernel"]
 
 
-def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
+def _ik_position(robot: Robot, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
     """Actuator angles, their cosines and sines, and the signed inverse measure, ``(..., 3)``."""
     dtype = p.dtype
     r_base, r_platform, l_arm, l_rod, _, _ = params(robot, dtype)
@@ -91,7 +87,7 @@ def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Arr
     return theta, cos_theta, sin_theta, signed
 
 
-def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array:
+def _ik_status(robot: Robot, theta: Array, signed: Array, valid: Array) -> Array:
     _, _, _, _, lo, hi = params(robot, theta.dtype)
     rtol = singular_rtol(theta.dtype)
     margin = jnp.minimum(jnp.minimum(signed[..., 0], signed[..., 1]), signed[..., 2])
@@ -112,7 +108,7 @@ def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array
     ).astype(STATUS_DTYPE)
 
 
-def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+def _ik_impl(robot: Robot, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
     """Actuator angles (rates where ``rates``; else ``p.v``, ``p.a`` are None and the result's
     rates are 0) for platform positions ``p`` ``(..., 3)`` on ``branch`` ("out" or "in").
     """
@@ -159,6 +155,6 @@ def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKR
     return IKResult(theta_jet, status, margin)
 
 
-def ik_kernel(robot: Delta, p: Jet, branch: str, options: DeltaIKOptions, rates: bool) -> IKResult:
+def ik_kernel(robot: Robot, p: Jet, branch: str, options: DeltaIKOptions, rates: bool) -> IKResult:
     """The robot protocol's IK kernel (``Delta.ik_kernel``): at rest no rate is read."""
     return _ik_impl(robot, p if rates else Jet(p.p, None, None), branch, options.method, rates)

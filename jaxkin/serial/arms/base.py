@@ -18,7 +18,7 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from ... import _batching
+from ... import _batching, _validate
 from ...jet import Jet
 from ...result import FKResult, IKResult
 from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
@@ -112,13 +112,6 @@ def _check_target_shape(robot: Arm, shape: tuple[int, ...]) -> None:
         )
 
 
-def _as_float(x: ArrayLike) -> Array:
-    arr = jnp.asarray(x)
-    if not jnp.issubdtype(arr.dtype, jnp.inexact):
-        arr = arr.astype(jnp.result_type(float))
-    return arr
-
-
 def ik_all_branches(robot: Arm, target: ArrayLike) -> ArmIKResult:
     """Every branch of the analytic IK at once (``result.branch(name)`` picks one).
 
@@ -137,7 +130,7 @@ def ik_all_branches(robot: Arm, target: ArrayLike) -> ArmIKResult:
         ValueError: ``robot`` is not an analytic arm, or a target of the wrong trailing shape.
     """
     robot = _check_arm(robot)
-    target = _as_float(target)
+    target = _validate.as_float(target)
     _check_target_shape(robot, target.shape)
     n = len(robot.target.shape)
     padding = _batching.shared_geometry(robot) and {"target": n}

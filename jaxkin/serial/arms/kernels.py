@@ -18,7 +18,6 @@ size where unreachable; -1 for invalid input.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import jax
 import jax.numpy as jnp
@@ -28,13 +27,10 @@ from ... import _batching, _validate
 from ..._numerics import isotropy, safe_norm
 from ...jet import Jet, lift
 from ...result import FKResult, IKResult, SolverResult, forward_result
-from ...robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
+from ...robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE, Robot
 from ...status import STATUS_DTYPE, Status
 from .. import poe as _poe
 from ..dh import fk_dh
-
-if TYPE_CHECKING:
-    from .base import Arm
 
 __all__ = [
     "FAR",
@@ -76,14 +72,14 @@ class ArmIKResult(SolverResult):
 FAR = 1e6
 
 
-def _placeholder_target(robot: Arm, dtype) -> Array:
+def _placeholder_target(robot: Robot, dtype) -> Array:
     """A finite target substituted for non-finite input before any math."""
     if robot.target.shape == (4, 4):
         return jnp.eye(4, dtype=dtype)
     return jnp.zeros(robot.target.shape, dtype)
 
 
-def _split_target(robot: Arm, target: Array) -> tuple[Array, Array | None]:
+def _split_target(robot: Robot, target: Array) -> tuple[Array, Array | None]:
     """The length coordinates of a target, and its angular rest (None for a point)."""
     if robot.target.shape == (4, 4):
         return target[..., :3, 3], target
@@ -92,7 +88,7 @@ def _split_target(robot: Arm, target: Array) -> tuple[Array, Array | None]:
     return target, None
 
 
-def _join_target(robot: Arm, lengths: Array, target: Array | None) -> Array:
+def _join_target(robot: Robot, lengths: Array, target: Array | None) -> Array:
     if robot.target.shape == (4, 4):
         return target.at[..., :3, 3].set(lengths)
     if robot.target.name == "planar pose":
@@ -100,7 +96,7 @@ def _join_target(robot: Arm, lengths: Array, target: Array | None) -> Array:
     return lengths
 
 
-def ik_all_kernel(robot: Arm, target: Array) -> ArmIKResult:
+def ik_all_kernel(robot: Robot, target: Array) -> ArmIKResult:
     """Every branch, in units of the arm's size (no overflow or underflow at any scale)."""
     dtype = target.dtype
     n_target = len(robot.target.shape)
@@ -134,7 +130,7 @@ def ik_all_kernel(robot: Arm, target: Array) -> ArmIKResult:
 ik_all_jit = _batching.PaddedJit(jax.jit(ik_all_kernel), {})
 
 
-def _task(robot: Arm, q: Array) -> Array:
+def _task(robot: Robot, q: Array) -> Array:
     """The forward kinematics in the form of the arm's targets, ``(..., *target.shape)``."""
     frame = fk_dh(robot.dh_table(q.dtype), q)
     if robot.target is PLANAR_POINT:
@@ -147,7 +143,7 @@ def _task(robot: Arm, q: Array) -> Array:
     return frame
 
 
-def _position(x: Array, robot: Arm) -> Array:
+def _position(x: Array, robot: Robot) -> Array:
     """The position part of a target, ``(..., 2 or 3)``."""
     if robot.target is PLANAR_POSE:
         return x[..., :2]
@@ -156,7 +152,7 @@ def _position(x: Array, robot: Arm) -> Array:
     return x
 
 
-def _scaled_jacobian(robot: Arm, q: Array, scale: Array) -> tuple[Array, Array]:
+def _scaled_jacobian(robot: Robot, q: Array, scale: Array) -> tuple[Array, Array]:
     """The task Jacobian in units of the arm's size, ``(..., m, n)``, and the end point.
 
     From the space Jacobian of the arm's PoE chain (one pass): the end point's velocity is
@@ -181,7 +177,7 @@ def _scaled_jacobian(robot: Arm, q: Array, scale: Array) -> tuple[Array, Array]:
     return rows, p
 
 
-def _margin(robot: Arm, q: Array, target: Array, status: Array) -> Array:
+def _margin(robot: Robot, q: Array, target: Array, status: Array) -> Array:
     """``isotropy`` of the scaled task Jacobian where solved (0 at a singularity); where the
     target is unreachable minus the distance from the placeholder's end point to the target in
     units of the arm's size (at most 1); -1 for invalid input."""
@@ -199,7 +195,7 @@ def _margin(robot: Arm, q: Array, target: Array, status: Array) -> Array:
     ).astype(dtype)
 
 
-def ik_branch_kernel(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult:
+def ik_branch_kernel(robot: Robot, target: Jet, index: Array, rates: bool) -> IKResult:
     """One branch, ``robot.branches[index]`` (``index`` an ``int32`` scalar, possibly traced),
     with joint rates by ``jaxkin.lift`` of ``ik_all_kernel`` where ``rates`` (else ``target``'s
     rates are not read and the result's are 0) and the margin (module docstring)."""
@@ -222,6 +218,6 @@ def ik_branch_kernel(robot: Arm, target: Jet, index: Array, rates: bool) -> IKRe
     return IKResult(q, status, _margin(robot, q.p, target.p, status))
 
 
-def fk_kernel(robot: Arm, q: Jet, rates: bool) -> FKResult:
+def fk_kernel(robot: Robot, q: Jet, rates: bool) -> FKResult:
     """The arm's FK in the form of its targets (rates by ``jaxkin.lift`` where ``rates``)."""
     return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.target.shape))
