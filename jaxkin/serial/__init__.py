@@ -5,17 +5,18 @@ Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk
 * ``DHTable``, ``fk_dh``: standard Denavit-Hartenberg forward kinematics
   [Lopez-Villagomez, eq. 2].
 * ``PoEChain``, ``fk_poe``, ``chain_fk``, ``fk_chain``, ``space_jacobian``, ``body_jacobian``,
-  ``poe_from_dh``, ``change_frame``: product of exponentials [Pineiro]; ``lie``: SO(3)/SE(3).
+  ``poe_from_dh``, ``change_frame``: product of exponentials [Pineiro] (rotations:
+  ``jaxkin.lie``).
 * ``JointChain``: a chain with named, typed, limited joints and mimic couplings;
   ``from_urdf``: the chain from a base link to a tip link of a URDF (the ``urdf`` extra).
 * ``ik_newton``: Newton-Raphson IK with body/space twists [Pineiro], per-element convergence
   from given seeds; ``ik_chain``: the protocol's IK of a chain (restarts, rates, margin).
 * The analytic arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``, ``Cylindrical``,
-  ``Spherical``, ``Puma560``, ``Stanford``: ``ik`` (every branch at once), ``ik_jet`` (one
-  branch with rates and a margin) and ``fk`` (in the form of the targets).
+  ``Spherical``, ``Puma560``, ``Stanford`` (``jaxkin.serial.arms``): ``ik_all_branches``
+  (every branch at once), ``ik_jet`` (one branch with rates and a margin, as ``jaxkin.ik``)
+  and ``fk`` (in the form of the targets).
 """
 
-from . import lie as lie
 from .arms import ARMS as ARMS
 from .arms import Anthropomorphic as Anthropomorphic
 from .arms import ArmIKResult as ArmIKResult
@@ -26,7 +27,7 @@ from .arms import Puma560 as Puma560
 from .arms import Spherical as Spherical
 from .arms import Stanford as Stanford
 from .arms import fk as fk
-from .arms import ik as ik
+from .arms import ik_all_branches as ik_all_branches
 from .arms import ik_jet as ik_jet
 from .chain import JointChain as JointChain
 from .dh import DHTable as DHTable
@@ -68,11 +69,10 @@ __all__ = [
     "fk_dh",
     "fk_poe",
     "from_urdf",
-    "ik",
+    "ik_all_branches",
     "ik_chain",
     "ik_jet",
     "ik_newton",
-    "lie",
     "poe_from_dh",
     "space_jacobian",
 ]
