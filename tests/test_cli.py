@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from jaxkin import Jet, Robot, cli, delta, scara, serial
+from jaxkin import files as kio
 from jaxkin.cli import commands, demo
-from jaxkin.cli import files as kio
 from jaxkin.cli.parser import build_parser
 from jaxkin.cli.robots import ROBOTS, RobotEntry
 from tests.references import delta as delta_ref

@@ -242,7 +242,7 @@ def test_consumers_never_ask_which_robot():
     """The planner, optimiser, workspace sweeps and the command's solvers import no robot
     module: they are written against the protocol alone."""
     robot_modules = {"scara", "delta", "serial", "dyad"}
-    for path in ("plan.py", "optimize.py", "workspace.py", "cli/commands.py", "cli/files.py"):
+    for path in ("plan.py", "optimize.py", "workspace.py", "cli/commands.py", "files.py"):
         tree = ast.parse((ROOT / "jaxkin" / path).read_text())
         imported = set()
         for node in ast.walk(tree):

@@ -12,11 +12,11 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching, _processes, plan
+from .. import _batching, _processes, files, plan
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
 from ..status import status_names
-from . import distributed, files
+from . import distributed
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
 __all__ = ["cmd_fk", "cmd_ik", "cmd_workspace", "robot_from_args", "set_dtype"]

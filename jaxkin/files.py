@@ -44,8 +44,8 @@ from typing import IO, Any
 import jax
 import numpy as np
 
-from .. import _batching, _splines, plan
-from .._progress import bar
+from . import _batching, _splines, plan
+from ._progress import bar
 
 __all__ = [
     "CARTESIAN",
