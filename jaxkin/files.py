@@ -34,6 +34,7 @@ import csv
 import dataclasses
 import math
 import os
+import stat
 import sys
 import tempfile
 import zipfile
@@ -54,13 +55,16 @@ __all__ = [
     "Trajectory",
     "atomic_write",
     "check_output_path",
+    "check_outputs",
     "complete_rates",
     "continuous_quaternions",
     "quaternion_signs",
     "file_format",
+    "output_target",
     "rate_names",
     "read_table",
     "read_trajectory",
+    "same_file",
     "solve_in_chunks",
     "trajectory_columns",
     "write_csv",
@@ -377,52 +381,154 @@ def trajectory_columns(
 # ------------------------------------------------------------------------------------ writing
 
 
-def check_output_path(path: str | Path) -> Path:
-    """The directory an output file ``path`` would be written in, after checking it exists.
+def _kind(mode: int) -> str:
+    """What a ``stat`` mode names, for messages."""
+    for test, name in (
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISFIFO, "a named pipe"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _streams_in_place(mode: int) -> bool:
+    """Named pipes and character devices (``/dev/null``, a terminal) are written into."""
+    return stat.S_ISFIFO(mode) or stat.S_ISCHR(mode)
+
+
+def output_target(path: str | os.PathLike) -> Path:
+    """The file an output ``path`` writes, after checking it can be written; before any work.
+
+    A symlink is followed to its target (the link stays, its target gets the data). The
+    target is a regular file, written atomically (``atomic_write``), or a named pipe or
+    character device (``/dev/null``, a terminal), written into directly; anything else is
+    refused, as is a read-only file (never replaced) and a directory where a temporary file
+    cannot be created (checked by creating and removing one).
 
     Raises:
-        InputError: ``path`` is a directory, or its directory does not exist.
+        InputError: naming ``path``: empty, a directory, a socket or block device, read-only,
+            or its directory missing or not writable.
     """
+    if not os.fspath(path):
+        raise InputError("'': an empty name, expected an output file name")
     path = given(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, expected an output file name")
+    try:
+        mode = os.stat(path).st_mode  # follows links, /dev/stdout's included
+    except FileNotFoundError:
+        mode = None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write ({_one_line(exc)})") from None
+    if mode is not None and not stat.S_ISREG(mode):
+        if _streams_in_place(mode):
+            return path
+        raise InputError(f"{path}: is {_kind(mode)}, expected an output file name")
+    target = Path(os.path.realpath(path))
+    if mode is not None and (not os.access(target, os.W_OK) or not mode & 0o222):
+        raise InputError(f"{path}: is read-only; make it writable or choose another name")
+    directory = target.parent
     if not directory.is_dir():
         raise InputError(f"{path}: cannot write: directory {directory} does not exist")
-    return directory
+    try:  # the one reliable test of a writable directory (permissions, ACLs, read-only mounts)
+        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write in {directory} ({_one_line(exc)})") from None
+    return target
+
+
+def check_output_path(path: str | os.PathLike) -> Path:
+    """The directory an output file ``path`` would be written in (``output_target``)."""
+    return output_target(path).parent
+
+
+def same_file(first: str | os.PathLike, second: str | os.PathLike) -> bool:
+    """True when two spellings name one file (symlinks, ``./``, ``..``, hard links)."""
+    try:
+        if os.path.exists(first) and os.path.exists(second):
+            return os.path.samefile(first, second)
+        return os.path.realpath(first) == os.path.realpath(second)
+    except OSError:
+        return False
+
+
+def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any]) -> dict[str, Path]:
+    """Check every output path against every input and every other output, before any work.
+
+    Args:
+        outputs: option -> output path (``None`` and ``"-"``, standard output, skipped).
+        inputs: option -> input path (``None`` skipped; names that are not files are fine).
+
+    Returns:
+        option -> the file each output writes (``output_target``).
+
+    Raises:
+        InputError: an output names an input file or another output (through any spelling,
+            symlink or hard link), or cannot be written (``output_target``); the message names
+            both options.
+    """
+    targets: dict[str, Path] = {}
+    for option, path in outputs.items():
+        if path is None or os.fspath(path) == "-":
+            continue
+        for other, source in inputs.items():
+            if source is not None and same_file(source, path):
+                raise InputError(
+                    f"{option} {path} is the input file {source} ({other}): it would be "
+                    "overwritten; choose another name"
+                )
+        for other, done in targets.items():
+            if same_file(done, path) or done == Path(os.path.realpath(path)):
+                raise InputError(f"{option} {path} is also {other}: choose two names")
+        try:
+            targets[option] = output_target(path)
+        except InputError as exc:
+            raise InputError(f"{option} {exc}") from None
+    return targets
 
 
 @contextlib.contextmanager
 def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
-    """Open a temporary file beside ``path``; on success rename it over ``path``.
+    """Open a temporary file beside ``path``'s target; on success rename it over the target.
 
-    On any exception (including ``KeyboardInterrupt``) the temporary file is removed and
-    ``path`` is left exactly as it was. The new file gets the permissions of the file it
-    replaces, or the usual ``0o666 & ~umask`` for a new file.
+    ``path`` is checked first (``output_target``: a symlink writes its target; a read-only
+    file, a directory, a socket or a block device are refused). On any exception (including
+    ``KeyboardInterrupt``, and SIGTERM under the command line) the temporary file is removed
+    and the target is left exactly as it was. The new file gets the permissions of the file it
+    replaces, or the usual ``0o666 & ~umask`` for a new file. A named pipe or a character
+    device (``/dev/null``) is written into directly: there is nothing to replace.
 
     Raises:
-        InputError: the directory does not exist or ``path`` is a directory.
+        InputError: ``path`` cannot be written (``output_target``).
     """
     path = given(path)
-    directory = check_output_path(path)
+    target = output_target(path)
+    kwargs = {"newline": "", "encoding": "utf-8"} if "b" not in mode else {}
+    if target.exists() and _streams_in_place(os.stat(target).st_mode):
+        with open(target, mode, **kwargs) as f:
+            yield f
+        return
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise InputError(f"{path}: cannot write ({_one_line(exc)})") from None
     try:
         try:
-            mode_bits = path.stat().st_mode & 0o777
+            mode_bits = target.stat().st_mode & 0o777
         except OSError:
             umask = os.umask(0)
             os.umask(umask)
             mode_bits = 0o666 & ~umask
         os.chmod(tmp, mode_bits)
-        kwargs = {"newline": "", "encoding": "utf-8"} if "b" not in mode else {}
         with os.fdopen(fd, mode, **kwargs) as f:
             yield f
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -88,43 +87,43 @@ def _warn_invalid(traj: files.Trajectory, valid: np.ndarray) -> None:
         )
 
 
-def _same_file(first: str, second: str) -> bool:
-    """True when two spellings name one file (symlinks, ``./``, ``..`` included)."""
-    a, b = Path(first), Path(second)
+def _robot_file(args: argparse.Namespace) -> str | None:
+    """The ``--robot`` argument when it names a file (not ``paper``)."""
+    spec = getattr(args, "robot", None)
+    return None if spec is None or spec.strip().lower() == "paper" else spec
+
+
+def _check_paths(args: argparse.Namespace) -> None:
+    """Every output against every input and each other, and writable; before any work."""
+    inputs = {"--input": getattr(args, "input", None), "--robot": _robot_file(args)}
+    outputs = {"--output": args.output, "--plot": args.plot}
     try:
-        if a.exists() and b.exists():
-            return os.path.samefile(a, b)
-        return a.resolve() == b.resolve()
-    except OSError:
-        return False
-
-
-def _check_output(path: str, what: str = "--output", source: str | None = None) -> None:
-    if path == "-":
-        return
-    if source is not None and _same_file(source, path):
-        raise CliError(
-            f"{what} {path} is the input file {source}: it would be overwritten; choose another"
-        )
-    try:  # fail before solving, with the checks atomic_write applies at the end
-        files.check_output_path(path)
+        files.check_outputs(outputs, inputs)
     except files.InputError as exc:
-        raise CliError(f"{what} {exc}") from None
+        raise CliError(str(exc)) from None
+    if args.plot:
+        from .. import plot
+
+        plot.require_matplotlib()
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        fmt = Path(args.plot).suffix.lstrip(".").lower() or "png"
+        known = FigureCanvasBase.get_supported_filetypes()
+        if fmt not in known:
+            raise CliError(
+                f"--plot {args.plot}: matplotlib cannot write .{fmt} files (it writes "
+                f"{', '.join(sorted(known))})"
+            )
 
 
 def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     _join(args)
+    _check_paths(args)
     robot = robot_from_args(args)
     pose = robot.target == POSE
     if not (robot.target.is_point or pose):
         raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
     branch = parse_branch(robot, args.branch) if inverse else None
-    _check_output(args.output, source=args.input)
-    if args.plot:
-        _check_output(args.plot, "--plot", source=args.input)
-        from .. import plot
-
-        plot.require_matplotlib()
     dtype = set_dtype(args.dtype)
     targets, joints = robot.target.coordinates, robot.joint_names
     in_names, out_names = (targets, joints) if inverse else (joints, targets)
@@ -212,12 +211,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
     if args.output is not None:
         if files.file_format(args.output) != "npz":
             raise CliError(f"--output {args.output}: the workspace is saved as .npz")
-        _check_output(args.output)
-    if args.plot:
-        _check_output(args.plot, "--plot")
-        from .. import plot
-
-        plot.require_matplotlib()
+    _check_paths(args)
     if args.resolution is not None and not (np.isfinite(args.resolution) and args.resolution > 0):
         raise CliError(f"--resolution must be positive, got {args.resolution}")
     dims = robot.target.shape[0]
