@@ -45,7 +45,7 @@ from typing import IO, Any
 import jax
 import numpy as np
 
-from . import _batching, _splines, plan
+from . import _batching, _splines, _validate, plan
 from ._progress import bar
 
 __all__ = [
@@ -618,10 +618,24 @@ def quaternion_signs(
 
 
 def continuous_quaternions(traj: Trajectory) -> Trajectory:
-    """A pose trajectory (columns ``x, y, z, qw, qx, qy, qz``) with the quaternions' signs made
-    continuous along each candidate (``quaternion_signs``: splining needs one sign), rates
-    flipped with them."""
-    sign = quaternion_signs(traj.t, traj.candidate, traj.valid, traj.p[:, 3:7])
+    """A pose trajectory (columns ``x, y, z, qw, qx, qy, qz``) with unit quaternions whose
+    signs are continuous along each candidate.
+
+    Each row's quaternion is scaled to unit length (``jaxkin._validate.unit_quaternions``:
+    any length, ``q`` and ``c q`` being one rotation) and its given rates with it (at one
+    instant, the rates of ``q / c`` are those of ``q`` divided by ``c``), so rows whose
+    quaternions differ only in length give one rotation and splined rates are those of the
+    unit quaternions, as in ``jaxkin.paths``. A zero quaternion becomes NaN: that row gets
+    status ``INVALID_INPUT`` and is left out of the splines of the others. Signs then follow
+    ``quaternion_signs`` (splining needs one hemisphere), rates flipped with them.
+    """
+    unit, length, _ = _validate.unit_quaternions(traj.p[:, 3:7])
+    p = np.concatenate([traj.p[:, :3], unit], -1)
+    scale = np.concatenate([np.ones((len(length), 3)), np.repeat(length[:, None], 4, 1)], 1)
+    with np.errstate(invalid="ignore"):
+        v, a = (None if r is None else r / scale for r in (traj.v, traj.a))
+    traj = dataclasses.replace(traj, p=p, v=v, a=a)
+    sign = quaternion_signs(traj.t, traj.candidate, traj.valid, unit)
     flip = np.concatenate([np.ones((len(sign), 3)), np.repeat(sign[:, None], 4, axis=1)], 1)
     return dataclasses.replace(
         traj,

@@ -36,7 +36,7 @@ import optax
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _processes, plan
+from . import _batching, _processes, _validate, plan
 from ._numerics import safe_norm
 from ._progress import bar, is_active
 from .jet import Jet
@@ -131,9 +131,7 @@ class SingularityBarrier:
 
 def singularity_barrier(threshold: float) -> SingularityBarrier:
     """``SingularityBarrier(threshold)``, checking ``threshold > 0``."""
-    if not (isinstance(threshold, int | float) and threshold > 0 and math.isfinite(threshold)):
-        raise ValueError(f"threshold must be a positive finite number, got {threshold!r}")
-    return SingularityBarrier(float(threshold))
+    return SingularityBarrier(_validate.positive_number(threshold, "threshold"))
 
 
 def _box_distance(points: Array, centres: Array, half: Array) -> Array:
@@ -195,8 +193,7 @@ class Obstacles:
             ValueError: shapes that do not match, non-finite values, radii or half extents
                 that are negative, or a safety distance that is not positive.
         """
-        if not (isinstance(safety, int | float) and safety > 0 and math.isfinite(safety)):
-            raise ValueError(f"safety must be a positive finite number, got {safety!r}")
+        safety = _validate.positive_number(safety, "safety")
         arrays = []
         for name, pair, size_shape in (("spheres", spheres, ()), ("boxes", boxes, (dims,))):
             if pair is None:
@@ -266,10 +263,9 @@ def compose(*weighted_terms: tuple[float, CostTerm]) -> Sum:
     threshold reuses the compilation)."""
     weights, data_terms, terms = [], [], []
     for weight, term in weighted_terms:
-        if not (isinstance(weight, int | float) and math.isfinite(weight)):
-            raise ValueError(f"compose: weights must be finite numbers, got {weight!r}")
+        weight = _validate.finite_number(weight, "compose: weights")
         # NumPy, not a device array: importing jaxkin must not start JAX before jax.distributed
-        weights.append(np.asarray(float(weight)))
+        weights.append(np.asarray(weight))
         if jax.tree_util.all_leaves([term]):
             terms.append(term)  # a plain function: part of the structure
         else:
@@ -604,9 +600,10 @@ def optimize(
     epsilon = float(jnp.finfo(interior.dtype).eps)
     gtol = max(1e-7, 1000 * epsilon) if gtol is None else gtol
     ftol = max(1e-10, 8 * epsilon) if ftol is None else ftol
-    for name, value in (("duration", duration), ("gtol", gtol), ("ftol", ftol)):
-        if isinstance(value, bool) or not (isinstance(value, int | float) and value >= 0):
-            raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+    duration, gtol, ftol = (
+        _validate.nonnegative_number(value, name)
+        for name, value in (("duration", duration), ("gtol", gtol), ("ftol", ftol))
+    )
     if not duration > 0:
         raise ValueError(f"duration must be positive, got {duration!r}")
     method = LBFGS() if optimizer is None else optimizer

@@ -36,7 +36,6 @@ split along the candidate axis (``jaxkin._batching.map_candidates``; ``docs/scal
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
 import jax
@@ -332,8 +331,7 @@ def evaluate(
             f"path: expected shape (N, T, {', '.join(map(str, target))}) with T >= 2 for "
             f"{type(robot).__name__} ({robot.target.name} targets), got {path.shape}"
         )
-    if isinstance(dt, bool) or not (isinstance(dt, int | float) and dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+    dt = _validate.positive_number(dt, "dt")
     limits = robot_limits(robot, limits)
     n, t = path.shape[:2]
     # "best" holds every branch of a chunk at once
@@ -390,8 +388,7 @@ def _check_samples(x: np.ndarray, name: str, width: int | None, dt: float) -> No
     if x.ndim < 2 or x.shape[-2] < 2 or (width is not None and x.shape[-1] != width):
         shape = f"(..., T, {'d' if width is None else width})"
         raise ValueError(f"{name}: expected shape {shape} with T >= 2, got {x.shape}")
-    if not (dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+    _validate.positive_number(dt, "dt")
 
 
 def _rotation_of_quaternion(s: np.ndarray, ds: np.ndarray, dds: np.ndarray):
@@ -468,10 +465,7 @@ def path_from_poses(
             f"positions {positions.shape} and quaternions {quaternions.shape} must have the same "
             "leading axes (..., T)"
         )
-    length = np.linalg.norm(quaternions, axis=-1, keepdims=True)
-    if np.any(length == 0.0):
-        raise ValueError("quaternions: every quaternion must be non-zero")
-    unit = quaternions / length
+    unit = _validate.quaternion_samples(quaternions, "quaternions")
     unit = unit * continuous_signs(unit)[..., None]
     p, v, a = _splined(np.concatenate([positions, unit], -1), dt, end)
     return pose_from_quaternions(p, v, a)

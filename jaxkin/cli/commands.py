@@ -77,12 +77,12 @@ def _summary(status: np.ndarray) -> str:
     return ", ".join(f"{n} {c}" for n, c in zip(names, counts, strict=True))
 
 
-def _warn_invalid(traj: files.Trajectory, valid: np.ndarray) -> None:
+def _warn_invalid(traj: files.Trajectory, valid: np.ndarray, what: str) -> None:
     bad = np.flatnonzero(~valid)
     if bad.size:
         print(
-            f"jaxkin: warning: {bad.size} of {len(valid)} rows have NaN/inf input "
-            f"(first at {traj.table.where(bad[0])}): status INVALID_INPUT, the rest is solved",
+            f"jaxkin: warning: {bad.size} of {len(valid)} rows have {what} (first at "
+            f"{traj.table.where(bad[0])}): status INVALID_INPUT, the rest is solved",
             file=sys.stderr,
         )
 
@@ -132,7 +132,10 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
         traj = files.continuous_quaternions(traj)
     p, v, a, valid = files.complete_rates(traj, args.spline)
     if distributed.is_writer():
-        _warn_invalid(traj, valid)
+        quaternions = pose and inverse
+        _warn_invalid(
+            traj, valid, "NaN/inf input or a zero quaternion" if quaternions else "NaN/inf input"
+        )
 
     def solve(p, v, a):
         if pose and inverse:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates

@@ -27,7 +27,6 @@ centres or ``|w| <= sqrt(eps)``), ``OUT_OF_LIMITS``, ``OK``. Rates are 0 where n
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp
@@ -405,8 +404,8 @@ def fk(
         theta = _validate.as_jet(theta, "theta", coords=3)
     else:
         theta = Jet(as_coords(theta, "theta"), None, None)
-    if tol is not None and not (isinstance(tol, int | float) and math.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a positive finite float or None, got {tol!r}")
+    if tol is not None:
+        tol = _validate.positive_number(tol, "tol")
     if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
         raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
     dtype = float_dtype(theta.p)
