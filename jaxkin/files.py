@@ -200,7 +200,11 @@ def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
     """Non-blank, non-comment CSV rows with their line numbers."""
     try:
         with path.open("r", newline="", encoding="utf-8-sig") as f:
-            first = f.readline()
+            first = ""
+            for line in f:  # the header: the first line that is neither blank nor a comment
+                if line.strip() and not line.lstrip().startswith("#"):
+                    first = line
+                    break
             delimiter = ","
             if "," not in first:
                 delimiter = ";" if ";" in first else "\t" if "\t" in first else ","

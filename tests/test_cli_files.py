@@ -62,6 +62,20 @@ def test_csv_dialect_comments_blank_lines_bom_and_empty_cells(tmp_path):
 
 
 @pytest.mark.parametrize(
+    "text",
+    [
+        "# units: mm; s\nt,x,y,z\n0,1,2,3\n",
+        "\n  # made by a tool, v2\n# t;x\nt;x;y;z\n0;1;2;3\n",
+        "#\tcomment\nt,x,y,z\n0,1,2,3\n",
+    ],
+)
+def test_csv_delimiter_comes_from_the_header_not_a_comment(tmp_path, text):
+    table = kio.read_table(_write(tmp_path / "a.csv", text), ["t", "x", "y", "z"])
+    assert table.columns == ("t", "x", "y", "z")
+    assert [table.data[n].tolist() for n in "txyz"] == [[0.0], [1.0], [2.0], [3.0]]
+
+
+@pytest.mark.parametrize(
     ("text", "message"),
     [
         ("", "empty file, expected a header row"),
