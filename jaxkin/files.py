@@ -58,6 +58,7 @@ __all__ = [
     "check_outputs",
     "complete_rates",
     "continuous_quaternions",
+    "QuaternionSigns",
     "quaternion_signs",
     "file_format",
     "output_target",
@@ -66,12 +67,15 @@ __all__ = [
     "read_trajectory",
     "same_file",
     "solve_in_chunks",
+    "solved_chunks",
+    "table_writer",
     "trajectory_columns",
     "write_csv",
     "write_table",
 ]
 
 CARTESIAN = ("x", "y", "z")
+READ_BLOCK = 1 << 16  # CSV rows parsed as text before they become floats
 
 
 class InputError(ValueError):
@@ -248,8 +252,19 @@ def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
         )
     index = {n: i for i, n in enumerate(names)}
     used = [n for n in wanted if n in index]
+    blocks: dict[str, list[np.ndarray]] = {n: [] for n in used}
+    line_blocks: list[np.ndarray] = []
     cells: dict[str, list[str]] = {n: [] for n in used}
     lines: list[int] = []
+
+    def convert() -> None:  # the block's text cells to floats: memory by the block, not file
+        numbers = np.asarray(lines, dtype=np.int64)
+        line_blocks.append(numbers)
+        for n in used:
+            blocks[n].append(_to_float(path, n, cells[n], numbers))
+            cells[n].clear()
+        lines.clear()
+
     for line, row in rows:
         if len(row) != len(names):
             raise InputError(
@@ -258,11 +273,14 @@ def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
         lines.append(line)
         for n in used:
             cells[n].append(row[index[n]].strip() or "nan")
-    if not lines:
+        if len(lines) == READ_BLOCK:
+            convert()
+    if lines:
+        convert()
+    if not line_blocks:
         raise InputError(f"{path}: no data rows after the header")
-    line_numbers = np.asarray(lines)
-    data = {n: _to_float(path, n, cells[n], line_numbers) for n in used}
-    return Table(str(path), tuple(names), data, line_numbers)
+    data = {n: np.concatenate(blocks.pop(n)) for n in used}
+    return Table(str(path), tuple(names), data, np.concatenate(line_blocks))
 
 
 def _to_float(path: Path, name: str, cells: list[str], lines: np.ndarray) -> np.ndarray:
@@ -549,12 +567,65 @@ def _format_column(values: np.ndarray) -> list[str]:
     return [str(x) for x in values.tolist()]
 
 
-def write_csv(f: IO[str], columns: Mapping[str, np.ndarray]) -> None:
-    """Write ``columns`` (name -> 1-D array, all one length) as CSV with a header row."""
+def write_csv(f: IO[str], columns: Mapping[str, np.ndarray], header: bool = True) -> None:
+    """Write ``columns`` (name -> 1-D array, all one length) as CSV rows, after a header row
+    naming them unless ``header`` is False (a later part of one table)."""
     writer = csv.writer(f, lineterminator="\n")
-    writer.writerow(list(columns))
+    if header:
+        writer.writerow(list(columns))
     formatted = [_format_column(values) for values in columns.values()]
     writer.writerows(zip(*formatted, strict=True))
+
+
+def _checked_lengths(columns: Mapping[str, np.ndarray]) -> None:
+    lengths = {len(np.asarray(v)) for v in columns.values()}
+    if len(lengths) > 1:
+        raise ValueError(f"columns of different lengths: {sorted(lengths)}")
+
+
+@contextlib.contextmanager
+def table_writer(
+    path: str | os.PathLike | None,
+) -> Iterator[Callable[[Mapping[str, np.ndarray]], None]]:
+    """Write one table in parts: yields ``write(columns)``, which appends rows (the same
+    column names every call).
+
+    CSV goes out part by part (to a temporary file renamed at the end, ``atomic_write``, or to
+    standard output for ``path == "-"``), so memory is bounded by a part, not the table; NPZ
+    holds the parts until the end (an archive is written whole). ``path=None`` writes nothing
+    (a process that does not write). On an exception nothing replaces an existing file.
+    """
+    if path is None:
+        yield lambda columns: None
+        return
+    first = [True]
+
+    def csv_part(f: IO[str]) -> Callable[[Mapping[str, np.ndarray]], None]:
+        def write(columns: Mapping[str, np.ndarray]) -> None:
+            _checked_lengths(columns)
+            write_csv(f, columns, header=first[0])
+            first[0] = False
+
+        return write
+
+    if str(path) == "-":
+        yield csv_part(sys.stdout)
+        return
+    if file_format(path) == "npz":
+        parts: dict[str, list[np.ndarray]] = {}
+
+        def keep(columns: Mapping[str, np.ndarray]) -> None:
+            _checked_lengths(columns)
+            for key, value in columns.items():
+                parts.setdefault(key, []).append(np.asarray(value))
+
+        output_target(path)  # fail before the work, as the CSV writer does
+        yield keep
+        with atomic_write(path, "wb") as f:
+            np.savez(f, **{k: np.concatenate(v) for k, v in parts.items()})
+        return
+    with atomic_write(path, "w") as f:
+        yield csv_part(f)
 
 
 def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray]) -> None:
@@ -562,18 +633,9 @@ def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray]) -> N
 
     ``path == "-"`` writes CSV to standard output.
     """
-    lengths = {len(np.asarray(v)) for v in columns.values()}
-    if len(lengths) > 1:
-        raise ValueError(f"columns of different lengths: {sorted(lengths)}")
-    if str(path) == "-":
-        write_csv(sys.stdout, columns)
-        return
-    if file_format(path) == "npz":
-        with atomic_write(path, "wb") as f:
-            np.savez(f, **{k: np.asarray(v) for k, v in columns.items()})
-    else:
-        with atomic_write(path, "w") as f:
-            write_csv(f, columns)
+    _checked_lengths(columns)
+    with table_writer(path) as write:
+        write(columns)
 
 
 # ------------------------------------------------------------------------------------ solving
@@ -649,6 +711,25 @@ def continuous_quaternions(traj: Trajectory) -> Trajectory:
     )
 
 
+def solved_chunks(
+    fn: Callable[..., Any],
+    arrays: Sequence[np.ndarray],
+    chunk: int,
+    desc: str,
+    quiet: bool,
+) -> Iterator[tuple[int, int, list[np.ndarray]]]:
+    """``(start, stop, outputs)``: ``fn`` applied to row chunks of ``arrays``, its outputs (a
+    pytree of arrays) flattened to host arrays of rows ``start:stop``, one chunk at a time.
+    Every call has one shape (``jaxkin._batching.host_chunks``), so ``fn`` compiles once per
+    file."""
+    n = len(arrays[0])
+    with bar(n, desc, enabled=False if quiet else None) as meter:
+        for start, stop, index in _batching.host_chunks(n, chunk):
+            out = fn(*(x[index] for x in arrays))
+            yield start, stop, [np.array(x[: stop - start]) for x in jax.tree.leaves(out)]
+            meter.update(stop - start)
+
+
 def solve_in_chunks(
     fn: Callable[..., Any],
     arrays: Sequence[np.ndarray],
@@ -656,14 +737,30 @@ def solve_in_chunks(
     desc: str,
     quiet: bool,
 ) -> list[np.ndarray]:
-    """Apply ``fn`` to row chunks of ``arrays`` and concatenate its outputs (a pytree of
-    arrays, flattened to host arrays). Every chunk has one shape
-    (``jaxkin._batching.host_chunks``), so ``fn`` compiles once per file."""
-    n = len(arrays[0])
-    parts: list[list[np.ndarray]] = []
-    with bar(n, desc, enabled=False if quiet else None) as meter:
-        for start, stop, index in _batching.host_chunks(n, chunk):
-            out = fn(*(x[index] for x in arrays))
-            parts.append([np.asarray(x)[: stop - start] for x in jax.tree.leaves(out)])
-            meter.update(stop - start)
+    """Every chunk of ``solved_chunks`` joined: ``fn``'s outputs for all rows."""
+    parts = [outputs for _, _, outputs in solved_chunks(fn, arrays, chunk, desc, quiet)]
     return [np.concatenate(column) for column in zip(*parts, strict=True)]
+
+
+class QuaternionSigns:
+    """Signs (+-1) that keep quaternions continuous along each candidate across the chunks
+    of a file, in file order (time order when the rates were splined: ``t`` then increases):
+    the last signed quaternion of each candidate is carried to the next chunk."""
+
+    def __init__(self) -> None:
+        self.last: dict[int, np.ndarray] = {}
+
+    def __call__(
+        self, candidate: np.ndarray | None, valid: np.ndarray, quat: np.ndarray
+    ) -> np.ndarray:
+        """``(n,)`` signs for one chunk's quaternions ``(n, 4)``."""
+        group = candidate if candidate is not None else np.zeros(len(quat), np.int64)
+        sign = np.ones(len(quat))
+        for label in np.unique(group[valid]).tolist():
+            rows = np.flatnonzero(valid & (group == label))
+            previous = self.last.get(label)
+            q = quat[rows] if previous is None else np.concatenate([previous[None], quat[rows]])
+            signs = plan.continuous_signs(q)[0 if previous is None else 1 :]
+            sign[rows] = signs
+            self.last[label] = quat[rows[-1]] * signs[-1]
+        return sign

@@ -150,33 +150,44 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
 
     desc = f"{args.kind} {'ik' if inverse else 'fk'}"
     chunk = args.chunk_size or _batching.HOST_CHUNK
-    outputs = distributed.solve_rows(
-        files.solve_in_chunks, solve, (p, v, a), chunk, desc, args.quiet
-    )
-    q, qd, qdd, status = outputs[:4]
-    if pose and not inverse:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
-        q, qd, qdd = plan.quaternions_from_pose(Jet(q, qd, qdd))
-        sign = files.quaternion_signs(traj.t, traj.candidate, valid, q[:, 3:])[:, None]
-        for block in (q, qd, qdd):  # continuous along each candidate, as splines need
-            block[:, 3:] *= sign
-    for block in (q, qd, qdd):
-        block[~valid] = np.nan  # nothing meaningful to report for invalid input
-    if not distributed.is_writer():
+    writer = distributed.is_writer()
+    signs = files.QuaternionSigns() if pose and not inverse else None
+    statuses, kept = [], []  # kept: every chunk's outputs, only for --plot
+    chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+    with files.table_writer(args.output if writer else None) as write:
+        for start, stop, outputs in chunks:
+            q, qd, qdd, status = outputs[:4]
+            rows, ok = slice(start, stop), valid[start:stop]
+            candidate = None if traj.candidate is None else traj.candidate[rows]
+            if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
+                q, qd, qdd = plan.quaternions_from_pose(Jet(q, qd, qdd))
+                sign = signs(candidate, ok, q[:, 3:])[:, None]
+                for block in (q, qd, qdd):  # continuous along each candidate, as splines need
+                    block[:, 3:] *= sign
+            for block in (q, qd, qdd):
+                block[~ok] = np.nan  # nothing meaningful to report for invalid input
+            statuses.append(np.asarray(status, np.int8))
+            if args.plot and writer:
+                kept.append((q, qd, qdd))
+            extra = {"margin": outputs[4]} if inverse else None
+            write(
+                files.trajectory_columns(
+                    traj.t[rows], candidate, out_names, q, qd, qdd, status_names(status), extra
+                )
+            )
+    if not writer:
         return 0
+    status = np.concatenate(statuses)
     if valid.any() and not np.any(status[valid] == 0):
         print(
             f"jaxkin: warning: no row has status OK ({_summary(status)}): check the geometry "
             "and the units of the input",
             file=sys.stderr,
         )
-    extra = {"margin": outputs[4]} if inverse else None
-    columns = files.trajectory_columns(
-        traj.t, traj.candidate, out_names, q, qd, qdd, status_names(status), extra
-    )
-    files.write_table(args.output, columns)
     if args.plot:
         from .. import plot
 
+        q, qd, qdd = (np.concatenate(block) for block in zip(*kept, strict=True))
         plot.joint_trajectories(
             traj.t, q, qd, qdd, status, names=out_names, candidate=traj.candidate, path=args.plot
         )
