@@ -312,7 +312,8 @@ class Trajectory:
     """Samples of one or more trajectories read from a file.
 
     Attributes:
-        table: the underlying ``Table`` (source name, line numbers).
+        table: the underlying ``Table`` for messages (source name, line numbers; its
+            columns, now in the fields below, are not kept).
         names: the position column names, e.g. ``("x", "y", "z")``.
         t: times, ``(N,)``.
         candidate: integer labels ``(N,)``, or ``None`` when the file has no such column.
@@ -370,7 +371,9 @@ def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -
             )
         candidate = raw.astype(np.int64)
     p = np.stack([table.data[n] for n in names], axis=-1)
-    return Trajectory(table, names, table.data["t"], candidate, p, rates[0], rates[1])
+    t = table.data["t"]
+    table = dataclasses.replace(table, data={})  # the columns live on in t, p and the rates
+    return Trajectory(table, names, t, candidate, p, rates[0], rates[1])
 
 
 def trajectory_columns(
