@@ -1,4 +1,4 @@
-"""Trajectory files of the ``jaxkin`` command: CSV and NPZ reading, rates, atomic writing.
+"""Trajectory files (the ``jaxkin`` command, ``jaxkin.plot``): CSV and NPZ, rates, safe writing.
 
 Formats (one row per sample; the two formats hold the same columns):
 
@@ -18,10 +18,15 @@ trajectory) and the rate columns are optional. Rates come as whole sets: ``vx, v
 ``ax, ay, az`` for Cartesian coordinates, ``<name>_dot`` and ``<name>_ddot`` otherwise. Rates a
 file does not give are computed by a cubic spline in ``t`` per candidate (``complete_rates``).
 
-Writing (``write_table``) is atomic: the file is written to a temporary file in the target's
-directory and renamed over the target (``os.replace``) only when complete, so an existing
-file is never truncated or half-written by a failed or interrupted run. Floats are written
-in the shortest form that reads back to the same value (``repr``).
+Writing (``write_table``, or ``table_writer`` part by part) is atomic: the file is written to a
+temporary file in the target's directory and renamed over the target (``os.replace``) only
+when complete, so an existing file is never truncated or half-written by a failed or
+interrupted run. Output paths are checked first (``output_target``, ``check_outputs``): a
+symlink writes its target, a named pipe or character device is written into, and a
+read-only file, a directory, a socket, a block device or an unwritable directory is refused.
+Floats are written in the shortest form that reads back to the same value (``repr``). CSV is
+read in blocks of ``READ_BLOCK`` rows and written part by part, so the text of a file is
+never held whole.
 
 Every problem with a file raises ``InputError`` (a ``ValueError``) with a one-line message that
 starts with the file name and, for CSV, the line number.

@@ -118,3 +118,19 @@ def test_unit_quaternions_scale_safely():
     )
     np.testing.assert_allclose(length[:2], [5.0, 5e-324], rtol=1e-15)
     assert np.isinf(length[2]) and np.all(np.isnan(unit[3:]))
+
+
+def test_quaternion_signs_carry_across_chunks():
+    """Signs found chunk by chunk (the FK output of a streamed file) equal the signs found on
+    the whole file at once, for interleaved candidates and invalid rows."""
+    rng = np.random.default_rng(5)
+    n = 37
+    candidate = rng.integers(0, 3, n)
+    t = np.arange(n, dtype=float)  # file order is time order
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    valid = rng.random(n) > 0.2
+    whole = kio.quaternion_signs(t, candidate, valid, q)
+    carry = kio.QuaternionSigns()
+    parts = [carry(candidate[i : i + 8], valid[i : i + 8], q[i : i + 8]) for i in range(0, n, 8)]
+    np.testing.assert_array_equal(np.concatenate(parts)[valid], whole[valid])
