@@ -28,7 +28,6 @@ nothing new); names, kinds, the coupling indices and the link names are static.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -37,15 +36,16 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _validate
 from .._geometry import BOUND, REAL, geometry, number, static
 from ..jet import Jet
 from ..result import FKResult, forward_result
-from ..robot import POSE, JointLimits, Robot
+from ..robot import POSE, CompilePolicy, JointLimits, Robot, fk, promoted
 from ..status import Status
 from . import dh as _dh
 from . import lie
 from . import poe as _poe
+from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
 
 __all__ = ["JOINT_KINDS", "JointChain"]
 
@@ -89,6 +89,12 @@ class JointChain(Robot):
     target: ClassVar = POSE
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
+    IKOptions: ClassVar = ChainIKOptions
+    # The IK search is loop-bound: large batches run one work queue per host thread; batch
+    # sizes are not padded (every element costs a search). FK is cheap per element: large
+    # parts.
+    ik_policy: ClassVar = CompilePolicy(pad=False, threads=True, min_part=CHAIN_MIN_PART)
+    fk_policy: ClassVar = CompilePolicy(threads=True)
 
     def _validate(self) -> None:
         super()._validate()
@@ -220,7 +226,8 @@ class JointChain(Robot):
 
     @property
     def dtype(self):
-        return jnp.asarray(self.screws).dtype
+        screws = self.screws
+        return screws.dtype if hasattr(screws, "dtype") else jnp.asarray(screws).dtype
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -264,18 +271,21 @@ class JointChain(Robot):
         radius = radius + jnp.linalg.norm(self.home[:3, 3] - current)
         return centre, radius
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .newton_ik import ik_chain
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> Any:
+        from .newton_ik import chain_ik_kernel
 
-        return ik_chain(self, target, branch, **options)
+        return chain_ik_kernel(self, target, options, rates)
 
-    def _ik_path(self, path: Any, index: Any) -> Any:
-        from .newton_ik import ik_chain_path
+    def ik_path_kernel(self, path: Jet, index: Any, options: Any) -> Any:
+        from .newton_ik import chain_ik_path_kernel
 
-        return ik_chain_path(self, path)
+        return chain_ik_path_kernel(self, path, options)
 
-    def _fk(self, q: Any, **options: Any) -> Any:
-        return fk_joint_chain(self, q, **options)
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
+        return _fk_core(_validate.cast_leaves(self, q.dtype), q, rates)
+
+    def work_dtype(self, dtype: Any) -> Any:
+        return promoted(dtype, self.dtype)
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
@@ -325,28 +335,17 @@ def fk_and_jacobian(chain: JointChain, q: Array, which: str) -> tuple[Array, Arr
     return rot, p, couple(chain, jac)
 
 
-def _fk_core(chain: JointChain, q: Jet | Array, rates: bool, zero_rates: bool = True) -> FKResult:
-    """``FKResult`` at ``q`` (a Jet, or at rest an array); at rest with ``zero_rates`` False,
-    the pose without rates: the caller adds them (``_batching.zero_rates_outside``)."""
+def _fk_core(chain: JointChain, q: Jet, rates: bool) -> FKResult:
+    """``FKResult`` at ``q`` (at rest its rates are zero, and the pipeline writes them)."""
 
     def pose(joints):
         return lie.from_rotation_translation(*fk_rp(chain, joints))
 
-    result = forward_result(pose, q if rates else Jet.constant(q), rates, 2)
-    if rates or zero_rates:
-        return result
-    return dataclasses.replace(result, x=Jet(result.x.p, None, None))
-
-
-# Large batches split across host threads: FK is cheap per element, so the parts are large.
-_fk_jit = _batching.PaddedJit(
-    _batching.PartsJit(_fk_core, static_argnames=("rates", "zero_rates"), batched_argnames=("q",)),
-    {"q": 1},
-)
+    return forward_result(pose, q, rates, 2)
 
 
 def fk_joint_chain(chain: JointChain, q: Jet | ArrayLike) -> FKResult:
-    """Forward kinematics as the robot protocol has it (``jaxkin.fk``).
+    """Forward kinematics as the robot protocol has it: ``jaxkin.fk(chain, q)``.
 
     Args:
         chain: a ``JointChain``.
@@ -357,10 +356,4 @@ def fk_joint_chain(chain: JointChain, q: Jet | ArrayLike) -> FKResult:
         ``FKResult``: ``x`` (Jet of 4x4 tip poses in the base frame) and ``status``
         (``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``).
     """
-    rates = isinstance(q, Jet)
-    q = _validate.as_jet(q, "q", coords=chain.n_joints)
-    dtype = jnp.result_type(q.dtype, chain.dtype)
-    chain, q, batch = _validate.cast_leaves(chain, dtype), q.astype(dtype), q.shape[:-1]
-    outside = _batching.zero_rates_outside(rates, batch)
-    result = _fk_jit(chain, q if rates else q.p, rates, not outside, batch=batch)
-    return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result
+    return fk(chain, q)

@@ -33,9 +33,11 @@ from .. import _batching, _validate
 from .._geometry import REAL, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
-from ..robot import POSE, Robot
+from ..jet import Jet
+from ..robot import POSE, CompilePolicy, Robot, promoted
 from ..status import Status
 from . import lie
+from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
 
 __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]
 
@@ -80,6 +82,8 @@ class DHTable(Robot):
     target: ClassVar = POSE
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
+    IKOptions: ClassVar = ChainIKOptions
+    ik_policy: ClassVar = CompilePolicy(pad=False, threads=True, min_part=CHAIN_MIN_PART)
 
     def _validate(self) -> None:
         if self.theta is None and _validate.is_concrete(self.a):
@@ -139,15 +143,18 @@ class DHTable(Robot):
         points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
         return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .newton_ik import ik_chain
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> Any:
+        from .newton_ik import chain_ik_kernel
 
-        return ik_chain(self, target, branch, **options)
+        return chain_ik_kernel(self, target, options, rates)
 
-    def _fk(self, q: Any, **options: Any) -> Any:
-        from .poe import fk_chain
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> Any:
+        from .poe import _fk_chain_core
 
-        return fk_chain(self, q, **options)
+        return _fk_chain_core(_validate.cast_leaves(self, q.dtype), q, rates)
+
+    def work_dtype(self, dtype: Any) -> Any:
+        return promoted(dtype, self.dtype)
 
 
 def dh_transform(a: ArrayLike, alpha: ArrayLike, d: ArrayLike, theta: ArrayLike) -> Array:

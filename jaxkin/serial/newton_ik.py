@@ -62,13 +62,23 @@ from .. import _batching, _validate
 from .._numerics import all_finite, computed_once, eps, isotropy, safe_sqrt, singular_rtol
 from ..jet import Jet
 from ..result import IKResult, SolverResult
+from ..robot import solve_ik
 from ..status import STATUS_DTYPE, Status
 from . import chain as _chain
 from . import dh as _dh
 from . import lie
 from . import poe as _poe
+from ._chain_options import CHAIN_MIN_PART, QUEUE_SLOTS, ChainIKOptions
 
-__all__ = ["NewtonIKResult", "ik_chain", "ik_chain_path", "ik_newton"]
+__all__ = [
+    "ChainIKOptions",
+    "NewtonIKResult",
+    "chain_ik_kernel",
+    "chain_ik_path_kernel",
+    "ik_chain",
+    "ik_chain_path",
+    "ik_newton",
+]
 
 
 @jax.tree_util.register_dataclass
@@ -633,12 +643,6 @@ LM_WEIGHT = 1e-3
 TABLE_SIZE = 1024
 NEAR_GROUPS = 8
 ROTATION_WEIGHT = 0.15
-# Lanes of the work queue of ``ik_chain`` (``_queued``): batches up to this size run
-# every target in step; larger ones keep this many iterating and refill them as targets end
-# (1e3-1e4 UR5 / Panda poses: 32-64 lanes fastest, 4-7x the batch in step).
-QUEUE_SLOTS = 32
-# Targets per host-thread part of ``ik_chain`` (``_batching.PartsJit``): each part is a queue.
-CHAIN_MIN_PART = 4 * QUEUE_SLOTS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -860,6 +864,36 @@ def _ik_chain_path_core(
 _ik_chain_path_jit = jax.jit(_ik_chain_path_core, static_argnames=("search", "use_limits"))
 
 
+def _tolerances(chain: _chain.JointChain, dtype, options: ChainIKOptions) -> tuple[Array, Array]:
+    """``(orientation_tol, position_tol)`` of ``options`` as ``dtype`` arrays (traceable), the
+    defaults ``max(1e-10, 1000 eps)`` (rad) and that times ``chain.length_scale()``."""
+    default = max(1e-10, 1e3 * eps(dtype))
+    rot = default if options.orientation_tol is None else options.orientation_tol
+    if options.position_tol is None:
+        pos = default * chain.length_scale()
+    else:
+        pos = options.position_tol
+    return jnp.asarray(rot, dtype), jnp.asarray(pos, dtype)
+
+
+def chain_ik_kernel(chain: Any, target: Jet, options: ChainIKOptions, rates: bool) -> IKResult:
+    """The robot protocol's IK kernel of every chain (``JointChain``, ``PoEChain``,
+    ``DHTable``): ``_ik_chain_core`` from the nearest table pose; traceable."""
+    chain = _validate.cast_leaves(_joint_chain(chain), target.dtype)
+    tols = _tolerances(chain, target.dtype, options)
+    search = _Search(options.max_iter, options.restarts, options.max_iter)
+    return _ik_chain_core(chain, target, None, tols, search, options.use_limits, rates)
+
+
+def chain_ik_path_kernel(chain: Any, path: Jet, options: ChainIKOptions) -> IKResult:
+    """The planner's IK along sampled paths ``(..., T, 4, 4)`` of every chain: the first
+    sample searched as ``chain_ik_kernel``, every further one warm-started (``ik_chain_path``)."""
+    chain = _validate.cast_leaves(_joint_chain(chain), path.dtype)
+    tols = _tolerances(chain, path.dtype, options)
+    search = _Search(options.max_iter, options.restarts, options.warm_iter)
+    return _ik_chain_path_core(chain, path, tols, search, options.use_limits)
+
+
 def _options(chain: _chain.JointChain, dtype, position_tol, orientation_tol, counts) -> tuple:
     """Validated tolerances (as arrays: no recompilation for new values) and counts."""
     for name, value in counts.items():
@@ -931,6 +965,15 @@ def ik_chain(
     """
     if branch not in (None, "newton"):
         raise ValueError(f"branch must be 'newton' (or None) for a chain, got {branch!r}")
+    if not isinstance(chain, _chain.JointChain | _poe.PoEChain | _dh.DHTable):
+        raise ValueError(
+            f"chain: expected a JointChain, PoEChain or DHTable, got {type(chain).__name__}"
+        )
+    options = ChainIKOptions(
+        restarts, max_iter, max_iter, position_tol, orientation_tol, bool(use_limits)
+    )
+    if q0 is None:
+        return solve_ik(chain, target, "newton", options)
     joint_chain = _joint_chain(chain)
     target, rates = _check_target(target, "target")
     dtype = jnp.result_type(target.dtype, joint_chain.dtype)

@@ -45,10 +45,11 @@ from .._geometry import REAL, geometry, number, static
 from .._trig import sincos
 from ..jet import Jet
 from ..result import FKResult, forward_result
-from ..robot import POSE, Robot
+from ..robot import POSE, CompilePolicy, Robot, fk, promoted
 from ..status import Status
 from . import dh as _dh
 from . import lie
+from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
 
 __all__ = [
     "FRAMES",
@@ -118,6 +119,8 @@ class PoEChain(Robot):
     target: ClassVar = POSE
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
+    IKOptions: ClassVar = ChainIKOptions
+    ik_policy: ClassVar = CompilePolicy(pad=False, threads=True, min_part=CHAIN_MIN_PART)
 
     def _validate(self) -> None:
         _validate.choice(self.frame, "PoEChain.frame", FRAMES)
@@ -160,13 +163,16 @@ class PoEChain(Robot):
         total = jnp.linalg.norm(self.home[:3, 3]) + jnp.sum(offsets)
         return jnp.where(total > 0, total, 1.0)
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .newton_ik import ik_chain
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> Any:
+        from .newton_ik import chain_ik_kernel
 
-        return ik_chain(self, target, branch, **options)
+        return chain_ik_kernel(self, target, options, rates)
 
-    def _fk(self, q: Any, **options: Any) -> Any:
-        return fk_chain(self, q, **options)
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
+        return _fk_chain_core(_validate.cast_leaves(self, q.dtype), q, rates)
+
+    def work_dtype(self, dtype: Any) -> Any:
+        return promoted(dtype, self.dtype)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -430,14 +436,11 @@ def _fk_chain_core(chain: PoEChain | _dh.DHTable, q: Jet, rates: bool) -> FKResu
     return forward_result(pose, q, rates, 2)
 
 
-_fk_chain_jit = _batching.PaddedJit(jax.jit(_fk_chain_core, static_argnames="rates"), {"q": 1})
-
-
 def fk_chain(chain: PoEChain | _dh.DHTable, q: Jet | ArrayLike) -> FKResult:
-    """Forward kinematics of a chain as the robot protocol has it (``jaxkin.fk``).
+    """Forward kinematics of a chain as the robot protocol has it: ``jaxkin.fk(chain, q)``.
 
     Args:
-        chain: a ``PoEChain`` or a ``DHTable``.
+        chain: a ``PoEChain``, ``DHTable`` or ``JointChain``.
         q: joint coordinates ``(..., n)``: a Jet (the pose's rates by ``jaxkin.lift``) or an
             array (at rest).
 
@@ -446,14 +449,6 @@ def fk_chain(chain: PoEChain | _dh.DHTable, q: Jet | ArrayLike) -> FKResult:
         derivatives) and ``status`` (``INVALID_INPUT`` for NaN/inf in ``q``: ``x`` is then the
         home pose, else ``OK``).
     """
-    from .chain import JointChain, fk_joint_chain
-
-    if isinstance(chain, JointChain):
-        return fk_joint_chain(chain, q)
-    if not isinstance(chain, PoEChain | _dh.DHTable):
+    if not isinstance(chain, Robot) or chain.target is not POSE:
         raise ValueError(f"chain: expected a PoEChain or a DHTable, got {type(chain).__name__}")
-    rates = isinstance(q, Jet)
-    q = _validate.as_jet(q, "q", coords=chain.n_joints)
-    dtype = jnp.result_type(q.dtype, chain.dtype)
-    chain, q = _validate.cast_leaves(chain, dtype), q.astype(dtype)
-    return _fk_chain_jit(chain, q, rates, batch=q.shape[:-1])
+    return fk(chain, q)
