@@ -42,3 +42,11 @@ def test_validators_name_the_argument_and_return_floats():
         _validate.finite_number(np.float32(np.nan), "w")
     with pytest.raises(ValueError, match="duration must be a non-negative number"):
         _validate.nonnegative_number(np.float32(-1.0), "duration")
+
+
+def test_delta_fk_tolerance_takes_a_numpy_scalar():
+    from jaxkin.delta.geometry import DeltaFKOptions
+
+    assert DeltaFKOptions(tol=np.float32(0.5)).tol == 0.5
+    with pytest.raises(ValueError, match="tol must be a positive finite number"):
+        DeltaFKOptions(tol=np.float32(-1.0))
