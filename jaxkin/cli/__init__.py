@@ -32,6 +32,8 @@ import sys
 import threading
 from collections.abc import Iterator, Sequence
 
+from .._compile_cache import enable_for_command
+
 __all__ = ["EXIT_BROKEN_PIPE", "EXIT_ERROR", "EXIT_INTERRUPTED", "Terminated", "main"]
 
 EXIT_ERROR = 2
@@ -87,6 +89,7 @@ def _run(argv: list[str], debug: bool) -> int:
     from .parser import build_parser
     from .robots import CliError
 
+    enable_for_command()  # the persistent compilation cache (docs/cli.md)
     try:
         args = build_parser().parse_args(argv)
         args.notes = []
