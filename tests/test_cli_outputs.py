@@ -227,3 +227,26 @@ def test_output_through_a_symlink_writes_its_target(tmp_path, capsys, joints):
         dangling.is_symlink() and (tmp_path / "data" / "fresh.csv").read_text() == "t\n0.0\n1.0\n"
     )
     assert sorted(p.name for p in target.parent.iterdir()) == ["fresh.csv", "xy.csv"]
+
+
+def test_float64_is_on_before_the_robot_is_built(capsys, joints, monkeypatch):
+    """In a new process x64 is off: the command must turn it on before it builds the robot,
+    or a URDF chain's geometry is rounded to float32 and its IK cannot meet float64
+    tolerances."""
+    import jax
+
+    seen = []
+    original = commands.robot_from_args
+
+    def record(args):
+        seen.append(jax.config.jax_enable_x64)
+        return original(args)
+
+    monkeypatch.setattr(commands, "robot_from_args", record)
+    jax.config.update("jax_enable_x64", False)
+    try:
+        code, _, err = run(capsys, *PLANAR, "-i", joints, "-o", "-")
+    finally:
+        jax.config.update("jax_enable_x64", True)
+    assert code == 0, err
+    assert seen == [True]

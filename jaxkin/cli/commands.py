@@ -119,12 +119,12 @@ def _check_paths(args: argparse.Namespace) -> None:
 def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     _join(args)
     _check_paths(args)
+    dtype = set_dtype(args.dtype)  # before the robot: its geometry's arrays take the dtype
     robot = robot_from_args(args)
     pose = robot.target == POSE
     if not (robot.target.is_point or pose):
         raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
     branch = parse_branch(robot, args.branch) if inverse else None
-    dtype = set_dtype(args.dtype)
     targets, joints = robot.target.coordinates, robot.joint_names
     in_names, out_names = (targets, joints) if inverse else (joints, targets)
     traj = files.read_trajectory(args.input, in_names)
@@ -218,6 +218,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
     from .. import workspace
 
     _join(args)
+    dtype = set_dtype(args.dtype)  # before the robot: its geometry's arrays take the dtype
     robot = robot_from_args(args)
     if not robot.target.is_point:
         raise CliError(f"{args.kind}: a voxel workspace needs a robot whose targets are points")
@@ -252,7 +253,6 @@ def cmd_workspace(args: argparse.Namespace) -> int:
             f"{' x '.join(map(str, counts))} voxels is too many (at most {MAX_VOXELS:.0e}): "
             "use a coarser --resolution or smaller --bounds"
         )
-    dtype = set_dtype(args.dtype)
     progress = False if args.quiet else None
     result = workspace.sweep(
         robot,
