@@ -50,7 +50,7 @@ from typing import IO, Any
 import jax
 import numpy as np
 
-from . import _batching, _splines, _validate, plan
+from . import _batching, _splines, _validate, lie
 from ._progress import bar
 
 __all__ = [
@@ -687,7 +687,7 @@ def quaternion_signs(
     for label in np.unique(group[valid]):
         rows = np.flatnonzero(valid & (group == label))
         rows = rows[np.argsort(t[rows], kind="stable")]
-        sign[rows] = plan.continuous_signs(quat[rows])
+        sign[rows] = lie.hemisphere_signs(quat[rows], xp=np)
     return sign
 
 
@@ -768,7 +768,7 @@ class QuaternionSigns:
             rows = np.flatnonzero(valid & (group == label))
             previous = self.last.get(label)
             q = quat[rows] if previous is None else np.concatenate([previous[None], quat[rows]])
-            signs = plan.continuous_signs(q)[0 if previous is None else 1 :]
+            signs = lie.hemisphere_signs(q, xp=np)[0 if previous is None else 1 :]
             sign[rows] = signs
             self.last[label] = quat[rows[-1]] * signs[-1]
         return sign

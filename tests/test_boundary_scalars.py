@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from jaxkin import _validate, optimize, plan
+from jaxkin import _validate, costs, paths
 
 SCALARS = [np.float32(0.5), np.float64(0.5), np.int64(2), np.asarray(0.5), np.float16(0.5)]
 
@@ -15,12 +15,12 @@ SCALARS = [np.float32(0.5), np.float64(0.5), np.int64(2), np.asarray(0.5), np.fl
 def test_numpy_scalars_are_accepted(value):
     expected = float(value)
     positions = np.stack([np.linspace(0.0, 1.0, 5)] * 2, -1)
-    ref = plan.path_from_samples(positions, expected)
-    got = plan.path_from_samples(positions, value)
+    ref = paths.path_from_samples(positions, expected)
+    got = paths.path_from_samples(positions, value)
     np.testing.assert_array_equal(np.asarray(got.v), np.asarray(ref.v))
-    assert optimize.singularity_barrier(value).threshold == expected
-    assert float(optimize.Obstacles.create(safety=value).safety) == expected
-    total = optimize.compose((value, optimize.jerk))
+    assert costs.singularity_barrier(value).threshold == expected
+    assert float(costs.Obstacles.create(safety=value).safety) == expected
+    total = costs.compose((value, costs.jerk))
     assert [float(w) for w in jax.tree.leaves(total)] == [expected]
 
 
@@ -29,9 +29,9 @@ def test_numpy_scalars_are_accepted(value):
 )
 def test_non_numbers_and_bad_values_are_refused(value):
     with pytest.raises(ValueError, match="dt must be a positive finite number"):
-        plan.path_from_samples(np.zeros((3, 2)), value)
+        paths.path_from_samples(np.zeros((3, 2)), value)
     with pytest.raises(ValueError, match="threshold must be a positive finite number"):
-        optimize.singularity_barrier(value)
+        costs.singularity_barrier(value)
 
 
 def test_validators_name_the_argument_and_return_floats():

@@ -29,7 +29,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import jaxkin
-from jaxkin import cli, plan, serial
+from jaxkin import cli, paths, serial
 from jaxkin import files as kio
 from jaxkin.cli import commands
 
@@ -59,7 +59,7 @@ def write(path, t, p, q, candidate=None):
 def pose_jet(traj):
     traj = kio.continuous_quaternions(traj)
     p, v, a, valid = kio.complete_rates(traj, "not-a-knot")
-    jet = plan.pose_from_quaternions(p, v, a)
+    jet = paths.pose_from_quaternions(p, v, a)
     return [np.asarray(x) for x in (jet.p, jet.v, jet.a)], valid
 
 
@@ -127,7 +127,7 @@ def test_ur5_ik_of_a_scaled_signed_pose_file_with_zero_rows(tmp_path, capsys):
     solved = kio.read_table(tmp_path / "j.csv", chain.joint_names).data
     q = np.stack([solved[n] for n in chain.joint_names], -1)[ok]
     zeros = np.zeros_like(written[ok])
-    reference = np.asarray(plan.pose_from_quaternions(written[ok], zeros, zeros).p)
+    reference = np.asarray(paths.pose_from_quaternions(written[ok], zeros, zeros).p)
     np.testing.assert_allclose(np.asarray(jaxkin.fk(chain, q).x.p), reference, atol=1e-9)
 
 

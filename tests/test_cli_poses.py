@@ -1,14 +1,14 @@
 """Pose files (``x, y, z, qw, qx, qy, qz``) and pose paths: one rule for quaternions.
 
 A quaternion of any non-zero length is a rotation (``q`` and ``c q`` are one); a zero one is
-invalid input. The CLI's pose rows and ``plan.path_from_poses`` share the rule
+invalid input. The CLI's pose rows and ``paths.path_from_poses`` share the rule
 (``jaxkin._validate.unit_quaternions``). Host-side NumPy only: no compilation here.
 """
 
 import numpy as np
 import pytest
 
-from jaxkin import _validate, plan
+from jaxkin import _validate, paths
 from jaxkin import files as kio
 
 # A smooth rotation path: rotation by 0.7 t about a fixed unit axis, plus a translation.
@@ -33,7 +33,7 @@ def pose_jet(traj):
     """The CLI's pipeline from rows to pose targets (commands._solve_file, host half)."""
     traj = kio.continuous_quaternions(traj)
     p, v, a, valid = kio.complete_rates(traj, "not-a-knot")
-    return plan.pose_from_quaternions(p, v, a), valid
+    return paths.pose_from_quaternions(p, v, a), valid
 
 
 def test_zero_quaternion_row_is_invalid_and_leaves_the_other_rows_alone(tmp_path):
@@ -96,15 +96,15 @@ def test_quaternion_length_changing_by_row_gives_the_unit_rows_rates(tmp_path, g
 def test_path_from_poses_takes_any_length_and_names_a_zero_quaternion():
     t = np.linspace(0.0, 2.0, 6)
     p, q = pose_rows(t)
-    ref = plan.path_from_poses(p, q, 0.4)
+    ref = paths.path_from_poses(p, q, 0.4)
     for scale in (1e-300, 1e155, 1e300):
-        got = plan.path_from_poses(p, q * scale, 0.4)
+        got = paths.path_from_poses(p, q * scale, 0.4)
         for a, b in ((got.p, ref.p), (got.v, ref.v), (got.a, ref.a)):
             np.testing.assert_allclose(np.asarray(a), np.asarray(b), rtol=0, atol=1e-13)
     q2 = np.stack([q, q])
     q2[1, 3] = 0.0
     with pytest.raises(ValueError, match=r"quaternions\[1, 3\] is zero"):
-        plan.path_from_poses(np.stack([p, p]), q2, 0.4)
+        paths.path_from_poses(np.stack([p, p]), q2, 0.4)
 
 
 def test_unit_quaternions_scale_safely():

@@ -108,7 +108,14 @@ def run_page(page: str) -> None:
             run_block(page, number, language, code, targets)
 
 
-@pytest.mark.parametrize("page", PAGES_WITH_BLOCKS)
+# Pages whose blocks plan, optimise or solve URDF arms (each compiles for seconds): slow tier.
+SLOW_PAGES = {"docs/planning.md", "docs/urdf.md", "docs/cli.md"}
+
+
+@pytest.mark.parametrize(
+    "page",
+    [pytest.param(p, marks=pytest.mark.slow if p in SLOW_PAGES else ()) for p in PAGES_WITH_BLOCKS],
+)
 def test_page_runs(page, tmp_path):
     """One new Python process per page (JAX as a user gets it: no x64, no conftest), sharing
     the tests' persistent compilation cache."""

@@ -11,7 +11,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching, _processes, files, plan
+from .. import _batching, _processes, files, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
 from ..status import status_names
@@ -139,7 +139,7 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
 
     def solve(p, v, a):
         if pose and inverse:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
-            jet = plan.pose_from_quaternions(p, v, a).astype(dtype)
+            jet = paths.pose_from_quaternions(p, v, a).astype(dtype)
         else:
             jet = Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
         if inverse:
@@ -160,7 +160,7 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
             rows, ok = slice(start, stop), valid[start:stop]
             candidate = None if traj.candidate is None else traj.candidate[rows]
             if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
-                q, qd, qdd = plan.quaternions_from_pose(Jet(q, qd, qdd))
+                q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
                 sign = signs(candidate, ok, q[:, 3:])[:, None]
                 for block in (q, qd, qdd):  # continuous along each candidate, as splines need
                     block[:, 3:] *= sign
