@@ -30,8 +30,9 @@ Tasks and solvers:
   1e-6 criterion):
   roboticstoolbox ``ETS.ik_LM`` (C++, per pose; random restarts when a seed fails, its default),
   pytorch_kinematics ``PseudoInverseIK`` (one retry = the seed), PyRoki (jaxls
-  Levenberg-Marquardt, ``jit(vmap)``), jaxkin ``serial.ik`` (all 8 branches; success = at least
-  one valid branch and every valid branch within tolerance; max error over valid branches) and
+  Levenberg-Marquardt, ``jit(vmap)``), jaxkin ``serial.ik_all_branches`` (all 8 branches;
+  success = at least one valid branch and every valid branch within tolerance; max error over
+  valid branches) and
   ``serial.ik_newton`` (pseudo-inverse Newton with its default 1 rad step limit, tolerances
   1e-10, ``max_iter`` 20, its default, and 8: the batch steps until its last element
   converges, so the slowest element sets the cost);
@@ -242,14 +243,17 @@ def _ik_record(benchmark, solver, n, rate, q, targets, jaxkin=False, **extra):
 def test_ik_jaxkin_analytic(benchmark, puma, n):
     _, targets, _ = puma[n]
     arm, t = serial.Puma560(), jnp.asarray(targets)
-    res, rate = _run(benchmark, lambda: serial.ik(arm, t), n, f"PUMA IK {n}", "jaxkin ik")
+    res, rate = _run(
+        benchmark, lambda: serial.ik_all_branches(arm, t), n, f"PUMA IK {n}", "jaxkin ik"
+    )
     q, valid = np.asarray(res.q), np.asarray(res.valid)  # (n, 8, 6), (n, 8)
     pos, rot = tasks.puma_errors(q, targets[:, None])
     err = np.where(valid, pos, 0.0).max(-1)
     err = np.where(valid.any(-1), err, np.inf)
     benchmark.extra_info["mean_valid_branches"] = float(valid.sum(-1).mean())
     benchmark.extra_info["max_rot_error"] = float(np.where(valid, rot, 0.0).max())
-    _record(benchmark, "PUMA IK", "jaxkin.serial.ik (8 branches)", n, rate, err, jaxkin=True)
+    name = "jaxkin.serial.ik_all_branches (8 branches)"
+    _record(benchmark, "PUMA IK", name, n, rate, err, jaxkin=True)
 
 
 @pytest.mark.parametrize("max_iter", [20, 8])

@@ -58,9 +58,9 @@ def _kernels():
             lambda n: (rng.normal(scale=0.2, size=(n, 3)) + 0.3,),
             lambda theta: delta.fk_closed_form(delta_robot, theta),
         ),
-        "serial.ik[anthropomorphic]": (
+        "serial.ik_all_branches[anthropomorphic]": (
             lambda n: (rng.normal(scale=0.05, size=(n, 3)) + [0.25, 0.1, 0.35],),
-            lambda target: arms.ik(arm, target),
+            lambda target: arms.ik_all_branches(arm, target),
         ),
         "serial.fk[anthropomorphic]": (
             lambda n: (rng.normal(size=(n, 3)),),

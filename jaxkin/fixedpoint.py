@@ -19,7 +19,7 @@ Transcendental results are assumed correctly rounded then truncated (a table or 
 ``jaxkin.serial.Anthropomorphic``. The ``acos`` argument saturates and a division by a value
 quantised to 0 returns 0, so every width gives finite angles. Float64 is required for a
 faithful emulation (40 fractional bits are exact for ``|x| < 2^12``); with ``bits=None`` no
-quantisation is applied and the result equals ``jaxkin.serial.ik``. Gradients through
+quantisation is applied and the result equals ``jaxkin.serial.ik_all_branches``. Gradients through
 ``quantize`` are zero almost everywhere.
 """
 
@@ -164,7 +164,7 @@ def anthropomorphic_ik(
         rounding: ``"floor"`` (default, truncation toward -inf) or ``"nearest"``.
 
     Returns:
-        ``q`` ``(..., 4, 3)``: the four branches in ``Anthropomorphic.BRANCHES`` order. No
+        ``q`` ``(..., 4, 3)``: the four branches in ``Anthropomorphic.branches`` order. No
         reachability status: out-of-reach targets give the saturated (aligned) solution.
 
     Raises:
@@ -225,11 +225,11 @@ def accuracy_study(
         robot: the arm.
         path: wrist positions ``(n, 3)``, all reachable.
         bits: bit widths ``(k,)``, integers in ``[1, 40]``.
-        branch: one of ``Anthropomorphic.BRANCHES``.
+        branch: one of ``Anthropomorphic.branches``.
         rounding: ``"floor"`` or ``"nearest"``.
     """
-    branch_index = Anthropomorphic.BRANCHES.index(
-        _validate.choice(branch, "branch", Anthropomorphic.BRANCHES)
+    branch_index = Anthropomorphic.branches.index(
+        _validate.choice(branch, "branch", Anthropomorphic.branches)
     )
     path = jnp.asarray(path)
     if path.ndim != 2 or path.shape[-1] != 3:

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from . import delta, scara
 from . import files as kio
+from .robot import fk
 from .status import Status
 
 __all__ = [
@@ -213,10 +213,10 @@ def scara_pose(
     Left: plan view (x-y) of the column, arm O-B and forearm B-C; right: side view (x-z) with
     the column, the arm plane at ``l_oa`` and the prismatic joint down to D. ``trace``
     ``(N, 3)`` optionally draws the end point's path. Elbow ``B = l_ab (cos theta1,
-    sin theta1)``; ``D`` comes from ``jaxkin.scara.fk``.
+    sin theta1)``; ``D`` comes from ``jaxkin.fk``.
     """
     q = np.asarray(_arrays(q), float).reshape(3)
-    d = np.asarray(scara.fk(robot, q).x.p, float)
+    d = np.asarray(fk(robot, q).x.p, float)
     l_oa, l_ab = float(robot.l_oa), float(robot.l_ab)
     b = l_ab * np.array([np.cos(q[0]), np.sin(q[0])])
     fig = _figure(figsize, dpi)
@@ -276,13 +276,13 @@ def delta_pose(
 ) -> Any:
     """A Delta (``jaxkin.delta.Delta``) at actuator angles ``theta`` ``(3,)`` in 3-D.
 
-    ``p`` (the platform centre) defaults to ``jaxkin.delta.fk(robot, theta)``. Draws the base
+    ``p`` (the platform centre) defaults to ``jaxkin.fk(robot, theta)``. Draws the base
     triangle, the three arms, the parallelogram rods (as single lines) and the platform;
     ``trace`` ``(N, 3)`` optionally draws the platform's path.
     """
     theta = np.asarray(_arrays(theta), float).reshape(3)
     if p is None:
-        p = np.asarray(delta.fk(robot, theta).x.p, float)
+        p = np.asarray(fk(robot, theta).x.p, float)
     pts = delta_points(robot, theta, p)
     fig = _figure(figsize, dpi)
     ax = fig.add_subplot(projection="3d")

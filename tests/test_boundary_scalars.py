@@ -45,7 +45,7 @@ def test_validators_name_the_argument_and_return_floats():
 
 
 def test_delta_fk_tolerance_takes_a_numpy_scalar():
-    from jaxkin.delta.geometry import DeltaFKOptions
+    from jaxkin.delta.options import DeltaFKOptions
 
     assert DeltaFKOptions(tol=np.float32(0.5)).tol == 0.5
     with pytest.raises(ValueError, match="tol must be a positive finite number"):

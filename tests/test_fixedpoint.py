@@ -1,4 +1,5 @@
-"""jaxkin.fixedpoint: quantiser values, the paper-sequence IK against jaxkin.serial.ik, sweeps."""
+"""jaxkin.fixedpoint: quantiser values, the paper-sequence IK against the analytic arm IK
+(``jaxkin.serial.ik_all_branches``), sweeps."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from jaxkin import fixedpoint
-from jaxkin.serial.arms import Anthropomorphic, ik
+from jaxkin.serial.arms import Anthropomorphic, ik_all_branches
 from jaxkin.serial.dh import fk_dh
 
 
@@ -59,14 +60,15 @@ def test_quantize_error_bounds_and_grid():
 
 
 def test_unquantised_paper_equations_match_serial_ik():
-    """[Lopez-Villagomez]'s sequence (eq. 14's C, acos, eq. 11) vs the two-link solver of serial.ik.
+    """[Lopez-Villagomez]'s sequence (eq. 14's C, acos, eq. 11) vs the two-link solver of
+    serial.ik_all_branches.
 
     1e-9, not 1e-12: the acos of eq. 14's C / rho loses digits when the elbow is nearly
     straight (the targets keep |sin q3| > 0.2; observed ~2e-12).
     """
     target = _reachable_targets(40)
     paper = np.asarray(fixedpoint.anthropomorphic_ik(ROBOT, target))
-    ref = np.asarray(ik(ROBOT, target).q)
+    ref = np.asarray(ik_all_branches(ROBOT, target).q)
     assert paper.shape == ref.shape == (40, 4, 3)
     np.testing.assert_allclose(paper, ref, atol=1e-9)
     # ...and every branch reproduces the target through the DH forward kinematics.
@@ -79,7 +81,7 @@ def test_unquantised_paper_equations_match_serial_ik():
 
 def test_quantised_outputs_lie_on_the_grid_and_converge():
     target = _reachable_targets(40, seed=2)
-    ref = np.asarray(ik(ROBOT, target).q)
+    ref = np.asarray(ik_all_branches(ROBOT, target).q)
     for n in (4, 10, 16):
         q = np.asarray(fixedpoint.anthropomorphic_ik(ROBOT, target, n))
         np.testing.assert_array_equal(q * 2.0**n, np.round(q * 2.0**n))

@@ -25,7 +25,7 @@ from jaxkin.serial.arms import (
     Puma560,
     Spherical,
     Stanford,
-    ik,
+    ik_all_branches,
 )
 from jaxkin.serial.dh import fk_dh
 from tests.helpers import BATCH_SHAPES, compilations, tree_allfinite
@@ -129,7 +129,7 @@ def transform_reference(robot, q):
 
 def target_of(robot, q):
     """The IK target of a joint vector, from the independent forward kinematics."""
-    if robot.TARGET_SHAPE == (4, 4):
+    if robot.target.shape == (4, 4):
         return transform_reference(robot, q)
     p = position_reference(robot, q)
     if isinstance(robot, Planar2R):
@@ -142,7 +142,7 @@ def target_of(robot, q):
 def target_from_fk(robot, t):
     """Read the IK target back out of ``fk``'s 4x4 transform."""
     t = np.asarray(t)
-    if robot.TARGET_SHAPE == (4, 4):
+    if robot.target.shape == (4, 4):
         return t
     if isinstance(robot, Planar2R):
         return t[..., :2, 3]
@@ -158,12 +158,12 @@ def target_error(robot, a, b):
     d = np.asarray(a) - np.asarray(b)
     if isinstance(robot, Planar3R):
         d[..., 2] = np.angle(np.exp(1j * d[..., 2]))
-    return np.max(np.abs(d), axis=tuple(range(-len(robot.TARGET_SHAPE), 0)))
+    return np.max(np.abs(d), axis=tuple(range(-len(robot.target.shape), 0)))
 
 
 def joint_distance(robot, qa, qb):
     d = np.asarray(qa) - np.asarray(qb)
-    revolute = np.array([k == "R" for k in robot.JOINT_TYPES])
+    revolute = np.array([k == "R" for k in robot.joint_types])
     d[..., revolute] = np.angle(np.exp(1j * d[..., revolute]))
     return np.max(np.abs(d), axis=-1)
 
@@ -175,7 +175,7 @@ def _sample(robot, rng, n):
     """Random joint vectors away from singular configurations (margins stated inline)."""
     out = []
     while len(out) < n:
-        q = rng.uniform(-PI, PI, robot.N_JOINTS)
+        q = rng.uniform(-PI, PI, robot.n_joints)
         if isinstance(robot, Planar2R | Planar3R | Anthropomorphic):
             elbow = q[1] if not isinstance(robot, Anthropomorphic) else q[2]
             if abs(np.sin(elbow)) < 0.1:  # elbow (nearly) straight or folded
@@ -240,7 +240,7 @@ def test_fk_matches_hand_derived_geometry(robot):
     t = np.asarray(fk(robot, q))
     assert t.shape == (N_RANDOM, 4, 4)
     np.testing.assert_allclose(t[..., 3, :], np.broadcast_to([0, 0, 0, 1.0], (N_RANDOM, 4)), atol=0)
-    if robot.TARGET_SHAPE == (4, 4):
+    if robot.target.shape == (4, 4):
         np.testing.assert_allclose(t, transform_reference(robot, q), atol=1e-13)
     else:
         np.testing.assert_allclose(t[..., :3, 3], position_reference(robot, q), atol=1e-13)
@@ -274,7 +274,7 @@ def test_anthropomorphic_fk_against_the_papers_matrices_with_sympy():
     q = np.array([PI / 6, PI / 4, -PI / 3])
     np.testing.assert_allclose(np.asarray(fk(robot, q)), expected, atol=1e-15)
     # ...and the IK's front_up branch returns exactly this pose (q3 < 0: elbow up).
-    res = ik(robot, expected[:3, 3])
+    res = ik_all_branches(robot, expected[:3, 3])
     np.testing.assert_allclose(np.asarray(res.branch("front_up").q), q, atol=1e-13)
     assert bool(res.branch("front_up").valid)
 
@@ -298,10 +298,10 @@ def test_ik_round_trip_every_branch(robot):
     """
     q_true = _sample(robot, np.random.default_rng(7), N_RANDOM)
     target = target_of(robot, q_true)
-    res = ik(robot, target)
-    n_branches = len(robot.BRANCHES)
-    assert res.q.shape == (N_RANDOM, n_branches, robot.N_JOINTS)
-    assert res.branches == robot.BRANCHES
+    res = ik_all_branches(robot, target)
+    n_branches = len(robot.branches)
+    assert res.q.shape == (N_RANDOM, n_branches, robot.n_joints)
+    assert res.branches == robot.branches
     valid = np.asarray(res.valid)
     assert valid.all(), np.asarray(res.status)
     assert np.all(np.asarray(res.status) == Status.OK)
@@ -316,7 +316,7 @@ def test_ik_round_trip_every_branch(robot):
         assert off_diagonal.min() > 1e-3
 
     target[1].flat[0] = np.nan
-    res_nan = ik(robot, target)
+    res_nan = ik_all_branches(robot, target)
     status = np.asarray(res_nan.status)
     assert np.all(status[1] == Status.INVALID_INPUT) and not np.any(np.asarray(res_nan.valid)[1])
     np.testing.assert_array_equal(np.asarray(res_nan.q)[1], 0.0)
@@ -327,30 +327,30 @@ def test_ik_round_trip_every_branch(robot):
 
 def test_planar_2r_known_values():
     """l1 = l2 = 1, target (1, 1): q = (pi/2, -pi/2) (elbow up) and (0, pi/2) (elbow down)."""
-    res = ik(Planar2R(1.0, 1.0), jnp.array([1.0, 1.0]))
+    res = ik_all_branches(Planar2R(1.0, 1.0), jnp.array([1.0, 1.0]))
     np.testing.assert_allclose(np.asarray(res.q), [[PI / 2, -PI / 2], [0.0, PI / 2]], atol=1e-15)
     # [Pineiro]'s worked 2R target (0.366, 1.366) for unit links: q = (30 deg, 90 deg) is a branch.
     target = np.array([np.cos(PI / 6) + np.cos(2 * PI / 3), np.sin(PI / 6) + np.sin(2 * PI / 3)])
-    res = ik(Planar2R(1.0, 1.0), target)
+    res = ik_all_branches(Planar2R(1.0, 1.0), target)
     np.testing.assert_allclose(np.asarray(res.branch("elbow_down").q), [PI / 6, PI / 2], atol=1e-14)
 
 
 def test_planar_3r_known_value():
     """Unit links, target (2, 1, pi/2): wrist at (2, 0); q = (-pi/3, 2pi/3, 1/6 pi) etc."""
-    res = ik(Planar3R(1.0, 1.0, 1.0), jnp.array([2.0, 1.0, PI / 2]))
+    res = ik_all_branches(Planar3R(1.0, 1.0, 1.0), jnp.array([2.0, 1.0, PI / 2]))
     # Wrist (2, 0) with unit links: straight arm, q1 = q2 = 0, q3 = pi/2: singular (extended).
     np.testing.assert_allclose(np.asarray(res.q), [[0.0, 0.0, PI / 2]] * 2, atol=1e-7)
     assert np.all(np.asarray(res.status) == Status.SINGULAR) and np.all(np.asarray(res.valid))
-    res = ik(Planar3R(1.0, 1.0, 1.0), jnp.array([1.0, 2.0, PI / 2]))  # wrist (1, 1)
+    res = ik_all_branches(Planar3R(1.0, 1.0, 1.0), jnp.array([1.0, 2.0, PI / 2]))  # wrist (1, 1)
     np.testing.assert_allclose(
         np.asarray(res.q), [[PI / 2, -PI / 2, PI / 2], [0.0, PI / 2, 0.0]], atol=1e-14
     )
 
 
 def test_cylindrical_and_spherical_known_values():
-    res = ik(Cylindrical(1.0), jnp.array([0.0, 0.5, 1.2]))
+    res = ik_all_branches(Cylindrical(1.0), jnp.array([0.0, 0.5, 1.2]))
     np.testing.assert_allclose(np.asarray(res.q), [[PI / 2, 0.5, 0.2]], atol=1e-15)
-    res = ik(Spherical(1.0), jnp.array([0.0, 2.0, 1.0]))
+    res = ik_all_branches(Spherical(1.0), jnp.array([0.0, 2.0, 1.0]))
     np.testing.assert_allclose(
         np.asarray(res.q), [[PI / 2, 0.0, 2.0], [-PI / 2, PI, 2.0]], atol=1e-15
     )
@@ -362,7 +362,7 @@ def test_stanford_known_value_and_prismatic_offset():
     q = np.array([PI / 2, 0.0, 0.5, 0.3, 0.7, -0.2])
     t = np.asarray(fk(robot, q))
     np.testing.assert_allclose(t[:3, 3], [0.0, 0.8, 0.4], atol=1e-15)
-    res = ik(robot, t)
+    res = ik_all_branches(robot, t)
     front = np.asarray(res.q)[0]  # front_noflip
     np.testing.assert_allclose(front, q, atol=1e-13)
     assert np.allclose(
@@ -374,7 +374,7 @@ def test_anthropomorphic_branch_labels_are_geometric():
     """'up' branches put the elbow above the line shoulder -> wrist (front and back)."""
     robot = Anthropomorphic(0.3, 0.25, 0.2)
     q_true = _sample(robot, np.random.default_rng(3), N_RANDOM)
-    res = ik(robot, target_of(robot, q_true))
+    res = ik_all_branches(robot, target_of(robot, q_true))
     frames = np.asarray(_frames(robot, res.q))
     shoulder = np.array([0.0, 0.0, 0.3])
     elbow, wrist = frames[..., 1, :3, 3], frames[..., 2, :3, 3]
@@ -383,7 +383,7 @@ def test_anthropomorphic_branch_labels_are_geometric():
     horiz = np.linalg.norm(u[..., :2], axis=-1)
     v = elbow - shoulder
     sign = np.sign(horiz * v[..., 2] - u[..., 2] * np.sum(v[..., :2] * u[..., :2], -1) / horiz)
-    up = np.array(["up" in b for b in robot.BRANCHES])
+    up = np.array(["up" in b for b in robot.branches])
     assert np.all(sign[:, up] > 0) and np.all(sign[:, ~up] < 0)
     q3 = np.asarray(res.q)[..., 2]
     assert np.all(q3[:, 0] <= 0) and np.all(q3[:, 2] >= 0)  # front_up, back_up
@@ -398,7 +398,7 @@ def _frames(robot, q):
 def test_puma_has_eight_distinct_solutions_with_expected_pairs():
     robot = Puma560()
     q_true = _sample(robot, np.random.default_rng(11), 5)
-    res = ik(robot, transform_reference(robot, q_true))
+    res = ik_all_branches(robot, transform_reference(robot, q_true))
     q = np.asarray(res.q)
     # Wrist flip: (q4 + pi, -q5, q6 + pi) with the same arm joints.
     noflip, flip = q[:, 0::2], q[:, 1::2]
@@ -415,7 +415,7 @@ def test_puma_has_eight_distinct_solutions_with_expected_pairs():
     x = a2 * np.cos(q2) + a3 * np.cos(q23) - d4 * np.sin(q23)
     y = a2 * np.sin(q2) + a3 * np.sin(q23) + d4 * np.cos(q23)
     above = np.sign(x) * (x * a2 * np.sin(q2) - y * a2 * np.cos(q2))
-    up = np.array(["_up_" in b for b in robot.BRANCHES])
+    up = np.array(["_up_" in b for b in robot.branches])
     assert np.all(above[:, up] > 0) and np.all(above[:, ~up] < 0)
     assert np.all(x[:, :4] > 0) and np.all(x[:, 4:] < 0)  # front / back shoulder
 
@@ -431,7 +431,7 @@ def test_unreachable_targets_are_flagged():
         (Puma560(), [_translation([2.0, 0.0, 0.0]), _translation([0.1, 0.0, 0.3])]),  # r < d3
     ]
     for robot, targets in cases:
-        res = ik(robot, np.asarray(targets))
+        res = ik_all_branches(robot, np.asarray(targets))
         assert np.all(np.asarray(res.status) == Status.UNREACHABLE), type(robot).__name__
         assert not np.any(np.asarray(res.valid))
         assert tree_allfinite(res)
@@ -445,17 +445,17 @@ def _translation(p):
 
 def test_singular_targets_are_valid_with_documented_choices():
     # 2R fully stretched: both branches coincide.
-    res = ik(Planar2R(1.0, 0.6), jnp.array([0.0, 1.6]))
+    res = ik_all_branches(Planar2R(1.0, 0.6), jnp.array([0.0, 1.6]))
     assert np.all(np.asarray(res.status) == Status.SINGULAR) and np.all(np.asarray(res.valid))
     np.testing.assert_allclose(np.asarray(res.q), [[PI / 2, 0.0]] * 2, atol=1e-15)
     # Equal links, target on the base joint: q1 free -> 0, elbow folded.
-    res = ik(Planar2R(1.0, 1.0), jnp.array([0.0, 0.0]))
+    res = ik_all_branches(Planar2R(1.0, 1.0), jnp.array([0.0, 0.0]))
     np.testing.assert_allclose(np.abs(np.asarray(res.q)), [[0.0, PI]] * 2, atol=1e-15)
     assert np.all(np.asarray(res.status) == Status.SINGULAR)
     # Anthropomorphic on the base axis: q1 = 0 (front) and pi (back), all four valid.
     robot = Anthropomorphic(0.3, 0.25, 0.2)
     target = np.array([0.0, 0.0, 0.6])
-    res = ik(robot, target)
+    res = ik_all_branches(robot, target)
     assert np.all(np.asarray(res.status) == Status.SINGULAR) and np.all(np.asarray(res.valid))
     np.testing.assert_allclose(np.abs(np.asarray(res.q)[:, 0]), [0.0, 0.0, PI, PI], atol=1e-15)
     np.testing.assert_allclose(
@@ -465,7 +465,7 @@ def test_singular_targets_are_valid_with_documented_choices():
     robot = Puma560()
     q = np.array([0.3, -0.5, 0.4, 0.8, 0.0, -0.6])
     t = transform_reference(robot, q)
-    res = ik(robot, t)
+    res = ik_all_branches(robot, t)
     status = np.asarray(res.status)
     assert np.all(np.asarray(res.valid))
     # The two branches with the generating arm joints (noflip/flip) see q5 = 0; the other
@@ -480,7 +480,7 @@ def test_singular_targets_are_valid_with_documented_choices():
     # Stanford with the wrist centre on the base axis.
     robot = Stanford(0.4, 0.3, 0.0)
     t = transform_reference(robot, np.array([0.0, PI / 2, 0.2, 0.3, 0.5, 0.1]))
-    res = ik(robot, t)
+    res = ik_all_branches(robot, t)
     assert np.all(np.asarray(res.status) == Status.SINGULAR) and np.all(np.asarray(res.valid))
     np.testing.assert_allclose(
         np.asarray(fk(robot, res.q)), np.broadcast_to(t, (4, 4, 4)), atol=1e-12
@@ -512,15 +512,15 @@ def test_bad_geometry_raises():
 def test_bad_calls_raise():
     robot = Anthropomorphic(0.3, 0.25, 0.2)
     with pytest.raises(ValueError, match=r"target.*\(\.\.\., 3\)"):
-        ik(robot, np.zeros(2))
+        ik_all_branches(robot, np.zeros(2))
     with pytest.raises(ValueError, match=r"target.*4, 4"):
-        ik(Puma560(), np.zeros((3, 4)))
+        ik_all_branches(Puma560(), np.zeros((3, 4)))
     with pytest.raises(ValueError, match="q"):
         arms.fk(robot, np.zeros(2))
     with pytest.raises(ValueError, match="robot"):
-        ik("puma", np.zeros(3))
+        ik_all_branches("puma", np.zeros(3))
     with pytest.raises(ValueError, match="name"):
-        ik(robot, np.zeros(3) + 0.3).branch("sideways")
+        ik_all_branches(robot, np.zeros(3) + 0.3).branch("sideways")
 
 
 # ----------------------------------------------------------------- batching, jit, grads
@@ -534,32 +534,34 @@ def test_bad_calls_raise():
 def test_batch_shapes(robot, shape):
     n = int(np.prod(shape))
     q_true = _sample(robot, np.random.default_rng(2), max(n, 1))[:n]
-    target = target_of(robot, q_true).reshape(shape + robot.TARGET_SHAPE)
-    res = ik(robot, target)
-    nb = len(robot.BRANCHES)
-    assert res.q.shape == shape + (nb, robot.N_JOINTS)
+    target = target_of(robot, q_true).reshape(shape + robot.target.shape)
+    res = ik_all_branches(robot, target)
+    nb = len(robot.branches)
+    assert res.q.shape == shape + (nb, robot.n_joints)
     assert res.valid.shape == res.status.shape == shape + (nb,)
     assert fk(robot, res.q).shape == shape + (nb, 4, 4)
     if n:
-        flat = ik(robot, target.reshape((n,) + robot.TARGET_SHAPE))
+        flat = ik_all_branches(robot, target.reshape((n,) + robot.target.shape))
         np.testing.assert_array_equal(np.asarray(res.q).reshape(flat.q.shape), np.asarray(flat.q))
 
 
 def test_no_recompilation_and_vmap_over_geometries():
     robot = Anthropomorphic(0.3, 0.25, 0.2)
     targets = target_of(robot, _sample(robot, np.random.default_rng(4), 6))
-    ik(robot, targets)
+    ik_all_branches(robot, targets)
     other, moved = Anthropomorphic(0.4, 0.3, 0.25), targets + 0.01
     with compilations() as count:
-        ik(other, moved)
+        ik_all_branches(other, moved)
     assert count.n == 0
     # vmap over a batch of geometries equals a Python loop (geometry leaves are tracers).
     lengths = np.array([[0.3, 0.25, 0.2], [0.35, 0.3, 0.2], [0.2, 0.3, 0.25]])
     stacked = jax.tree.map(lambda *x: jnp.stack(x), *[Anthropomorphic(*row) for row in lengths])
-    batched = jax.vmap(lambda r: ik(r, targets[0]).q)(stacked)
+    batched = jax.vmap(lambda r: ik_all_branches(r, targets[0]).q)(stacked)
     for i, row in enumerate(lengths):
         np.testing.assert_allclose(
-            np.asarray(batched[i]), np.asarray(ik(Anthropomorphic(*row), targets[0]).q), atol=1e-15
+            np.asarray(batched[i]),
+            np.asarray(ik_all_branches(Anthropomorphic(*row), targets[0]).q),
+            atol=1e-15,
         )
 
 
@@ -573,7 +575,7 @@ def test_gradient_of_masked_loss_is_finite_on_mixed_batch(robot):
     good = target_of(robot, _sample(robot, np.random.default_rng(8), 2))
     far = (
         np.full_like(good[:1], 5.0)
-        if robot.TARGET_SHAPE != (4, 4)
+        if robot.target.shape != (4, 4)
         else _translation([5.0, 0.0, 0.0])[None]
     )
     nan = np.full_like(good[:1], np.nan)
@@ -581,7 +583,7 @@ def test_gradient_of_masked_loss_is_finite_on_mixed_batch(robot):
     batch = jnp.asarray(np.concatenate([good, far, nan, singular]))
 
     def loss(target, geometry):
-        res = ik(geometry, target)
+        res = ik_all_branches(geometry, target)
         return jnp.sum(jnp.where(res.valid[..., None], jnp.sin(res.q) + res.q**2, 0.0))
 
     g_target, g_robot = jax.jit(jax.grad(loss, argnums=(0, 1)))(batch, robot)
@@ -608,7 +610,7 @@ def test_float32_round_trip_accuracy():
     for robot, scale in [(ROBOTS[2], 0.75), (ROBOTS[5], 0.9)]:
         q_true = _sample(robot, np.random.default_rng(9), N_RANDOM)
         target = target_of(robot, q_true).astype(np.float32)
-        res = ik(robot, jnp.asarray(target))
+        res = ik_all_branches(robot, jnp.asarray(target))
         assert res.q.dtype == jnp.float32
         assert np.all(np.asarray(res.valid))
         reached = target_from_fk(robot, fk(robot, np.asarray(res.q, np.float64)))
@@ -617,10 +619,10 @@ def test_float32_round_trip_accuracy():
 
 
 def test_result_helpers():
-    res = ik(Planar2R(1.0, 1.0), jnp.array([[1.0, 1.0], [5.0, 0.0]]))
+    res = ik_all_branches(Planar2R(1.0, 1.0), jnp.array([[1.0, 1.0], [5.0, 0.0]]))
     one = res.branch("elbow_down")
     assert one.q.shape == (2, 2) and one.branches == ("elbow_down",)
     with pytest.raises(RuntimeError, match="UNREACHABLE"):
         res.raise_if_failed()
     assert dataclasses.is_dataclass(res)
-    assert set(arms.__all__) >= {"fk", "ik", "Puma560", "ArmIKResult"}
+    assert set(arms.__all__) >= {"fk", "ik_all_branches", "Puma560", "ArmIKResult"}

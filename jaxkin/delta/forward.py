@@ -17,7 +17,7 @@ the circumcentre ``O = C_1 + ((|a|^2 b - |b|^2 a) x n) / (2 |n|^2)`` and ``p = O
 ``h^2 = (l_rod^2 - |O - C_1|^2) / |n|^2``: ``x`` is the lower solution, ``x_upper`` its mirror.
 
 Statuses. Newton: ``INVALID_INPUT`` (non-finite theta or guess), ``SINGULAR`` (direct-type, see
-``jaxkin.delta.rates``), ``NOT_CONVERGED`` (including theta for which the mechanism cannot be
+``jaxkin.delta.jacobians``), ``NOT_CONVERGED`` (including theta for which the mechanism cannot be
 assembled: the closed form tells), ``OUT_OF_LIMITS``, ``OK``. Closed form, with ``w`` the squared
 sine of the rods' elevation above the plane of the centres: ``INVALID_INPUT``, ``UNREACHABLE``
 (``w < -sqrt(eps)``: no common point; ``x`` is then the circumcentre), ``SINGULAR`` (collinear
@@ -31,43 +31,38 @@ import dataclasses
 import jax
 import jax.numpy as jnp
 from jax import Array
-from jax.typing import ArrayLike
 
-from .. import _batching, _validate, newton
+from .. import _batching, newton
 from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..lie import cross_soa
 from ..result import FKResult, SolverResult
-from ..robot import solve_fk
+from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
-from .geometry import (
-    Delta,
-    DeltaFKOptions,
-    _any3,
-    _centre_components,
-    _cos_sin,
-    _finite3,
-    _home,
-    _params,
-    _rates_ok,
-    _sanitise,
-    as_coords,
-    check_robot,
+from ._math import (
+    any3,
+    centre_components,
     compiled,
-    float_dtype,
+    cos_sin,
+    finite3,
+    home,
     in_own_units,
+    params,
+    rates_ok,
+    sanitise,
 )
-from .rates import _fk_rates_analytic
+from .jacobians import fk_rates
+from .options import DeltaFKOptions
 
 __all__ = [
     "LOWER",
     "UPPER",
     "ClosedFormFKResult",
     "NewtonFKResult",
-    "fk",
-    "fk_closed_form",
+    "branch_jit",
+    "closed_form_jit",
+    "fk_guess_jit",
     "fk_kernel",
-    "which_branch",
 ]
 
 LOWER = 0
@@ -136,7 +131,7 @@ def _reduced_residual(p, planes, rod: tuple[Array, Array]) -> tuple[Array, Array
     return r_1, r_2, r_3
 
 
-def _default_guess(robot: Delta, centres: tuple[tuple[Array, ...], ...]) -> Array:
+def _default_guess(robot: Robot, centres: tuple[tuple[Array, ...], ...]) -> Array:
     """Centroid of the sphere centres, lowered by ``sqrt(max(l_rod^2 - spread, l_rod^2/4))``."""
     l_rod = jnp.asarray(robot.l_rod, centres[0][0].dtype)
     mean = [(centres[0][k] + centres[1][k] + centres[2][k]) / 3.0 for k in range(3)]
@@ -152,7 +147,7 @@ def _default_guess(robot: Delta, centres: tuple[tuple[Array, ...], ...]) -> Arra
 
 
 def _fk_newton(
-    robot: Delta, theta: Array, guess: Array | None, tol: float, max_iter: int, cos_sin=None
+    robot: Robot, theta: Array, guess: Array | None, tol: float, max_iter: int, cosines=None
 ):
     """Newton on ``_reduced_residual``; every reported field refers to the original ``r``.
 
@@ -162,7 +157,7 @@ def _fk_newton(
     are then recomputed at the returned ``p`` for ``r`` itself.
     """
     dtype = theta.dtype
-    centres = _centre_components(robot, theta, cos_sin)
+    centres = centre_components(robot, theta, cosines)
     if guess is None:
         guess = jax.lax.stop_gradient(_default_guess(robot, centres))
     scale = jnp.asarray(robot.l_arm, dtype) + jnp.asarray(robot.l_rod, dtype)
@@ -203,8 +198,8 @@ def _fk_impl(
     scale = jnp.asarray(scale, dtype)
     if guess is not None:
         guess = guess * (1.0 / scale)
-    theta, valid = _sanitise(theta, jnp.zeros((3,), dtype), rates)
-    cos_sin = _cos_sin(theta.p)  # shared by the guess, the Newton setup and the rates
+    theta, valid = sanitise(theta, jnp.zeros((3,), dtype), rates)
+    cosines = cos_sin(theta.p)  # shared by the guess, the Newton setup and the rates
     if guess is None:
         guess_valid = valid
     else:
@@ -212,14 +207,14 @@ def _fk_impl(
         guess_valid = all_finite(guess)
         # A non-finite guess makes the element INVALID_INPUT (below): any finite start will do,
         # and a constant one (the home pose) needs no per-element work.
-        home = _home(robot, dtype)
-        guess = jax.lax.stop_gradient(jnp.where(guess_valid[..., None], guess, home))
+        rest = home(robot, dtype)
+        guess = jax.lax.stop_gradient(jnp.where(guess_valid[..., None], guess, rest))
 
     def position(th):
         return _fk_newton(robot, th, guess, tol, max_iter)
 
     if method == "analytic" or not rates:
-        sol = _fk_newton(robot, theta.p, guess, tol, max_iter, cos_sin)
+        sol = _fk_newton(robot, theta.p, guess, tol, max_iter, cosines)
     else:
 
         def position_tuple(th):
@@ -229,8 +224,8 @@ def _fk_impl(
         lifted = lift(position_tuple)(theta)
         x, converged, iterations, residual, conditioning, status = lifted
         sol = newton.NewtonResult(x, converged, iterations, residual.p, conditioning.p, status)
-    _, _, _, _, lo, hi = _params(robot, dtype)
-    out_of_limits = _any3((theta.p < lo) | (theta.p > hi))
+    _, _, _, _, lo, hi = params(robot, dtype)
+    out_of_limits = any3((theta.p < lo) | (theta.p > hi))
     rtol = singular_rtol(dtype)
     direct_singular = sol.conditioning * sol.conditioning <= rtol
     status = jnp.where(
@@ -246,11 +241,11 @@ def _fk_impl(
             ),
         ),
     ).astype(STATUS_DTYPE)
-    ok = _rates_ok(status)
+    ok = rates_ok(status)
     if not rates:
         p_jet = Jet(sol.x, None, None)  # at rest: zero rates added by _fk_chunked or fk
     elif method == "analytic":
-        p_jet = _fk_rates_analytic(robot, theta, sol.x, ok, cos_sin)
+        p_jet = fk_rates(robot, theta, sol.x, ok, cosines)
     else:
         okc = ok[..., None]
         x = sol.x
@@ -261,7 +256,7 @@ def _fk_impl(
     )
 
 
-def _sphere_intersection(robot: Delta, theta: Array):
+def _sphere_intersection(robot: Robot, theta: Array):
     """Closed-form FK: lower and upper solutions, the circumcentre, ``n`` and the status parts.
 
     Written on components (batch-shaped arrays per coordinate), which XLA fuses into one loop;
@@ -269,7 +264,7 @@ def _sphere_intersection(robot: Delta, theta: Array):
     """
     # The barrier materialises the centres once: otherwise XLA recomputes their sin/cos in
     # every output's fusion (lower, upper, status).
-    (c1, c2, c3) = jax.lax.optimization_barrier(_centre_components(robot, theta))
+    (c1, c2, c3) = jax.lax.optimization_barrier(centre_components(robot, theta))
     l_rod = jnp.asarray(robot.l_rod, theta.dtype)
     a = [c2[k] - c1[k] for k in range(3)]
     b = [c3[k] - c1[k] for k in range(3)]
@@ -293,16 +288,16 @@ def _sphere_intersection(robot: Delta, theta: Array):
     return lower, upper, jnp.stack(centre, -1), jnp.stack(n, -1), w, collinear
 
 
-def _fk_closed_form_impl(robot: Delta, theta: Array) -> ClosedFormFKResult:
+def _fk_closed_form_impl(robot: Robot, theta: Array) -> ClosedFormFKResult:
     robot, scale = in_own_units(robot)
-    valid = _finite3(theta)
+    valid = finite3(theta)
     theta = jnp.where(valid[..., None], theta, 0.0)
     lower, upper, centre, _, w, collinear = _sphere_intersection(robot, theta)
     scale = jnp.asarray(scale, theta.dtype)
     lower, upper = lower * scale, upper * scale
     rtol = singular_rtol(theta.dtype)
-    _, _, _, _, lo, hi = _params(robot, theta.dtype)
-    out_of_limits = _any3((theta < lo) | (theta > hi))
+    _, _, _, _, lo, hi = params(robot, theta.dtype)
+    out_of_limits = any3((theta < lo) | (theta > hi))
     status = jnp.where(
         ~valid,
         Status.INVALID_INPUT,
@@ -324,7 +319,7 @@ def _fk_closed_form_impl(robot: Delta, theta: Array) -> ClosedFormFKResult:
     return ClosedFormFKResult(lower, upper, status)
 
 
-def _branch_impl(robot: Delta, theta: Array, p: Array) -> Array:
+def _branch_impl(robot: Robot, theta: Array, p: Array) -> Array:
     robot, scale = in_own_units(robot)
     p = p * (1.0 / jnp.asarray(scale, p.dtype))
     _, _, centre, n, _, _ = _sphere_intersection(robot, theta)
@@ -333,7 +328,7 @@ def _branch_impl(robot: Delta, theta: Array, p: Array) -> Array:
 
 
 def _fk_chunked(
-    robot: Delta,
+    robot: Robot,
     theta: Jet,
     guess,
     tol: float,
@@ -357,103 +352,21 @@ def _fk_chunked(
     return dataclasses.replace(result, x=Jet.constant(result.x.p))
 
 
-# Warm-started FK (``fk`` with a guess): the Newton loop runs on one core per program, so large
-# batches are split across host threads.
-_fk_guess_jit = _batching.PaddedJit(
+# Warm-started FK (``jaxkin.delta.fk`` with a guess): the Newton loop runs on one core per
+# program, so large batches are split across host threads.
+fk_guess_jit = _batching.PaddedJit(
     compiled(_fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"), ("theta", "guess")),
     {"theta": 1, "guess": 1},
 )
-_fk_closed_form_jit = compiled(_fk_closed_form_impl)
-_branch_jit = compiled(_branch_impl)
+closed_form_jit = compiled(_fk_closed_form_impl)
+branch_jit = compiled(_branch_impl)
 
 
-def fk(
-    robot: Delta,
-    theta: Jet | ArrayLike,
-    guess: ArrayLike | None = None,
-    tol: float | None = None,
-    max_iter: int = 30,
-    method: str = "analytic",
-) -> NewtonFKResult:
-    """Platform position (and rates) from actuator angles by batched Newton-Raphson.
-
-    A large batch called outside ``jit`` runs as one part per host thread
-    (``jaxkin.set_num_threads``; the same values, see ``jaxkin._batching``).
-
-    Args:
-        robot: the geometry.
-        theta: actuator angles, shape ``(..., 3)``: a ``Jet`` or a plain array (at rest).
-        guess: initial platform positions, broadcastable to ``(..., 3)`` (warm start, e.g. the
-            previous trajectory sample); ``None`` for the default guess below the elbows
-            (module docstring), which converges to the lower (hanging) assembly.
-        tol: converged where ``max_i |r_i| <= tol * (l_arm + l_rod)``; ``None`` for
-            ``max(1e-12, 8 eps(dtype))``: 1e-12 in float64, 9.5e-7 in float32 (1e-12 is below
-            float32 resolution).
-        max_iter: maximum number of Newton updates.
-        method: ``"analytic"`` rates (constraint Jacobians) or ``"autodiff"`` (``jaxkin.lift``
-            through ``lax.custom_root``).
-
-    Returns:
-        ``NewtonFKResult`` (``x`` Jet ``(..., 3)``, ``status``, ``converged``, ``iterations``,
-        ``residual``, ``conditioning``).
-
-    Raises:
-        ValueError: bad shapes, ``tol <= 0``, ``max_iter < 1``, unknown method.
-    """
-    robot = check_robot(robot)
-    options = DeltaFKOptions(tol, max_iter, method)
-    if guess is None:
-        return solve_fk(robot, theta, options, name="theta")
-    rates = isinstance(theta, Jet)
-    if rates:
-        theta = _validate.as_jet(theta, "theta", coords=3)
-    else:
-        theta = Jet(as_coords(theta, "theta"), None, None)
-    dtype = float_dtype(theta.p)
-    guess = jnp.asarray(guess, dtype)
-    if guess.ndim == 0 or guess.shape[-1] != 3:
-        raise ValueError(f"guess: expected shape (..., 3), got {tuple(guess.shape)}")
-    shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
-    theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)).astype(dtype), theta)
-    batch = theta.shape[:-1]
-    outside = _batching.zero_rates_outside(rates, batch)
-    result = _fk_guess_jit(
-        robot, theta, guess, _tolerance(options, dtype), max_iter, method, rates, not outside,
-        batch=batch, pad=_batching.shared_geometry(robot),
-    )  # fmt: skip
-    return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result
-
-
-def _tolerance(options: DeltaFKOptions, dtype) -> float:
-    """``options.tol``, or its default for ``dtype``: ``max(1e-12, 8 eps)``."""
-    if options.tol is not None:
-        return options.tol
-    return max(1e-12, 8.0 * float(jnp.finfo(dtype).eps))
-
-
-def fk_kernel(robot: Delta, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:
+def fk_kernel(robot: Robot, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:
     """The robot protocol's FK kernel (``Delta.fk_kernel``): Newton from the default guess;
     at rest no rate is read or written (the pipeline writes the zero rates)."""
-    tol = _tolerance(options, theta.dtype)
+    tol = options.tolerance(theta.dtype)
     theta = theta if rates else Jet(theta.p, None, None)
     return _fk_chunked(
         robot, theta, None, tol, options.max_iter, options.method, rates, zero_rates=False
     )
-
-
-def fk_closed_form(robot: Delta, theta: ArrayLike) -> ClosedFormFKResult:
-    """Platform position by three-sphere intersection (both assemblies), shape ``(..., 3)``."""
-    robot = check_robot(robot)
-    theta = as_coords(theta, "theta")
-    return _fk_closed_form_jit(robot, theta)
-
-
-def which_branch(robot: Delta, theta: ArrayLike, p: ArrayLike) -> Array:
-    """Which assembly ``p`` is: ``LOWER`` (0, below the plane of the sphere centres) or
-    ``UPPER`` (1), e.g. to report which branch Newton converged to; shape ``(...)``."""
-    robot = check_robot(robot)
-    theta = as_coords(theta, "theta")
-    p = as_coords(p, "p")
-    _validate.batch_shape({"theta": theta.shape[:-1], "p": p.shape[:-1]})
-    dtype = float_dtype(theta, p)
-    return _branch_jit(robot, theta.astype(dtype), p.astype(dtype))

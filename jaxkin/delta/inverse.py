@@ -24,38 +24,33 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 from jax import Array
-from jax.typing import ArrayLike
 
-from .. import _validate
 from .._numerics import safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..result import IKResult
-from ..robot import solve_ik
+from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
-from .geometry import (
-    BRANCHES,
-    Delta,
-    DeltaIKOptions,
-    _any3,
-    _home,
-    _params,
-    _radial,
-    _rates_ok,
-    _sanitise,
-    check_robot,
+from ._math import (
+    any3,
     far_away,
+    home,
     in_own_units,
+    params,
+    radial,
+    rates_ok,
+    sanitise,
 )
-from .rates import _ik_rates_analytic
+from .jacobians import ik_rates
+from .options import DeltaIKOptions
 
-__all__ = ["ik", "ik_kernel"]
+__all__ = ["ik_kernel"]
 
 
-def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
+def _ik_position(robot: Robot, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
     """Actuator angles, their cosines and sines, and the signed inverse measure, ``(..., 3)``."""
     dtype = p.dtype
-    r_base, r_platform, l_arm, l_rod, _, _ = _params(robot, dtype)
-    ux, uy = _radial(dtype)
+    r_base, r_platform, l_arm, l_rod, _, _ = params(robot, dtype)
+    ux, uy = radial(dtype)
     x, y, z = p[..., 0:1], p[..., 1:2], p[..., 2:3]  # broadcast against the chain axis
     a = x * ux + y * uy - (r_base - r_platform)  # radial coordinate of Q_i from A_i
     b = -x * uy + y * ux  # tangential coordinate
@@ -92,12 +87,12 @@ def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Arr
     return theta, cos_theta, sin_theta, signed
 
 
-def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array:
-    _, _, _, _, lo, hi = _params(robot, theta.dtype)
+def _ik_status(robot: Robot, theta: Array, signed: Array, valid: Array) -> Array:
+    _, _, _, _, lo, hi = params(robot, theta.dtype)
     rtol = singular_rtol(theta.dtype)
     margin = jnp.minimum(jnp.minimum(signed[..., 0], signed[..., 1]), signed[..., 2])
     margin_sq = jnp.sign(margin) * margin * margin  # D / (4 l_arm l_rod)^2, signed
-    out_of_limits = _any3((theta < lo) | (theta > hi))
+    out_of_limits = any3((theta < lo) | (theta > hi))
     return jnp.where(
         ~valid,
         Status.INVALID_INPUT,
@@ -113,20 +108,23 @@ def _ik_status(robot: Delta, theta: Array, signed: Array, valid: Array) -> Array
     ).astype(STATUS_DTYPE)
 
 
-def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+def _ik_impl(robot: Robot, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+    """Actuator angles (rates where ``rates``; else ``p.v``, ``p.a`` are None and the result's
+    rates are 0) for platform positions ``p`` ``(..., 3)`` on ``branch`` ("out" or "in").
+    """
     # Non-finite input is replaced first (double-where), then the kernel works in units of
     # the robot's size.
-    p, valid = _sanitise(p, jnp.zeros((3,), p.p.dtype), rates)
+    p, valid = sanitise(p, jnp.zeros((3,), p.p.dtype), rates)
     robot, scale = in_own_units(robot)
     inv_scale = 1.0 / jnp.asarray(scale, p.p.dtype)
     p = Jet(*(None if x is None else x * inv_scale for x in (p.p, p.v, p.a)))
-    home = _home(robot, p.p.dtype)
-    p = Jet(jnp.where(valid[..., None], p.p, home), p.v, p.a)
+    rest = home(robot, p.p.dtype)
+    p = Jet(jnp.where(valid[..., None], p.p, rest), p.v, p.a)
     far = far_away(p.p)  # certainly unreachable: solved at the home pose instead, then flagged
     p = Jet(
         *(
-            None if x is None else jnp.where(far[..., None], home, x)
-            for x, home in zip((p.p, p.v, p.a), (_home(robot, p.p.dtype), 0.0, 0.0), strict=True)
+            None if x is None else jnp.where(far[..., None], fill, x)
+            for x, fill in zip((p.p, p.v, p.a), (home(robot, p.p.dtype), 0.0, 0.0), strict=True)
         )
     )
 
@@ -137,8 +135,8 @@ def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKR
         theta, cos_theta, sin_theta, signed = _ik_position(robot, p.p, branch)
         status = checked(_ik_status(robot, theta, signed, valid))
         if rates:
-            ok = _rates_ok(status)
-            theta_jet = _ik_rates_analytic(robot, p, theta, (cos_theta, sin_theta), ok)
+            ok = rates_ok(status)
+            theta_jet = ik_rates(robot, p, theta, (cos_theta, sin_theta), ok)
         else:
             theta_jet = Jet.constant(theta)
     else:
@@ -149,7 +147,7 @@ def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKR
 
         theta_j, signed_j = lift(position)(p)
         status = checked(_ik_status(robot, theta_j.p, signed_j.p, valid))
-        okc = _rates_ok(status)[..., None]
+        okc = rates_ok(status)[..., None]
         theta_jet = Jet(theta_j.p, jnp.where(okc, theta_j.v, 0.0), jnp.where(okc, theta_j.a, 0.0))
         signed = signed_j.p
     margin = jnp.clip(jnp.min(signed, axis=-1), -1.0, 1.0)
@@ -157,31 +155,6 @@ def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKR
     return IKResult(theta_jet, status, margin)
 
 
-def ik_kernel(robot: Delta, p: Jet, branch: str, options, rates: bool) -> IKResult:
+def ik_kernel(robot: Robot, p: Jet, branch: str, options: DeltaIKOptions, rates: bool) -> IKResult:
     """The robot protocol's IK kernel (``Delta.ik_kernel``): at rest no rate is read."""
     return _ik_impl(robot, p if rates else Jet(p.p, None, None), branch, options.method, rates)
-
-
-def ik(
-    robot: Delta, p: Jet | ArrayLike, branch: str | None = None, method: str = "analytic"
-) -> IKResult:
-    """Actuator angles (and rates) for platform positions (``jaxkin.ik`` of a ``Delta``).
-
-    Args:
-        robot: the geometry.
-        p: platform centre, shape ``(..., 3)``: a ``Jet`` (position, velocity, acceleration) or
-            a plain array (taken at rest).
-        branch: ``"out"`` (elbow-out, elbows farther from the z axis) or ``"in"``; None for
-            ``"out"``.
-        method: ``"analytic"`` (constraint Jacobians) or ``"autodiff"`` (``jaxkin.lift``).
-
-    Returns:
-        ``IKResult`` with ``q`` (Jet of the actuator angles, ``(..., 3)``), ``status`` and
-        ``margin`` (``(...)``).
-
-    Raises:
-        ValueError: unknown branch/method, last axis not 3, or ``robot`` not a ``Delta``.
-    """
-    robot = check_robot(robot)
-    branch = _validate.choice(BRANCHES[0] if branch is None else branch, "branch", BRANCHES)
-    return solve_ik(robot, p, branch, DeltaIKOptions(method), name="p")

@@ -12,8 +12,9 @@ Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk
 * ``ik_newton``: Newton-Raphson IK with body/space twists [Pineiro], per-element convergence
   from given seeds; ``ik_chain``: the protocol's IK of a chain (restarts, rates, margin).
 * The analytic arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``, ``Cylindrical``,
-  ``Spherical``, ``Puma560``, ``Stanford``: ``ik`` (every branch at once), ``ik_jet`` (one
-  branch with rates and a margin) and ``fk`` (in the form of the targets).
+  ``Spherical``, ``Puma560``, ``Stanford`` (``jaxkin.serial.arms``): ``ik_all_branches``
+  (every branch at once), ``ik_jet`` (one branch with rates and a margin, as ``jaxkin.ik``)
+  and ``fk`` (in the form of the targets).
 """
 
 from .arms import ARMS as ARMS
@@ -26,7 +27,7 @@ from .arms import Puma560 as Puma560
 from .arms import Spherical as Spherical
 from .arms import Stanford as Stanford
 from .arms import fk as fk
-from .arms import ik as ik
+from .arms import ik_all_branches as ik_all_branches
 from .arms import ik_jet as ik_jet
 from .chain import JointChain as JointChain
 from .dh import DHTable as DHTable
@@ -68,7 +69,7 @@ __all__ = [
     "fk_dh",
     "fk_poe",
     "from_urdf",
-    "ik",
+    "ik_all_branches",
     "ik_chain",
     "ik_jet",
     "ik_newton",

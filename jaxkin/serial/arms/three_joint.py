@@ -30,20 +30,18 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from .._geometry import LENGTH, NONNEGATIVE, geometry, number
-from .._numerics import safe_sqrt, singular_rtol
-from ..robot import POINT
-from . import _arms_common as common
-from .dh import DHTable
+from ..._geometry import LENGTH, NONNEGATIVE, geometry, number
+from ..._numerics import safe_sqrt, singular_rtol
+from ...robot import POINT
+from ..dh import DHTable
+from ._kit import HALF_PI, PI, dh, guarded_atan2, polar, status_from, two_link, wrap_angle
+from .base import Arm
 
 __all__ = ["Anthropomorphic", "Cylindrical", "Spherical"]
 
-_PI = common.PI
-_HALF_PI = common.HALF_PI
-
 
 @geometry
-class Anthropomorphic(common.Arm):
+class Anthropomorphic(Arm):
     """The 3-DOF anthropomorphic RRR arm of [Lopez-Villagomez] (DH table in the module docstring).
 
     Attributes:
@@ -56,42 +54,36 @@ class Anthropomorphic(common.Arm):
     l2: Array = number(LENGTH)
     l3: Array = number(LENGTH)
 
-    N_JOINTS: ClassVar[int] = 3
-    JOINT_TYPES: ClassVar[str] = "RRR"
-    BRANCHES: ClassVar[tuple[str, ...]] = ("front_up", "front_down", "back_up", "back_down")
-    TARGET_SHAPE: ClassVar[tuple[int, ...]] = (3,)
+    joint_types: ClassVar[str] = "RRR"
+    branches: ClassVar[tuple[str, ...]] = ("front_up", "front_down", "back_up", "back_down")
     target: ClassVar = POINT
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
         l1, l2, l3 = self.lengths(dtype)
-        return common.dh(
-            dtype, [0.0, l2, l3], [_HALF_PI, 0.0, 0.0], [l1, 0.0, 0.0], [0.0, 0.0, 0.0], "RRR"
-        )
+        return dh(dtype, [0.0, l2, l3], [HALF_PI, 0.0, 0.0], [l1, 0.0, 0.0], [0.0, 0.0, 0.0], "RRR")
 
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:
         dtype = target.dtype
         l1, l2, l3 = self.lengths(dtype)
         px, py, pz = target[..., 0], target[..., 1], target[..., 2]
         r = safe_sqrt(px * px + py * py)
         on_axis = r <= singular_rtol(dtype) * (l1 + l2 + l3)
-        q1_front = common.guarded_atan2(
-            py, px, on_axis
-        )  # eq. 10, two-argument atan2 (docs/errata.md)
-        q1 = jnp.stack([q1_front, common.wrap_angle(q1_front + _PI)], axis=-1)  # (..., 2)
+        q1_front = guarded_atan2(py, px, on_axis)  # eq. 10, two-argument atan2 (docs/errata.md)
+        q1 = jnp.stack([q1_front, wrap_angle(q1_front + PI)], axis=-1)  # (..., 2)
         a = jnp.stack([r, -r], axis=-1)  # eq. 12: A = px c1 + py s1 = +-r
         b = pz - l1  # eq. 13
         elbow = jnp.asarray([[-1.0, 1.0], [1.0, -1.0]], dtype)  # [shoulder, up/down]
-        sol = common.two_link(a[..., :, None], b[..., None, None], l2, l3, elbow)
+        sol = two_link(a[..., :, None], b[..., None, None], l2, l3, elbow)
         q1 = jnp.broadcast_to(q1[..., :, None], sol.q1.shape)
         q = jnp.stack([q1, sol.q1, sol.q2], axis=-1)  # (..., 2, 2, 3)
-        status = common.status_from(sol.unreachable, sol.singular | on_axis[..., None, None])
+        status = status_from(sol.unreachable, sol.singular | on_axis[..., None, None])
         batch = q.shape[:-3]
         return q.reshape(*batch, 4, 3), status.reshape(*batch, 4)
 
 
 @geometry
-class Cylindrical(common.Arm):
+class Cylindrical(Arm):
     """Cylindrical arm of [UANL] (revolute base, radial and vertical prismatic joints).
 
     Attributes:
@@ -100,34 +92,32 @@ class Cylindrical(common.Arm):
 
     h: Array = number(NONNEGATIVE)
 
-    N_JOINTS: ClassVar[int] = 3
-    JOINT_TYPES: ClassVar[str] = "RPP"
-    BRANCHES: ClassVar[tuple[str, ...]] = ("front",)
-    TARGET_SHAPE: ClassVar[tuple[int, ...]] = (3,)
+    joint_types: ClassVar[str] = "RPP"
+    branches: ClassVar[tuple[str, ...]] = ("front",)
     target: ClassVar = POINT
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
         (h,) = self.lengths(dtype)
         zeros = [0.0, 0.0, 0.0]
-        return common.dh(
-            dtype, zeros, [-_HALF_PI, _HALF_PI, 0.0], [h, 0.0, 0.0], [-_HALF_PI, 0.0, 0.0], "RPP"
+        return dh(
+            dtype, zeros, [-HALF_PI, HALF_PI, 0.0], [h, 0.0, 0.0], [-HALF_PI, 0.0, 0.0], "RPP"
         )
 
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:
         dtype = target.dtype
         (h,) = self.lengths(dtype)
         px, py, pz = target[..., 0], target[..., 1], target[..., 2]
         r = safe_sqrt(px * px + py * py)
         on_axis = r <= singular_rtol(dtype) * (h + r + jnp.abs(pz))
-        q1 = common.guarded_atan2(py, px, on_axis)
+        q1 = guarded_atan2(py, px, on_axis)
         q = jnp.stack([q1, r, pz - h], axis=-1)[..., None, :]
-        status = common.status_from(jnp.zeros_like(on_axis), on_axis)[..., None]
+        status = status_from(jnp.zeros_like(on_axis), on_axis)[..., None]
         return q, status
 
 
 @geometry
-class Spherical(common.Arm):
+class Spherical(Arm):
     """Spherical (polar) arm of [UANL]: base rotation, elevation, radial prismatic joint.
 
     Attributes:
@@ -136,45 +126,18 @@ class Spherical(common.Arm):
 
     h: Array = number(NONNEGATIVE)
 
-    N_JOINTS: ClassVar[int] = 3
-    JOINT_TYPES: ClassVar[str] = "RRP"
-    BRANCHES: ClassVar[tuple[str, ...]] = ("front", "back")
-    TARGET_SHAPE: ClassVar[tuple[int, ...]] = (3,)
+    joint_types: ClassVar[str] = "RRP"
+    branches: ClassVar[tuple[str, ...]] = ("front", "back")
     target: ClassVar = POINT
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
         (h,) = self.lengths(dtype)
         zeros = [0.0, 0.0, 0.0]
-        return common.dh(
-            dtype, zeros, [_HALF_PI, _HALF_PI, 0.0], [h, 0.0, 0.0], [0.0, _HALF_PI, 0.0], "RRP"
-        )
+        return dh(dtype, zeros, [HALF_PI, HALF_PI, 0.0], [h, 0.0, 0.0], [0.0, HALF_PI, 0.0], "RRP")
 
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:
         dtype = target.dtype
         (h,) = self.lengths(dtype)
-        q, singular = _polar(target, h, dtype)
-        return q, common.status_from(jnp.zeros_like(singular), singular)
-
-
-def _polar(p: Array, height: Array, dtype) -> tuple[Array, Array]:
-    """Front/back ``(q1, q2, rho)`` of a point seen from a shoulder at ``(0, 0, height)``.
-
-    ``q1 = atan2(py, px)`` or ``+ pi``; ``q2 = atan2(s, +-r)`` (elevation, [Pineiro]'s Stanford
-    ``theta2 = atan2(s, r)``, ``theta2' = pi - atan2(s, r)``); ``rho = sqrt(r^2 + s^2)``.
-    Returns ``q`` ``(..., 2, 3)`` and the singular flag ``(..., 1)`` (on the base axis, or
-    at the shoulder).
-    """
-    px, py, pz = p[..., 0], p[..., 1], p[..., 2]
-    s = pz - height
-    r = safe_sqrt(px * px + py * py)
-    rho = safe_sqrt(r * r + s * s)
-    tol = singular_rtol(dtype) * (jnp.abs(height) + rho)
-    on_axis = r <= tol
-    at_shoulder = rho <= tol
-    q1_front = common.guarded_atan2(py, px, on_axis)
-    q1 = jnp.stack([q1_front, common.wrap_angle(q1_front + _PI)], axis=-1)
-    q2 = common.guarded_atan2(s[..., None], jnp.stack([r, -r], axis=-1), at_shoulder[..., None])
-    rho2 = jnp.broadcast_to(rho[..., None], q1.shape)
-    q = jnp.stack([q1, q2, rho2], axis=-1)
-    return q, (on_axis | at_shoulder)[..., None]
+        q, singular = polar(target, h, dtype)
+        return q, status_from(jnp.zeros_like(singular), singular)

@@ -30,18 +30,15 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from .._geometry import LENGTH, NONNEGATIVE, REAL, geometry, number
-from .._numerics import computed_once, safe_sqrt, singular_rtol
-from .._trig import atan2, sincos
-from ..robot import POSE
-from . import _arms_common as common
-from .arms_3dof import _polar
-from .dh import DHTable
+from ..._geometry import LENGTH, NONNEGATIVE, REAL, geometry, number
+from ..._numerics import computed_once, safe_sqrt, singular_rtol
+from ..._trig import atan2, sincos
+from ...robot import POSE
+from ..dh import DHTable
+from ._kit import HALF_PI, PI, dh, guarded_atan2, polar, status_from, two_link, zyz_wrist
+from .base import Arm
 
 __all__ = ["Puma560", "Stanford"]
-
-_PI = common.PI
-_HALF_PI = common.HALF_PI
 
 
 def _branch_names(*levels: tuple[str, ...]) -> tuple[str, ...]:
@@ -63,7 +60,7 @@ def _wrist(r03: Array, rot: Array, sign: float) -> tuple[Array, Array]:
     """
     r36 = jnp.einsum("...ji,...jk->...ik", r03, rot[..., None, :, :])
     branch = jnp.asarray([1.0, -1.0], rot.dtype)
-    t4, t5, t6, singular = common.zyz_wrist(r36[..., None, :, :], sign, branch)
+    t4, t5, t6, singular = zyz_wrist(r36[..., None, :, :], sign, branch)
     return jnp.stack([t4, t5, t6], axis=-1), singular[..., :1]
 
 
@@ -74,7 +71,7 @@ def _join(q_pos: Array, q_wrist: Array) -> Array:
 
 
 @geometry
-class Puma560(common.Arm):
+class Puma560(Arm):
     """PUMA-type 6R arm with spherical wrist (standard DH of Corke's ``mdl_puma560``).
 
     Attributes (metres; defaults are the PUMA 560's):
@@ -93,27 +90,25 @@ class Puma560(common.Arm):
     d4: Array = number(REAL, default=0.4318)
     d6: Array = number(REAL, default=0.0)
 
-    N_JOINTS: ClassVar[int] = 6
-    JOINT_TYPES: ClassVar[str] = "RRRRRR"
-    BRANCHES: ClassVar[tuple[str, ...]] = _branch_names(
+    joint_types: ClassVar[str] = "RRRRRR"
+    branches: ClassVar[tuple[str, ...]] = _branch_names(
         ("front", "back"), ("up", "down"), ("noflip", "flip")
     )
-    TARGET_SHAPE: ClassVar[tuple[int, ...]] = (4, 4)
     target: ClassVar = POSE
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
         d1, a2, a3, d3, d4, d6 = self.lengths(dtype)
-        return common.dh(
+        return dh(
             dtype,
             [0.0, a2, a3, 0.0, 0.0, 0.0],
-            [_HALF_PI, 0.0, -_HALF_PI, _HALF_PI, -_HALF_PI, 0.0],
+            [HALF_PI, 0.0, -HALF_PI, HALF_PI, -HALF_PI, 0.0],
             [d1, 0.0, d3, d4, 0.0, d6],
             [0.0] * 6,
-            self.JOINT_TYPES,
+            self.joint_types,
         )
 
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:
         dtype = target.dtype
         d1, a2, a3, d3, d4, d6 = self.lengths(dtype)
         rot = target[..., :3, :3]
@@ -128,15 +123,15 @@ class Puma560(common.Arm):
         x_abs = safe_sqrt(r2 - d3 * d3)
         x = jnp.stack([x_abs, -x_abs], axis=-1)  # (..., 2): front, back
         free = (r <= tol)[..., None]
-        fill = jnp.asarray([0.0, _PI], dtype)
-        q1 = common.guarded_atan2(
+        fill = jnp.asarray([0.0, PI], dtype)
+        q1 = guarded_atan2(
             d3 * px[..., None] + x * py[..., None],
             x * px[..., None] - d3 * py[..., None],
             free,
             fill,
         )
         elbow = jnp.asarray([[-1.0, 1.0], [1.0, -1.0]], dtype)
-        sol = common.two_link(x[..., :, None], (pz - d1)[..., None, None], a2, l3, elbow)
+        sol = two_link(x[..., :, None], (pz - d1)[..., None, None], a2, l3, elbow)
         # The two-link's second angle is q3 + psi, psi = atan2(d4, a3):
         # q3 = atan2(s2 a3 - c2 d4, c2 a3 + s2 d4).
         q3 = atan2(sol.s2 * a3 - sol.c2 * d4, sol.c2 * a3 + sol.s2 * d4)
@@ -156,12 +151,12 @@ class Puma560(common.Arm):
         singular = sol.singular | shoulder_singular[..., None, None]
         unreachable = jnp.broadcast_to(unreachable.reshape(*batch, 4, 1), (*batch, 4, 2))
         singular = singular.reshape(*batch, 4, 1) | wrist_singular
-        status = common.status_from(unreachable, singular)
+        status = status_from(unreachable, singular)
         return q.reshape(*batch, 8, 6), status.reshape(*batch, 8)
 
 
 @geometry
-class Stanford(common.Arm):
+class Stanford(Arm):
     """Stanford arm (2RP3R) of [Pineiro], without shoulder offset (DH in the module docstring).
 
     Attributes:
@@ -174,31 +169,29 @@ class Stanford(common.Arm):
     a2: Array = number(NONNEGATIVE)
     d6: Array = number(REAL, default=0.0)
 
-    N_JOINTS: ClassVar[int] = 6
-    JOINT_TYPES: ClassVar[str] = "RRPRRR"
-    BRANCHES: ClassVar[tuple[str, ...]] = _branch_names(("front", "back"), ("noflip", "flip"))
-    TARGET_SHAPE: ClassVar[tuple[int, ...]] = (4, 4)
+    joint_types: ClassVar[str] = "RRPRRR"
+    branches: ClassVar[tuple[str, ...]] = _branch_names(("front", "back"), ("noflip", "flip"))
     target: ClassVar = POSE
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
         d1, a2, d6 = self.lengths(dtype)
-        return common.dh(
+        return dh(
             dtype,
             [0.0] * 6,
-            [_HALF_PI, _HALF_PI, 0.0, -_HALF_PI, _HALF_PI, 0.0],
+            [HALF_PI, HALF_PI, 0.0, -HALF_PI, HALF_PI, 0.0],
             [d1, 0.0, a2, 0.0, 0.0, d6],
-            [0.0, _HALF_PI, 0.0, 0.0, 0.0, 0.0],
-            self.JOINT_TYPES,
+            [0.0, HALF_PI, 0.0, 0.0, 0.0, 0.0],
+            self.joint_types,
         )
 
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:
         dtype = target.dtype
         d1, a2, d6 = self.lengths(dtype)
         rot = target[..., :3, :3]
         p = target[..., :3, 3] - d6 * rot[..., :, 2]
-        polar, pos_singular = _polar(p, d1, dtype)  # (..., 2, 3): q1, q2, rho
-        q_pos = polar.at[..., 2].add(-a2)  # q3 = sqrt(r^2 + s^2) - a2 (docs/errata.md)
+        spherical, pos_singular = polar(p, d1, dtype)  # (..., 2, 3): q1, q2, rho
+        q_pos = spherical.at[..., 2].add(-a2)  # q3 = sqrt(r^2 + s^2) - a2 (docs/errata.md)
         # R_03 = Rz(q1) Ry(-(q2 + pi/2)) Rx(pi) (DH rows 1-3; checked by the round trips).
         s1, c1, s2, c2 = computed_once(
             jnp.stack([*sincos(q_pos[..., 0]), *sincos(q_pos[..., 1])])
@@ -208,7 +201,7 @@ class Stanford(common.Arm):
         q_wrist, wrist_singular = _wrist(r03, rot, sign=1.0)
         q = _join(q_pos, q_wrist)
         singular = pos_singular[..., None] | wrist_singular  # (..., 2, 1)
-        status = common.status_from(jnp.zeros_like(singular), singular)
+        status = status_from(jnp.zeros_like(singular), singular)
         status = jnp.broadcast_to(status, q.shape[:-1])
         batch = q.shape[:-3]
         return q.reshape(*batch, 4, 6), status.reshape(*batch, 4)

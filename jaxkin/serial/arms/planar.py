@@ -19,13 +19,13 @@ orientation ([UANL, ex. 3], Asada eqs. 4.1.1-4.1.3): the wrist
 ``(x - l3 cos phi, y - l3 sin phi)`` is solved as a 2R, then ``q3 = phi - q1 - q2`` wrapped to
 ``[-pi, pi]``. Same two branches.
 
-Statuses (per branch, see ``jaxkin.serial.arms``): ``UNREACHABLE`` when the (wrist) distance
-``r`` lies outside ``[|l1 - l2|, l1 + l2]`` by more than ``tol = sqrt(eps)(l1 + l2)``;
+Statuses (per branch, see ``jaxkin.serial.arms.kernels``): ``UNREACHABLE`` when the (wrist)
+distance ``r`` lies outside ``[|l1 - l2|, l1 + l2]`` by more than ``tol = sqrt(eps)(l1 + l2)``;
 ``SINGULAR`` within ``tol`` of either bound (the two branches coincide) or at ``r <= tol``
 (``l1 = l2``, target on the base joint: ``q1`` free, returned as 0); ``INVALID_INPUT`` for
 NaN/inf.
 
-Float32: see ``jaxkin.serial.arms`` (measured round-trip accuracy of every arm).
+Float32: ``docs/performance.md`` (measured round-trip accuracy of every arm).
 """
 
 from __future__ import annotations
@@ -35,10 +35,11 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from .._geometry import LENGTH, geometry, number
-from ..robot import PLANAR_POINT, PLANAR_POSE
-from . import _arms_common as common
-from .dh import DHTable
+from ..._geometry import LENGTH, geometry, number
+from ...robot import PLANAR_POINT, PLANAR_POSE
+from ..dh import DHTable
+from ._kit import dh, status_from, two_link, wrap_angle
+from .base import Arm
 
 __all__ = ["Planar2R", "Planar3R"]
 
@@ -46,7 +47,7 @@ _ELBOWS = (-1.0, 1.0)  # elbow_up (q2 <= 0), elbow_down (q2 >= 0)
 
 
 @geometry
-class Planar2R(common.Arm):
+class Planar2R(Arm):
     """Planar two-link arm (revolute, revolute).
 
     Attributes:
@@ -57,27 +58,25 @@ class Planar2R(common.Arm):
     l1: Array = number(LENGTH)
     l2: Array = number(LENGTH)
 
-    N_JOINTS: ClassVar[int] = 2
-    JOINT_TYPES: ClassVar[str] = "RR"
-    BRANCHES: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
-    TARGET_SHAPE: ClassVar[tuple[int, ...]] = (2,)
+    joint_types: ClassVar[str] = "RR"
+    branches: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
     target: ClassVar = PLANAR_POINT
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
         l1, l2 = self.lengths(dtype)
-        return common.dh(dtype, [l1, l2], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], "RR")
+        return dh(dtype, [l1, l2], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], "RR")
 
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:
         l1, l2 = self.lengths(target.dtype)
         x, y = target[..., 0:1], target[..., 1:2]  # (..., 1): broadcast over branches
-        sol = common.two_link(x, y, l1, l2, jnp.asarray(_ELBOWS, target.dtype))
+        sol = two_link(x, y, l1, l2, jnp.asarray(_ELBOWS, target.dtype))
         q = jnp.stack([sol.q1, sol.q2], axis=-1)
-        return q, common.status_from(sol.unreachable, sol.singular)
+        return q, status_from(sol.unreachable, sol.singular)
 
 
 @geometry
-class Planar3R(common.Arm):
+class Planar3R(Arm):
     """Planar three-link arm with end orientation (revolute x 3).
 
     Attributes:
@@ -90,24 +89,22 @@ class Planar3R(common.Arm):
     l2: Array = number(LENGTH)
     l3: Array = number(LENGTH)
 
-    N_JOINTS: ClassVar[int] = 3
-    JOINT_TYPES: ClassVar[str] = "RRR"
-    BRANCHES: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
-    TARGET_SHAPE: ClassVar[tuple[int, ...]] = (3,)
+    joint_types: ClassVar[str] = "RRR"
+    branches: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
     target: ClassVar = PLANAR_POSE
 
     def dh_table(self, dtype=None) -> DHTable:
         dtype = dtype or jnp.result_type(float)
         l1, l2, l3 = self.lengths(dtype)
         zeros = [0.0, 0.0, 0.0]
-        return common.dh(dtype, [l1, l2, l3], zeros, zeros, zeros, "RRR")
+        return dh(dtype, [l1, l2, l3], zeros, zeros, zeros, "RRR")
 
-    def _ik_kernel(self, target: Array) -> tuple[Array, Array]:
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:
         l1, l2, l3 = self.lengths(target.dtype)
         phi = target[..., 2:3]
         wx = target[..., 0:1] - l3 * jnp.cos(phi)
         wy = target[..., 1:2] - l3 * jnp.sin(phi)
-        sol = common.two_link(wx, wy, l1, l2, jnp.asarray(_ELBOWS, target.dtype))
-        q3 = common.wrap_angle(phi - sol.q1 - sol.q2)
+        sol = two_link(wx, wy, l1, l2, jnp.asarray(_ELBOWS, target.dtype))
+        q3 = wrap_angle(phi - sol.q1 - sol.q2)
         q = jnp.stack([sol.q1, sol.q2, q3], axis=-1)
-        return q, common.status_from(sol.unreachable, sol.singular)
+        return q, status_from(sol.unreachable, sol.singular)

@@ -1,0 +1,180 @@
+"""The ``Arm`` base class (the robot protocol for every analytic arm) and the host-side entry
+points ``ik_all_branches``, ``ik_jet`` and ``fk``.
+
+A concrete arm (``planar``, ``three_joint``, ``six_joint``) is a ``@geometry`` dataclass whose
+fields are its lengths; it sets the protocol's class attributes ``target``, ``branches`` and
+``joint_types`` and implements ``dh_table(dtype)`` and ``ik_branches(target)``: every branch's
+joints ``(..., n_branches, n_joints)`` and statuses ``(..., n_branches)`` for finite targets in
+units of the arm's size (the kernels in ``jaxkin.serial.arms.kernels`` do the scaling, the
+input checks inside jit, the rates and the margin).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import jax.numpy as jnp
+from jax import Array
+from jax.typing import ArrayLike
+
+from ... import _batching, _validate
+from ...jet import Jet
+from ...result import FKResult, IKResult
+from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
+from ...status import Status
+from ..dh import DHTable, fk_dh
+from .kernels import ArmIKResult, fk_kernel, ik_all_jit, ik_branch_kernel
+
+__all__ = ["Arm", "fk", "ik_all_branches", "ik_jet"]
+
+
+class Arm(Robot, abstract=True):
+    """Base class of the analytic arms: the robot protocol on top of the shared kernels.
+
+    Subclasses set ``target``, ``branches`` and ``joint_types`` (class attributes) and
+    implement ``dh_table`` and ``ik_branches`` (module docstring). Joints are named
+    ``q1, q2, ...``.
+    """
+
+    joint_types: ClassVar[str]
+    reachable: ClassVar = (Status.OK, Status.SINGULAR)
+    # Every branch is solved anyway: the branch is picked by a traced index, one program.
+    ik_policy: ClassVar = CompilePolicy(branch_as_data=True)
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(f"q{i + 1}" for i in range(len(self.joint_types)))
+
+    def lengths(self, dtype) -> tuple[Array, ...]:
+        """Every field cast to ``dtype`` (in field order)."""
+        return tuple(
+            jnp.asarray(getattr(self, f.name)).astype(dtype)
+            for f in dataclasses.fields(self)  # type: ignore[arg-type]
+        )
+
+    def length_scale(self) -> Any:
+        """The sum of the absolute values of the arm's lengths."""
+        return sum(jnp.abs(x) for x in self.lengths(jnp.result_type(float)))
+
+    def workspace_box(self) -> tuple[tuple[tuple[float, float], ...], float]:
+        """A cube (square for planar arms) of half-side the arm's length scale around the base;
+        voxel edge a 25th of it."""
+        if not self.target.is_point:
+            return super().workspace_box()
+        reach = float(self.length_scale())
+        return ((-reach, reach),) * self.target.shape[0], reach / 25.0
+
+    def dh_table(self, dtype=None) -> DHTable:  # pragma: no cover - overridden
+        """The arm's standard DH table (the 4x4 transform of its last frame is
+        ``fk_dh(arm.dh_table(), q)``)."""
+        raise NotImplementedError
+
+    def ik_branches(self, target: Array) -> tuple[Array, Array]:  # pragma: no cover
+        """``(q (..., n_branches, n_joints), status (..., n_branches))`` for finite targets."""
+        raise NotImplementedError
+
+    def link_segments(self, q: Array, x: Array) -> Array:
+        """Base -> the origin of each DH frame in turn, ``(..., n, 2, d)``."""
+        frames = fk_dh(self.dh_table(q.dtype), q, all_frames=True)[..., :3, 3]
+        points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
+        points = points[
+            ..., : 2 if self.target.shape == (2,) or self.target.name == "planar pose" else 3
+        ]
+        return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
+
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> IKResult:
+        index = jnp.asarray(self.branches.index(branch), jnp.int32)
+        return self.ik_kernel_indexed(target, index, options, rates)
+
+    def ik_kernel_indexed(
+        self, target: Jet, index: Array, options: Any, rates: bool = True
+    ) -> IKResult:
+        return ik_branch_kernel(self, target, index, rates)  # the branch is data: one program
+
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
+        return fk_kernel(self, q, rates)
+
+
+def _check_arm(robot: Any) -> Arm:
+    if not isinstance(robot, Arm):
+        raise ValueError(f"robot: expected an analytic arm, got {type(robot).__name__}")
+    return robot
+
+
+def _check_target_shape(robot: Arm, shape: tuple[int, ...]) -> None:
+    expected = robot.target.shape
+    n = len(expected)
+    if len(shape) < n or tuple(shape[-n:]) != expected:
+        raise ValueError(
+            f"target: {type(robot).__name__} expects shape "
+            f"(..., {', '.join(map(str, expected))}), got {tuple(shape)}"
+        )
+
+
+def ik_all_branches(robot: Arm, target: ArrayLike) -> ArmIKResult:
+    """Every branch of the analytic IK at once (``result.branch(name)`` picks one).
+
+    Args:
+        robot: an analytic arm (e.g. ``Anthropomorphic(l1, l2, l3)``).
+        target: ``(..., *robot.target.shape)``: ``(x, y)`` for ``Planar2R``, ``(x, y, phi)``
+            for ``Planar3R``, the wrist position ``(x, y, z)`` for the 3-joint arms and a 4x4
+            homogeneous transform for ``Puma560`` and ``Stanford``.
+
+    Returns:
+        ``ArmIKResult``: ``q`` ``(..., n_branches, n_joints)``, ``valid`` and ``status``
+        ``(..., n_branches)``, ``branches`` (the names, ``robot.branches``); dtype follows
+        ``target``.
+
+    Raises:
+        ValueError: ``robot`` is not an analytic arm, or a target of the wrong trailing shape.
+    """
+    robot = _check_arm(robot)
+    target = _validate.as_float(target)
+    _check_target_shape(robot, target.shape)
+    n = len(robot.target.shape)
+    padding = _batching.shared_geometry(robot) and {"target": n}
+    return ik_all_jit(robot, target, batch=target.shape[:-n], pad=padding)
+
+
+def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IKResult:
+    """One branch of the analytic IK with joint velocity and acceleration, and a margin
+    (``jaxkin.ik`` of an arm).
+
+    The rates come from ``jaxkin.lift`` (nested forward-mode jvp) of the position-level IK,
+    compiled once; they are 0 where the branch's status is not ``OK``. A pose target's Jet holds
+    4x4 matrices and their time derivatives.
+
+    Args:
+        robot: an analytic arm.
+        target: Jet (or array, at rest) of shape ``(..., *robot.target.shape)``.
+        branch: one of ``robot.branches`` (None: the first, ``robot.default_branch``).
+
+    Returns:
+        ``IKResult``: ``q`` (Jet ``(..., n_joints)``), ``status`` and ``margin`` (``(...)``:
+        the Jacobian's isotropy in [0, 1] where solved, negative outside the workspace, -1 for
+        invalid input; ``jaxkin.serial.arms.kernels``).
+    """
+    robot = _check_arm(robot)
+    return solve_ik(robot, target, branch, robot.IKOptions())
+
+
+def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
+    """Forward kinematics of an analytic arm in the form of its targets (``jaxkin.fk``).
+
+    Args:
+        robot: an analytic arm.
+        q: joint coordinates ``(..., n_joints)``: a Jet (rates by ``jaxkin.lift``) or an
+            array (at rest).
+
+    Returns:
+        ``FKResult``: ``x`` (Jet ``(..., *robot.target.shape)``: the point, the planar pose
+        ``(x, y, phi)`` with phi in (-pi, pi], or the 4x4 pose) and ``status`` (``OK``, or
+        ``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``). The
+        4x4 transform of the last DH frame is ``fk_dh(robot.dh_table(), q)``.
+
+    Raises:
+        ValueError: ``robot`` is not an analytic arm or ``q``'s last axis is not ``n_joints``.
+    """
+    robot = _check_arm(robot)
+    return solve_fk(robot, q, robot.FKOptions())
