@@ -6,6 +6,7 @@ only shape checks apply (per-element problems then surface as statuses).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import jax
@@ -96,3 +97,84 @@ def cast_leaves(tree: Any, dtype: Any) -> Any:
     if all(leaf.dtype == dtype for leaf in jax.tree.leaves(tree)):
         return tree
     return jax.tree.map(lambda leaf: leaf.astype(dtype), tree)
+
+
+def _real_scalar(value: Any) -> float | None:
+    """``value`` as a float when it is one real number (Python, NumPy or a concrete 0-d
+    array; not a bool), else None."""
+    if isinstance(value, bool | np.bool_ | str | bytes) or value is None or not is_concrete(value):
+        return None
+    if isinstance(value, int | float):
+        return float(value)
+    dtype = getattr(value, "dtype", None)
+    if dtype is None or np.dtype(dtype).kind not in "fiu" or np.ndim(value) != 0:
+        return None
+    return float(value)
+
+
+def positive_number(value: Any, name: str) -> float:
+    """A positive finite real number (a time step, a distance, a threshold) as a float.
+
+    Python ints and floats, NumPy scalars (``np.float32(1.0)``) and 0-d arrays are accepted.
+    """
+    number = _real_scalar(value)
+    if number is None or not (math.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return number
+
+
+def finite_number(value: Any, name: str) -> float:
+    """A finite real number (a weight) as a float; NumPy scalars and 0-d arrays accepted."""
+    number = _real_scalar(value)
+    if number is None or not math.isfinite(number):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return number
+
+
+def nonnegative_number(value: Any, name: str) -> float:
+    """A real number ``>= 0`` (inf allowed) as a float; NumPy scalars and 0-d arrays
+    accepted."""
+    number = _real_scalar(value)
+    if number is None or not number >= 0:
+        raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+    return number
+
+
+def unit_quaternions(quaternions: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quaternions ``(..., 4)`` of any length scaled to unit length (host side, float64).
+
+    The one rule for quaternions given as data (``jaxkin.paths`` and the command line's pose
+    files): ``q`` and ``c q`` (``c > 0``) are one rotation, so each is divided by its largest
+    absolute component and then by its length, which neither overflows (lengths up to the
+    largest float) nor underflows (subnormal components).
+
+    Returns:
+        ``(unit, length, ok)``: ``unit`` ``(..., 4)``; ``length`` ``(...)`` such that
+        ``q = length * unit`` (a quaternion's rates divided by it are the unit quaternion's
+        rates at that instant); ``ok`` ``(...)``, False for a zero or non-finite quaternion,
+        whose ``unit`` is then NaN.
+    """
+    q = np.asarray(quaternions, dtype=np.float64)
+    big = np.max(np.abs(q), axis=-1)
+    ok = np.all(np.isfinite(q), axis=-1) & (big > 0)
+    safe = np.where(ok, big, 1.0)[..., None]
+    scaled = q / safe
+    norm = np.where(ok, np.linalg.norm(scaled, axis=-1), 1.0)  # in [1, 2] where ok
+    unit = np.where(ok[..., None], scaled / norm[..., None], np.nan)
+    with np.errstate(over="ignore"):
+        length = np.where(ok, safe[..., 0] * norm, np.nan)
+    return unit, length, ok
+
+
+def quaternion_samples(quaternions: ArrayLike, name: str) -> np.ndarray:
+    """Unit quaternions from ``(..., 4)`` samples (``unit_quaternions``; a non-finite sample
+    gives NaN, which the caller reports per element), or a ``ValueError`` naming the first
+    zero sample, e.g. ``quaternions[2, 5]``."""
+    q = np.asarray(quaternions, dtype=np.float64)
+    unit, _, ok = unit_quaternions(q)
+    zero = ~ok & np.all(np.isfinite(q), axis=-1)
+    if np.any(zero):
+        index = tuple(int(i) for i in np.argwhere(zero)[0])
+        where = f"{name}[{', '.join(map(str, index))}]" if index else name
+        raise ValueError(f"{where} is zero: a quaternion must be non-zero (any length)")
+    return unit

@@ -19,7 +19,6 @@ obstacle position reuses the optimiser's compilation; only a new *structure* com
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -29,7 +28,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import lie, plan
+from . import _validate, lie, plan
 from .jet import Jet
 
 __all__ = [
@@ -113,8 +112,7 @@ class SingularityBarrier:
 
 def singularity_barrier(threshold: float) -> SingularityBarrier:
     """``SingularityBarrier(threshold)``, checking ``threshold > 0``."""
-    if not (isinstance(threshold, int | float) and threshold > 0 and math.isfinite(threshold)):
-        raise ValueError(f"threshold must be a positive finite number, got {threshold!r}")
+    threshold = _validate.positive_number(threshold, "threshold")
     return SingularityBarrier(float(threshold))
 
 
@@ -159,8 +157,7 @@ class Obstacles:
             ValueError: shapes that do not match, non-finite values, radii or half extents
                 that are negative, or a safety distance that is not positive.
         """
-        if not (isinstance(safety, int | float) and safety > 0 and math.isfinite(safety)):
-            raise ValueError(f"safety must be a positive finite number, got {safety!r}")
+        safety = _validate.positive_number(safety, "safety")
         arrays = []
         for name, pair, size_shape in (("spheres", spheres, ()), ("boxes", boxes, (dims,))):
             if pair is None:
@@ -230,8 +227,7 @@ def compose(*weighted_terms: tuple[float, CostTerm]) -> Sum:
     threshold reuses the compilation)."""
     weights, data_terms, terms = [], [], []
     for weight, term in weighted_terms:
-        if not (isinstance(weight, int | float) and math.isfinite(weight)):
-            raise ValueError(f"compose: weights must be finite numbers, got {weight!r}")
+        weight = _validate.finite_number(weight, "compose: weights")
         # NumPy, not a device array: importing jaxkin must not start JAX before jax.distributed
         weights.append(np.asarray(float(weight)))
         if jax.tree_util.all_leaves([term]):

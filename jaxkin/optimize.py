@@ -34,7 +34,7 @@ import optax
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _processes, paths, plan
+from . import _batching, _processes, _validate, paths, plan
 from ._progress import bar, is_active
 from .costs import DEFAULT_COST, CostTerm, TrajectorySample
 from .jet import Jet
@@ -345,9 +345,10 @@ def optimize(
     epsilon = float(jnp.finfo(interior.dtype).eps)
     gtol = max(1e-7, 1000 * epsilon) if gtol is None else gtol
     ftol = max(1e-10, 8 * epsilon) if ftol is None else ftol
-    for name, value in (("duration", duration), ("gtol", gtol), ("ftol", ftol)):
-        if isinstance(value, bool) or not (isinstance(value, int | float) and value >= 0):
-            raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+    duration, gtol, ftol = (
+        _validate.nonnegative_number(value, name)
+        for name, value in (("duration", duration), ("gtol", gtol), ("ftol", ftol))
+    )
     if not duration > 0:
         raise ValueError(f"duration must be positive, got {duration!r}")
     method = LBFGS() if optimizer is None else optimizer

@@ -29,7 +29,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _splines, lie
+from . import _splines, _validate, lie
 from .jet import Jet
 
 __all__ = [
@@ -79,8 +79,7 @@ def _check_samples(x: np.ndarray, name: str, width: int | None, dt: float) -> No
     if x.ndim < 2 or x.shape[-2] < 2 or (width is not None and x.shape[-1] != width):
         shape = f"(..., T, {'d' if width is None else width})"
         raise ValueError(f"{name}: expected shape {shape} with T >= 2, got {x.shape}")
-    if not (dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+    _validate.positive_number(dt, "dt")
 
 
 def path_from_poses(
@@ -120,10 +119,7 @@ def path_from_poses(
             f"positions {positions.shape} and quaternions {quaternions.shape} must have the same "
             "leading axes (..., T)"
         )
-    length = np.linalg.norm(quaternions, axis=-1, keepdims=True)
-    if np.any(length == 0.0):
-        raise ValueError("quaternions: every quaternion must be non-zero")
-    unit = quaternions / length
+    unit = _validate.quaternion_samples(quaternions, "quaternions")
     unit = unit * lie.hemisphere_signs(unit, xp=np)[..., None]
     p, v, a = _splined(np.concatenate([positions, unit], -1), dt, end)
     return pose_from_quaternions(p, v, a)

@@ -45,7 +45,6 @@ split along the candidate axis (``jaxkin._batching.map_candidates``; ``docs/scal
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any
 
 import jax
@@ -428,8 +427,7 @@ def evaluate(
             f"path: expected shape (N, T, {', '.join(map(str, target))}) with T >= 2 for "
             f"{type(robot).__name__} ({robot.target.name} targets), got {path.shape}"
         )
-    if isinstance(dt, bool) or not (isinstance(dt, int | float) and dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
+    dt = _validate.positive_number(dt, "dt")
     limits = robot_limits(robot, limits)
     n, t = path.shape[:2]
     # "best" holds every branch of a chunk at once

@@ -2,7 +2,7 @@
 
 Every function builds a ``matplotlib.figure.Figure`` directly (no ``pyplot`` global state, no
 GUI: rendering uses the Agg canvas, so it works headless, in threads and in notebooks), returns
-it, and with ``path=`` also saves it (atomically: ``jaxkin.cli.files.atomic_write``). The saved
+it, and with ``path=`` also saves it (atomically: ``jaxkin.files.atomic_write``). The saved
 image is ``figsize * dpi`` pixels (no tight bounding box).
 
 * ``joint_trajectories``: joint positions, velocities and accelerations against time, one
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from .cli import files as kio
+from . import files as kio
 from .robot import fk
 from .status import Status
 

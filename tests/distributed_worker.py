@@ -21,8 +21,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin import Jet, cli, delta, optimize, paths, plan, scara
-from jaxkin.cli import files
+from jaxkin import Jet, cli, delta, files, optimize, paths, plan, scara
 
 ROBOT = scara.Scara.paper()
 N, T = 4, 12  # candidates and samples; the optimiser's paths have the same shape

@@ -6,7 +6,9 @@ pads each file's rows to a power of two, so the files here have few distinct pad
 (4, 32 and 64 rows) and share compilations.
 """
 
+import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -15,8 +17,8 @@ import numpy as np
 import pytest
 
 from jaxkin import Jet, Robot, cli, delta, scara, serial
+from jaxkin import files as kio
 from jaxkin.cli import commands, demo
-from jaxkin.cli import files as kio
 from jaxkin.cli.parser import build_parser
 from jaxkin.cli.robots import ROBOTS, RobotEntry
 from tests.references import delta as delta_ref
@@ -562,8 +564,8 @@ def test_writer_failing_midway_leaves_output_intact(tmp_path, capsys, good_csv, 
     before = _precious(out)
     original = kio.write_csv
 
-    def half_then_fail(f, columns):
-        original(f, columns)  # the whole new content is in the temporary file...
+    def half_then_fail(f, columns, header=True):
+        original(f, columns, header)  # the new content is in the temporary file...
         f.flush()
         raise exc  # ...and then the run dies before the rename
 
@@ -576,6 +578,53 @@ def test_writer_failing_midway_leaves_output_intact(tmp_path, capsys, good_csv, 
         assert_one_line_error(code, err, "disk full")
     assert out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.csv", "out.csv"]
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP])
+def test_terminated_while_writing_leaves_no_temporary_file(
+    tmp_path, capsys, good_csv, monkeypatch, signum
+):
+    """SIGTERM (or SIGHUP) arriving while the output is being written: the temporary file is
+    removed, the old output kept, and the status is 128 + the signal's number."""
+    out = tmp_path / "out.csv"
+    before = _precious(out)
+    original = kio.write_csv
+
+    def write_then_signal(f, columns, header=True):
+        original(f, columns, header)
+        f.flush()
+        assert any(p.name.startswith(".out.csv.") for p in tmp_path.iterdir())
+        os.kill(os.getpid(), signum)  # delivered to this (the main) thread
+
+    monkeypatch.setattr(kio, "write_csv", write_then_signal)
+    handler = signal.getsignal(signum)
+    code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, "-i", good_csv, "-o", out)
+    assert code == 128 + signum and "terminated by signal" in err
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["good.csv", "out.csv"]
+    assert signal.getsignal(signum) == handler  # restored after the command
+
+
+def test_output_is_written_chunk_by_chunk(tmp_path, capsys, good_csv, monkeypatch):
+    """Each chunk's rows are written as soon as they are solved (memory bounded by a chunk):
+    five rows in chunks of 4 are two writes, one header, the same file as one chunk gives."""
+    code, _, err = run(
+        capsys, "ik", "scara", *SCARA_PAPER, "-i", good_csv, "-o", tmp_path / "a.csv"
+    )
+    assert code == 0, err
+    parts = []
+    original = kio.write_csv
+
+    def counted(f, columns, header=True):
+        parts.append((len(next(iter(columns.values()))), header))
+        original(f, columns, header)
+
+    monkeypatch.setattr(kio, "write_csv", counted)
+    argv = ["--chunk-size", 4, "-i", good_csv, "-o", tmp_path / "b.csv"]
+    code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, *argv)
+    assert code == 0, err
+    assert parts == [(4, True), (1, False)]
+    assert (tmp_path / "a.csv").read_text() == (tmp_path / "b.csv").read_text()
 
 
 # --------------------------------------------------------------------------------- workspace
@@ -715,6 +764,22 @@ def test_demo_runs_the_named_example_in_process(capsys, monkeypatch, tmp_path):
     assert seen[2][2][1:] == ["--output-dir", ".", "--resolution", "5"]
     code, _, err = run(capsys, "demo", "planner")
     assert_one_line_error(code, err, "example 'planner' is ambiguous")
+
+
+def test_demo_output_dir_after_the_name_is_the_commands(capsys, monkeypatch, tmp_path):
+    """``jaxkin demo NAME --output-dir X``: X is checked before the example runs (a missing
+    one is an error naming it) and passed on once; the announcement names it."""
+    script = tmp_path / "dyad_demo.py"
+    script.write_text('"""The dyad example."""\n')
+    monkeypatch.setattr(demo, "examples", lambda: {"dyad": script})
+    seen = []
+    monkeypatch.setattr(demo.runpy, "run_path", lambda path, run_name: seen.append(sys.argv))
+    code, _, err = run(capsys, "demo", "dyad", "--output-dir", tmp_path / "missing", "--n", "3")
+    assert_one_line_error(code, err, "--output-dir", "missing: no such directory")
+    assert seen == []
+    code, _, err = run(capsys, "demo", "dyad", "--n", "3", f"--output-dir={tmp_path}")
+    assert code == 0 and f"files go to {tmp_path}" in err
+    assert seen == [[str(script), "--output-dir", str(tmp_path), "--n", "3"]]
 
 
 def test_demo_runs_a_shipped_example(capsys, tmp_path):

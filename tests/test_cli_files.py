@@ -1,4 +1,4 @@
-"""Trajectory files of the command line (jaxkin.cli.files): CSV/NPZ round trips, parse errors
+"""Trajectory files of the command line (jaxkin.files): CSV/NPZ round trips, parse errors
 with line numbers, atomic writes, spline rates per candidate, chunked solving."""
 
 import os
@@ -7,7 +7,7 @@ import stat
 import numpy as np
 import pytest
 
-from jaxkin.cli import files as kio
+from jaxkin import files as kio
 
 
 def _write(path, text, encoding="utf-8"):
@@ -59,6 +59,20 @@ def test_csv_dialect_comments_blank_lines_bom_and_empty_cells(tmp_path):
     assert np.isnan(table.data["z"][1])
     semicolons = _write(tmp_path / "b.csv", "t;x;y;z\n0;1;2;3\n")
     assert kio.read_table(semicolons, ["x"]).data["x"].tolist() == [1.0]
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "# units: mm; s\nt,x,y,z\n0,1,2,3\n",
+        "\n  # made by a tool, v2\n# t;x\nt;x;y;z\n0;1;2;3\n",
+        "#\tcomment\nt,x,y,z\n0,1,2,3\n",
+    ],
+)
+def test_csv_delimiter_comes_from_the_header_not_a_comment(tmp_path, text):
+    table = kio.read_table(_write(tmp_path / "a.csv", text), ["t", "x", "y", "z"])
+    assert table.columns == ("t", "x", "y", "z")
+    assert [table.data[n].tolist() for n in "txyz"] == [[0.0], [1.0], [2.0], [3.0]]
 
 
 @pytest.mark.parametrize(

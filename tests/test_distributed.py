@@ -167,7 +167,7 @@ def test_distributed_option_reads_the_environment(monkeypatch):
     args = type("Args", (), {"distributed": True})()
     with pytest.raises(distributed.CliError, match="JAX_COORDINATOR_ADDRESS.*JAX_NUM_PROCESSES=4"):
         distributed.join(args)
-    assert calls == [{"num_processes": 4, "process_id": 3}]
+    assert calls == [{"num_processes": 4, "process_id": 3, "initialization_timeout": 90}]
     monkeypatch.setenv("JAX_PROCESS_ID", "three")
     with pytest.raises(distributed.CliError, match="JAX_PROCESS_ID must be an integer"):
         distributed.join(args)

@@ -1,19 +1,23 @@
-"""Every code block of README.md and of the documentation site runs as written.
+"""Every code block of README.md and of the documentation site runs as a user would run it.
 
-``python`` blocks run in a fresh namespace in a temporary directory. ``console`` blocks hold
-shell commands: ``jaxkin ...`` lines run through the command line's entry point in the same
-directory (where ``spiral.csv``, the spiral of [Noriega, eq. 16] in mm, is provided as the
-trajectory file the examples name, and ``arm.urdf`` with ``arm_joints.csv`` for the URDF
-arm of ``docs/urdf.md``), and ``make TARGET`` lines must name a target of the
-Makefile (running them here would install and test recursively; CI runs them). ``bash`` blocks
-are cluster job scripts (SLURM's ``srun`` is not on this machine): they must parse
-(``bash -n``), and every ``jaxkin`` command in them must parse with the command line's own
-argument parser. Any other fenced block language, or another command in a console block,
-fails: a block that cannot be checked is not allowed.
+A page's blocks run in order in one temporary directory and one new Python process of their
+own (a user working through the page in one folder), and nothing is provided: a file a
+command reads (``spiral.csv``, ``arm.urdf``) must come from an earlier block of the same page.
+``python`` blocks each run as a fresh script (a new namespace) with JAX's 64-bit mode OFF, as
+in a new Python process (the tests' conftest turns it on; the page's process has no conftest):
+the pages call float64 optional, so a block that needs it must turn it on itself.
+``console`` blocks hold shell commands: ``jaxkin ...`` lines run through the command line's
+entry point, and ``make TARGET`` lines must name a target of the Makefile (running them here
+would install and test recursively; CI runs them). ``bash`` blocks are cluster job scripts
+(SLURM's ``srun`` is not on this machine): they must parse (``bash -n``), and every ``jaxkin``
+command in them must parse with the command line's own argument parser. Any other fenced block
+language, or another command in a console block, fails: a block that cannot be checked is not
+allowed.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import shlex
 import subprocess
@@ -21,7 +25,7 @@ import sys
 import types
 from pathlib import Path
 
-import numpy as np
+import jax
 import pytest
 
 from jaxkin import cli
@@ -61,44 +65,13 @@ def make_targets() -> set[str]:
     return set(re.findall(r"^([\w-]+):", text, re.M))
 
 
-def spiral_csv(path: Path) -> None:
-    t = np.linspace(0.0, 8.0, 201)
-    w = np.pi / 2
-    xyz = np.c_[100 + 20 * np.sin(w * t), -20 * np.cos(w * t), 50 + 10 * t]
-    np.savetxt(path, np.c_[t, xyz], delimiter=",", header="t,x,y,z", comments="")
-
-
-def arm_files(path: Path) -> None:
-    """``arm.urdf`` (the three-joint arm of docs/urdf.md) and ``arm_joints.csv``."""
-    page = (ROOT / "docs" / "urdf.md").read_text(encoding="utf-8")
-    (path / "arm.urdf").write_text(re.search(r'URDF = """(.*?)"""', page, re.S).group(1))
-    t = np.linspace(0.0, 1.0, 21)
-    joints = np.c_[t, 0.5 + t, 0.3 - 0.5 * t, 1.2 + 0.3 * t]
-    np.savetxt(path / "arm_joints.csv", joints, delimiter=",", header="t,turn,shoulder,elbow",
-               comments="")  # fmt: skip
-
-
-# Blocks that plan, optimise or solve URDF arms (each compiles for seconds): the slow tier.
-SLOW_BLOCKS = {"docs/planning.md-1", "docs/urdf.md-1", "docs/cli.md-1"}
-
-
-def _runnable_blocks() -> list:
-    cases = []
-    for block in BLOCKS:
-        if block[2] in RUNNABLE:
-            name = f"{block[0]}-{block[1]}"
-            slow = pytest.mark.slow if name in SLOW_BLOCKS else ()
-            cases.append(pytest.param(*block, id=name, marks=slow))
-    return cases
-
-
-@pytest.mark.parametrize("page, number, language, code", _runnable_blocks())
-def test_block_runs(page, number, language, code, tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
+def run_block(page: str, number: int, language: str, code: str, targets: set[str]) -> None:
+    """One block, in the current directory (the page's)."""
     if language == "python":
+        jax.config.update("jax_enable_x64", False)  # a new process: float32 unless asked
         # A module of its own: dataclasses defined in a block look their module up.
         module = types.ModuleType("__docs__")
-        monkeypatch.setitem(sys.modules, module.__name__, module)
+        sys.modules[module.__name__] = module
         exec(compile(code, f"{page} block {number}", "exec"), module.__dict__)
         return
     if language == "bash":
@@ -110,9 +83,6 @@ def test_block_runs(page, number, language, code, tmp_path, monkeypatch, capsys)
         for command in commands:
             parser.parse_args(shlex.split(command, comments=True))  # SystemExit 2 if unknown
         return
-    spiral_csv(tmp_path / "spiral.csv")
-    arm_files(tmp_path)
-    targets = make_targets()
     for line in code.splitlines():
         command = shlex.split(line, comments=True)
         if not command:
@@ -121,4 +91,50 @@ def test_block_runs(page, number, language, code, tmp_path, monkeypatch, capsys)
             assert set(command[1:]) <= targets, line
         else:
             assert command[0] == "jaxkin", f"{page}: only jaxkin and make commands run: {line}"
-            assert cli.main(command[1:]) == 0, line
+            assert cli.main(command[1:]) == 0, f"{page} block {number}: {line}"
+
+
+PAGES_WITH_BLOCKS = sorted({page for page, _, lang, _ in BLOCKS if lang in RUNNABLE})
+
+
+def run_page(page: str) -> None:
+    """Every block of ``page`` in order, in the current directory, in this process: a fresh
+    interpreter started by ``test_page_runs``, so JAX's configuration is a user's (64-bit mode
+    off), and reset to it before each python block (a ``jaxkin`` command line turns it on in
+    its own process)."""
+    targets = make_targets()
+    for name, number, language, code in BLOCKS:
+        if name == page and language in RUNNABLE:
+            run_block(page, number, language, code, targets)
+
+
+# Pages whose blocks plan, optimise or solve URDF arms (each compiles for seconds): slow tier.
+SLOW_PAGES = {"docs/planning.md", "docs/urdf.md", "docs/cli.md"}
+
+
+@pytest.mark.parametrize(
+    "page",
+    [pytest.param(p, marks=pytest.mark.slow if p in SLOW_PAGES else ()) for p in PAGES_WITH_BLOCKS],
+)
+def test_page_runs(page, tmp_path):
+    """One new Python process per page (JAX as a user gets it: no x64, no conftest), sharing
+    the tests' persistent compilation cache."""
+    cache = jax.config.jax_compilation_cache_dir or ""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX_", "XLA_"))}
+    env.update(JAXKIN_TEST_CACHE=cache, JAX_PLATFORMS="cpu", PYTHONPATH=str(ROOT))
+    done = subprocess.run(
+        [sys.executable, "-m", "tests.test_docs", page],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert done.returncode == 0, f"{page}:\n{done.stdout[-3000:]}\n{done.stderr[-5000:]}"
+
+
+if __name__ == "__main__":
+    if os.environ.get("JAXKIN_TEST_CACHE"):
+        jax.config.update("jax_compilation_cache_dir", os.environ["JAXKIN_TEST_CACHE"])
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    run_page(sys.argv[1])

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -12,11 +11,11 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching, _processes, paths
+from .. import _batching, _processes, files, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
 from ..status import status_names
-from . import distributed, files
+from . import distributed
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
 __all__ = ["cmd_fk", "cmd_ik", "cmd_workspace", "robot_from_args", "set_dtype"]
@@ -78,54 +77,54 @@ def _summary(status: np.ndarray) -> str:
     return ", ".join(f"{n} {c}" for n, c in zip(names, counts, strict=True))
 
 
-def _warn_invalid(traj: files.Trajectory, valid: np.ndarray) -> None:
+def _warn_invalid(traj: files.Trajectory, valid: np.ndarray, what: str) -> None:
     bad = np.flatnonzero(~valid)
     if bad.size:
         print(
-            f"jaxkin: warning: {bad.size} of {len(valid)} rows have NaN/inf input "
-            f"(first at {traj.table.where(bad[0])}): status INVALID_INPUT, the rest is solved",
+            f"jaxkin: warning: {bad.size} of {len(valid)} rows have {what} (first at "
+            f"{traj.table.where(bad[0])}): status INVALID_INPUT, the rest is solved",
             file=sys.stderr,
         )
 
 
-def _same_file(first: str, second: str) -> bool:
-    """True when two spellings name one file (symlinks, ``./``, ``..`` included)."""
-    a, b = Path(first), Path(second)
+def _robot_file(args: argparse.Namespace) -> str | None:
+    """The ``--robot`` argument when it names a file (not ``paper``)."""
+    spec = getattr(args, "robot", None)
+    return None if spec is None or spec.strip().lower() == "paper" else spec
+
+
+def _check_paths(args: argparse.Namespace) -> None:
+    """Every output against every input and each other, and writable; before any work."""
+    inputs = {"--input": getattr(args, "input", None), "--robot": _robot_file(args)}
+    outputs = {"--output": args.output, "--plot": args.plot}
     try:
-        if a.exists() and b.exists():
-            return os.path.samefile(a, b)
-        return a.resolve() == b.resolve()
-    except OSError:
-        return False
-
-
-def _check_output(path: str, what: str = "--output", source: str | None = None) -> None:
-    if path == "-":
-        return
-    if source is not None and _same_file(source, path):
-        raise CliError(
-            f"{what} {path} is the input file {source}: it would be overwritten; choose another"
-        )
-    try:  # fail before solving, with the checks atomic_write applies at the end
-        files.check_output_path(path)
+        files.check_outputs(outputs, inputs)
     except files.InputError as exc:
-        raise CliError(f"{what} {exc}") from None
+        raise CliError(str(exc)) from None
+    if args.plot:
+        from .. import plot
+
+        plot.require_matplotlib()
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        fmt = Path(args.plot).suffix.lstrip(".").lower() or "png"
+        known = FigureCanvasBase.get_supported_filetypes()
+        if fmt not in known:
+            raise CliError(
+                f"--plot {args.plot}: matplotlib cannot write .{fmt} files (it writes "
+                f"{', '.join(sorted(known))})"
+            )
 
 
 def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     _join(args)
+    _check_paths(args)
+    dtype = set_dtype(args.dtype)  # before the robot: its geometry's arrays take the dtype
     robot = robot_from_args(args)
     pose = robot.target == POSE
     if not (robot.target.is_point or pose):
         raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
     branch = parse_branch(robot, args.branch) if inverse else None
-    _check_output(args.output, source=args.input)
-    if args.plot:
-        _check_output(args.plot, "--plot", source=args.input)
-        from .. import plot
-
-        plot.require_matplotlib()
-    dtype = set_dtype(args.dtype)
     targets, joints = robot.target.coordinates, robot.joint_names
     in_names, out_names = (targets, joints) if inverse else (joints, targets)
     traj = files.read_trajectory(args.input, in_names)
@@ -133,7 +132,10 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
         traj = files.continuous_quaternions(traj)
     p, v, a, valid = files.complete_rates(traj, args.spline)
     if distributed.is_writer():
-        _warn_invalid(traj, valid)
+        quaternions = pose and inverse
+        _warn_invalid(
+            traj, valid, "NaN/inf input or a zero quaternion" if quaternions else "NaN/inf input"
+        )
 
     def solve(p, v, a):
         if pose and inverse:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
@@ -148,33 +150,44 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
 
     desc = f"{args.kind} {'ik' if inverse else 'fk'}"
     chunk = args.chunk_size or _batching.HOST_CHUNK
-    outputs = distributed.solve_rows(
-        files.solve_in_chunks, solve, (p, v, a), chunk, desc, args.quiet
-    )
-    q, qd, qdd, status = outputs[:4]
-    if pose and not inverse:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
-        q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
-        sign = files.quaternion_signs(traj.t, traj.candidate, valid, q[:, 3:])[:, None]
-        for block in (q, qd, qdd):  # continuous along each candidate, as splines need
-            block[:, 3:] *= sign
-    for block in (q, qd, qdd):
-        block[~valid] = np.nan  # nothing meaningful to report for invalid input
-    if not distributed.is_writer():
+    writer = distributed.is_writer()
+    signs = files.QuaternionSigns() if pose and not inverse else None
+    statuses, kept = [], []  # kept: every chunk's outputs, only for --plot
+    chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+    with files.table_writer(args.output if writer else None) as write:
+        for start, stop, outputs in chunks:
+            q, qd, qdd, status = outputs[:4]
+            rows, ok = slice(start, stop), valid[start:stop]
+            candidate = None if traj.candidate is None else traj.candidate[rows]
+            if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
+                q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
+                sign = signs(candidate, ok, q[:, 3:])[:, None]
+                for block in (q, qd, qdd):  # continuous along each candidate, as splines need
+                    block[:, 3:] *= sign
+            for block in (q, qd, qdd):
+                block[~ok] = np.nan  # nothing meaningful to report for invalid input
+            statuses.append(np.asarray(status, np.int8))
+            if args.plot and writer:
+                kept.append((q, qd, qdd))
+            extra = {"margin": outputs[4]} if inverse else None
+            write(
+                files.trajectory_columns(
+                    traj.t[rows], candidate, out_names, q, qd, qdd, status_names(status), extra
+                )
+            )
+    if not writer:
         return 0
+    status = np.concatenate(statuses)
     if valid.any() and not np.any(status[valid] == 0):
         print(
             f"jaxkin: warning: no row has status OK ({_summary(status)}): check the geometry "
             "and the units of the input",
             file=sys.stderr,
         )
-    extra = {"margin": outputs[4]} if inverse else None
-    columns = files.trajectory_columns(
-        traj.t, traj.candidate, out_names, q, qd, qdd, status_names(status), extra
-    )
-    files.write_table(args.output, columns)
     if args.plot:
         from .. import plot
 
+        q, qd, qdd = (np.concatenate(block) for block in zip(*kept, strict=True))
         plot.joint_trajectories(
             traj.t, q, qd, qdd, status, names=out_names, candidate=traj.candidate, path=args.plot
         )
@@ -205,6 +218,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
     from .. import workspace
 
     _join(args)
+    dtype = set_dtype(args.dtype)  # before the robot: its geometry's arrays take the dtype
     robot = robot_from_args(args)
     if not robot.target.is_point:
         raise CliError(f"{args.kind}: a voxel workspace needs a robot whose targets are points")
@@ -212,12 +226,7 @@ def cmd_workspace(args: argparse.Namespace) -> int:
     if args.output is not None:
         if files.file_format(args.output) != "npz":
             raise CliError(f"--output {args.output}: the workspace is saved as .npz")
-        _check_output(args.output)
-    if args.plot:
-        _check_output(args.plot, "--plot")
-        from .. import plot
-
-        plot.require_matplotlib()
+    _check_paths(args)
     if args.resolution is not None and not (np.isfinite(args.resolution) and args.resolution > 0):
         raise CliError(f"--resolution must be positive, got {args.resolution}")
     dims = robot.target.shape[0]
@@ -244,7 +253,6 @@ def cmd_workspace(args: argparse.Namespace) -> int:
             f"{' x '.join(map(str, counts))} voxels is too many (at most {MAX_VOXELS:.0e}): "
             "use a coarser --resolution or smaller --bounds"
         )
-    dtype = set_dtype(args.dtype)
     progress = False if args.quiet else None
     result = workspace.sweep(
         robot,

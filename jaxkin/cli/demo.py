@@ -58,6 +58,26 @@ def resolve_example(name: str, found: dict[str, Path]) -> str:
     raise CliError(f"example {name!r} {problem}; available: {', '.join(found)}")
 
 
+def _own_options(rest: list[str], output_dir: str, quiet: bool) -> tuple[list[str], str, bool]:
+    """``--output-dir DIR`` (or ``=DIR``) and ``-q`` given after the example's name are the
+    command's own (argparse passes everything after the name on): take them out of ``rest``;
+    the last ``--output-dir`` wins."""
+    kept: list[str] = []
+    items = iter(rest)
+    for item in items:
+        if item == "--output-dir":
+            output_dir = next(items, None)
+            if output_dir is None:
+                raise CliError("--output-dir: expected one argument (a directory)")
+        elif item.startswith("--output-dir="):
+            output_dir = item.partition("=")[2]
+        elif item in ("-q", "--quiet"):
+            quiet = True
+        else:
+            kept.append(item)
+    return kept, output_dir, quiet
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     """Run (or list) the examples."""
     found = examples()
@@ -70,13 +90,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
             print(f"{name:{width}s}  {_first_doc_line(path)}{marker}")
         return 0
     name = resolve_example(args.name or DEFAULT, found)
-    output = Path(args.output_dir)
+    rest, output_dir, quiet = _own_options(list(args.args), args.output_dir, args.quiet)
+    output = Path(output_dir)
     if not output.is_dir():
         raise CliError(f"--output-dir {output}: no such directory")
-    if not args.quiet:
+    if not quiet:
         print(f"jaxkin: running the {name} example; files go to {output}", file=sys.stderr)
     argv = sys.argv
-    sys.argv = [str(found[name]), "--output-dir", str(output), *args.args]
+    sys.argv = [str(found[name]), "--output-dir", str(output), *rest]
     try:
         runpy.run_path(str(found[name]), run_name="__main__")
     except SystemExit as exc:

@@ -5,8 +5,6 @@ option."""
 
 from __future__ import annotations
 
-import math
-
 import jax.numpy as jnp
 
 from .. import _validate
@@ -43,16 +41,8 @@ class DeltaFKOptions:
     method: str = "analytic"
 
     def __post_init__(self) -> None:
-        tol = self.tol
-        if tol is not None and not (
-            isinstance(tol, int | float)
-            and not isinstance(tol, bool)
-            and math.isfinite(tol)
-            and tol > 0
-        ):
-            raise ValueError(f"tol must be a positive finite float or None, got {tol!r}")
-        if tol is not None:
-            object.__setattr__(self, "tol", float(tol))
+        if self.tol is not None:
+            object.__setattr__(self, "tol", _validate.positive_number(self.tol, "tol"))
         max_iter = self.max_iter
         if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
             raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")

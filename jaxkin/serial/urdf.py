@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import io
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,17 @@ __all__ = ["from_urdf"]
 _MOVING = ("revolute", "continuous", "prismatic")
 
 
+def _text_as_utf8(text: str) -> bytes:
+    """XML text (already decoded) as UTF-8 bytes, read as a file with the same content is: a
+    byte-order mark dropped, an XML declaration's ``encoding`` (e.g. ISO-8859-1, the file's
+    encoding, no longer the text's) replaced by UTF-8."""
+    text = text.lstrip("\ufeff")
+    text = re.sub(
+        r"""^(\s*<\?xml[^>]*?\bencoding\s*=\s*)(["']).*?\2""", r"\1\2UTF-8\2", text, count=1
+    )
+    return text.encode("utf-8")
+
+
 def _load(source: str | os.PathLike) -> object:
     """The yourdfpy model of a path or XML text (strict XML: no silent recovery)."""
     try:
@@ -45,11 +57,13 @@ def _load(source: str | os.PathLike) -> object:
         raise ImportError(
             "serial.from_urdf needs the 'urdf' extra (yourdfpy): pip install 'jaxkin[urdf]'"
         ) from exc
-    if isinstance(source, bytes):
-        source = source.decode("utf-8")
-    if isinstance(source, str) and source.lstrip().startswith("<"):
-        data, where = source.encode("utf-8"), "source (URDF text)"
+    if isinstance(source, bytes) and source.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
+        data, where = source, "source (URDF text)"  # bytes: the parser reads BOM and encoding
+    elif isinstance(source, str) and source.lstrip("\ufeff \t\r\n").startswith("<"):
+        data, where = _text_as_utf8(source), "source (URDF text)"
     else:
+        if isinstance(source, bytes):
+            source = os.fsdecode(source)
         if not isinstance(source, str | os.PathLike):
             raise ValueError(f"source: expected a URDF path or XML text, got {source!r}")
         path = Path(source)

@@ -1,4 +1,4 @@
-"""Trajectory files of the ``jaxkin`` command: CSV and NPZ reading, rates, atomic writing.
+"""Trajectory files (the ``jaxkin`` command, ``jaxkin.plot``): CSV and NPZ, rates, safe writing.
 
 Formats (one row per sample; the two formats hold the same columns):
 
@@ -18,10 +18,15 @@ trajectory) and the rate columns are optional. Rates come as whole sets: ``vx, v
 ``ax, ay, az`` for Cartesian coordinates, ``<name>_dot`` and ``<name>_ddot`` otherwise. Rates a
 file does not give are computed by a cubic spline in ``t`` per candidate (``complete_rates``).
 
-Writing (``write_table``) is atomic: the file is written to a temporary file in the target's
-directory and renamed over the target (``os.replace``) only when complete, so an existing
-file is never truncated or half-written by a failed or interrupted run. Floats are written
-in the shortest form that reads back to the same value (``repr``).
+Writing (``write_table``, or ``table_writer`` part by part) is atomic: the file is written to a
+temporary file in the target's directory and renamed over the target (``os.replace``) only
+when complete, so an existing file is never truncated or half-written by a failed or
+interrupted run. Output paths are checked first (``output_target``, ``check_outputs``): a
+symlink writes its target, a named pipe or character device is written into, and a
+read-only file, a directory, a socket, a block device or an unwritable directory is refused.
+Floats are written in the shortest form that reads back to the same value (``repr``). CSV is
+read in blocks of ``READ_BLOCK`` rows and written part by part, so the text of a file is
+never held whole.
 
 Every problem with a file raises ``InputError`` (a ``ValueError``) with a one-line message that
 starts with the file name and, for CSV, the line number.
@@ -34,6 +39,7 @@ import csv
 import dataclasses
 import math
 import os
+import stat
 import sys
 import tempfile
 import zipfile
@@ -44,8 +50,8 @@ from typing import IO, Any
 import jax
 import numpy as np
 
-from .. import _batching, _splines, lie
-from .._progress import bar
+from . import _batching, _splines, _validate, lie
+from ._progress import bar
 
 __all__ = [
     "CARTESIAN",
@@ -54,20 +60,27 @@ __all__ = [
     "Trajectory",
     "atomic_write",
     "check_output_path",
+    "check_outputs",
     "complete_rates",
     "continuous_quaternions",
+    "QuaternionSigns",
     "quaternion_signs",
     "file_format",
+    "output_target",
     "rate_names",
     "read_table",
     "read_trajectory",
+    "same_file",
     "solve_in_chunks",
+    "solved_chunks",
+    "table_writer",
     "trajectory_columns",
     "write_csv",
     "write_table",
 ]
 
 CARTESIAN = ("x", "y", "z")
+READ_BLOCK = 1 << 16  # CSV rows parsed as text before they become floats
 
 
 class InputError(ValueError):
@@ -196,7 +209,11 @@ def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
     """Non-blank, non-comment CSV rows with their line numbers."""
     try:
         with path.open("r", newline="", encoding="utf-8-sig") as f:
-            first = f.readline()
+            first = ""
+            for line in f:  # the header: the first line that is neither blank nor a comment
+                if line.strip() and not line.lstrip().startswith("#"):
+                    first = line
+                    break
             delimiter = ","
             if "," not in first:
                 delimiter = ";" if ";" in first else "\t" if "\t" in first else ","
@@ -240,8 +257,19 @@ def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
         )
     index = {n: i for i, n in enumerate(names)}
     used = [n for n in wanted if n in index]
+    blocks: dict[str, list[np.ndarray]] = {n: [] for n in used}
+    line_blocks: list[np.ndarray] = []
     cells: dict[str, list[str]] = {n: [] for n in used}
     lines: list[int] = []
+
+    def convert() -> None:  # the block's text cells to floats: memory by the block, not file
+        numbers = np.asarray(lines, dtype=np.int64)
+        line_blocks.append(numbers)
+        for n in used:
+            blocks[n].append(_to_float(path, n, cells[n], numbers))
+            cells[n].clear()
+        lines.clear()
+
     for line, row in rows:
         if len(row) != len(names):
             raise InputError(
@@ -250,11 +278,14 @@ def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
         lines.append(line)
         for n in used:
             cells[n].append(row[index[n]].strip() or "nan")
-    if not lines:
+        if len(lines) == READ_BLOCK:
+            convert()
+    if lines:
+        convert()
+    if not line_blocks:
         raise InputError(f"{path}: no data rows after the header")
-    line_numbers = np.asarray(lines)
-    data = {n: _to_float(path, n, cells[n], line_numbers) for n in used}
-    return Table(str(path), tuple(names), data, line_numbers)
+    data = {n: np.concatenate(blocks.pop(n)) for n in used}
+    return Table(str(path), tuple(names), data, np.concatenate(line_blocks))
 
 
 def _to_float(path: Path, name: str, cells: list[str], lines: np.ndarray) -> np.ndarray:
@@ -286,7 +317,8 @@ class Trajectory:
     """Samples of one or more trajectories read from a file.
 
     Attributes:
-        table: the underlying ``Table`` (source name, line numbers).
+        table: the underlying ``Table`` for messages (source name, line numbers; its
+            columns, now in the fields below, are not kept).
         names: the position column names, e.g. ``("x", "y", "z")``.
         t: times, ``(N,)``.
         candidate: integer labels ``(N,)``, or ``None`` when the file has no such column.
@@ -344,7 +376,9 @@ def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -
             )
         candidate = raw.astype(np.int64)
     p = np.stack([table.data[n] for n in names], axis=-1)
-    return Trajectory(table, names, table.data["t"], candidate, p, rates[0], rates[1])
+    t = table.data["t"]
+    table = dataclasses.replace(table, data={})  # the columns live on in t, p and the rates
+    return Trajectory(table, names, t, candidate, p, rates[0], rates[1])
 
 
 def trajectory_columns(
@@ -377,52 +411,154 @@ def trajectory_columns(
 # ------------------------------------------------------------------------------------ writing
 
 
-def check_output_path(path: str | Path) -> Path:
-    """The directory an output file ``path`` would be written in, after checking it exists.
+def _kind(mode: int) -> str:
+    """What a ``stat`` mode names, for messages."""
+    for test, name in (
+        (stat.S_ISDIR, "a directory"),
+        (stat.S_ISFIFO, "a named pipe"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _streams_in_place(mode: int) -> bool:
+    """Named pipes and character devices (``/dev/null``, a terminal) are written into."""
+    return stat.S_ISFIFO(mode) or stat.S_ISCHR(mode)
+
+
+def output_target(path: str | os.PathLike) -> Path:
+    """The file an output ``path`` writes, after checking it can be written; before any work.
+
+    A symlink is followed to its target (the link stays, its target gets the data). The
+    target is a regular file, written atomically (``atomic_write``), or a named pipe or
+    character device (``/dev/null``, a terminal), written into directly; anything else is
+    refused, as is a read-only file (never replaced) and a directory where a temporary file
+    cannot be created (checked by creating and removing one).
 
     Raises:
-        InputError: ``path`` is a directory, or its directory does not exist.
+        InputError: naming ``path``: empty, a directory, a socket or block device, read-only,
+            or its directory missing or not writable.
     """
+    if not os.fspath(path):
+        raise InputError("'': an empty name, expected an output file name")
     path = given(path)
-    directory = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise InputError(f"{path}: is a directory, expected an output file name")
+    try:
+        mode = os.stat(path).st_mode  # follows links, /dev/stdout's included
+    except FileNotFoundError:
+        mode = None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write ({_one_line(exc)})") from None
+    if mode is not None and not stat.S_ISREG(mode):
+        if _streams_in_place(mode):
+            return path
+        raise InputError(f"{path}: is {_kind(mode)}, expected an output file name")
+    target = Path(os.path.realpath(path))
+    if mode is not None and (not os.access(target, os.W_OK) or not mode & 0o222):
+        raise InputError(f"{path}: is read-only; make it writable or choose another name")
+    directory = target.parent
     if not directory.is_dir():
         raise InputError(f"{path}: cannot write: directory {directory} does not exist")
-    return directory
+    try:  # the one reliable test of a writable directory (permissions, ACLs, read-only mounts)
+        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot write in {directory} ({_one_line(exc)})") from None
+    return target
+
+
+def check_output_path(path: str | os.PathLike) -> Path:
+    """The directory an output file ``path`` would be written in (``output_target``)."""
+    return output_target(path).parent
+
+
+def same_file(first: str | os.PathLike, second: str | os.PathLike) -> bool:
+    """True when two spellings name one file (symlinks, ``./``, ``..``, hard links)."""
+    try:
+        if os.path.exists(first) and os.path.exists(second):
+            return os.path.samefile(first, second)
+        return os.path.realpath(first) == os.path.realpath(second)
+    except OSError:
+        return False
+
+
+def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any]) -> dict[str, Path]:
+    """Check every output path against every input and every other output, before any work.
+
+    Args:
+        outputs: option -> output path (``None`` and ``"-"``, standard output, skipped).
+        inputs: option -> input path (``None`` skipped; names that are not files are fine).
+
+    Returns:
+        option -> the file each output writes (``output_target``).
+
+    Raises:
+        InputError: an output names an input file or another output (through any spelling,
+            symlink or hard link), or cannot be written (``output_target``); the message names
+            both options.
+    """
+    targets: dict[str, Path] = {}
+    for option, path in outputs.items():
+        if path is None or os.fspath(path) == "-":
+            continue
+        for other, source in inputs.items():
+            if source is not None and same_file(source, path):
+                raise InputError(
+                    f"{option} {path} is the input file {source} ({other}): it would be "
+                    "overwritten; choose another name"
+                )
+        for other, done in targets.items():
+            if same_file(done, path) or done == Path(os.path.realpath(path)):
+                raise InputError(f"{option} {path} is also {other}: choose two names")
+        try:
+            targets[option] = output_target(path)
+        except InputError as exc:
+            raise InputError(f"{option} {exc}") from None
+    return targets
 
 
 @contextlib.contextmanager
 def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
-    """Open a temporary file beside ``path``; on success rename it over ``path``.
+    """Open a temporary file beside ``path``'s target; on success rename it over the target.
 
-    On any exception (including ``KeyboardInterrupt``) the temporary file is removed and
-    ``path`` is left exactly as it was. The new file gets the permissions of the file it
-    replaces, or the usual ``0o666 & ~umask`` for a new file.
+    ``path`` is checked first (``output_target``: a symlink writes its target; a read-only
+    file, a directory, a socket or a block device are refused). On any exception (including
+    ``KeyboardInterrupt``, and SIGTERM under the command line) the temporary file is removed
+    and the target is left exactly as it was. The new file gets the permissions of the file it
+    replaces, or the usual ``0o666 & ~umask`` for a new file. A named pipe or a character
+    device (``/dev/null``) is written into directly: there is nothing to replace.
 
     Raises:
-        InputError: the directory does not exist or ``path`` is a directory.
+        InputError: ``path`` cannot be written (``output_target``).
     """
     path = given(path)
-    directory = check_output_path(path)
+    target = output_target(path)
+    kwargs = {"newline": "", "encoding": "utf-8"} if "b" not in mode else {}
+    if target.exists() and _streams_in_place(os.stat(target).st_mode):
+        with open(target, mode, **kwargs) as f:
+            yield f
+        return
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise InputError(f"{path}: cannot write ({_one_line(exc)})") from None
     try:
         try:
-            mode_bits = path.stat().st_mode & 0o777
+            mode_bits = target.stat().st_mode & 0o777
         except OSError:
             umask = os.umask(0)
             os.umask(umask)
             mode_bits = 0o666 & ~umask
         os.chmod(tmp, mode_bits)
-        kwargs = {"newline": "", "encoding": "utf-8"} if "b" not in mode else {}
         with os.fdopen(fd, mode, **kwargs) as f:
             yield f
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -439,12 +575,65 @@ def _format_column(values: np.ndarray) -> list[str]:
     return [str(x) for x in values.tolist()]
 
 
-def write_csv(f: IO[str], columns: Mapping[str, np.ndarray]) -> None:
-    """Write ``columns`` (name -> 1-D array, all one length) as CSV with a header row."""
+def write_csv(f: IO[str], columns: Mapping[str, np.ndarray], header: bool = True) -> None:
+    """Write ``columns`` (name -> 1-D array, all one length) as CSV rows, after a header row
+    naming them unless ``header`` is False (a later part of one table)."""
     writer = csv.writer(f, lineterminator="\n")
-    writer.writerow(list(columns))
+    if header:
+        writer.writerow(list(columns))
     formatted = [_format_column(values) for values in columns.values()]
     writer.writerows(zip(*formatted, strict=True))
+
+
+def _checked_lengths(columns: Mapping[str, np.ndarray]) -> None:
+    lengths = {len(np.asarray(v)) for v in columns.values()}
+    if len(lengths) > 1:
+        raise ValueError(f"columns of different lengths: {sorted(lengths)}")
+
+
+@contextlib.contextmanager
+def table_writer(
+    path: str | os.PathLike | None,
+) -> Iterator[Callable[[Mapping[str, np.ndarray]], None]]:
+    """Write one table in parts: yields ``write(columns)``, which appends rows (the same
+    column names every call).
+
+    CSV goes out part by part (to a temporary file renamed at the end, ``atomic_write``, or to
+    standard output for ``path == "-"``), so memory is bounded by a part, not the table; NPZ
+    holds the parts until the end (an archive is written whole). ``path=None`` writes nothing
+    (a process that does not write). On an exception nothing replaces an existing file.
+    """
+    if path is None:
+        yield lambda columns: None
+        return
+    first = [True]
+
+    def csv_part(f: IO[str]) -> Callable[[Mapping[str, np.ndarray]], None]:
+        def write(columns: Mapping[str, np.ndarray]) -> None:
+            _checked_lengths(columns)
+            write_csv(f, columns, header=first[0])
+            first[0] = False
+
+        return write
+
+    if str(path) == "-":
+        yield csv_part(sys.stdout)
+        return
+    if file_format(path) == "npz":
+        parts: dict[str, list[np.ndarray]] = {}
+
+        def keep(columns: Mapping[str, np.ndarray]) -> None:
+            _checked_lengths(columns)
+            for key, value in columns.items():
+                parts.setdefault(key, []).append(np.asarray(value))
+
+        output_target(path)  # fail before the work, as the CSV writer does
+        yield keep
+        with atomic_write(path, "wb") as f:
+            np.savez(f, **{k: np.concatenate(v) for k, v in parts.items()})
+        return
+    with atomic_write(path, "w") as f:
+        yield csv_part(f)
 
 
 def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray]) -> None:
@@ -452,18 +641,9 @@ def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray]) -> N
 
     ``path == "-"`` writes CSV to standard output.
     """
-    lengths = {len(np.asarray(v)) for v in columns.values()}
-    if len(lengths) > 1:
-        raise ValueError(f"columns of different lengths: {sorted(lengths)}")
-    if str(path) == "-":
-        write_csv(sys.stdout, columns)
-        return
-    if file_format(path) == "npz":
-        with atomic_write(path, "wb") as f:
-            np.savez(f, **{k: np.asarray(v) for k, v in columns.items()})
-    else:
-        with atomic_write(path, "w") as f:
-            write_csv(f, columns)
+    _checked_lengths(columns)
+    with table_writer(path) as write:
+        write(columns)
 
 
 # ------------------------------------------------------------------------------------ solving
@@ -512,10 +692,24 @@ def quaternion_signs(
 
 
 def continuous_quaternions(traj: Trajectory) -> Trajectory:
-    """A pose trajectory (columns ``x, y, z, qw, qx, qy, qz``) with the quaternions' signs made
-    continuous along each candidate (``quaternion_signs``: splining needs one sign), rates
-    flipped with them."""
-    sign = quaternion_signs(traj.t, traj.candidate, traj.valid, traj.p[:, 3:7])
+    """A pose trajectory (columns ``x, y, z, qw, qx, qy, qz``) with unit quaternions whose
+    signs are continuous along each candidate.
+
+    Each row's quaternion is scaled to unit length (``jaxkin._validate.unit_quaternions``:
+    any length, ``q`` and ``c q`` being one rotation) and its given rates with it (at one
+    instant, the rates of ``q / c`` are those of ``q`` divided by ``c``), so rows whose
+    quaternions differ only in length give one rotation and splined rates are those of the
+    unit quaternions, as in ``jaxkin.paths``. A zero quaternion becomes NaN: that row gets
+    status ``INVALID_INPUT`` and is left out of the splines of the others. Signs then follow
+    ``quaternion_signs`` (splining needs one hemisphere), rates flipped with them.
+    """
+    unit, length, _ = _validate.unit_quaternions(traj.p[:, 3:7])
+    p = np.concatenate([traj.p[:, :3], unit], -1)
+    scale = np.concatenate([np.ones((len(length), 3)), np.repeat(length[:, None], 4, 1)], 1)
+    with np.errstate(invalid="ignore"):
+        v, a = (None if r is None else r / scale for r in (traj.v, traj.a))
+    traj = dataclasses.replace(traj, p=p, v=v, a=a)
+    sign = quaternion_signs(traj.t, traj.candidate, traj.valid, unit)
     flip = np.concatenate([np.ones((len(sign), 3)), np.repeat(sign[:, None], 4, axis=1)], 1)
     return dataclasses.replace(
         traj,
@@ -525,6 +719,25 @@ def continuous_quaternions(traj: Trajectory) -> Trajectory:
     )
 
 
+def solved_chunks(
+    fn: Callable[..., Any],
+    arrays: Sequence[np.ndarray],
+    chunk: int,
+    desc: str,
+    quiet: bool,
+) -> Iterator[tuple[int, int, list[np.ndarray]]]:
+    """``(start, stop, outputs)``: ``fn`` applied to row chunks of ``arrays``, its outputs (a
+    pytree of arrays) flattened to host arrays of rows ``start:stop``, one chunk at a time.
+    Every call has one shape (``jaxkin._batching.host_chunks``), so ``fn`` compiles once per
+    file."""
+    n = len(arrays[0])
+    with bar(n, desc, enabled=False if quiet else None) as meter:
+        for start, stop, index in _batching.host_chunks(n, chunk):
+            out = fn(*(x[index] for x in arrays))
+            yield start, stop, [np.array(x[: stop - start]) for x in jax.tree.leaves(out)]
+            meter.update(stop - start)
+
+
 def solve_in_chunks(
     fn: Callable[..., Any],
     arrays: Sequence[np.ndarray],
@@ -532,14 +745,30 @@ def solve_in_chunks(
     desc: str,
     quiet: bool,
 ) -> list[np.ndarray]:
-    """Apply ``fn`` to row chunks of ``arrays`` and concatenate its outputs (a pytree of
-    arrays, flattened to host arrays). Every chunk has one shape
-    (``jaxkin._batching.host_chunks``), so ``fn`` compiles once per file."""
-    n = len(arrays[0])
-    parts: list[list[np.ndarray]] = []
-    with bar(n, desc, enabled=False if quiet else None) as meter:
-        for start, stop, index in _batching.host_chunks(n, chunk):
-            out = fn(*(x[index] for x in arrays))
-            parts.append([np.asarray(x)[: stop - start] for x in jax.tree.leaves(out)])
-            meter.update(stop - start)
+    """Every chunk of ``solved_chunks`` joined: ``fn``'s outputs for all rows."""
+    parts = [outputs for _, _, outputs in solved_chunks(fn, arrays, chunk, desc, quiet)]
     return [np.concatenate(column) for column in zip(*parts, strict=True)]
+
+
+class QuaternionSigns:
+    """Signs (+-1) that keep quaternions continuous along each candidate across the chunks
+    of a file, in file order (time order when the rates were splined: ``t`` then increases):
+    the last signed quaternion of each candidate is carried to the next chunk."""
+
+    def __init__(self) -> None:
+        self.last: dict[int, np.ndarray] = {}
+
+    def __call__(
+        self, candidate: np.ndarray | None, valid: np.ndarray, quat: np.ndarray
+    ) -> np.ndarray:
+        """``(n,)`` signs for one chunk's quaternions ``(n, 4)``."""
+        group = candidate if candidate is not None else np.zeros(len(quat), np.int64)
+        sign = np.ones(len(quat))
+        for label in np.unique(group[valid]).tolist():
+            rows = np.flatnonzero(valid & (group == label))
+            previous = self.last.get(label)
+            q = quat[rows] if previous is None else np.concatenate([previous[None], quat[rows]])
+            signs = lie.hemisphere_signs(q, xp=np)[0 if previous is None else 1 :]
+            sign[rows] = signs
+            self.last[label] = quat[rows[-1]] * signs[-1]
+        return sign
