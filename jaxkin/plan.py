@@ -45,6 +45,7 @@ split along the candidate axis (``jaxkin._batching.map_candidates``; ``docs/scal
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import jax
