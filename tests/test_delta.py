@@ -377,10 +377,11 @@ def test_jit_over_batch_and_time_without_recompilation():
     p = random_workspace_points(4 * 6, seed=10).reshape(4, 6, 3)  # (N, T, 3)
     theta = delta.ik(ROBOT, p).q.p
     delta.fk(ROBOT, theta)
+    inputs = (p + 0.1, p - 0.1, np.asarray(theta) + 0.01)  # new values, made outside the count
     with compilations() as count:
-        delta.ik(ROBOT, p + 0.1)
-        delta.ik(ROBOT, p - 0.1)
-        delta.fk(ROBOT, theta + 0.01)
+        delta.ik(ROBOT, inputs[0])
+        delta.ik(ROBOT, inputs[1])
+        delta.fk(ROBOT, inputs[2])
     assert count["n"] == 0
     user = jax.jit(lambda th: delta.fk(ROBOT, th).x.p)
     np.testing.assert_allclose(user(theta), p, atol=1e-10)
