@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow docs docs-serve bench bench-peers lint format clean
+.PHONY: demo test test-slow docs docs-serve bench bench-goals bench-peers lint format clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -44,6 +44,11 @@ docs-serve: $(DOCS_STAMP)
 
 bench: $(STAMP)
 	JAXKIN_WRITE_RESULTS=1 $(BIN)/python -m pytest -q benchmarks --ignore=benchmarks/test_peers.py --benchmark-only --benchmark-columns=min,median,rounds
+
+# The goal ratios alone (benchmarks/test_goals.py, about a minute): fails when a kernel's
+# ratio to its reference falls below the floor recorded there. `make bench` runs it too.
+bench-goals: $(STAMP)
+	$(BIN)/python -m pytest -q -s benchmarks/test_goals.py --benchmark-only --benchmark-columns=rounds
 
 # Installs the peer libraries into .venv (torch CPU, roboticstoolbox, pytorch_kinematics,
 # PyRoki, pylinkage, visual-kinematics; jax/numpy pinned), then times them beside jaxkin.

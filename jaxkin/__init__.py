@@ -23,6 +23,7 @@ from . import serial as serial
 from . import workspace as workspace
 from ._batching import num_threads as num_threads
 from ._batching import set_num_threads as set_num_threads
+from ._compile_cache import enable_compilation_cache as enable_compilation_cache
 from .jet import Jet as Jet
 from .jet import lift as lift
 from .result import FKResult as FKResult
@@ -49,6 +50,7 @@ __all__ = [
     "delta",
     "describe",
     "dyad",
+    "enable_compilation_cache",
     "fixedpoint",
     "fk",
     "ik",
