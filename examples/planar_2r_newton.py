@@ -19,7 +19,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin.serial import lie, newton_ik, poe
+from jaxkin import lie
+from jaxkin.serial import newton_ik, poe
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never sets it
 

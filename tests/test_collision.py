@@ -391,7 +391,7 @@ def test_moving_or_resizing_obstacles_does_not_recompile():
     )
     with compilations() as count:
         second = check(*robot, moved)
-    assert count["n"] == 0
+    assert count.n == 0
     assert not np.allclose(np.asarray(first[0].distance), np.asarray(second[0].distance))
 
 

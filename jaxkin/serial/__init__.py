@@ -5,7 +5,8 @@ Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk
 * ``DHTable``, ``fk_dh``: standard Denavit-Hartenberg forward kinematics
   [Lopez-Villagomez, eq. 2].
 * ``PoEChain``, ``fk_poe``, ``chain_fk``, ``fk_chain``, ``space_jacobian``, ``body_jacobian``,
-  ``poe_from_dh``, ``change_frame``: product of exponentials [Pineiro]; ``lie``: SO(3)/SE(3).
+  ``poe_from_dh``, ``change_frame``: product of exponentials [Pineiro] (rotations:
+  ``jaxkin.lie``).
 * ``JointChain``: a chain with named, typed, limited joints and mimic couplings;
   ``from_urdf``: the chain from a base link to a tip link of a URDF (the ``urdf`` extra).
 * ``ik_newton``: Newton-Raphson IK with body/space twists [Pineiro], per-element convergence
@@ -15,7 +16,6 @@ Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk
   branch with rates and a margin) and ``fk`` (in the form of the targets).
 """
 
-from . import lie as lie
 from .arms import ARMS as ARMS
 from .arms import Anthropomorphic as Anthropomorphic
 from .arms import ArmIKResult as ArmIKResult
@@ -72,7 +72,6 @@ __all__ = [
     "ik_chain",
     "ik_jet",
     "ik_newton",
-    "lie",
     "poe_from_dh",
     "space_jacobian",
 ]

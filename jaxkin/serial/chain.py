@@ -36,14 +36,13 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _validate, lie
 from .._geometry import BOUND, REAL, geometry, number, static
 from ..jet import Jet
 from ..result import FKResult, forward_result
 from ..robot import POSE, CompilePolicy, JointLimits, Robot, fk, promoted
 from ..status import Status
 from . import dh as _dh
-from . import lie
 from . import poe as _poe
 from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
 

@@ -29,14 +29,13 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _batching, _validate, lie
 from .._geometry import REAL, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
 from ..jet import Jet
 from ..robot import POSE, CompilePolicy, Robot, promoted
 from ..status import Status
-from . import lie
 from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
 
 __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]

@@ -58,7 +58,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _batching, _validate, lie
 from .._numerics import all_finite, computed_once, eps, isotropy, safe_sqrt, singular_rtol
 from ..jet import Jet
 from ..result import IKResult, SolverResult
@@ -66,7 +66,6 @@ from ..robot import solve_ik
 from ..status import STATUS_DTYPE, Status
 from . import chain as _chain
 from . import dh as _dh
-from . import lie
 from . import poe as _poe
 from ._chain_options import CHAIN_MIN_PART, QUEUE_SLOTS, ChainIKOptions
 

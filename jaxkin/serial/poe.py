@@ -40,7 +40,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _batching, _validate, lie
 from .._geometry import REAL, geometry, number, static
 from .._trig import sincos
 from ..jet import Jet
@@ -48,7 +48,6 @@ from ..result import FKResult, forward_result
 from ..robot import POSE, CompilePolicy, Robot, fk, promoted
 from ..status import Status
 from . import dh as _dh
-from . import lie
 from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
 
 __all__ = [
