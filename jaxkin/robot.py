@@ -434,24 +434,30 @@ _DEFAULTS: dict[type, Any] = {}
 # ------------------------------------------------------------------------------ the pipeline
 
 
-def _float_dtype(*dtypes: Any) -> Any:
-    """The floating dtype inputs of ``dtypes`` are computed in (canonical for the x64 flag)."""
+def _float_dtype(dtypes: tuple, canonical: bool) -> Any:
+    """The floating dtype inputs of ``dtypes`` are computed in (canonical for the x64 flag;
+    ``canonical``: the inputs are JAX arrays, whose dtypes already are)."""
+    if canonical and len(dtypes) == 1 and dtypes[0] in _FLOATS:
+        return dtypes[0]
     key = (dtypes, jax.config.jax_enable_x64)
     found = _FLOAT_DTYPES.get(key)
     if found is None:
-        canonical = (jax.dtypes.canonicalize_dtype(d) for d in dtypes)
-        found = _FLOAT_DTYPES[key] = jnp.result_type(*canonical, float)
+        canonical_dtypes = (jax.dtypes.canonicalize_dtype(d) for d in dtypes)
+        found = _FLOAT_DTYPES[key] = jnp.result_type(*canonical_dtypes, float)
     return found
 
 
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 _FLOAT_DTYPES: dict[Any, Any] = {}
 
 
-def promoted(*dtypes: Any) -> Any:
-    """``jnp.result_type`` of ``dtypes``, cached (a chain's ``work_dtype`` on every call)."""
-    found = _PROMOTED.get(dtypes)
+def promoted(dtype: Any, other: Any) -> Any:
+    """``jnp.result_type(dtype, other)``, cached (a chain's ``work_dtype`` on every call)."""
+    if dtype is other:
+        return dtype
+    found = _PROMOTED.get((dtype, other))
     if found is None:
-        found = _PROMOTED[dtypes] = jnp.result_type(*dtypes)
+        found = _PROMOTED[(dtype, other)] = jnp.result_type(dtype, other)
     return found
 
 
@@ -568,8 +574,9 @@ def _inputs(robot: Robot, x: Any, name: str, core: tuple[int, ...]):
         raise ValueError(
             f"{name}: {type(robot).__name__} expects shape (..., {want}), got {tuple(shape)}"
         )
-    dtype = robot.work_dtype(_float_dtype(*(y.dtype for y in arrays)))
-    arrays = [y if y.dtype == dtype else _cast(y, dtype) for y in arrays]
+    canonical = all(type(y) in _JAX_TYPES for y in arrays)
+    dtype = robot.work_dtype(_float_dtype(tuple(y.dtype for y in arrays), canonical))
+    arrays = [y if y.dtype is dtype or y.dtype == dtype else _cast(y, dtype) for y in arrays]
     batch = tuple(shape[: len(shape) - k])
     extra = robot.batch_shape()
     if extra:
@@ -581,7 +588,12 @@ def _inputs(robot: Robot, x: Any, name: str, core: tuple[int, ...]):
 def _array(x: Any) -> Any:
     """``x`` as an array with a shape and a dtype (JAX and NumPy arrays and tracers as they
     are; anything else through NumPy)."""
-    if isinstance(x, jax.Array | np.ndarray):
+    if type(x) in _ARRAY_TYPES:
+        return x
+    if isinstance(x, _ARRAYS):
+        if isinstance(x, jax.Array) and not isinstance(x, jax.core.Tracer):
+            _ARRAY_TYPES.add(type(x))
+            _JAX_TYPES.add(type(x))
         return x
     if not hasattr(x, "shape") or not hasattr(x, "dtype"):
         try:
@@ -592,6 +604,11 @@ def _array(x: Any) -> Any:
             raise ValueError(f"expected an array of real numbers, got {x!r}")
         return arr
     return x
+
+
+_ARRAYS = (jax.Array, np.ndarray)
+_ARRAY_TYPES = {np.ndarray}  # concrete array types seen: checked before the slower isinstance
+_JAX_TYPES: set[type] = set()  # concrete JAX array types seen
 
 
 def _cast(x: Any, dtype: Any) -> Any:

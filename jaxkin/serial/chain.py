@@ -284,7 +284,7 @@ class JointChain(Robot):
         return _fk_core(_validate.cast_leaves(self, q.dtype), q, rates)
 
     def work_dtype(self, dtype: Any) -> Any:
-        return promoted(dtype, self.dtype)
+        return promoted(dtype, self.screws.dtype)
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")

@@ -153,7 +153,7 @@ class DHTable(Robot):
         return _fk_chain_core(_validate.cast_leaves(self, q.dtype), q, rates)
 
     def work_dtype(self, dtype: Any) -> Any:
-        return promoted(dtype, self.dtype)
+        return promoted(dtype, self.a.dtype)
 
 
 def dh_transform(a: ArrayLike, alpha: ArrayLike, d: ArrayLike, theta: ArrayLike) -> Array:

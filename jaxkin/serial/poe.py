@@ -171,7 +171,7 @@ class PoEChain(Robot):
         return _fk_chain_core(_validate.cast_leaves(self, q.dtype), q, rates)
 
     def work_dtype(self, dtype: Any) -> Any:
-        return promoted(dtype, self.dtype)
+        return promoted(dtype, self.screws.dtype)
 
 
 # ----------------------------------------------------------------------------------------------
