@@ -60,14 +60,14 @@ ROBOTS = {
     ),
     "puma560": (serial.Puma560, lambda r, n: r.uniform(0.3, 1.2, (n, 6))),
     "stanford": (lambda: serial.Stanford(0.4, 0.3), lambda r, n: r.uniform(0.3, 1.2, (n, 6))),
-    "dh-table": (
-        lambda: serial.DHTable.create(
-            a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0.0, 0.0]
+    "dh-chain": (
+        lambda: serial.from_dh(
+            serial.DHTable.create(a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0, 0])
         ),
         lambda r, n: r.uniform(0.3, 1.2, (n, 3)),
     ),
-    "poe-chain": (
-        lambda: serial.poe_from_dh(serial.Puma560().dh_table()),
+    "screw-chain": (
+        lambda: serial.from_dh(serial.Puma560().dh_table()),
         lambda r, n: r.uniform(0.3, 1.2, (n, 6)),
     ),
 }

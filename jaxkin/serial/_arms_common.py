@@ -32,7 +32,7 @@ from .._numerics import safe_sqrt, singular_rtol
 from ..result import SolverResult
 from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
-from .dh import DHTable, fk_dh
+from .dh import DHTable, transforms
 
 PI = float(np.pi)
 TWO_PI = 2.0 * PI
@@ -123,7 +123,7 @@ class Arm(Robot):
 
     def link_segments(self, q: Array, x: Array) -> Array:
         """Base -> the origin of each DH frame in turn, ``(..., n, 2, d)``."""
-        frames = fk_dh(self.dh_table(q.dtype), q, all_frames=True)[..., :3, 3]
+        frames = transforms(self.dh_table(q.dtype), q, all_frames=True)[..., :3, 3]
         points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
         points = points[
             ..., : 2 if self.target.shape == (2,) or self.target.name == "planar pose" else 3

@@ -17,7 +17,8 @@ arm                        module                target          branches  joint
 ``result.branch("front_up")``) selects one. ``ik_jet(robot, target, branch)`` (what
 ``jaxkin.ik`` calls): one branch with joint rates (``jaxkin.lift`` of the position IK; a pose
 target is a Jet of 4x4 matrices) and a margin. ``fk(robot, q)``: an ``FKResult`` whose ``x`` is
-in the form of the targets (``fk_dh(robot.dh_table(), q)`` gives the 4x4 transform).
+in the form of the targets (``jaxkin.fk(serial.from_dh(robot.dh_table()), q).x.p`` gives the
+4x4 transform).
 
 Statuses per branch: ``OK``; ``SINGULAR`` (the target is reproduced but a joint is free or
 branches coincide: the documented choice is returned); ``UNREACHABLE`` (``q`` is the clamped,
@@ -42,12 +43,12 @@ from ..jet import Jet, lift
 from ..result import FKResult, IKResult, forward_result
 from ..robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
 from ..status import Status
-from . import poe as _poe
+from . import _kinematics
+from . import dh as _dh
 from ._arms_common import Arm, ArmIKResult, _ik_impl, check_robot, ik_arm
 from .arms_3dof import Anthropomorphic, Cylindrical, Spherical
 from .arms_6dof import Puma560, Stanford
 from .arms_planar import Planar2R, Planar3R
-from .dh import fk_dh
 
 __all__ = [
     "ARMS",
@@ -77,7 +78,7 @@ ARMS: tuple[type[Arm], ...] = (
 
 def _task(robot: Arm, q: Array) -> Array:
     """The forward kinematics in the form of the arm's targets, ``(..., *target.shape)``."""
-    frame = fk_dh(robot.dh_table(q.dtype), q)
+    frame = _dh.transforms(robot.dh_table(q.dtype), q)
     if robot.target is PLANAR_POINT:
         return frame[..., :2, 3]
     if robot.target is PLANAR_POSE:
@@ -105,8 +106,8 @@ def _scaled_jacobian(robot: Arm, q: Array, scale: Array) -> tuple[Array, Array]:
     pose ``(x_dot, y_dot, omega_z)``. Length rows are divided, prismatic columns multiplied,
     by ``scale``.
     """
-    chain = _poe._poe_from_dh_impl(robot.dh_table(q.dtype))
-    rot, p, jac = _poe._fk_and_jacobian(chain, q, "space")
+    screws, home = _dh.screws(robot.dh_table(q.dtype))
+    rot, p, jac = _kinematics.screws_fk_and_jacobian(screws, home, q, "space")
     omega, v = jac[..., :3, :], jac[..., 3:, :]
     p_dot = v + jnp.cross(omega, p[..., :, None], axis=-2)
     inv = 1.0 / scale[..., None, None]
@@ -235,7 +236,8 @@ def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
         ``FKResult``: ``x`` (Jet ``(..., *robot.TARGET_SHAPE)``: the point, the planar pose
         ``(x, y, phi)`` with phi in (-pi, pi], or the 4x4 pose) and ``status`` (``OK``, or
         ``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``). The
-        4x4 transform of the last DH frame is ``fk_dh(robot.dh_table(), q)``.
+        4x4 transform of the last DH frame is ``jaxkin.fk(serial.from_dh(robot.dh_table()),
+        q).x.p``.
 
     Raises:
         ValueError: ``robot`` is not one of ``ARMS`` or ``q``'s last axis is not ``n_joints``.
