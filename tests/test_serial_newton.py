@@ -324,3 +324,25 @@ def test_validation():
         newton.ik_newton("arm", target, q0)
     with pytest.raises(ValueError, match="chain: expected a serial.Chain"):
         newton.ik_newton(dh.DHTable.create(a=[1.0, 1.0], alpha=[0, 0], d=[0, 0]), target, q0)
+
+
+def _not_rigid(good):
+    """``good`` (4, 4) spoilt four ways: rotation block scaled by 2 (the log of ``R^T R_d =
+    2 I`` reads as angle 0: it looked solved), mirrored (det -1), skewed by 1e-6 (beyond
+    ``sqrt(eps)``), a NaN in the rotation."""
+    bad = np.stack([good] * 4)
+    bad[0, :3, :3] *= 2.0
+    bad[1, :3, 2] *= -1.0
+    bad[2, 0, 1] += 1e-6
+    bad[3, 1, 1] = np.nan
+    return bad
+
+
+def test_a_target_that_is_not_a_rigid_transform_is_never_ok():
+    chain = _planar_2r_body()
+    good = _planar_2r_pose([0.3, 0.9])
+    targets = np.concatenate([good[None], _not_rigid(good)])
+    res = _ik_body(chain, targets, np.array([0.3, 0.9]), max_iter=15)
+    names = [Status(int(s)).name for s in res.status]
+    assert names == ["OK"] + ["INVALID_INPUT"] * 4
+    assert tree_allfinite(res)

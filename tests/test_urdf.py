@@ -381,3 +381,19 @@ def test_names_tip_and_batch_sizes_share_compilations():
     np.testing.assert_array_equal(grid.status, whole.status[:6].reshape(2, 3))
     np.testing.assert_array_equal(one.q.p, single.q.p[0])
     assert one.q.p.shape == (3,) and one.status.shape == ()
+
+
+def test_a_target_that_is_not_a_rigid_transform_is_invalid_input():
+    """Rotation blocks that are not rotations (scaled, mirrored, skewed by 1e-6, NaN) are
+    ``INVALID_INPUT``, never ``OK``; the rigid target beside them is solved."""
+    chain = serial.from_urdf(MIMIC_URDF, "camera")
+    good = np.asarray(jaxkin.fk(chain, np.array([0.4, 0.1, 0.3])).x.p)
+    bad = np.stack([good] * 4)
+    bad[0, :3, :3] *= 2.0
+    bad[1, :3, 2] *= -1.0
+    bad[2, 0, 1] += 1e-6
+    bad[3, 1, 1] = np.nan
+    result = jaxkin.ik(chain, np.concatenate([good[None], bad]))
+    names = [Status(int(s)).name for s in result.status]
+    assert names == ["OK"] + ["INVALID_INPUT"] * 4
+    assert np.all(np.isfinite(np.asarray(result.q.p)))

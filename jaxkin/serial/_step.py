@@ -22,10 +22,18 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from .._numerics import computed_once, safe_sqrt, singular_rtol
+from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
 from . import lie
 
-__all__ = ["body_twist", "damped_step", "damped_step_soa", "limited", "norm3", "spd_solve"]
+__all__ = [
+    "body_twist",
+    "damped_step",
+    "damped_step_soa",
+    "limited",
+    "norm3",
+    "rigid_target",
+    "spd_solve",
+]
 
 
 def spd_solve(a: list[list[Array]], b: list[Array]) -> list[Array]:
@@ -110,6 +118,17 @@ def body_twist(rot: Array, p: Array, target: Array) -> tuple[list[Array], list[A
     p_bd = [p_bd[..., r] for r in range(3)]
     twist = lie.se3_log_soa([[rot_bd[..., r, c] for c in range(3)] for r in range(3)], p_bd)
     return twist, p_bd
+
+
+def rigid_target(target: Array) -> Array:
+    """True where a target ``(..., 4, 4)`` is finite and its rotation block is a rotation:
+    ``max |R^T R - I| <= sqrt(eps)`` and ``det R > 0`` (the twist to a non-rotation means
+    nothing, and could meet a tolerance by chance); False for NaN or inf anywhere."""
+    finite = all_finite(target.reshape(*target.shape[:-2], 16))
+    rot = jnp.where(finite[..., None, None], target[..., :3, :3], jnp.eye(3, dtype=target.dtype))
+    gram = jnp.swapaxes(rot, -1, -2) @ rot - jnp.eye(3, dtype=rot.dtype)
+    orthonormal = jnp.max(jnp.abs(gram), axis=(-2, -1)) <= singular_rtol(rot.dtype)
+    return finite & orthonormal & (jnp.linalg.det(rot) > 0)
 
 
 def norm3(x: list[Array]) -> Array:

@@ -13,7 +13,9 @@ base origin, not of the tool (docs/errata.md). The step is the damped least-squa
 that no revolute joint moves more than ``max_step``; with ``limits`` every iterate is clamped
 into the box. Every element iterates on its own in one jitted ``lax.scan``; ``NOT_CONVERGED``
 elements keep the last iterate, ``INVALID_INPUT`` (NaN/inf in the target or the start) the
-start with non-finite entries replaced by 0.
+start with non-finite entries replaced by 0; a target whose rotation block is not a rotation
+(``max |R^T R - I| > sqrt(eps)`` or ``det R <= 0``) is ``INVALID_INPUT`` too: ``OK`` only ever
+means the tolerances were met on a rigid target.
 
 This is the iteration as the textbook has it, from the caller's starts; ``jaxkin.ik`` of a
 chain is the robot's IK search (``serial.search``: limits, restarts, rates, margins).
@@ -113,8 +115,9 @@ def _ik_impl(
     n = chain.n_joints
     target = jnp.broadcast_to(target, (*batch, 4, 4))
     q0 = jnp.broadcast_to(q0, (*batch, n))
-    # Double-where, step 1: replace non-finite elements before any arithmetic.
-    valid = all_finite(target.reshape(*batch, 16)) & all_finite(q0)
+    # Double-where, step 1: replace invalid elements (NaN, inf, a target that is not a rigid
+    # transform) before any arithmetic.
+    valid = _step.rigid_target(target) & all_finite(q0)
     target = jnp.where(valid[..., None, None], target, jnp.eye(4, dtype=target.dtype))
     q0 = jnp.clip(jnp.where(jnp.isfinite(q0), q0, 0.0), lower, upper)
     # Revolute coordinates set the step limit; prismatic ones do not.

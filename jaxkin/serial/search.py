@@ -18,7 +18,8 @@ In units of the chain's size and in the body frame, per element:
   iterate, and a lane whose target has ended takes the next one (the same updates, so the same
   results, as in step);
 * ``OK`` only where ``angle(R^T R_d) <= orientation_tol`` and ``|p_d - p| <= position_tol``,
-  evaluated at the returned joints;
+  evaluated at the returned joints; ``INVALID_INPUT`` for NaN or inf in the target or its
+  rates, or a rotation block that is not a rotation (``serial._step.rigid_target``);
 * rates from the target's body twist, ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot -
   J_b_dot q_dot)`` (minimum-norm for a redundant chain, least squares for one with fewer than
   six joints), a Jacobian-based margin, and implicit derivatives (``dq = J_b^+ dV_b``).
@@ -356,7 +357,7 @@ def _prepare(chain: Any, target: Jet, tols: tuple[Array, Array], use_limits, run
     flat = jnp.concatenate(
         [x.reshape(*x.shape[:-2], 16) for x in (target.p, target.v, target.a)], -1
     )
-    finite = all_finite(flat)
+    finite = all_finite(flat) & _step.rigid_target(target.p)
     safe = Jet(
         jnp.where(finite[..., None, None], target.p, jnp.eye(4, dtype=dtype)),
         jnp.where(finite[..., None, None], target.v, 0.0),
