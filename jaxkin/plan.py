@@ -236,7 +236,8 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) ->
     """Every candidate on one branch; ``branch_index`` an int, or a traced one (``"best"``)."""
     branches = robot.branches
     # Along each candidate: an iterative IK warm-starts every sample from the previous one.
-    res = robot._ik_path(path, branch_index)
+    path = path.astype(robot.work_dtype(path.dtype))
+    res = robot.ik_path_kernel(path, branch_index, robot.IKOptions())
     q, status, margin = res.q, res.status, res.margin
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.

@@ -1,7 +1,7 @@
 """The robot protocol: what every robot offers, and ``jaxkin.ik`` / ``jaxkin.fk``.
 
-Every robot geometry (``scara.Scara``, ``delta.Delta``, the serial arms, ``serial.DHTable``
-and ``serial.PoEChain``) is a ``Robot``. The planner, the optimiser, workspace sweeps and the
+Every robot geometry (``scara.Scara``, ``delta.Delta``, the serial arms, the chain robot
+``serial.Chain``) is a ``Robot``. The planner, the optimiser, workspace sweeps and the
 command line are written against this interface alone and never ask which robot they have:
 
 * ``robot.target``: what its inverse kinematics takes and its forward kinematics returns
@@ -17,23 +17,38 @@ command line are written against this interface alone and never ask which robot 
   ``robot.workspace_box()``: the default box and voxel edge of a sweep, and
   ``robot.link_segments(q, x)``: the links as segments, for collision costs.
 
-``ik(robot, target, branch=None)`` returns an ``IKResult`` (``q``: a ``Jet`` of joint
-coordinates ``(..., n_joints)``, ``status``, ``margin``) for the default branch when ``branch``
-is None; ``fk(robot, q)`` returns an ``FKResult`` whose ``x`` is a ``Jet`` in the form of the
-targets, so ``fk(robot, ik(robot, t).q).x`` reproduces ``t``. Targets and joints may be plain
-arrays (taken at rest: zero rates) or ``Jet``s. Both work inside ``jit`` and ``vmap``.
+``ik(robot, target, branch=None, options=None)`` returns an ``IKResult`` (``q``: a ``Jet`` of
+joint coordinates ``(..., n_joints)``, ``status``, ``margin``) for the default branch when
+``branch`` is None; ``fk(robot, q, options=None)`` returns an ``FKResult`` whose ``x`` is a
+``Jet`` in the form of the targets, so ``fk(robot, ik(robot, t).q).x`` reproduces ``t``.
+Targets and joints may be plain arrays (taken at rest: zero rates) or ``Jet``s. Both work inside
+``jit`` and ``vmap``.
+
+They are THE pipeline: the input work is done here once for every robot (robot and branch
+checks, options, ``Jet`` conversion, the target's shape against ``robot.target``, the work
+dtype, the batch shape broadcast with the geometry's own, zero rates at rest, written once) and
+the robot's kernel runs in one compiled program per robot class, branch and rates, under the
+robot's compile policy (``CompilePolicy``, applied through ``jaxkin._batching``: small batches
+padded to a power of two, large ones split across host threads, a concrete geometry compiled in
+as constants). One element (batch ``()`` or ``(1,)``, the single query of a planner between
+batches) goes straight to the program compiled for its shape: no padding, no host copy.
 
 A new robot subclasses ``Robot`` (as a ``geometry`` dataclass whose fields are ``number``s),
-sets the class attributes and implements ``_ik`` and ``_fk`` (and may override ``_ik_path``,
-the planner's IK along sampled paths); the command line needs one registry entry
-(``jaxkin.cli.robots``). The protocol is written down in ``docs/design.md``.
+sets the class attributes and implements the pure kernels ``ik_kernel`` and ``fk_kernel``
+(declared abstract: a class lacking one fails when it is defined); it may declare
+``IKOptions``/``FKOptions`` (``options`` dataclasses), a compile policy, and override
+``ik_kernel_indexed`` and ``ik_path_kernel`` (the planner's IK along sampled paths). The
+command line needs one registry entry (``jaxkin.cli.robots``). The protocol and a complete
+example are in ``docs/design.md``.
 """
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import functools
-from collections.abc import Mapping
+import math
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import jax
@@ -42,7 +57,9 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from . import _batching, _validate
 from ._geometry import BOUND, LENGTH, REAL, Geometry, geometry, number
+from ._validate import is_concrete
 from .jet import Jet
 from .result import FKResult, IKResult
 from .status import Status
@@ -54,7 +71,9 @@ __all__ = [
     "POINT",
     "POSE",
     "REAL",
+    "CompilePolicy",
     "JointLimits",
+    "NoOptions",
     "Robot",
     "Target",
     "as_robot",
@@ -62,6 +81,10 @@ __all__ = [
     "geometry",
     "ik",
     "number",
+    "options",
+    "promoted",
+    "solve_fk",
+    "solve_ik",
 ]
 
 Bounds = tuple[tuple[float, float], ...]
@@ -160,13 +183,138 @@ class JointLimits(Geometry):
         return jnp.all(inside, axis=-1)
 
 
-class Robot(Geometry):
-    """Base class of every robot geometry (see the module docstring for the protocol)."""
+# ------------------------------------------------------------------------------- options
+
+
+def options(cls: type | None = None, *, dynamic: tuple[str, ...] = ()) -> Any:
+    """Class decorator of a robot's ``IKOptions`` / ``FKOptions``: a frozen, hashable
+    dataclass with defaults. Fields named in ``dynamic`` (tolerances) reach the kernel as traced
+    values, so a new value compiles nothing new; the others (counts, methods) are static.
+    ``__post_init__`` may validate the values (a ``ValueError`` naming the option)."""
+
+    def wrap(cls: type) -> type:
+        cls = dataclasses.dataclass(frozen=True)(cls)
+        names = tuple(f.name for f in dataclasses.fields(cls))
+        unknown = sorted(set(dynamic) - set(names))
+        if unknown:
+            raise TypeError(f"{cls.__name__}: dynamic names unknown fields {unknown}")
+        meta = tuple(n for n in names if n not in dynamic)
+        jax.tree_util.register_dataclass(cls, data_fields=list(dynamic), meta_fields=list(meta))
+        return cls
+
+    return wrap if cls is None else wrap(cls)
+
+
+@options
+class NoOptions:
+    """The options of a kernel that takes none."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CompilePolicy:
+    """How the pipeline compiles and runs a robot's kernel (applied through ``_batching``).
+
+    Attributes:
+        pad: concrete batches of at most ``_batching.PAD_MAX`` elements run padded to a power
+            of two (``_batching.PaddedJit``): batch sizes share one compilation per size class.
+        threads: large concrete batches are split across the host threads
+            (``_batching.PartsJit``), for loop-bound (iterative) kernels.
+        min_part: fewest elements per host-thread part (None: ``_batching.MIN_PART``).
+        constant_geometry: a geometry whose every leaf is a concrete scalar is compiled into
+            the kernel as constants (one compilation per robot; XLA folds its values).
+        branch_as_data: the branch reaches the kernel as a traced index
+            (``ik_kernel_indexed``), so every branch shares one compilation.
+        bucket: for an iterative kernel that ends a NaN input at once (a chain's IK search):
+            a concrete batch of two or more elements runs padded with NaN rows, spread among
+            its own, to the next power of two at least ``bucket`` (``_batching.bucket_size``),
+            at any size: batch sizes share one compilation per size class. None: not so.
+    """
+
+    pad: bool = True
+    threads: bool = False
+    min_part: int | None = None
+    constant_geometry: bool = False
+    branch_as_data: bool = False
+    bucket: int | None = None
+
+
+KERNELS = ("ik_kernel", "fk_kernel")
+
+
+class Robot(Geometry, metaclass=abc.ABCMeta):
+    """Base class of every robot geometry (see the module docstring for the protocol).
+
+    A concrete subclass implements ``ik_kernel`` and ``fk_kernel``; one lacking either fails
+    with a ``TypeError`` when its class is defined, unless it declares itself abstract
+    (``class Arm(Robot, abstract=True)``).
+    """
 
     target: ClassVar[Target]
     branches: ClassVar[tuple[Any, ...]]
     reachable: ClassVar[tuple[Status, ...]] = (Status.OK, Status.SINGULAR)
+    IKOptions: ClassVar[type] = NoOptions
+    FKOptions: ClassVar[type] = NoOptions
+    ik_policy: ClassVar[CompilePolicy] = CompilePolicy()
+    fk_policy: ClassVar[CompilePolicy] = CompilePolicy()
 
+    def __init_subclass__(cls, abstract: bool = False, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if abstract:
+            return
+        missing = [
+            name
+            for name in KERNELS
+            if getattr(getattr(cls, name, None), "__isabstractmethod__", False)
+        ]
+        if missing:
+            raise TypeError(
+                f"{cls.__name__} must implement {', '.join(missing)} (the robot protocol's "
+                f"kernels), or be declared abstract: class {cls.__name__}(..., abstract=True)"
+            )
+
+    # ------------------------------------------------------------------ kernels
+    @abc.abstractmethod
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> IKResult:
+        """Inverse kinematics on ``branch`` (one of ``branches``): pure and traceable.
+
+        Args:
+            target: Jet of the robot's work dtype, shape ``(..., *self.target.shape)`` (its
+                leading axes broadcast against the geometry's own batch axes).
+            branch: one of ``self.branches`` (static).
+            options: an instance of ``self.IKOptions``.
+            rates: False when the target is at rest: its rates are zero and the kernel may
+                skip them (the result's rates must then be zero).
+        """
+
+    @abc.abstractmethod
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
+        """Forward kinematics: pure and traceable; ``q`` a Jet ``(..., n_joints)`` of the work
+        dtype. At rest (``rates`` False) the pipeline writes the zero rates of ``x`` itself:
+        the kernel's are ignored."""
+
+    def ik_kernel_indexed(
+        self, target: Jet, index: Array, options: Any, rates: bool = True
+    ) -> IKResult:
+        """The IK on branch ``self.branches[index]``, ``index`` a traced ``int32`` scalar (the
+        planner maps it over every branch). By default a ``lax.switch`` over the branches; a
+        robot whose kernel takes the branch as data overrides it, so that its branches compile
+        as one program."""
+        solvers = [
+            functools.partial(self.ik_kernel, branch=b, options=options, rates=rates)
+            for b in self.branches
+        ]
+        return jax.lax.switch(index, solvers, target)
+
+    def ik_path_kernel(self, path: Jet, index: Any, options: Any) -> IKResult:
+        """The IK of sampled paths ``(..., T, *target.shape)`` (consecutive samples along the
+        axis before the target's) on branch ``self.branches[index]`` (``index`` an int, or a
+        traced ``int32`` scalar), for the planner. By default every sample on its own; a robot
+        whose IK is iterative overrides it to warm-start each sample from the previous one."""
+        if isinstance(index, int):
+            return self.ik_kernel(path, self.branches[index], options, True)
+        return self.ik_kernel_indexed(path, index, options, True)
+
+    # ------------------------------------------------------------------ description
     @property
     def default_branch(self) -> Any:
         """The branch ``ik`` solves when none is given (the first of ``branches``)."""
@@ -193,6 +341,21 @@ class Robot(Geometry):
     def length_scale(self) -> Any:
         """A characteristic length of the robot (its size; traceable)."""
         raise NotImplementedError
+
+    def work_dtype(self, dtype: Any) -> Any:
+        """The dtype the kernels work in for inputs of floating ``dtype`` (by default
+        ``dtype`` itself; a chain promotes it with its own arrays' dtype: ``promoted``)."""
+        return dtype
+
+    def batch_shape(self) -> tuple[int, ...]:
+        """The batch axes of the geometry's own values (broadcast against the inputs' batch);
+        ``()`` for a geometry shared by the whole batch. By default read from the fields'
+        declared shapes (``number(kind, shape)``: a field of shape None is all batch)."""
+        cached = self.__dict__.get("_batch_shape")
+        if cached is None:
+            cached = _geometry_batch(self)
+            object.__setattr__(self, "_batch_shape", cached)
+        return cached
 
     def workspace_box(self) -> tuple[Bounds, float]:
         """The default box ``((lo, hi), ...)`` (one pair per target coordinate) and voxel edge
@@ -221,29 +384,18 @@ class Robot(Geometry):
             )
         return self.branches[self.branches.index(branch)]
 
-    def _ik(self, target: Jet | ArrayLike, branch: Any, **options: Any) -> IKResult:
-        raise NotImplementedError
 
-    def _ik_indexed(self, target: Jet, index: Array) -> IKResult:
-        """The IK on branch ``self.branches[index]``, ``index`` a traced ``int32`` scalar (the
-        planner maps it over every branch). By default a ``lax.switch`` over the branches;
-        a robot whose kernel takes the branch as data overrides it, so that its branches
-        compile as one program."""
-        solvers = [functools.partial(self._ik, branch=b) for b in self.branches]
-        return jax.lax.switch(index, solvers, target)
-
-    def _ik_path(self, path: Jet, index: Any) -> IKResult:
-        """The IK of sampled paths ``(..., T, *target.shape)`` (consecutive samples along the
-        axis before the target's) on branch ``self.branches[index]`` (``index`` an int, or a
-        traced ``int32`` scalar), for the planner. By default every sample on its own
-        (``_ik``, or ``_ik_indexed`` for a traced index); a robot whose IK is iterative
-        overrides it to warm-start each sample from the previous one."""
-        if isinstance(index, int):
-            return self._ik(path, self.branches[index])
-        return self._ik_indexed(path, index)
-
-    def _fk(self, q: Jet | ArrayLike, **options: Any) -> FKResult:
-        raise NotImplementedError
+def _geometry_batch(geometry: Any) -> tuple[int, ...]:
+    """Broadcast batch axes of the ``number`` fields (and nested geometries) of ``geometry``."""
+    shapes = []
+    for field in dataclasses.fields(geometry):
+        value = getattr(geometry, field.name)
+        if isinstance(value, Geometry) and dataclasses.is_dataclass(value):
+            shapes.append(_geometry_batch(value))
+        elif "kind" in field.metadata:
+            shape, core = tuple(np.shape(value)), field.metadata["shape"]
+            shapes.append(shape if core is None else shape[: max(0, len(shape) - len(core))])
+    return tuple(np.broadcast_shapes(*shapes)) if shapes else ()
 
 
 def as_robot(robot: Any, name: str = "robot") -> Robot:
@@ -251,43 +403,310 @@ def as_robot(robot: Any, name: str = "robot") -> Robot:
     if not isinstance(robot, Robot):
         raise ValueError(
             f"{name} must be a jaxkin robot (scara.Scara, delta.Delta, a serial arm, "
-            f"serial.DHTable or serial.PoEChain), got {type(robot).__name__}"
+            f"serial.Chain), got {type(robot).__name__}"
         )
     return robot
 
 
-def ik(robot: Robot, target: Jet | ArrayLike, branch: Any = None, **options: Any) -> IKResult:
+def make_options(cls: type, given: Any, values: dict[str, Any], name: str = "options") -> Any:
+    """An instance of the options class ``cls``: ``given`` (an instance, or None for the
+    defaults) with the keyword ``values`` replaced; a ``ValueError`` names unknown keys or an
+    instance of another class."""
+    if given is None:
+        if not values:
+            default = _DEFAULTS.get(cls)
+            if default is None:
+                default = _DEFAULTS[cls] = cls()
+            return default
+        given = cls()
+    elif type(given) is not cls:
+        raise ValueError(f"{name} must be a {cls.__qualname__} (or None), got {given!r}")
+    if values:
+        fields = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - fields)
+        if unknown:
+            raise ValueError(
+                f"unknown option(s) {unknown} for {cls.__qualname__}; expected some of "
+                f"{sorted(fields)}"
+            )
+        given = dataclasses.replace(given, **values)
+    return given
+
+
+_DEFAULTS: dict[type, Any] = {}
+
+
+# ------------------------------------------------------------------------------ the pipeline
+
+
+def _float_dtype(*dtypes: Any) -> Any:
+    """The floating dtype inputs of ``dtypes`` are computed in (canonical for the x64 flag)."""
+    key = (dtypes, jax.config.jax_enable_x64)
+    found = _FLOAT_DTYPES.get(key)
+    if found is None:
+        canonical = (jax.dtypes.canonicalize_dtype(d) for d in dtypes)
+        found = _FLOAT_DTYPES[key] = jnp.result_type(*canonical, float)
+    return found
+
+
+_FLOAT_DTYPES: dict[Any, Any] = {}
+
+
+def promoted(*dtypes: Any) -> Any:
+    """``jnp.result_type`` of ``dtypes``, cached (a chain's ``work_dtype`` on every call)."""
+    found = _PROMOTED.get(dtypes)
+    if found is None:
+        found = _PROMOTED[dtypes] = jnp.result_type(*dtypes)
+    return found
+
+
+_PROMOTED: dict[Any, Any] = {}
+
+
+class _Program:
+    """One compiled kernel of one robot class, branch and rates (the options are an argument:
+    their static fields are part of its compilation key, the dynamic ones data): its whole-batch
+    call and its padded call (``_batching.PaddedJit``); the geometry compiled in as constants
+    when the policy says so."""
+
+    def __init__(self, impl: Callable[..., Any], policy: CompilePolicy, core: int) -> None:
+        self.policy = policy
+        if policy.threads:
+            batched = ("p", "v", "a")
+            self.dynamic = _batching.PartsJit(impl, (), batched, policy.min_part)
+            self.static = (
+                _batching.PartsJit(impl, ("robot",), batched, policy.min_part)
+                if policy.constant_geometry
+                else None
+            )
+        else:
+            self.dynamic = jax.jit(impl)
+            self.static = (
+                jax.jit(impl, static_argnames="robot") if policy.constant_geometry else None
+            )
+        self.padded = _batching.PaddedJit(self.whole, {"p": core, "v": core, "a": core})
+
+    def whole(
+        self, robot: Any, p: Any, v: Any, a: Any, index: Any, options: Any, *, batch: tuple = ()
+    ) -> Any:
+        """The kernel on the whole batch (split across host threads when large)."""
+        jitted = self.dynamic
+        if self.static is not None:
+            constant = _constant_geometry(robot)
+            if constant is not None:
+                robot, jitted = constant, self.static
+        if not self.policy.threads:
+            return jitted(robot, p, v, a, index, options)
+        if math.prod(batch) < 2:  # nothing to split: the kernel as it is
+            return jitted.whole(robot, p, v, a, index, options)
+        return jitted(robot, p, v, a, index, options, batch=batch)
+
+    whole.takes_batch = True
+
+    def _cache_size(self) -> int:
+        """Compilations held (for the tests)."""
+        sizes = [self.dynamic._cache_size()]
+        if self.static is not None:
+            sizes.append(self.static._cache_size())
+        return sum(sizes)
+
+
+def _constant_geometry(robot: Any) -> Any:
+    """``robot`` with Python-float leaves when every leaf is a concrete scalar, else None."""
+    leaves, tree = jax.tree.flatten(robot)
+    if not all(is_concrete(leaf) and np.ndim(leaf) == 0 for leaf in leaves):
+        return None
+    return jax.tree.unflatten(tree, [float(leaf) for leaf in leaves])
+
+
+def _ik_impl(branch: Any, rates: bool, robot: Robot, p, v, a, index, options) -> IKResult:
+    target = _as_target(robot, p, v, a, len(robot.target.shape))
+    if index is not None:
+        return robot.ik_kernel_indexed(target, index, options, rates)
+    return robot.ik_kernel(target, branch, options, rates)
+
+
+def _fk_impl(rates: bool, outside: bool, robot: Robot, p, v, a, index, options) -> FKResult:
+    result = robot.fk_kernel(_as_target(robot, p, v, a, 1), options, rates)
+    if rates:
+        return result
+    # At rest the zero rates are written once: here, or by the caller for a large batch.
+    x = Jet(result.x.p, None, None) if outside else Jet.constant(result.x.p)
+    return dataclasses.replace(result, x=x)
+
+
+def _as_target(robot: Robot, p: Array, v: Any, a: Any, core: int) -> Jet:
+    """The kernel's input Jet, broadcast against the geometry's batch (zero rates at rest)."""
+    extra = robot.batch_shape()
+    if extra:
+        shape = (*jnp.broadcast_shapes(p.shape[: p.ndim - core], extra), *p.shape[p.ndim - core :])
+        p, v, a = (None if x is None else jnp.broadcast_to(x, shape) for x in (p, v, a))
+    if v is None:
+        zeros = jnp.zeros_like(p)
+        return Jet(p, zeros, zeros)
+    return Jet(p, v, a)
+
+
+_PROGRAMS: dict[tuple, _Program] = {}
+
+
+def _program(kind: str, robot: Robot, key: tuple, policy: CompilePolicy) -> _Program:
+    """The cached ``_Program`` of ``kind`` (``"ik"``/``"fk"``) for the robot's class and the
+    static ``key`` (branch, options, rates, ...)."""
+    full = (kind, type(robot), *key)
+    program = _PROGRAMS.get(full)
+    if program is None:
+        impl = _ik_impl if kind == "ik" else _fk_impl
+        core = len(robot.target.shape) if kind == "ik" else 1
+        program = _PROGRAMS[full] = _Program(functools.partial(impl, *key), policy, core)
+    return program
+
+
+def _inputs(robot: Robot, x: Any, name: str, core: tuple[int, ...]):
+    """``(p, v, a, rates, batch)``: the input's arrays in the work dtype (``v``, ``a`` None at
+    rest) and its batch shape broadcast with the geometry's; ``ValueError`` naming ``name``."""
+    rates = isinstance(x, Jet)
+    if rates:
+        arrays = [_array(y) for y in (x.p, x.v, x.a)]
+        shapes = {tuple(y.shape) for y in arrays}
+        if len(shapes) != 1:
+            raise ValueError(f"{name}: p, v and a must have one shape, got {sorted(shapes)}")
+    else:
+        arrays = [_array(x)]
+    shape = arrays[0].shape
+    k = len(core)
+    if len(shape) < k or tuple(shape[len(shape) - k :]) != core:
+        want = ", ".join(str(d) for d in core)
+        raise ValueError(
+            f"{name}: {type(robot).__name__} expects shape (..., {want}), got {tuple(shape)}"
+        )
+    dtype = robot.work_dtype(_float_dtype(*(y.dtype for y in arrays)))
+    arrays = [y if y.dtype == dtype else _cast(y, dtype) for y in arrays]
+    batch = tuple(shape[: len(shape) - k])
+    extra = robot.batch_shape()
+    if extra:
+        batch = _validate.batch_shape({name: batch, "robot": extra})
+    p, v, a = arrays if rates else (arrays[0], None, None)
+    return p, v, a, rates, batch
+
+
+def _array(x: Any) -> Any:
+    """``x`` as an array with a shape and a dtype (JAX and NumPy arrays and tracers as they
+    are; anything else through NumPy)."""
+    if isinstance(x, jax.Array | np.ndarray):
+        return x
+    if not hasattr(x, "shape") or not hasattr(x, "dtype"):
+        try:
+            arr = np.asarray(x)
+        except (TypeError, ValueError):
+            raise ValueError(f"expected an array of numbers, got {x!r}") from None
+        if arr.dtype == object or arr.dtype.kind not in "biuf":
+            raise ValueError(f"expected an array of real numbers, got {x!r}")
+        return arr
+    return x
+
+
+def _cast(x: Any, dtype: Any) -> Any:
+    """``x`` in ``dtype``: on the host for NumPy input (no dispatch), else one JAX cast."""
+    if isinstance(x, np.ndarray):
+        return x.astype(dtype)
+    return jnp.asarray(x).astype(dtype)
+
+
+def _run(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
+    """Apply the compile policy: one element straight to the kernel compiled for its shape
+    (the single-query fast path), small batches padded, large ones as the policy says."""
+    size = math.prod(batch)
+    if program.policy.bucket and size > 1 and not robot.batch_shape():
+        return _bucketed(program, robot, p, v, a, index, options, batch)
+    if size == 1 or not program.policy.pad or robot.batch_shape():
+        return program.whole(robot, p, v, a, index, options, batch=batch)
+    return program.padded(robot, p, v, a, index, options, batch=batch)
+
+
+def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
+    """``CompilePolicy.bucket``: the batch's rows spread among NaN rows, to the bucket's size,
+    and gathered back (tracers run as they are)."""
+    if not all(is_concrete(x) for x in jax.tree.leaves((robot, p, v, a, options))):
+        return program.whole(robot, p, v, a, index, options, batch=batch)
+    padded = _batching.bucket_size(math.prod(batch), program.policy.bucket)
+    core = p.ndim - len(batch)
+    p, v, a = (
+        None if x is None else _batching.spread_rows(x, batch, core, padded, np.nan)
+        for x in (p, v, a)
+    )
+    result = program.whole(robot, p, v, a, index, options, batch=(padded,))
+    return _batching.gather_back(result, batch)
+
+
+def ik(
+    robot: Robot,
+    target: Jet | ArrayLike,
+    branch: Any = None,
+    options: Any = None,
+    **option_values: Any,
+) -> IKResult:
     """Inverse kinematics of any robot for one branch.
 
     Args:
         robot: any ``Robot``.
         target: ``Jet`` (or plain array, at rest) of shape ``(..., *robot.target.shape)``.
         branch: one of ``robot.branches``; None for ``robot.default_branch``.
-        **options: passed to the robot's solver (e.g. ``method="autodiff"``).
+        options: an instance of ``robot.IKOptions`` (None: its defaults).
+        **option_values: fields of ``robot.IKOptions`` replaced (e.g. ``method="autodiff"``).
 
     Returns:
         ``IKResult`` (or a subclass): ``q`` (Jet, ``(..., n_joints)``), ``status``, ``margin``.
+        Work is done in the target's floating dtype (``robot.work_dtype``).
 
     Raises:
-        ValueError: not a robot, an unknown branch, or a target of the wrong shape.
+        ValueError: not a robot, an unknown branch or option, or a target of the wrong shape
+            or a batch shape that does not broadcast with the geometry's.
     """
     robot = as_robot(robot)
-    return robot._ik(target, robot.check_branch(branch), **options)
+    return solve_ik(robot, target, branch, make_options(robot.IKOptions, options, option_values))
 
 
-def fk(robot: Robot, q: Jet | ArrayLike, **options: Any) -> FKResult:
+def solve_ik(robot: Robot, target: Any, branch: Any, options: Any, name: str = "target") -> Any:
+    """``ik`` with ``options`` an ``IKOptions`` instance and the target named ``name`` in
+    messages (a robot module's own function, e.g. ``scara.ik``, calls this)."""
+    branch = robot.default_branch if branch is None else robot.check_branch(branch)
+    p, v, a, rates, batch = _inputs(robot, target, name, robot.target.shape)
+    policy = robot.ik_policy
+    if policy.branch_as_data:
+        index = np.int32(robot.branches.index(branch))
+        program = _program("ik", robot, (None, rates), policy)
+    else:
+        index = None
+        program = _program("ik", robot, (branch, rates), policy)
+    return _run(program, robot, p, v, a, index, options, batch)
+
+
+def fk(robot: Robot, q: Jet | ArrayLike, options: Any = None, **option_values: Any) -> FKResult:
     """Forward kinematics of any robot.
 
     Args:
         robot: any ``Robot``.
         q: ``Jet`` (or plain array, at rest) of joint coordinates, shape ``(..., n_joints)``.
-        **options: passed to the robot's solver (e.g. ``tol`` for the Delta's Newton FK).
+        options: an instance of ``robot.FKOptions`` (None: its defaults).
+        **option_values: fields of ``robot.FKOptions`` replaced (e.g. ``tol`` for the Delta's
+            Newton FK).
 
     Returns:
         ``FKResult`` (or a subclass): ``x`` (Jet in the form of the robot's targets) and
         ``status``.
 
     Raises:
-        ValueError: not a robot, or ``q`` of the wrong shape.
+        ValueError: not a robot, an unknown option, or ``q`` of the wrong shape.
     """
-    return as_robot(robot)._fk(q, **options)
+    robot = as_robot(robot)
+    return solve_fk(robot, q, make_options(robot.FKOptions, options, option_values))
+
+
+def solve_fk(robot: Robot, q: Any, options: Any, name: str = "q") -> Any:
+    """``fk`` with ``options`` an ``FKOptions`` instance and ``q`` named ``name``."""
+    p, v, a, rates, batch = _inputs(robot, q, name, (robot.n_joints,))
+    outside = _batching.zero_rates_outside(rates, batch)
+    program = _program("fk", robot, (rates, outside), robot.fk_policy)
+    result = _run(program, robot, p, v, a, None, options, batch)
+    return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result

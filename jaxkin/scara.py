@@ -38,14 +38,14 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _validate, dyad, planar
+from . import _validate, dyad, planar
 from . import workspace as _workspace
 from ._geometry import LENGTH, geometry, number
 from ._numerics import all_finite, computed_once
 from ._trig import cos_alone, sin_alone, sincos
 from .jet import Jet, lift
 from .result import FKResult, IKResult
-from .robot import POINT, JointLimits, Robot
+from .robot import POINT, JointLimits, Robot, options, solve_fk, solve_ik
 from .status import STATUS_DTYPE, Status
 
 __all__ = [
@@ -64,6 +64,21 @@ __all__ = [
 BRANCHES = dyad.MODES
 METHODS = dyad.METHODS
 JOINT_NAMES = ("theta1", "theta2", "l3")
+
+
+@options
+class ScaraIKOptions:
+    """Options of the SCARA's IK.
+
+    Attributes:
+        method: ``"analytic"`` (the dyad's closed forms) or ``"autodiff"`` (the position-level
+            IK lifted by ``jaxkin.lift``); the same values.
+    """
+
+    method: str = "analytic"
+
+    def __post_init__(self) -> None:
+        _validate.choice(self.method, "method", METHODS)
 
 
 @geometry
@@ -87,6 +102,7 @@ class Scara(Robot):
     target: ClassVar = POINT
     branches: ClassVar = BRANCHES
     reachable: ClassVar = (Status.OK, Status.SINGULAR_EXTENDED, Status.SINGULAR_FOLDED)
+    IKOptions: ClassVar = ScaraIKOptions
 
     def _validate(self) -> None:
         super()._validate()
@@ -165,11 +181,11 @@ class Scara(Robot):
         d = c - jnp.stack([zero, zero, l3], -1)
         return jnp.stack([jnp.stack([a, b], -2), jnp.stack([b, c], -2), jnp.stack([c, d], -2)], -3)
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> IKResult:
-        return ik(self, target, branch=branch, **options)
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> IKResult:
+        return _ik_impl(self, target, branch, options.method)
 
-    def _fk(self, q: Any, **options: Any) -> FKResult:
-        return fk(self, q, **options)
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
+        return _fk_impl(self, q, rates)
 
 
 @jax.tree_util.register_dataclass
@@ -295,24 +311,10 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
     return ScaraIKResult(q, status, margin, elbow, within_limits)
 
 
-_ik_jit = _batching.PaddedJit(jax.jit(_ik_impl, static_argnames=("branch", "method")), {"d": 1})
-
-
-def _check_robot(robot: Any, batch_names: dict[str, tuple[int, ...]]) -> Scara:
+def _check_robot(robot: Any) -> Scara:
     if not isinstance(robot, Scara):
         raise ValueError(f"robot must be a jaxkin.scara.Scara, got {type(robot).__name__}")
-    for name in ("l_oa", "l_ab", "l_bc"):
-        batch_names[f"robot.{name}"] = tuple(jnp.shape(getattr(robot, name)))
-    if robot.limits is not None:
-        batch_names["robot.limits"] = tuple(jnp.shape(robot.limits.lower))[:-1]
-    _validate.batch_shape(batch_names)
     return robot
-
-
-def _padding(shapes: dict[str, tuple[int, ...]]) -> dict[str, Any]:
-    """``PaddedJit``'s keywords: the batch, padded only when the geometry has no batch axes."""
-    geometry = [shape for name, shape in shapes.items() if name.startswith("robot.")]
-    return {"batch": _validate.batch_shape(shapes), "pad": not any(geometry)}
 
 
 def ik(
@@ -338,11 +340,7 @@ def ik(
             that do not broadcast, or an unknown ``branch``/``method``.
     """
     branch = _validate.choice(BRANCHES[0] if branch is None else branch, "branch", BRANCHES)
-    method = _validate.choice(method, "method", METHODS)
-    d = _validate.as_jet(d, "d", coords=3)
-    shapes = {"d": d.shape[:-1]}
-    _check_robot(robot, shapes)
-    return _ik_jit(robot, d, branch, method, **_padding(shapes))
+    return solve_ik(_check_robot(robot), d, branch, ScaraIKOptions(method), name="d")
 
 
 def _fk_position(q: Array, l_oa: Array, l_ab: Array, l_bc: Array) -> Array:
@@ -398,9 +396,6 @@ def _fk_impl(robot: Scara, q: Jet, rates: bool) -> FKResult:
     return FKResult(x, status)
 
 
-_fk_jit = _batching.PaddedJit(jax.jit(_fk_impl, static_argnames="rates"), {"q": 1})
-
-
 def fk(robot: Scara, q: Jet | ArrayLike) -> FKResult:
     """SCARA forward kinematics: the end point D from ``q = (theta1, theta2, l3)``.
 
@@ -421,14 +416,10 @@ def fk(robot: Scara, q: Jet | ArrayLike) -> FKResult:
         ValueError: ``robot`` not a ``Scara``, ``q`` whose last axis is not 3, or batch
             shapes that do not broadcast.
     """
-    rates = isinstance(q, Jet)
-    jet = _validate.as_jet(q, "q", coords=3)
-    shapes = {"q": jet.shape[:-1]}
-    _check_robot(robot, shapes)
-    return _fk_jit(robot, jet, rates, **_padding(shapes))
+    return solve_fk(_check_robot(robot), q, Scara.FKOptions())
 
 
 def workspace(robot: Scara, bounds: Any = None, resolution: float | None = None, **options: Any):
     """Voxel sweep of the reachable workspace (``jaxkin.workspace.sweep``; default box
     ``Scara.workspace_box``; a voxel is reachable where the IK is solved, singular included)."""
-    return _workspace.sweep(_check_robot(robot, {}), bounds, resolution, **options)
+    return _workspace.sweep(_check_robot(robot), bounds, resolution, **options)

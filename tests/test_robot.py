@@ -205,16 +205,14 @@ class Slider2D(Robot):
     def workspace_box(self):
         return ((-8.0, 8.0), (-8.0, 8.0)), 1.0
 
-    def _ik(self, target, branch, **options):
-        target = target if isinstance(target, Jet) else Jet.constant(target)
+    def ik_kernel(self, target, branch, options, rates):
         q = Jet(target.p - self.offset, target.v, target.a)
         inside = jnp.all(jnp.abs(q.p) <= 5.0, axis=-1)
         status = jnp.where(inside, Status.OK, Status.UNREACHABLE).astype(jnp.int8)
         margin = 1.0 - jnp.max(jnp.abs(q.p), axis=-1) / 5.0
         return IKResult(q, status, margin)
 
-    def _fk(self, q, **options):
-        q = q if isinstance(q, Jet) else Jet.constant(q)
+    def fk_kernel(self, q, options, rates):
         x = Jet(q.p + self.offset, q.v, q.a)
         return FKResult(x, jnp.zeros(q.p.shape[:-1], jnp.int8))
 
@@ -273,3 +271,84 @@ def test_results_are_frozen_pytrees():
         res.q = None
     leaves = jax.tree.leaves(res)
     assert len(leaves) == 5  # q (p, v, a), status, margin
+
+
+# ------------------------------------------------------------------------- the kernel contract
+def test_a_robot_without_a_kernel_fails_when_its_class_is_defined():
+    with pytest.raises(TypeError, match="fk_kernel"):
+
+        @geometry
+        class NoForward(Robot):
+            target: ClassVar = POINT
+            branches: ClassVar = ("only",)
+
+            def ik_kernel(self, target, branch, options, rates):
+                raise NotImplementedError
+
+    class Partial(Robot, abstract=True):  # declared abstract: no kernels needed yet
+        target: ClassVar = POINT
+
+    with pytest.raises(TypeError, match="abstract"):
+        Partial()
+
+
+def test_options_are_frozen_dataclasses_and_unknown_keys_are_named():
+    robot = delta.Delta.paper()
+    theta = np.full((2, 3), 0.4)
+    default = jaxkin.fk(robot, theta)
+    given = jaxkin.fk(robot, theta, robot.FKOptions(max_iter=30))
+    by_key = jaxkin.fk(robot, theta, max_iter=30)
+    for res in (given, by_key):
+        np.testing.assert_array_equal(res.x.p, default.x.p)
+    assert hash(robot.FKOptions()) == hash(robot.FKOptions())
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        robot.FKOptions().max_iter = 3
+    with pytest.raises(ValueError, match=r"\['iters'\]"):
+        jaxkin.fk(robot, theta, iters=3)
+    with pytest.raises(ValueError, match="max_iter"):
+        jaxkin.fk(robot, theta, max_iter=0)
+    with pytest.raises(ValueError, match="options"):
+        jaxkin.fk(robot, theta, scara.Scara.IKOptions())
+    with pytest.raises(ValueError, match="method"):
+        jaxkin.ik(scara.Scara.paper(), np.zeros(3), method="numeric")
+
+
+def test_a_new_tolerance_compiles_nothing_new():
+    """Tolerances of a chain's IK are data (``options(dynamic=...)``): a new value reuses the
+    compiled search."""
+    chain = serial.from_screws(*_planar_screws())
+    target = np.asarray(jaxkin.fk(chain, np.array([[0.3, 0.4]])).x.p)
+    jaxkin.ik(chain, target, position_tol=1e-8)
+    with compilations() as count:
+        res = jaxkin.ik(chain, target, position_tol=2e-8)
+    assert count["n"] == 0
+    assert int(res.status[0]) == Status.OK
+
+
+def _planar_screws():
+    """A planar 2R chain (links 1 and 0.7) as space screws and home pose."""
+    screws = np.array([[0, 0, 1, 0, 0, 0], [0, 0, 1, 0, -1.0, 0]], float)
+    home = np.eye(4)
+    home[0, 3] = 1.7
+    return screws, home
+
+
+@pytest.mark.parametrize("name", ["scara", "delta", "screw-chain"])
+def test_single_query_gives_the_batched_results(name):
+    """One target (batch ``()``) runs straight in the program compiled for its shape, without
+    padding: the same joints and statuses as that element of a batch (to 4 ulp of the robot's
+    size), and a second single query compiles nothing."""
+    robot, q, t = _targets(name)
+    batched_ik, batched_fk = jaxkin.ik(robot, t), jaxkin.fk(robot, q)
+    scale = float(robot.length_scale())
+    tol = 4 * np.finfo(np.float64).eps * max(scale, 1.0)
+    for i in (0, 1):
+        one_ik, one_fk = jaxkin.ik(robot, t[i]), jaxkin.fk(robot, q[i])
+        assert one_ik.q.p.shape == (robot.n_joints,) and one_ik.status.shape == ()
+        assert int(one_ik.status) == int(batched_ik.status[i])
+        assert int(one_fk.status) == int(batched_fk.status[i])
+        _close(one_ik.q.p, batched_ik.q.p[i], tol * 1e3 if name == "screw-chain" else tol)
+        _close(one_fk.x.p, batched_fk.x.p[i], tol)
+    with compilations() as count:
+        jax.block_until_ready(jaxkin.fk(robot, q[2]).x.p)
+    assert count["n"] == 0

@@ -323,7 +323,7 @@ def test_work_queue_gives_the_results_of_the_batch_in_step():
     tols = (jnp.asarray(1e-10), jnp.asarray(1e-10 * chain.length_scale()))
     budget = search.Budget(12, 64, 12, slots=1000)
     solve = jax.jit(search.solve, static_argnames=("budget", "use_limits", "rates"))
-    in_step = solve(chain, Jet.constant(targets), None, tols, budget, True, False)
+    in_step = solve(chain, Jet.constant(targets), tols, budget, True, False)
     np.testing.assert_array_equal(queued.status, in_step.status)
     np.testing.assert_array_equal(queued.q.p, in_step.q.p)
     assert int(queued.status[3]) == Status.INVALID_INPUT

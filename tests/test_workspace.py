@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxkin import IKResult, Jet, Status, delta, scara, serial, workspace
+from jaxkin import FKResult, IKResult, Jet, Status, delta, scara, serial, workspace
 from jaxkin._geometry import LENGTH, geometry, number
 from jaxkin.robot import POINT, Robot
 from tests.helpers import compile_count
@@ -36,11 +36,14 @@ class Ball(Robot):
     def length_scale(self):
         return self.radius
 
-    def _ik(self, target, branch, **options):
-        p = target.p if isinstance(target, Jet) else jnp.asarray(target)
+    def ik_kernel(self, target, branch, options, rates):
+        p = target.p
         inside = jnp.sum(p * p, axis=-1) <= self.radius**2
         status = jnp.where(inside, Status.OK, Status.UNREACHABLE).astype(jnp.int8)
         return IKResult(Jet.constant(p), status, jnp.zeros(p.shape[:-1]))
+
+    def fk_kernel(self, q, options, rates):
+        return FKResult(q, jnp.zeros(q.p.shape[:-1], jnp.int8))
 
 
 ball_status = Ball()

@@ -27,7 +27,6 @@ centres or ``|w| <= sqrt(eps)``), ``OUT_OF_LIMITS``, ``OK``. Rates are 0 where n
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp
@@ -38,10 +37,11 @@ from .. import _batching, _validate, newton
 from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..result import FKResult, SolverResult
+from ..robot import solve_fk
 from ..status import STATUS_DTYPE, Status
 from .geometry import (
-    METHODS,
     Delta,
+    DeltaFKOptions,
     _any3,
     _centre_components,
     _cos_sin,
@@ -66,6 +66,7 @@ __all__ = [
     "NewtonFKResult",
     "fk",
     "fk_closed_form",
+    "fk_kernel",
     "which_branch",
 ]
 
@@ -356,8 +357,9 @@ def _fk_chunked(
     return dataclasses.replace(result, x=Jet.constant(result.x.p))
 
 
-# The Newton loop runs on one core per program: large batches are split across host threads.
-_fk_jit = _batching.PaddedJit(
+# Warm-started FK (``fk`` with a guess): the Newton loop runs on one core per program, so large
+# batches are split across host threads.
+_fk_guess_jit = _batching.PaddedJit(
     compiled(_fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"), ("theta", "guess")),
     {"theta": 1, "guess": 1},
 )
@@ -399,33 +401,44 @@ def fk(
         ValueError: bad shapes, ``tol <= 0``, ``max_iter < 1``, unknown method.
     """
     robot = check_robot(robot)
-    method = _validate.choice(method, "method", METHODS)
+    options = DeltaFKOptions(tol, max_iter, method)
+    if guess is None:
+        return solve_fk(robot, theta, options, name="theta")
     rates = isinstance(theta, Jet)
     if rates:
         theta = _validate.as_jet(theta, "theta", coords=3)
     else:
         theta = Jet(as_coords(theta, "theta"), None, None)
-    if tol is not None and not (isinstance(tol, int | float) and math.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be a positive finite float or None, got {tol!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
-        raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
     dtype = float_dtype(theta.p)
-    if tol is None:
-        tol = max(1e-12, 8.0 * float(jnp.finfo(dtype).eps))
-    if guess is not None:
-        guess = jnp.asarray(guess, dtype)
-        if guess.ndim == 0 or guess.shape[-1] != 3:
-            raise ValueError(f"guess: expected shape (..., 3), got {tuple(guess.shape)}")
-        shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
-        theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)), theta)
-    theta = jax.tree.map(lambda x: x.astype(dtype), theta)
+    guess = jnp.asarray(guess, dtype)
+    if guess.ndim == 0 or guess.shape[-1] != 3:
+        raise ValueError(f"guess: expected shape (..., 3), got {tuple(guess.shape)}")
+    shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
+    theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)).astype(dtype), theta)
     batch = theta.shape[:-1]
     outside = _batching.zero_rates_outside(rates, batch)
-    result = _fk_jit(
-        robot, theta, guess, float(tol), max_iter, method, rates, not outside,
+    result = _fk_guess_jit(
+        robot, theta, guess, _tolerance(options, dtype), max_iter, method, rates, not outside,
         batch=batch, pad=_batching.shared_geometry(robot),
     )  # fmt: skip
     return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result
+
+
+def _tolerance(options: DeltaFKOptions, dtype) -> float:
+    """``options.tol``, or its default for ``dtype``: ``max(1e-12, 8 eps)``."""
+    if options.tol is not None:
+        return options.tol
+    return max(1e-12, 8.0 * float(jnp.finfo(dtype).eps))
+
+
+def fk_kernel(robot: Delta, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:
+    """The robot protocol's FK kernel (``Delta.fk_kernel``): Newton from the default guess;
+    at rest no rate is read or written (the pipeline writes the zero rates)."""
+    tol = _tolerance(options, theta.dtype)
+    theta = theta if rates else Jet(theta.p, None, None)
+    return _fk_chunked(
+        robot, theta, None, tol, options.max_iter, options.method, rates, zero_rates=False
+    )
 
 
 def fk_closed_form(robot: Delta, theta: ArrayLike) -> ClosedFormFKResult:

@@ -23,12 +23,12 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching
+from .. import _batching, _validate
 from .._geometry import BOUND, LENGTH, concrete_scalars, geometry, number
 from .._numerics import computed_once, safe_sqrt
 from .._trig import cos_alone, sin_alone
 from ..jet import Jet
-from ..robot import POINT, JointLimits, Robot
+from ..robot import POINT, CompilePolicy, JointLimits, Robot, options
 from ..status import Status
 
 __all__ = ["BRANCHES", "METHODS", "Delta"]
@@ -60,6 +60,49 @@ def _radial(dtype) -> tuple[Array, Array]:
     return jnp.asarray(_UX, dtype), jnp.asarray(_UY, dtype)
 
 
+@options
+class DeltaIKOptions:
+    """Options of the Delta's IK: ``method`` ``"analytic"`` (constraint Jacobians) or
+    ``"autodiff"`` (``jaxkin.lift``)."""
+
+    method: str = "analytic"
+
+    def __post_init__(self) -> None:
+        _validate.choice(self.method, "method", METHODS)
+
+
+@options
+class DeltaFKOptions:
+    """Options of the Delta's Newton FK (``jaxkin.delta.fk``).
+
+    Attributes:
+        tol: converged where ``max_i |r_i| <= tol * (l_arm + l_rod)``; None for
+            ``max(1e-12, 8 eps(dtype))``.
+        max_iter: maximum number of Newton updates (>= 1).
+        method: ``"analytic"`` rates or ``"autodiff"``.
+    """
+
+    tol: float | None = None
+    max_iter: int = 30
+    method: str = "analytic"
+
+    def __post_init__(self) -> None:
+        tol = self.tol
+        if tol is not None and not (
+            isinstance(tol, int | float)
+            and not isinstance(tol, bool)
+            and math.isfinite(tol)
+            and tol > 0
+        ):
+            raise ValueError(f"tol must be a positive finite float or None, got {tol!r}")
+        if tol is not None:
+            object.__setattr__(self, "tol", float(tol))
+        max_iter = self.max_iter
+        if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
+            raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
+        _validate.choice(self.method, "method", METHODS)
+
+
 @geometry
 class Delta(Robot):
     """Geometry of a Delta robot (frame in the module docstring); a validated frozen pytree.
@@ -87,6 +130,12 @@ class Delta(Robot):
     target: ClassVar = POINT
     branches: ClassVar = BRANCHES
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
+    IKOptions: ClassVar = DeltaIKOptions
+    FKOptions: ClassVar = DeltaFKOptions
+    # Concrete geometry compiled in as constants; the Newton FK loop runs on one core per
+    # program, so large batches are split across host threads.
+    ik_policy: ClassVar = CompilePolicy(constant_geometry=True)
+    fk_policy: ClassVar = CompilePolicy(constant_geometry=True, threads=True)
 
     def _validate(self) -> None:
         super()._validate()
@@ -140,15 +189,15 @@ class Delta(Robot):
             segments += [jnp.stack([axis, elbow], -2), jnp.stack([elbow, joint], -2)]
         return jnp.stack(segments, -3)
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .inverse import ik
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> Any:
+        from .inverse import ik_kernel
 
-        return ik(self, target, branch=branch, **options)
+        return ik_kernel(self, target, branch, options, rates)
 
-    def _fk(self, q: Any, **options: Any) -> Any:
-        from .forward import fk
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> Any:
+        from .forward import fk_kernel
 
-        return fk(self, q, **options)
+        return fk_kernel(self, q, options, rates)
 
 
 def _params(robot: Delta, dtype) -> tuple[Array, ...]:

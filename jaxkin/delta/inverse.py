@@ -26,31 +26,29 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _validate
 from .._numerics import safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..result import IKResult
+from ..robot import solve_ik
 from ..status import STATUS_DTYPE, Status
 from .geometry import (
     BRANCHES,
-    METHODS,
     Delta,
+    DeltaIKOptions,
     _any3,
     _home,
     _params,
     _radial,
     _rates_ok,
     _sanitise,
-    as_coords,
     check_robot,
-    compiled,
     far_away,
-    float_dtype,
     in_own_units,
 )
 from .rates import _ik_rates_analytic
 
-__all__ = ["ik"]
+__all__ = ["ik", "ik_kernel"]
 
 
 def _ik_position(robot: Delta, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
@@ -159,13 +157,15 @@ def _ik_impl(robot: Delta, p: Jet, branch: str, method: str, rates: bool) -> IKR
     return IKResult(theta_jet, status, margin)
 
 
-_ik_jit = _batching.PaddedJit(compiled(_ik_impl, ("branch", "method", "rates")), {"p": 1})
+def ik_kernel(robot: Delta, p: Jet, branch: str, options, rates: bool) -> IKResult:
+    """The robot protocol's IK kernel (``Delta.ik_kernel``): at rest no rate is read."""
+    return _ik_impl(robot, p if rates else Jet(p.p, None, None), branch, options.method, rates)
 
 
 def ik(
     robot: Delta, p: Jet | ArrayLike, branch: str | None = None, method: str = "analytic"
 ) -> IKResult:
-    """Actuator angles (and rates) for platform positions.
+    """Actuator angles (and rates) for platform positions (``jaxkin.ik`` of a ``Delta``).
 
     Args:
         robot: the geometry.
@@ -184,12 +184,4 @@ def ik(
     """
     robot = check_robot(robot)
     branch = _validate.choice(BRANCHES[0] if branch is None else branch, "branch", BRANCHES)
-    method = _validate.choice(method, "method", METHODS)
-    pad = _batching.shared_geometry(robot)
-    if isinstance(p, Jet):
-        p = _validate.as_jet(p, "p", coords=3)
-        p = p.astype(float_dtype(p.p))
-        return _ik_jit(robot, p, branch, method, True, batch=p.shape[:-1], pad=pad)
-    # Positions only: no rate arrays are built or passed (the result has zero rates).
-    p = as_coords(p, "p")
-    return _ik_jit(robot, Jet(p, None, None), branch, method, False, batch=p.shape[:-1], pad=pad)
+    return solve_ik(robot, p, branch, DeltaIKOptions(method), name="p")

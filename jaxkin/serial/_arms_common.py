@@ -29,8 +29,9 @@ from jax.typing import ArrayLike
 
 from .. import _batching, _validate
 from .._numerics import safe_sqrt, singular_rtol
+from ..jet import Jet
 from ..result import SolverResult
-from ..robot import Robot
+from ..robot import CompilePolicy, Robot
 from ..status import STATUS_DTYPE, Status
 from .dh import DHTable, transforms
 
@@ -63,7 +64,7 @@ class ArmIKResult(SolverResult):
         return ArmIKResult(self.q[..., i, :], self.valid[..., i], self.status[..., i], (name,))
 
 
-class Arm(Robot):
+class Arm(Robot, abstract=True):
     """Base class of the analytic arms: the robot protocol and the per-arm IK kernel.
 
     Subclasses are ``@geometry`` dataclasses whose fields are scalar lengths (``number``) and
@@ -75,6 +76,8 @@ class Arm(Robot):
     BRANCHES: ClassVar[tuple[str, ...]]
     TARGET_SHAPE: ClassVar[tuple[int, ...]]
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
+    # Every branch is solved anyway: the branch is picked by a traced index, one program.
+    ik_policy: ClassVar = CompilePolicy(branch_as_data=True)
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -130,20 +133,19 @@ class Arm(Robot):
         ]
         return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> Any:
-        from .arms import ik_jet
+    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> Any:
+        index = jnp.asarray(self.branches.index(branch), jnp.int32)
+        return self.ik_kernel_indexed(target, index, options, rates)
 
-        return ik_jet(self, target, branch, **options)
-
-    def _fk(self, q: Any, **options: Any) -> Any:
-        from .arms import fk
-
-        return fk(self, q, **options)
-
-    def _ik_indexed(self, target: Any, index: Any) -> Any:
+    def ik_kernel_indexed(self, target: Jet, index: Any, options: Any, rates: bool = True) -> Any:
         from .arms import _ik_jet_core
 
-        return _ik_jet_core(self, target, index, True)  # the branch is data: one program
+        return _ik_jet_core(self, target, index, rates)  # the branch is data: one program
+
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> Any:
+        from .arms import _fk_core
+
+        return _fk_core(self, q, rates)
 
 
 # --------------------------------------------------------------------------- small math

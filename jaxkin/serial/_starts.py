@@ -2,7 +2,7 @@
 
 Per element, the first runs start from the configuration of a fixed table (``TABLE_SIZE``
 configurations uniform over the limits, in ``NEAR_GROUPS`` groups) whose tool pose is nearest
-the target (or from the caller's ``q0``), then from the middle of the limits, then from the
+the target, then from the middle of the limits, then from the
 nearest of each further group; later runs from fixed seeds spread uniformly over the limits.
 Every table and seed comes from a fixed generator: the same starts every call. Nearness is
 ``|p - p_d|^2 + w^2 |R - R_d|_F^2`` in units of the chain's size (``w = ROTATION_WEIGHT``),
@@ -89,11 +89,11 @@ def _near_starts(unit: Any, goal: Array, box: Box) -> Array:
     return table[index]
 
 
-def first_starts(unit: Any, goal: Array, box: Box, seeds: Array, q0: Array | None) -> Array:
-    """``(..., NEAR_GROUPS + 1, n)`` starts of an element's first runs: the nearest table pose
-    (or ``q0``), the middle of the limits (``seeds[0]``), then the other groups' nearest."""
+def first_starts(unit: Any, goal: Array, box: Box, seeds: Array) -> Array:
+    """``(..., NEAR_GROUPS + 1, n)`` starts of an element's first runs: the nearest table pose,
+    the middle of the limits (``seeds[0]``), then the other groups' nearest."""
     near = _near_starts(unit, goal, box)
-    first = near[..., 0, :] if q0 is None else q0
+    first = near[..., 0, :]
     middle = jnp.broadcast_to(seeds[0], first.shape)
     starts = jnp.concatenate([first[..., None, :], middle[..., None, :], near[..., 1:, :]], -2)
     return jnp.where(jnp.isfinite(starts), starts, 0.0)

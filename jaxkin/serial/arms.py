@@ -32,16 +32,14 @@ units of that size where unreachable; -1 for invalid input. Accuracy in float64 
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
 from .._numerics import isotropy, safe_norm
 from ..jet import Jet, lift
 from ..result import FKResult, IKResult, forward_result
-from ..robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
+from ..robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE, solve_fk, solve_ik
 from ..status import Status
 from . import _kinematics
 from . import dh as _dh
@@ -182,11 +180,9 @@ def _ik_jet_core(robot: Arm, target: Jet, index: Array, rates: bool) -> IKResult
     return IKResult(q, status, _margin(robot, q.p, target.p, status))
 
 
-_ik_jet_jit = _batching.PaddedJit(jax.jit(_ik_jet_core, static_argnames="rates"), {})
-
-
 def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IKResult:
-    """One branch of the analytic IK with joint velocity and acceleration, and a margin.
+    """One branch of the analytic IK with joint velocity and acceleration, and a margin
+    (``jaxkin.ik`` of an arm).
 
     The rates come from ``jaxkin.lift`` (nested forward-mode jvp) of the position-level IK,
     compiled once; they are 0 where the branch's status is not ``OK``. A pose target's Jet holds
@@ -194,7 +190,7 @@ def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IK
 
     Args:
         robot: one of ``ARMS``.
-        target: Jet (or array, at rest) of shape ``(..., *robot.TARGET_SHAPE)``.
+        target: Jet (or array, at rest) of shape ``(..., *robot.target.shape)``.
         branch: one of the robot's branch names (None: the first, ``robot.default_branch``).
 
     Returns:
@@ -203,29 +199,15 @@ def ik_jet(robot: Arm, target: Jet | ArrayLike, branch: str | None = None) -> IK
         the workspace, -1 for invalid input).
     """
     check_robot(robot, ARMS)
-    branch = robot.check_branch(branch)
-    shape = robot.TARGET_SHAPE
-    rates = isinstance(target, Jet)
-    target = _validate.as_jet(target, "target", coords=None)
-    if target.p.ndim < len(shape) or target.shape[-len(shape) :] != shape:
-        raise ValueError(
-            f"target: {type(robot).__name__} expects shape (..., {', '.join(map(str, shape))}), "
-            f"got {target.shape}"
-        )
-    index = jnp.asarray(robot.branches.index(branch), jnp.int32)
-    padding = _batching.shared_geometry(robot) and {"target": len(shape)}
-    return _ik_jet_jit(robot, target, index, rates, batch=target.shape[: -len(shape)], pad=padding)
+    return solve_ik(robot, target, branch, robot.IKOptions())
 
 
 def _fk_core(robot: Arm, q: Jet, rates: bool) -> FKResult:
     return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.TARGET_SHAPE))
 
 
-_fk_jit = _batching.PaddedJit(jax.jit(_fk_core, static_argnames="rates"), {"q": 1})
-
-
 def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
-    """Forward kinematics of an analytic arm in the form of its targets.
+    """Forward kinematics of an analytic arm in the form of its targets (``jaxkin.fk``).
 
     Args:
         robot: one of ``ARMS``.
@@ -243,6 +225,4 @@ def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
         ValueError: ``robot`` is not one of ``ARMS`` or ``q``'s last axis is not ``n_joints``.
     """
     check_robot(robot, ARMS)
-    rates = isinstance(q, Jet)
-    q = _validate.as_jet(q, "q", coords=robot.N_JOINTS)
-    return _fk_jit(robot, q, rates, batch=q.shape[:-1], pad=_batching.shared_geometry(robot))
+    return solve_fk(robot, q, robot.FKOptions())

@@ -34,12 +34,9 @@ names (a renamed joint, the same arm loaded with another tip link name) compiles
 
 from __future__ import annotations
 
-import dataclasses
-import math
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -50,9 +47,10 @@ from .._geometry import BOUND, REAL, geometry, label, number, static
 from .._numerics import eps
 from ..jet import Jet
 from ..result import FKResult, IKResult, forward_result
-from ..robot import POSE, JointLimits, Robot
+from ..robot import POSE, CompilePolicy, JointLimits, Robot, promoted
 from ..status import Status
 from . import _kinematics, search
+from .search import ChainIKOptions
 
 __all__ = ["JOINT_KINDS", "Chain", "body_jacobian", "space_jacobian"]
 
@@ -141,6 +139,14 @@ class Chain(Robot):
     target: ClassVar = POSE
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
+    IKOptions: ClassVar = ChainIKOptions
+    # The IK search is loop-bound: batch sizes share compilations by padding with NaN targets
+    # (ended at once) to a power of two, at least the work queue's lanes; large batches run one
+    # work queue per host thread. FK is cheap per element: padded, large parts.
+    ik_policy: ClassVar = CompilePolicy(
+        pad=False, bucket=search.QUEUE_SLOTS, threads=True, min_part=4 * search.QUEUE_SLOTS
+    )
+    fk_policy: ClassVar = CompilePolicy(threads=True)
 
     def _validate(self) -> None:
         super()._validate()
@@ -291,7 +297,8 @@ class Chain(Robot):
 
     @property
     def dtype(self):
-        return jnp.asarray(self.screws).dtype
+        screws = self.screws
+        return screws.dtype if hasattr(screws, "dtype") else jnp.asarray(screws).dtype
 
     @property
     def joint_types(self) -> str:
@@ -332,51 +339,37 @@ class Chain(Robot):
         radius = radius + jnp.linalg.norm(self.home[:3, 3] - current)
         return centre, radius
 
-    def _ik(self, target: Any, branch: Any, **options: Any) -> IKResult:
-        return _ik(self, target, branch, **options)
+    def ik_kernel(self, target: Jet, branch: Any, options: ChainIKOptions, rates: bool) -> IKResult:
+        """The IK search of ``serial.search`` (its module docstring): ``OK`` means the tool's
+        rotation angle to the target is at most ``orientation_tol`` and its distance at most
+        ``position_tol`` at the returned joints; with ``use_limits`` the joints of every status
+        but ``OUT_OF_LIMITS`` lie within the limits; continuous joints come back in
+        [-pi, pi)."""
+        chain = _validate.cast_leaves(self, target.dtype)
+        budget = search.Budget(options.max_iter, options.restarts, options.max_iter)
+        tols = _tolerances(chain, target.dtype, options)
+        return search.solve(chain, target, tols, budget, options.use_limits, rates)
 
-    def _ik_path(self, path: Any, index: Any) -> IKResult:
-        return _ik_path(self, path)
+    def ik_path_kernel(self, path: Jet, index: Any, options: ChainIKOptions) -> IKResult:
+        """The search along sampled paths ``(..., T, 4, 4)``: the first sample as
+        ``ik_kernel``, every later one warm-started from the previous solution with
+        ``warm_iter`` updates (``search.solve_paths``)."""
+        chain = _validate.cast_leaves(self, path.dtype)
+        budget = search.Budget(options.max_iter, options.restarts, options.warm_iter)
+        tols = _tolerances(chain, path.dtype, options)
+        return search.solve_paths(chain, path, tols, budget, options.use_limits)
 
-    def _fk(self, q: Any, **options: Any) -> FKResult:
-        return _fk(self, q, **options)
+    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
+        """The tip's pose ``T(q)`` (``x``: a Jet of 4x4 transforms in the base frame);
+        ``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``."""
+        chain = _validate.cast_leaves(self, q.dtype)
+        return forward_result(lambda joints: _kinematics.pose(chain, joints), q, rates, 2)
+
+    def work_dtype(self, dtype: Any) -> Any:
+        return promoted(dtype, self.dtype)
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
-
-
-# ------------------------------------------------------------------------------ FK
-def _fk_core(chain: Chain, q: Jet | Array, rates: bool, zero_rates: bool = True) -> FKResult:
-    """``FKResult`` at ``q`` (a Jet, or at rest an array); at rest with ``zero_rates`` False,
-    the pose without rates: the caller adds them (``_batching.zero_rates_outside``)."""
-
-    def pose(joints):
-        return _kinematics.pose(chain, joints)
-
-    result = forward_result(pose, q if rates else Jet.constant(q), rates, 2)
-    if rates or zero_rates:
-        return result
-    return dataclasses.replace(result, x=Jet(result.x.p, None, None))
-
-
-# Large batches split across host threads: FK is cheap per element, so the parts are large.
-_fk_jit = _batching.PaddedJit(
-    _batching.PartsJit(_fk_core, static_argnames=("rates", "zero_rates"), batched_argnames=("q",)),
-    {"q": 1},
-)
-
-
-def _fk(chain: Chain, q: Jet | ArrayLike) -> FKResult:
-    """Forward kinematics as the robot protocol has it (``jaxkin.fk``): ``x`` the Jet of the
-    tip's 4x4 poses in the base frame, ``status`` ``INVALID_INPUT`` for NaN/inf in ``q`` (where
-    ``x`` is the pose at ``q = 0``)."""
-    rates = isinstance(q, Jet)
-    q = _validate.as_jet(q, "q", coords=chain.n_joints)
-    dtype = jnp.result_type(q.dtype, chain.dtype)
-    chain, q, batch = _validate.cast_leaves(chain, dtype), q.astype(dtype), q.shape[:-1]
-    outside = _batching.zero_rates_outside(rates, batch)
-    result = _fk_jit(chain, q if rates else q.p, rates, not outside, batch=batch)
-    return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result
 
 
 # ------------------------------------------------------------------------------ Jacobians
@@ -426,138 +419,10 @@ def body_jacobian(chain: Chain, q: ArrayLike) -> Array:
     return _jacobian_jit(chain, q, "body", batch=q.shape[:-1])
 
 
-# ------------------------------------------------------------------------------ IK
-# Targets per host-thread part of the IK (``_batching.PartsJit``): each part is a work queue.
-CHAIN_MIN_PART = 4 * search.QUEUE_SLOTS
-
-# Large batches split across the host threads.
-_ik_jit = _batching.PartsJit(
-    search.solve,
-    static_argnames=("budget", "use_limits", "rates"),
-    batched_argnames=("target", "q0"),
-    min_part=CHAIN_MIN_PART,
-)
-_ik_path_jit = jax.jit(search.solve_paths, static_argnames=("budget", "use_limits"))
-
-
-def _tolerances(chain: Chain, dtype, position_tol, orientation_tol, counts) -> tuple:
-    """Validated tolerances (as arrays: no recompilation for new values) and counts."""
-    for name, value in counts.items():
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-            raise ValueError(f"{name} must be an int >= 1, got {value!r}")
+def _tolerances(chain: Chain, dtype: Any, options: ChainIKOptions) -> tuple[Array, Array]:
+    """``(orientation_tol, position_tol)`` as ``dtype`` arrays (traceable): the options', or
+    the defaults ``max(1e-10, 1000 eps)`` (rad) and that times ``chain.length_scale()``."""
     default = max(1e-10, 1e3 * eps(dtype))
-    rot = default if orientation_tol is None else orientation_tol
-    positive(rot, "orientation_tol")
-    if position_tol is None:
-        pos = jnp.asarray(default * chain.length_scale(), dtype)
-    else:
-        positive(position_tol, "position_tol")
-        pos = jnp.asarray(position_tol, dtype)
-    return jnp.asarray(rot, dtype), pos
-
-
-def _pose_jet(target: Jet | ArrayLike, name: str) -> tuple[Jet, bool]:
-    rates = isinstance(target, Jet)
-    target = _validate.as_jet(target, name, coords=None)
-    if target.p.ndim < 2 or target.shape[-2:] != (4, 4):
-        raise ValueError(f"{name}: expected shape (..., 4, 4), got {target.shape}")
-    return target, rates
-
-
-def _ik(
-    chain: Chain,
-    target: Jet | ArrayLike,
-    branch: str | None = None,
-    q0: ArrayLike | None = None,
-    restarts: int = 64,
-    max_iter: int = 12,
-    position_tol: float | None = None,
-    orientation_tol: float | None = None,
-    use_limits: bool = True,
-) -> IKResult:
-    """``jaxkin.ik`` of a chain: the search of ``serial.search`` (its module docstring).
-
-    Guarantees: ``OK`` means ``angle(R^T R_d) <= orientation_tol`` (rad) and ``|p_d - p| <=
-    position_tol`` (length) at the returned joints, computed by the chain's forward
-    kinematics; with ``use_limits`` the joints of every status but ``OUT_OF_LIMITS`` lie within
-    the chain's limits; continuous joints come back in [-pi, pi).
-
-    Args:
-        chain: the chain.
-        target: Jet (or array, at rest) of 4x4 transforms ``(..., 4, 4)``; a Jet's rates give
-            the joint rates (``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot - J_b_dot
-            q_dot)``: minimum-norm for a redundant chain).
-        branch: ``"newton"`` (the only branch) or None.
-        q0: the first run's start ``(..., n)`` (broadcast against the targets); None for the
-            nearest pose of a fixed table. Later runs start from the middle of the limits,
-            other table poses near the target, then fixed seeds spread over the limits.
-        restarts: runs per element at most (>= 1), before the unbounded run.
-        max_iter: updates per run (>= 1).
-        position_tol: length units; None for ``max(1e-10, 1000 eps) * chain.length_scale()``.
-        orientation_tol: rad; None for ``max(1e-10, 1000 eps)``.
-        use_limits: respect the chain's position limits (False: search without them).
-
-    Returns:
-        ``IKResult``: ``q`` (Jet ``(..., n)``), ``status`` (``OK``, ``OUT_OF_LIMITS``: solved
-        only outside the limits, ``q`` that solution; ``NOT_CONVERGED``: ``q`` the best iterate
-        within the limits; ``UNREACHABLE``: beyond ``chain.reach()``; ``INVALID_INPUT``),
-        ``margin`` (the isotropy of the body Jacobian in units of the chain's size where
-        solved; minus the remaining error, at most 1, where not; -1 for invalid input).
-
-    Raises:
-        ValueError: an unknown branch, a target or ``q0`` of the wrong shape, non-positive
-            tolerances or counts below 1.
-    """
-    if branch not in (None, "newton"):
-        raise ValueError(f"branch must be 'newton' (or None) for a chain, got {branch!r}")
-    target, rates = _pose_jet(target, "target")
-    dtype = jnp.result_type(target.dtype, chain.dtype)
-    counts = dict(restarts=restarts, max_iter=max_iter)
-    tols = _tolerances(chain, dtype, position_tol, orientation_tol, counts)
-    n = chain.n_joints
-    batch = target.shape[:-2]
-    if q0 is not None:
-        q0 = jnp.asarray(q0, dtype)
-        if q0.ndim == 0 or q0.shape[-1] != n:
-            raise ValueError(f"q0: expected shape (..., {n}), got {tuple(q0.shape)}")
-        batch = _validate.batch_shape({"target": batch, "q0": q0.shape[:-1]})
-        q0 = jnp.broadcast_to(q0, (*batch, n))
-    target = target.map(lambda x: jnp.broadcast_to(x.astype(dtype), (*batch, 4, 4)))
-    budget = search.Budget(max_iter, restarts, max_iter)
-    chain = _validate.cast_leaves(chain, dtype)
-    batch = tuple(batch)
-    size = math.prod(batch)
-    padded = _batching.bucket_size(size, search.QUEUE_SLOTS)
-    leaves = jax.tree.leaves((chain, target, q0))
-    if padded == size and len(batch) == 1 or not all(map(_validate.is_concrete, leaves)):
-        return _ik_jit(chain, target, q0, tols, budget, bool(use_limits), rates, batch=batch)
-    # Batch sizes share compilations: the padding rows are NaN targets, ended at once.
-    target = target.map(lambda x: _batching.spread_rows(x, batch, 2, padded, np.nan))
-    if q0 is not None:
-        q0 = _batching.spread_rows(q0, batch, 1, padded, 0.0)
-    result = _ik_jit(chain, target, q0, tols, budget, bool(use_limits), rates, batch=(padded,))
-    return _batching.gather_back(result, batch)
-
-
-def _ik_path(
-    chain: Chain,
-    path: Jet | ArrayLike,
-    restarts: int = 64,
-    max_iter: int = 12,
-    warm_iter: int = 20,
-    position_tol: float | None = None,
-    orientation_tol: float | None = None,
-    use_limits: bool = True,
-) -> IKResult:
-    """``_ik`` along sampled paths ``(..., T, 4, 4)``, each sample after the first
-    warm-started from the previous one with ``warm_iter`` updates (``search.solve_paths``)."""
-    path, _ = _pose_jet(path, "path")
-    if path.p.ndim < 3:
-        raise ValueError(f"path: expected shape (..., T, 4, 4), got {path.shape}")
-    dtype = jnp.result_type(path.dtype, chain.dtype)
-    counts = dict(restarts=restarts, max_iter=max_iter, warm_iter=warm_iter)
-    tols = _tolerances(chain, dtype, position_tol, orientation_tol, counts)
-    budget = search.Budget(max_iter, restarts, warm_iter)
-    return _ik_path_jit(
-        _validate.cast_leaves(chain, dtype), path.astype(dtype), tols, budget, bool(use_limits)
-    )
+    rot = default if options.orientation_tol is None else options.orientation_tol
+    pos = default * chain.length_scale() if options.position_tol is None else options.position_tol
+    return jnp.asarray(rot, dtype), jnp.asarray(pos, dtype)

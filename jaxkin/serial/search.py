@@ -9,7 +9,7 @@ In units of the chain's size and in the body frame, per element:
   Appl. Math. 172, 2004) prove local quadratic convergence to a solution inside the box.
   Joints come back within the limits (but for ``OUT_OF_LIMITS``);
 * restarts, one after the other, ``max_iter`` updates each, from the starts of
-  ``serial._starts`` (the nearest pose of a fixed table or ``q0``, the middle of the limits,
+  ``serial._starts`` (the nearest pose of a fixed table, the middle of the limits,
   the other groups' nearest, then seeds spread over the limits); the first run that meets the
   tolerances ends the element's search; after the last, one unbounded run from the best
   iterate tells ``OUT_OF_LIMITS`` (the pose is solved only outside the limits) from
@@ -47,13 +47,15 @@ from jax import Array
 
 from .. import _batching
 from .._numerics import all_finite, eps, isotropy, safe_sqrt
+from .._validate import is_concrete
 from ..jet import Jet
 from ..result import IKResult
+from ..robot import options
 from ..status import STATUS_DTYPE, Status
 from . import _kinematics, _starts, _step, lie
 from ._starts import Box
 
-__all__ = ["LM_WEIGHT", "QUEUE_SLOTS", "Budget", "solve", "solve_paths"]
+__all__ = ["LM_WEIGHT", "QUEUE_SLOTS", "Budget", "ChainIKOptions", "solve", "solve_paths"]
 
 # Levenberg-Marquardt damping ``mu = LM_WEIGHT |V|^2``: any positive weight keeps
 # Yamashita-Fukushima's quadratic convergence; 1e-3 needed 3-5x fewer updates than 1 from far
@@ -65,6 +67,54 @@ LM_WEIGHT = 1e-3
 QUEUE_SLOTS = 32
 
 _TWO_PI = 2.0 * np.pi
+
+
+def _count(value: Any, name: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be an int >= 1, got {value!r}")
+
+
+def _tolerance(value: Any, name: str) -> Any:
+    """A positive finite tolerance as a float, or None; traced values pass (not user input)."""
+    if value is None or not is_concrete(value):
+        return value
+    if isinstance(value, bool | str | bytes) or np.ndim(value) != 0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    number = float(value)
+    if not (math.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return number
+
+
+@options(dynamic=("position_tol", "orientation_tol"))
+class ChainIKOptions:
+    """Options of a chain's IK (``jaxkin.ik(chain, pose, **options)``).
+
+    Attributes:
+        restarts: runs per element at most (>= 1), before the unbounded run.
+        max_iter: updates per run (>= 1).
+        warm_iter: updates of a later path sample's run from the previous solution (the
+            planner's warm-started IK along paths).
+        position_tol: length units; None for ``max(1e-10, 1000 eps) * chain.length_scale()``.
+            A new value compiles nothing new.
+        orientation_tol: rad; None for ``max(1e-10, 1000 eps)``.
+        use_limits: respect the chain's position limits (False: search without them).
+    """
+
+    restarts: int = 64
+    max_iter: int = 12
+    warm_iter: int = 20
+    position_tol: float | None = None
+    orientation_tol: float | None = None
+    use_limits: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("restarts", "max_iter", "warm_iter"):
+            _count(getattr(self, name), name)
+        for name in ("position_tol", "orientation_tol"):
+            object.__setattr__(self, name, _tolerance(getattr(self, name), name))
+        if not isinstance(self.use_limits, bool):
+            object.__setattr__(self, "use_limits", bool(self.use_limits))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -428,7 +478,6 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
 def solve(
     chain: Any,
     target: Jet,
-    q0: Array | None,
     tols: tuple[Array, Array],
     budget: Budget,
     use_limits: bool,
@@ -436,14 +485,12 @@ def solve(
 ) -> IKResult:
     """The search (module docstring) for targets ``(..., 4, 4)``, a Jet in the chain's dtype.
 
-    ``q0`` ``(..., n)`` the first run's start (None: the nearest table pose); ``tols`` the
-    ``(rotation, position)`` tolerances (rad, length); ``use_limits`` False searches without
-    the chain's position limits; ``rates`` False skips the joint rates (zero)."""
+    ``tols`` the ``(rotation, position)`` tolerances (rad, length); ``use_limits`` False
+    searches without the chain's position limits; ``rates`` False skips the joint rates
+    (zero)."""
     prep = _prepare(chain, target, tols, use_limits, budget.runs)
     runs = _runs(prep, budget.max_iter, budget.runs)
-    starts = _starts.first_starts(
-        prep.unit, prep.goal, prep.box, prep.seeds, None if q0 is None else q0 * prep.g
-    )
+    starts = _starts.first_starts(prep.unit, prep.goal, prep.box, prep.seeds)
     q, status = _search(runs, prep.goal, starts, prep.done, prep.status, budget.slots)
     return _finish(prep, prep.goal, q, status, rates)
 
@@ -454,7 +501,7 @@ def solve_paths(
     """The search along sampled paths ``(..., T, 4, 4)`` (module docstring), with rates."""
     prep = _prepare(chain, path, tols, use_limits, budget.runs)
     first = prep.goal[..., 0, :, :]
-    starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds, None)
+    starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
     runs = _runs(prep, budget.max_iter, budget.runs)
     q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
     warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1])
