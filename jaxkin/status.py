@@ -3,6 +3,8 @@
 Failure is data: a solver never raises inside ``jit``; each element of a batch carries one of
 these codes (stored as ``int8``) beside finite placeholder values. When several conditions hold,
 the most basic one wins: ``INVALID_INPUT`` before ``UNREACHABLE`` before the singular cases.
+``UNTIMEABLE`` is the retiming's (``jaxkin.timing``): no timing within the joints' speed and
+acceleration limits follows the path.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ class Status(enum.IntEnum):
     NOT_CONVERGED = 6
     OUT_OF_LIMITS = 7
     INVALID_INPUT = 8
+    UNTIMEABLE = 9
 
 
 _DESCRIPTIONS = {
@@ -53,6 +56,10 @@ _DESCRIPTIONS = {
     Status.NOT_CONVERGED: "an iterative solver stopped before reaching its tolerance",
     Status.OUT_OF_LIMITS: "solved, but a joint limit is violated",
     Status.INVALID_INPUT: "NaN or inf in this element's input",
+    Status.UNTIMEABLE: (
+        "the path cannot be timed within the velocity and acceleration limits (a joint that "
+        "must move has a zero limit, or the start or end speed cannot be reached)"
+    ),
 }
 
 
