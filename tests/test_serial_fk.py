@@ -284,7 +284,7 @@ def test_malformed_dh_tables(kwargs, match):
 
 def test_bad_inputs():
     chain = serial.from_dh(_lopez_villagomez_arm())
-    with pytest.raises(ValueError, match=r"q: expected shape \(\.\.\., 3\)"):
+    with pytest.raises(ValueError, match=r"q: .*shape \(\.\.\., 3\)"):
         jaxkin.fk(chain, np.zeros((4, 2)))
     with pytest.raises(ValueError, match=r"q: expected shape \(\.\.\., 3\)"):
         serial.body_jacobian(chain, np.zeros(2))
