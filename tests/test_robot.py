@@ -158,7 +158,7 @@ def test_plain_arrays_are_at_rest_and_errors_name_the_argument(name):
         jaxkin.ik(object(), t)
 
 
-@pytest.mark.parametrize("name", ["scara", "delta", "anthropomorphic", "puma560", "dh-table"])
+@pytest.mark.parametrize("name", ["scara", "delta", "anthropomorphic", "puma560", "dh-chain"])
 def test_jit_vmap_and_no_recompilation(name):
     """Under a user's jit and vmap the protocol gives the eager values; a repeated call with new
     values and a freshly built robot compiles (and traces) nothing."""
