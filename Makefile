@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-slow docs docs-serve bench bench-peers lint format clean
+.PHONY: demo test test-slow docs docs-serve bench bench-goals bench-peers lint lint-imports format clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -18,13 +18,15 @@ demo: $(STAMP)
 	$(BIN)/jaxkin demo
 
 # Two worker processes (pytest-xdist), one file per worker at a time so that a file's tests
-# share their compilations. The slow tests (tests/conftest.py) run with `make test-slow`.
+# share their compilations. The slow tests (`@pytest.mark.slow`) run with `make test-slow`.
 # Python's bytecode caches are written even where the environment turns them off, so that
 # later processes (workers, the command-line tests' subprocesses) load modules compiled once.
 PYTEST := PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q -n 2 --dist loadfile
 
+# lint-imports checks the import layers and cycles of pyproject.toml's [tool.importlinter].
 test: $(STAMP)
 	$(PYTEST) -m "not slow" tests
+	$(BIN)/lint-imports
 
 test-slow: $(STAMP)
 	$(PYTEST) -m slow tests
@@ -45,6 +47,11 @@ docs-serve: $(DOCS_STAMP)
 bench: $(STAMP)
 	JAXKIN_WRITE_RESULTS=1 $(BIN)/python -m pytest -q benchmarks --ignore=benchmarks/test_peers.py --benchmark-only --benchmark-columns=min,median,rounds
 
+# The goal ratios alone (benchmarks/test_goals.py, about a minute): fails when a kernel's
+# ratio to its reference falls below the floor recorded there. `make bench` runs it too.
+bench-goals: $(STAMP)
+	$(BIN)/python -m pytest -q -s benchmarks/test_goals.py --benchmark-only --benchmark-columns=rounds
+
 # Installs the peer libraries into .venv (torch CPU, roboticstoolbox, pytorch_kinematics,
 # PyRoki, pylinkage, visual-kinematics; jax/numpy pinned), then times them beside jaxkin.
 bench-peers: $(STAMP)
@@ -54,6 +61,10 @@ bench-peers: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	$(BIN)/lint-imports
+
+lint-imports: $(STAMP)
+	$(BIN)/lint-imports
 
 format: $(STAMP)
 	$(BIN)/ruff format .

@@ -13,7 +13,7 @@ import jax
 import numpy as np
 import pytest
 
-from jaxkin import Jet, delta, dyad, plan, scara
+from jaxkin import Jet, delta, dyad, paths, plan, scara
 
 
 def _accelerator():
@@ -69,6 +69,6 @@ def test_plan_evaluate(measure, where):
     s = np.linspace(0.0, 1.0, t)[None, :, None]
     offsets = np.random.default_rng(2).normal(scale=20.0, size=(n, 1, 3)) * [1, 1, 0]
     start, goal = np.array([110.0, -50.0, 40.0]), np.array([-20.0, 100.0, 80.0])
-    paths = plan.path_from_samples(start + s * (goal - start) + np.sin(np.pi * s) * offsets, 0.02)
-    paths = _on(device, paths)
-    measure(lambda: plan.evaluate(robot, paths, dt=0.02), n, kernel="plan.evaluate", where=where)
+    path = paths.path_from_samples(start + s * (goal - start) + np.sin(np.pi * s) * offsets, 0.02)
+    path = _on(device, path)
+    measure(lambda: plan.evaluate(robot, path, dt=0.02), n, kernel="plan.evaluate", where=where)

@@ -2,7 +2,7 @@
 
 Problems: the paper's SCARA (150, 80, 50 mm), pick-and-place moves from a start to a goal,
 rest to rest, 3 interior Bezier control points, 16 noisy straight-line guesses, T = 100
-samples over 1 s, cost ``optimize.acceleration`` (the integrated squared joint acceleration),
+samples over 1 s, cost ``costs.acceleration`` (the integrated squared joint acceleration),
 every other argument of ``optimize.optimize`` at its default (L-BFGS per guess).
 
 Reference: ``scipy.optimize.minimize(method="L-BFGS-B")`` run one guess after another on the
@@ -26,7 +26,7 @@ import pytest
 from scipy.optimize import minimize
 
 import jaxkin
-from jaxkin import optimize, scara
+from jaxkin import costs, optimize, paths, scara
 
 ROBOT = scara.Scara.paper()
 N_SAMPLES, N_INTERIOR, N_GUESSES = 100, 3, 16
@@ -41,7 +41,7 @@ WARM_UP = ([90.0, -70.0, 50.0], [80.0, 80.0, 60.0])  # same shapes, compiles the
 
 def reference_objective(start: np.ndarray, goal: np.ndarray):
     """scipy's ``fun(x) -> (value, gradient)`` of one guess's interior points ``x`` (flat)."""
-    basis = jnp.asarray(optimize.bezier_basis(N_INTERIOR + 4, N_SAMPLES))
+    basis = jnp.asarray(paths.bezier_basis(N_INTERIOR + 4, N_SAMPLES))
     dt = 1.0 / (N_SAMPLES - 1)
     ends = jnp.asarray(start), jnp.asarray(goal)
 
@@ -66,7 +66,7 @@ def reference_objective(start: np.ndarray, goal: np.ndarray):
 
 def solve(start, goal, guesses) -> optimize.OptimizationResult:
     return optimize.optimize(
-        ROBOT, start, goal, guesses, cost=optimize.acceleration, rest_to_rest=True,
+        ROBOT, start, goal, guesses, cost=costs.acceleration, rest_to_rest=True,
         n_samples=N_SAMPLES,
     )  # fmt: skip
 
@@ -74,7 +74,7 @@ def solve(start, goal, guesses) -> optimize.OptimizationResult:
 @pytest.mark.parametrize("name", list(PROBLEMS))
 def test_optimize_against_scipy_lbfgsb(benchmark, name):
     start, goal = (np.asarray(x) for x in PROBLEMS[name])
-    guesses = optimize.straight_line_guess(start, goal, N_INTERIOR, N_GUESSES, noise=10.0, seed=1)
+    guesses = paths.straight_line_guess(start, goal, N_INTERIOR, N_GUESSES, noise=10.0, seed=1)
     warm = [np.asarray(x) for x in WARM_UP]
     jax.block_until_ready(solve(*warm, guesses + 1.0))  # compile on another problem
     result = benchmark.pedantic(

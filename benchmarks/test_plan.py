@@ -6,7 +6,7 @@ import jax
 import numpy as np
 import pytest
 
-from jaxkin import delta, optimize, plan, scara
+from jaxkin import delta, optimize, paths, plan, scara
 
 T = 100
 SIZES = [100, 1_000, 10_000]
@@ -18,7 +18,7 @@ def _bezier_paths(n, start, goal, spread, dtype):
     controls = np.concatenate(
         [np.broadcast_to(start, (n, 1, 3)), interior, np.broadcast_to(goal, (n, 1, 3))], axis=1
     )
-    path = optimize.bezier_path(controls, optimize.bezier_basis(4, T), 2.0)
+    path = paths.bezier_path(controls, paths.bezier_basis(4, T), 2.0)
     return path.astype(dtype)
 
 
@@ -58,7 +58,7 @@ def test_plan_evaluate(measure, robot_name, dtype, n):
 @pytest.mark.parametrize("n_guesses", [8, 64])
 def test_optimiser_steps(measure, n_guesses):
     robot, start, goal, _, _ = ROBOTS["scara"]
-    guesses = optimize.straight_line_guess(start, goal, 3, n_guesses=n_guesses, noise=5.0)
+    guesses = paths.straight_line_guess(start, goal, 3, n_guesses=n_guesses, noise=5.0)
     steps = 50
     result = measure(
         lambda: optimize.optimize(robot, start, goal, guesses, n_samples=T, steps=steps).history,

@@ -41,7 +41,7 @@ def _worker(n_per_process: int) -> None:
     )
     import numpy as np
 
-    from jaxkin import _batching, plan, scara
+    from jaxkin import _batching, paths, plan, scara
 
     _batching.set_num_threads(1)
     robot = scara.Scara.paper()
@@ -49,11 +49,11 @@ def _worker(n_per_process: int) -> None:
     s = np.linspace(0.0, 1.0, T)[None, :, None]
     offsets = np.random.default_rng(0).normal(scale=20.0, size=(total, 1, 3)) * [1, 1, 0]
     start, goal = np.array([110.0, -50.0, 40.0]), np.array([-20.0, 100.0, 80.0])
-    paths = plan.path_from_samples(start + s * (goal - start) + np.sin(np.pi * s) * offsets, DT)
+    path = paths.path_from_samples(start + s * (goal - start) + np.sin(np.pi * s) * offsets, DT)
     times = []
     for _ in range(CALLS + 1):
         began = time.perf_counter()
-        ev = plan.evaluate(robot, paths, branch="best", dt=DT)
+        ev = plan.evaluate(robot, path, branch="best", dt=DT)
         jax.block_until_ready(ev.costs.total)
         indices, _ = plan.best(ev, 5)
         times.append(time.perf_counter() - began)

@@ -21,7 +21,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin import optimize, scara
+from jaxkin import costs, optimize, paths, scara
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never sets it
 
@@ -33,11 +33,11 @@ POST, RADIUS, SAFETY = np.array([30.0, 30.0, 65.0]), 18.0, 6.0
 
 def solve(post: np.ndarray, guesses: np.ndarray) -> optimize.OptimizationResult:
     """Optimise every guess around a post at ``post`` (a new position reuses the compilation)."""
-    obstacle = optimize.Obstacles.create(spheres=([post], [RADIUS]), safety=SAFETY)
-    cost = optimize.compose(
-        (1.0, optimize.acceleration),
-        (100.0, optimize.singularity_barrier(0.05)),
-        (1e6, optimize.unreachable_penalty),
+    obstacle = costs.Obstacles.create(spheres=([post], [RADIUS]), safety=SAFETY)
+    cost = costs.compose(
+        (1.0, costs.acceleration),
+        (100.0, costs.singularity_barrier(0.05)),
+        (1e6, costs.unreachable_penalty),
         (1e4, obstacle),
     )
     return optimize.optimize(
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output-dir", type=Path, default=Path("."), help="where files go")
     args = parser.parse_args(argv)
-    guesses = optimize.straight_line_guess(START, GOAL, 2, n_guesses=16, noise=10.0, seed=1)
+    guesses = paths.straight_line_guess(START, GOAL, 2, n_guesses=16, noise=10.0, seed=1)
     line = START[:2] + np.linspace(0, 1, 200)[:, None] * (GOAL - START)[:2]
 
     start = time.perf_counter()

@@ -20,8 +20,7 @@ import jax
 import numpy as np
 
 import jaxkin
-from jaxkin import serial
-from jaxkin.serial import lie
+from jaxkin import lie, serial
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never sets it
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin import Status, optimize, plan, scara
+from jaxkin import Status, paths, plan, scara
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never sets it
 
@@ -38,8 +38,8 @@ def random_candidates(n: int, seed: int = 0):
     controls = np.concatenate(
         [np.broadcast_to(START, (n, 1, 3)), interior, np.broadcast_to(GOAL, (n, 1, 3))], axis=1
     )
-    basis = optimize.bezier_basis(4, N_SAMPLES)
-    return optimize.bezier_path(controls, basis, DURATION)
+    basis = paths.bezier_basis(4, N_SAMPLES)
+    return paths.bezier_path(controls, basis, DURATION)
 
 
 def plot(path, ev, best, output: Path) -> Path | None:

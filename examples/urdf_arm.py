@@ -5,7 +5,7 @@ limits, a finger on a side branch that the chain ignores) with ``serial.from_urd
 ``N`` (default 10,000) pose targets made from random joints within the limits, with no seed
 (Levenberg-Marquardt with restarts within the joint limits), and checks every answer by the
 chain's forward kinematics. Then it plans: 64 candidate pose paths (the tool moves 30 cm along
-a bent line while it turns 90 degrees about its own axis), splined by ``plan.path_from_poses``
+a bent line while it turns 90 degrees about its own axis), splined by ``paths.path_from_poses``
 and evaluated by ``plan.evaluate`` with Newton warm-started along each candidate; the best
 candidate's joints go to ``urdf_arm_best.csv`` in ``--output-dir``.
 
@@ -24,7 +24,7 @@ import numpy as np
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never does this
 
 import jaxkin  # noqa: E402
-from jaxkin import Status, plan, serial  # noqa: E402
+from jaxkin import Status, paths, plan, serial  # noqa: E402
 
 URDF = Path(__file__).with_name("ur5.urdf")
 
@@ -72,9 +72,9 @@ def main(argv: list[str] | None = None) -> int:
     positions = start + s * (goal - start) + np.sin(np.pi * s) * bend  # (n, t, 3)
     down = np.array([0.0, 1.0, 0.0, 0.0])  # the tool pointing down: a half turn about x
     quaternions = np.broadcast_to(_quaternion_about_z(0.5 * np.pi * s[..., 0], down), (n, t, 4))
-    paths = plan.path_from_poses(positions, quaternions, dt)  # (64, 50, 4, 4)
+    path = paths.path_from_poses(positions, quaternions, dt)  # (64, 50, 4, 4)
     began = time.perf_counter()
-    ev = plan.evaluate(arm, paths, dt=dt)
+    ev = plan.evaluate(arm, path, dt=dt)
     jax.block_until_ready(ev.costs.total)
     elapsed = time.perf_counter() - began
     feasible = np.asarray(ev.feasible)
@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     (best,), (cost,) = plan.best(ev, 1)
     back = jaxkin.fk(arm, ev.q[best]).x
-    drift = np.abs(np.asarray(back.p) - np.asarray(paths.p[best])).max()
+    drift = np.abs(np.asarray(back.p) - np.asarray(path.p[best])).max()
     print(f"best candidate {best}: integrated squared joint acceleration {cost:.3g}, "
           f"tool pose from its joints within {drift:.1e} of the path")  # fmt: skip
     table = np.c_[np.arange(t) * dt, ev.q.p[best], ev.q.v[best], ev.q.a[best]]

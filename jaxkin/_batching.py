@@ -379,10 +379,6 @@ class PartsJit:
 
         return join(run_parts(run, starts), batch, len(starts) * part - size)
 
-    def _cache_size(self) -> int:
-        """Compilations held (whole-batch and per-part), for recompilation tests."""
-        return self.whole._cache_size() + self._part._cache_size()
-
 
 # ------------------------------------------------------------------ candidates and devices
 
@@ -562,10 +558,6 @@ class PaddedJit:
         if self._takes_batch:
             return self.jitted(*args, batch=batch, **kwargs)
         return self.jitted(*args, **kwargs)
-
-    def _cache_size(self) -> int:
-        """Compilations held by the kernel, for recompilation tests."""
-        return self.jitted._cache_size()
 
 
 def shared_geometry(robot: Any) -> bool:

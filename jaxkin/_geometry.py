@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import is_concrete
+from ._validate import as_float, is_concrete
 
 LENGTH = "length"
 NONNEGATIVE = "nonnegative"
@@ -138,10 +138,7 @@ def check_number(value: Any, name: str, kind: str = LENGTH, shape: Shape = ()) -
         raise ValueError(f"{name} must be {what}, got {shown}")
     if isinstance(value, numbers.Real) and arr.ndim == 0:
         return float(value)
-    out = jnp.asarray(value)
-    if not jnp.issubdtype(out.dtype, jnp.inexact):
-        out = out.astype(jnp.result_type(float))
-    return out
+    return as_float(value)
 
 
 class Geometry:

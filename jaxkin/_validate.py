@@ -33,6 +33,15 @@ def as_jet(x: Jet | ArrayLike, name: str, coords: int | None) -> Jet:
     return jet.astype(dtype)
 
 
+def as_float(x: ArrayLike) -> jax.Array:
+    """``x`` as a JAX array of an inexact dtype: integers and booleans become JAX's default
+    float (float32, or float64 with x64); floating input keeps its dtype. Works on tracers."""
+    arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
+    if not jnp.issubdtype(arr.dtype, jnp.inexact):
+        arr = arr.astype(jnp.result_type(float))
+    return arr
+
+
 def point(x: ArrayLike, name: str, coords: int) -> jax.Array:
     """A floating array of points, shape ``(..., coords)``."""
     arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
@@ -41,9 +50,7 @@ def point(x: ArrayLike, name: str, coords: int) -> jax.Array:
             f"{name}: expected shape (..., {coords}) (last axis = coordinates), "
             f"got {tuple(arr.shape)}"
         )
-    if not jnp.issubdtype(arr.dtype, jnp.inexact):
-        arr = arr.astype(jnp.result_type(float))
-    return arr
+    return as_float(arr)
 
 
 def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> jax.Array | float:
@@ -62,10 +69,7 @@ def positive_length(x: ArrayLike, name: str, allow_nonfinite: bool = False) -> j
             raise ValueError(f"{name} must be positive and finite, got {values}")
     if isinstance(x, float):
         return x  # weakly typed: kernels cast it to their inputs' dtype, no dispatch here
-    arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
-    if not jnp.issubdtype(arr.dtype, jnp.inexact):
-        arr = arr.astype(jnp.result_type(float))
-    return arr
+    return as_float(x)
 
 
 def batch_shape(name_shapes: dict[str, tuple[int, ...]]) -> tuple[int, ...]:

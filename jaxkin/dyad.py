@@ -232,12 +232,14 @@ def _analytic_rates(a_rates, rel, l_ac, l_bc, pos: _Position, mode: int):
     beta_ddot = -(pos.u * u_dot * u_dot * inv_sin_beta * inv_sin_beta + u_ddot) * inv_sin_beta
     phi_dot = jnp.where(ok, theta_dot + mode * beta_dot, 0.0)  # eq. 9 / 10
     phi_ddot = jnp.where(ok, theta_ddot + mode * beta_ddot, 0.0)  # eq. 3 above, then 9 / 10
-    # Read by the four rate outputs of C: stored once instead of recomputed by each
-    phi_dot, phi_ddot = computed_once(jnp.stack([phi_dot, phi_ddot]))
+    # Outputs read by C's four rate outputs: each stored once (in its output buffer, no
+    # scratch) instead of recomputed by each reader.
+    phi_dot, phi_ddot = computed_once(phi_dot), computed_once(phi_ddot)
 
-    # Eqs. 7-8: C's rates are A's (added by the caller) plus those of the turning link AC.
+    # Eqs. 7-8: C's rates are A's (added by the caller) plus those of the turning link AC;
+    # 0 where not OK since phi's rates are (no second test of the status in their loops).
     link = link_end_rates(l_ac, pos.cos_phi, pos.sin_phi, phi_dot, phi_ddot)
-    return (phi_dot, phi_ddot) + tuple(jnp.where(ok, r, 0.0) for r in link)
+    return (phi_dot, phi_ddot, *link)
 
 
 def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
@@ -280,9 +282,12 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
         valid = valid & lengths_finite
         finite = finite & lengths_finite
     a_comps = tuple(jnp.where(valid, arr[..., k], 0.0) for arr in a for k in (0, 1))
-    b_comps = tuple(
-        jnp.where(valid, arr[..., k], 1.0 if (i, k) == (0, 0) else 0.0)
-        for i, arr in enumerate(b)
+    # The vector A->B and its rates from the raw inputs, replaced as a whole: a sanitised A
+    # read by both this and C's outputs would be stored by XLA (measured).
+    placeholder = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    diffs = tuple(
+        jnp.where(valid, bk[..., k] - ak[..., k], placeholder[2 * i + k])
+        for i, (ak, bk) in enumerate(zip(a, b, strict=True))
         for k in (0, 1)
     )
     length_valid = lengths_finite if lengths_are_scalars else valid
@@ -293,7 +298,7 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
     # or underflows; C is scaled back and added to A.
     scale = l_ac + l_bc
     inv_scale = 1.0 / scale
-    rel = tuple((bk - ak) * inv_scale for ak, bk in zip(a_comps, b_comps, strict=True))
+    rel = tuple(d * inv_scale for d in diffs)
     return a_comps, rel, l_ac * inv_scale, l_bc * inv_scale, valid, scale, finite & ~valid
 
 

@@ -95,9 +95,7 @@ def quantize(x: ArrayLike, bits: ArrayLike, rounding: str = "floor") -> Array:
         The quantised values, broadcast shape, dtype of ``x``.
     """
     rounding = _validate.choice(rounding, "rounding", ROUNDINGS)
-    x = jnp.asarray(x)
-    if not jnp.issubdtype(x.dtype, jnp.inexact):
-        x = x.astype(jnp.result_type(float))
+    x = _validate.as_float(x)
     bits = _check_bits(bits).astype(jnp.int32)
     x, bits = jnp.broadcast_arrays(x, bits)
     return _quantizer(bits, rounding)(x)
@@ -173,9 +171,7 @@ def anthropomorphic_ik(
         ValueError: wrong robot type, target shape, bit widths or rounding.
     """
     rounding = _validate.choice(rounding, "rounding", ROUNDINGS)
-    target = jnp.asarray(target)
-    if not jnp.issubdtype(target.dtype, jnp.inexact):
-        target = target.astype(jnp.result_type(float))
+    target = _validate.as_float(target)
     if target.ndim == 0 or target.shape[-1] != 3:
         raise ValueError(f"target: expected shape (..., 3), got {tuple(target.shape)}")
     lengths = _robot_lengths(robot, target.dtype)

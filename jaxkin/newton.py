@@ -36,11 +36,13 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
+from . import _validate
 from ._numerics import singular_rtol
+from .lie import cross_soa
 from .result import SolverResult
+from .status import STATUS_DTYPE, Status
 
 __all__ = ["NewtonResult", "hadamard_ratio_components", "solve", "solve_components"]
-from .status import STATUS_DTYPE, Status
 
 Residual = Callable[[tuple[Array, ...], Any, Any], Any]
 
@@ -114,10 +116,6 @@ def _all_finite(x: Components) -> Array:
     return functools.reduce(operator.and_, [jnp.isfinite(v) for v in x])
 
 
-def _cross(u, v):
-    return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
-
-
 def _solve_components(
     m: list[list[Array]], b: Components
 ) -> tuple[Components, tuple[Array, Array]]:
@@ -134,7 +132,7 @@ def _solve_components(
         det = m[0][0] * m[1][1] - m[0][1] * m[1][0]
         adj_b = (m[1][1] * b[0] - m[0][1] * b[1], m[0][0] * b[1] - m[1][0] * b[0])
     elif n == 3:
-        c0, c1, c2 = _cross(m[1], m[2]), _cross(m[2], m[0]), _cross(m[0], m[1])
+        c0, c1, c2 = cross_soa(m[1], m[2]), cross_soa(m[2], m[0]), cross_soa(m[0], m[1])
         det = m[0][0] * c0[0] + m[0][1] * c0[1] + m[0][2] * c0[2]
         adj_b = tuple(c0[k] * b[0] + c1[k] * b[1] + c2[k] * b[2] for k in range(3))
     else:
@@ -269,8 +267,7 @@ def solve(
     x0 = jnp.asarray(x0)
     if x0.ndim == 0:
         raise ValueError(f"x0: expected shape (..., n), got {tuple(x0.shape)}")
-    if not jnp.issubdtype(x0.dtype, jnp.inexact):
-        x0 = x0.astype(jnp.result_type(float))
+    x0 = _validate.as_float(x0)
     if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
         raise ValueError(f"max_iter must be an int >= 0, got {max_iter!r}")
     if not tol > 0:

@@ -45,7 +45,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _processes, _splines, _validate
+from . import _batching, _processes, _validate
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
 from .result import SolverResult
@@ -57,14 +57,9 @@ __all__ = [
     "Evaluation",
     "Limits",
     "best",
-    "continuous_signs",
     "evaluate",
     "jerk",
     "limit_excess",
-    "path_from_poses",
-    "path_from_samples",
-    "pose_from_quaternions",
-    "quaternions_from_pose",
     "trajectory_costs",
 ]
 
@@ -187,7 +182,7 @@ def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
     return limits.tightened(own.lower, own.upper)
 
 
-# ------------------------------------------------------------------ costs (reused by optimize)
+# ------------------------------------------------------------------ costs (reused by jaxkin.costs)
 def limit_excess(q: Jet, limits: Limits) -> Array:
     """How far each sample exceeds its limits, summed over joints: shape ``q.shape[:-1]``."""
     dtype = q.p.dtype
@@ -302,8 +297,9 @@ def evaluate(
     Args:
         robot: any robot of the protocol (``jaxkin.robot``).
         path: Jet (or plain targets, at rest) of shape ``(N, T, *robot.target.shape)``; build
-            one from sampled points with ``path_from_samples``. Host arrays (the same on every
-            process), or global ``jax.Array``s split along the candidate axis only.
+            one from sampled points with ``jaxkin.paths.path_from_samples``. Host arrays (the
+            same on every process), or global ``jax.Array``s split along the candidate axis
+            only.
         limits: joint ``Limits``; the robot's own position limits always apply too.
         branch: the branch held along every candidate (one of ``robot.branches``; None for
             ``robot.default_branch``), or ``"best"``: every branch is evaluated and, per
@@ -354,205 +350,6 @@ def evaluate(
         placeholder = jax.tree.map(lambda x: jnp.zeros((1, *x.shape[1:]), x.dtype), path)
         return jax.tree.map(lambda x: x[:0], call(placeholder))
     return _batching.map_candidates(call, path, chunk_size)
-
-
-def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") -> Jet:
-    """Jet of paths sampled at a fixed time step, rates from a cubic spline (host side).
-
-    Each coordinate of each candidate is interpolated by a cubic spline through its samples
-    (``"not-a-knot"`` ends reproduce any cubic exactly) and
-    the spline's exact first and second derivatives at the samples are the velocity and
-    acceleration: no finite differences.
-
-    Args:
-        positions: shape ``(N, T, d)`` (any leading dims), samples ``dt`` apart. A candidate
-            with a NaN or inf sample gets NaN rates: its samples are ``INVALID_INPUT`` in
-            ``evaluate``, and the other candidates are unaffected.
-        dt: the time step (positive).
-        end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
-    """
-    positions = np.asarray(positions, dtype=float)
-    _check_samples(positions, "positions", None, dt)
-    return Jet.of(*_splined(positions, dt, end))
-
-
-def _splined(positions: np.ndarray, dt: float, end: str) -> tuple[np.ndarray, ...]:
-    """``(value, velocity, acceleration)`` of per-candidate cubic splines through samples
-    ``(..., T, d)``; a candidate with a non-finite sample gets NaN rates."""
-    t = np.broadcast_to(np.arange(positions.shape[-2]) * float(dt), positions.shape[:-1])
-    finite = np.all(np.isfinite(positions), axis=(-2, -1))[..., None, None]
-    velocity, acceleration = _splines.derivatives(t, np.where(finite, positions, 0.0), end=end)
-    velocity, acceleration = (np.where(finite, x, np.nan) for x in (velocity, acceleration))
-    return positions, velocity, acceleration
-
-
-def _check_samples(x: np.ndarray, name: str, width: int | None, dt: float) -> None:
-    """Samples ``(..., T, width)`` (any width for None) with T >= 2, and a positive ``dt``."""
-    if x.ndim < 2 or x.shape[-2] < 2 or (width is not None and x.shape[-1] != width):
-        shape = f"(..., T, {'d' if width is None else width})"
-        raise ValueError(f"{name}: expected shape {shape} with T >= 2, got {x.shape}")
-    if not (dt > 0 and math.isfinite(dt)):
-        raise ValueError(f"dt must be a positive finite number, got {dt!r}")
-
-
-def _rotation_of_quaternion(s: np.ndarray, ds: np.ndarray, dds: np.ndarray):
-    """``R``, ``R_dot``, ``R_ddot`` of ``R(s) = Q(s) / |s|^2`` along ``s(t)`` (``s`` any
-    non-zero quaternion ``(w, x, y, z)``; ``Q`` quadratic, so the rates are exact)."""
-
-    def q_matrix(a, b):  # the symmetric bilinear form with Q(s) = q_matrix(s, s)
-        aw, ax, ay, az = np.moveaxis(a, -1, 0)
-        bw, bx, by, bz = np.moveaxis(b, -1, 0)
-        rows = [
-            [aw * bw + ax * bx - ay * by - az * bz, ax * by + ay * bx - (aw * bz + az * bw),
-             ax * bz + az * bx + (aw * by + ay * bw)],
-            [ax * by + ay * bx + (aw * bz + az * bw), aw * bw - ax * bx + ay * by - az * bz,
-             ay * bz + az * by - (aw * bx + ax * bw)],
-            [ax * bz + az * bx - (aw * by + ay * bw), ay * bz + az * by + (aw * bx + ax * bw),
-             aw * bw - ax * bx - ay * by + az * bz],
-        ]  # fmt: skip
-        return np.stack([np.stack(r, -1) for r in rows], -2)
-
-    norm2 = np.sum(s * s, -1)[..., None, None]
-    d_norm2 = 2.0 * np.sum(s * ds, -1)[..., None, None]
-    dd_norm2 = 2.0 * np.sum(ds * ds + s * dds, -1)[..., None, None]
-    rot = q_matrix(s, s) / norm2
-    d_q = 2.0 * q_matrix(s, ds)
-    dd_q = 2.0 * q_matrix(ds, ds) + 2.0 * q_matrix(s, dds)
-    d_rot = (d_q - rot * d_norm2) / norm2
-    dd_rot = (dd_q - 2.0 * d_rot * d_norm2 - rot * dd_norm2) / norm2
-    return rot, d_rot, dd_rot
-
-
-def continuous_signs(quaternions: ArrayLike) -> np.ndarray:
-    """Signs ``(..., T)`` (+-1) that put consecutive quaternions ``(..., T, 4)`` in one
-    hemisphere (``q`` and ``-q`` are one rotation; a spline through them needs one sign); the
-    first sample keeps its own."""
-    q = np.asarray(quaternions, dtype=float)
-    flips = np.where(np.sum(q[..., 1:, :] * q[..., :-1, :], -1) < 0.0, -1.0, 1.0)
-    return np.concatenate([np.ones_like(q[..., :1, 0]), np.cumprod(flips, axis=-1)], -1)
-
-
-def path_from_poses(
-    positions: ArrayLike, quaternions: ArrayLike, dt: float, end: str = "not-a-knot"
-) -> Jet:
-    """Jet of pose paths ``(..., T, 4, 4)`` sampled at a fixed time step (host side).
-
-    The pose target of the 6-DOF arms and chains is a homogeneous transform ``T = [[R, p],
-    [0, 1]]``; its rates are the time derivatives ``T_dot = [[R_dot, p_dot], [0, 0]]`` and
-    ``T_ddot`` (angular velocity ``[omega]_x = R_dot R^T``). Positions are splined per
-    coordinate as in ``path_from_samples``; the orientation follows the quaternion curve
-    ``s(t)`` that splines the four components (after flipping signs so that consecutive
-    samples lie in one hemisphere), and ``R(t) = Q(s(t)) / |s(t)|^2`` with ``Q`` the quadratic
-    quaternion-to-matrix map, so ``R`` is a rotation at every time, equals the given sample at
-    every sample, and its rates are the exact derivatives of that curve: no finite differences.
-
-    Args:
-        positions: ``(..., T, 3)``, samples ``dt`` apart.
-        quaternions: ``(..., T, 4)`` as ``(w, x, y, z)``, any non-zero length (normalised here).
-        dt: the time step (positive).
-        end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
-
-    Returns:
-        A ``Jet`` of shape ``(..., T, 4, 4)``. A candidate with a non-finite sample gets NaN
-        rates (``INVALID_INPUT`` in ``evaluate``); the others are unaffected.
-
-    Raises:
-        ValueError: shapes not ``(..., T, 3)`` and ``(..., T, 4)`` with the same leading axes
-            and T >= 2, a zero quaternion, or a non-positive ``dt``.
-    """
-    positions = np.asarray(positions, dtype=float)
-    quaternions = np.asarray(quaternions, dtype=float)
-    _check_samples(positions, "positions", 3, dt)
-    _check_samples(quaternions, "quaternions", 4, dt)
-    if positions.shape[:-1] != quaternions.shape[:-1]:
-        raise ValueError(
-            f"positions {positions.shape} and quaternions {quaternions.shape} must have the same "
-            "leading axes (..., T)"
-        )
-    length = np.linalg.norm(quaternions, axis=-1, keepdims=True)
-    if np.any(length == 0.0):
-        raise ValueError("quaternions: every quaternion must be non-zero")
-    unit = quaternions / length
-    unit = unit * continuous_signs(unit)[..., None]
-    p, v, a = _splined(np.concatenate([positions, unit], -1), dt, end)
-    return pose_from_quaternions(p, v, a)
-
-
-def pose_from_quaternions(p: ArrayLike, v: ArrayLike, a: ArrayLike) -> Jet:
-    """Pose Jet ``(..., 4, 4)`` from poses as ``(x, y, z, qw, qx, qy, qz)`` and their time
-    derivatives, each ``(..., 7)`` (host side).
-
-    The quaternion part ``s`` may have any non-zero length: ``R = Q(s) / |s|^2`` with ``Q`` the
-    quadratic quaternion-to-matrix map, and ``R_dot``, ``R_ddot`` its exact derivatives along
-    ``s(t)`` with rates ``s_dot``, ``s_ddot`` (``path_from_poses``).
-    """
-    p, v, a = (np.asarray(x, dtype=float) for x in (p, v, a))
-    rot, d_rot, dd_rot = _rotation_of_quaternion(p[..., 3:], v[..., 3:], a[..., 3:])
-    shape = (*p.shape[:-1], 4, 4)
-    value, velocity, acceleration = np.zeros(shape), np.zeros(shape), np.zeros(shape)
-    for out, r, x in ((value, rot, p), (velocity, d_rot, v), (acceleration, dd_rot, a)):
-        out[..., :3, :3], out[..., :3, 3] = r, x[..., :3]
-    value[..., 3, 3] = 1.0
-    return Jet.of(value, velocity, acceleration)
-
-
-def _vee(m: np.ndarray) -> np.ndarray:  # NumPy: host float64 whatever JAX's x64 setting
-    return np.stack([m[..., 2, 1], m[..., 0, 2], m[..., 1, 0]], -1)
-
-
-def _quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of ``(w, x, y, z)`` quaternions."""
-    aw, av, bw, bv = a[..., :1], a[..., 1:], b[..., :1], b[..., 1:]
-    return np.concatenate([aw * bw - np.sum(av * bv, -1, keepdims=True),
-                           aw * bv + bw * av + np.cross(av, bv)], -1)  # fmt: skip
-
-
-def quaternions_from_pose(pose: Jet) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Poses ``(..., 4, 4)`` with their rates as ``(x, y, z, qw, qx, qy, qz)`` rows (host side).
-
-    The unit quaternion of each rotation (Shepperd's method, ``qw >= 0``), and its rates from
-    the angular velocity ``[omega]_x = R_dot R^T`` and acceleration ``[alpha]_x = R_ddot R^T +
-    R_dot R_dot^T``: ``q_dot = (0, omega) q / 2``, ``q_ddot = ((0, alpha) q + (0, omega) q_dot)
-    / 2`` (Hamilton products). Returns ``(p, v, a)``, each ``(..., 7)``.
-    """
-    r, d_r, dd_r = (np.asarray(x, dtype=float) for x in (pose.p, pose.v, pose.a))
-    rot = r[..., :3, :3]
-    trace = np.trace(rot, axis1=-2, axis2=-1)[..., None]
-    # Shepperd: of 4 w^2 = 1 + tr, 4 x^2 = 1 + 2 R_00 - tr, ..., the largest is well conditioned.
-    squares = 1.0 + np.concatenate([trace, 2.0 * np.diagonal(rot, 0, -2, -1) - trace], -1)
-    big = np.argmax(squares, -1)
-    s = np.sqrt(np.maximum(np.take_along_axis(squares, big[..., None], -1)[..., 0], 0.0))
-    m = rot
-    odd = np.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0],
-                    m[..., 1, 0] - m[..., 0, 1]], -1)  # fmt: skip
-    even = np.stack([m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0],
-                     m[..., 1, 2] + m[..., 2, 1]], -1)  # fmt: skip
-    half = 0.5 * s
-    inv = np.where(s > 0, 0.5 / np.where(s > 0, s, 1.0), 0.0)
-    cases = [
-        np.stack([half, odd[..., 0] * inv, odd[..., 1] * inv, odd[..., 2] * inv], -1),
-        np.stack([odd[..., 0] * inv, half, even[..., 0] * inv, even[..., 1] * inv], -1),
-        np.stack([odd[..., 1] * inv, even[..., 0] * inv, half, even[..., 2] * inv], -1),
-        np.stack([odd[..., 2] * inv, even[..., 1] * inv, even[..., 2] * inv, half], -1),
-    ]
-    quat = np.choose(big[..., None], cases)
-    quat = np.where(quat[..., :1] < 0, -quat, quat)
-    quat = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
-    transpose = np.swapaxes(rot, -1, -2)
-    omega = _vee(d_r[..., :3, :3] @ transpose)
-    alpha = _vee(
-        dd_r[..., :3, :3] @ transpose + d_r[..., :3, :3] @ np.swapaxes(d_r[..., :3, :3], -1, -2)
-    )
-    zero = np.zeros_like(omega[..., :1])
-    d_quat = 0.5 * _quaternion_product(np.concatenate([zero, omega], -1), quat)
-    dd_quat = 0.5 * (
-        _quaternion_product(np.concatenate([zero, alpha], -1), quat)
-        + _quaternion_product(np.concatenate([zero, omega], -1), d_quat)
-    )
-    p = np.concatenate([r[..., :3, 3], quat], -1)
-    v = np.concatenate([d_r[..., :3, 3], d_quat], -1)
-    a = np.concatenate([dd_r[..., :3, 3], dd_quat], -1)
-    return p, v, a
 
 
 def best(evaluation: Evaluation, k: int) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,9 @@ from typing import Any
 
 import numpy as np
 
+from . import delta, scara
 from .cli import files as kio
+from .status import Status
 
 __all__ = [
     "INSTALL_HINT",
@@ -125,8 +127,6 @@ def joint_trajectories(
     Returns:
         The ``Figure`` (rows: position, velocity, acceleration; one column per joint).
     """
-    from .status import Status
-
     if hasattr(q, "p") and hasattr(q, "v"):
         q, qd, qdd = (np.asarray(x) for x in (q.p, q.v, q.a))
     t = np.asarray(t, float)
@@ -215,8 +215,6 @@ def scara_pose(
     ``(N, 3)`` optionally draws the end point's path. Elbow ``B = l_ab (cos theta1,
     sin theta1)``; ``D`` comes from ``jaxkin.scara.fk``.
     """
-    from . import scara
-
     q = np.asarray(_arrays(q), float).reshape(3)
     d = np.asarray(scara.fk(robot, q).x.p, float)
     l_oa, l_ab = float(robot.l_oa), float(robot.l_ab)
@@ -282,8 +280,6 @@ def delta_pose(
     triangle, the three arms, the parallelogram rods (as single lines) and the platform;
     ``trace`` ``(N, 3)`` optionally draws the platform's path.
     """
-    from . import delta
-
     theta = np.asarray(_arrays(theta), float).reshape(3)
     if p is None:
         p = np.asarray(delta.fk(robot, theta).x.p, float)

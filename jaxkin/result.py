@@ -11,11 +11,12 @@ import dataclasses
 from collections.abc import Callable
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .jet import Jet
-from .status import Status, describe
+from .jet import Jet, lift
+from .status import STATUS_DTYPE, Status, describe
 
 __all__ = ["FKResult", "IKResult", "SolverResult", "forward_result"]
 
@@ -90,11 +91,6 @@ def forward_result(pose: Callable[[Array], Array], q: Jet, rates: bool, target_n
     ``q = 0`` with zero rates; the others ``OK``. With ``rates`` the target's rates come from
     ``jaxkin.lift`` (nested forward-mode derivatives), else they are zero.
     """
-    import jax.numpy as jnp
-
-    from .jet import lift
-    from .status import STATUS_DTYPE
-
     valid = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
     safe = q.map(lambda x: jnp.where(valid[..., None], x, 0.0))
     x = lift(pose)(safe) if rates else Jet.constant(pose(safe.p))

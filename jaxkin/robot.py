@@ -503,13 +503,6 @@ class _Program:
 
     whole.takes_batch = True
 
-    def _cache_size(self) -> int:
-        """Compilations held (for the tests)."""
-        sizes = [self.dynamic._cache_size()]
-        if self.static is not None:
-            sizes.append(self.static._cache_size())
-        return sum(sizes)
-
 
 def _constant_geometry(robot: Any) -> Any:
     """``robot`` with Python-float leaves when every leaf is a concrete scalar, else None."""

@@ -21,7 +21,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin import Jet, cli, delta, optimize, plan, scara
+from jaxkin import Jet, cli, delta, optimize, paths, plan, scara
 from jaxkin.cli import files
 
 ROBOT = scara.Scara.paper()
@@ -42,7 +42,7 @@ def spiral(rows: np.ndarray) -> Jet:
     x = 100 + 20 * scale * np.sin(t)
     y = -20 * scale * np.cos(t)
     z = np.broadcast_to(50 + 10 * t, x.shape)
-    return plan.path_from_samples(np.stack([x, y, z], -1), DT)
+    return paths.path_from_samples(np.stack([x, y, z], -1), DT)
 
 
 def _host(x) -> np.ndarray:
@@ -129,7 +129,7 @@ def run(out_dir: Path, distributed: bool) -> dict[str, np.ndarray]:
             out[f"{name}.volume"] = np.asarray(sweep.volume)
             out[f"{name}.slice_areas"] = sweep.slice_areas
 
-        guesses = optimize.straight_line_guess(START, GOAL, 3, n_guesses=4, noise=10.0, seed=1)
+        guesses = paths.straight_line_guess(START, GOAL, 3, n_guesses=4, noise=10.0, seed=1)
         adam = optimize.Adam(1e-2)  # compiles in half the time of L-BFGS's line search
         result = optimize.optimize(
             ROBOT, START, GOAL, guesses, n_samples=T, steps=8, optimizer=adam

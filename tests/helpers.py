@@ -3,13 +3,25 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Iterator
+import dataclasses
+from collections.abc import Callable, Collection, Iterable, Iterator
+from typing import Any
 
 import jax
 import numpy as np
+import pytest
 from jax import monitoring
 
 BATCH_SHAPES = [(), (1,), (7,), (3, 5)]
+
+
+def marked_slow(values: Iterable[Any], slow: Collection[Any]) -> list[Any]:
+    """``values`` for ``pytest.mark.parametrize`` with those in ``slow`` marked
+    ``pytest.mark.slow`` (left out of ``make test``; their ids stay the values')."""
+    slow = set(slow)
+    unknown = slow.difference(values := list(values))
+    assert not unknown, f"marked slow but not parametrised: {sorted(unknown)}"
+    return [pytest.param(v, marks=pytest.mark.slow) if v in slow else v for v in values]
 
 
 def central_differences(
@@ -40,26 +52,50 @@ def fd_rates(
     return (4.0 * v2 - v1) / 3.0, (4.0 * a2 - a1) / 3.0
 
 
-_EVENTS: list[str] = []
-monitoring.register_event_duration_secs_listener(lambda name, *_, **__: _EVENTS.append(name))
-# A trace, an XLA compilation, or a program loaded from the persistent compilation cache (the
-# tests share one): each means the call was not served by a function's own compiled cache.
-_COMPILE_EVENTS = ("jaxpr_trace_duration", "backend_compile_duration", "cache_retrieval_time_sec")
+_TRACE = "/jax/core/compile/jaxpr_trace_duration"
+_COMPILE = "/jax/core/compile/backend_compile_duration"
+_EVENTS: list[tuple[str, str]] = []  # (event, function name), appended from any thread
+
+
+def _record(event: str, duration: float, **kwargs: Any) -> None:
+    if event in (_TRACE, _COMPILE):
+        _EVENTS.append((event, str(kwargs.get("fun_name", ""))))
+
+
+monitoring.register_event_duration_secs_listener(_record)
+
+
+@dataclasses.dataclass
+class Compilations:
+    """Traces and XLA compilations seen by JAX's public monitoring events inside a block.
+
+    A top-level ``jax.jit`` trace (``jaxpr_trace_duration``) or a compilation
+    (``backend_compile_duration``: XLA, or a program loaded from the persistent compilation
+    cache the tests share) each mean a call was not served by a function's compiled cache.
+    """
+
+    events: list[tuple[str, str]] = dataclasses.field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        """Traces plus compilations of any function."""
+        return len(self.events)
+
+    def compiled(self, name: str) -> int:
+        """Compilations of the jitted function called ``name`` (its ``__name__``)."""
+        return sum(1 for event, fun in self.events if event == _COMPILE and fun == f"jit({name})")
 
 
 @contextlib.contextmanager
-def compilations() -> Iterator[dict[str, int]]:
+def compilations() -> Iterator[Compilations]:
     """Count traces and compilations inside the block: ``with compilations() as count``,
-    then ``count["n"]``."""
+    then ``count.n`` or ``count.compiled(name)``."""
     start = len(_EVENTS)
-    counter = {"n": 0}
-    yield counter
-    counter["n"] = sum(1 for n in _EVENTS[start:] if n.endswith(_COMPILE_EVENTS))
-
-
-def compile_count(jitted: Callable) -> int:
-    """Number of compiled specialisations held by a ``jax.jit`` function."""
-    return jitted._cache_size()
+    counter = Compilations()
+    try:
+        yield counter
+    finally:
+        counter.events = _EVENTS[start:]
 
 
 def tree_allfinite(tree) -> bool:

@@ -15,7 +15,7 @@ import pytest
 
 import jaxkin
 from jaxkin import Jet, Status, _batching, delta, serial
-from tests.helpers import tree_allfinite
+from tests.helpers import compilations, tree_allfinite
 
 ROBOT = delta.Delta.paper()
 CHUNK = _batching.CHUNK
@@ -160,9 +160,10 @@ def test_parts_equal_whole_batch(small_parts, batch, threads):
     x, y = _pair(batch)
     kernel = _batching.PartsJit(_toy, ("mode",), ("x", "y"))
     _batching.set_num_threads(threads)
-    parts = kernel(x, y, jnp.asarray(2.0), 3, batch=batch)
+    with compilations() as count:
+        parts = kernel(x, y, jnp.asarray(2.0), 3, batch=batch)
     whole = kernel.whole(x, y, jnp.asarray(2.0), 3)
-    assert kernel._part._cache_size() == 1  # the parts ran (one shared compilation)
+    assert count.compiled("_part_impl") == 1  # the parts ran (one shared compilation)
     for key in whole:
         assert parts[key].shape == whole[key].shape
         np.testing.assert_array_equal(parts[key], whole[key])
@@ -189,16 +190,17 @@ def test_whole_batch_when_splitting_does_not_apply(small_parts):
 
     split = _batching.PartsJit(kernel, (), ("x", "y"))
     x = jnp.ones((64, 2))
-    out = [
-        split(x, jnp.ones((1, 2)), batch=(64,)),  # y only broadcasts to the batch
-        jax.jit(lambda x: split(x, x, batch=(64,)))(x),  # tracers inside a user's jit
-    ]
-    _batching.set_num_threads(1)
-    out.append(split(x, x, batch=(64,)))  # one thread
+    with compilations() as count:
+        out = [
+            split(x, jnp.ones((1, 2)), batch=(64,)),  # y only broadcasts to the batch
+            jax.jit(lambda x: split(x, x, batch=(64,)))(x),  # tracers inside a user's jit
+        ]
+        _batching.set_num_threads(1)
+        out.append(split(x, x, batch=(64,)))  # one thread
     for result in out:
         np.testing.assert_array_equal(result, 2.0 * np.ones((64, 2)))
     assert calls and all(shape == (64, 2) for shape in calls)
-    assert split._part._cache_size() == 0
+    assert count.compiled("_part_impl") == 0
 
 
 def test_errors_reach_the_caller(small_parts):
@@ -322,9 +324,10 @@ def test_small_batches_of_any_shape_share_one_padded_compilation():
     kernel = dyad._solve_jit.jitted
     for k, batch in enumerate([(3, 5), (15,), (2, 7)]):
         a, b = _dyad_inputs(batch, k)
-        before = kernel._cache_size()
-        result = dyad.solve(a, b, 1.3, 1.1)
-        assert k == 0 or kernel._cache_size() == before  # the first shape compiles the kernel
+        with compilations() as count:
+            result = dyad.solve(a, b, 1.3, 1.1)
+        # the first shape compiles the kernel
+        assert k == 0 or count.compiled(kernel.__name__) == 0
         size = int(np.prod(batch))
         by_hand = [jax.tree.map(lambda x: _pad_by_hand(x, 64), jet) for jet in (a, b)]
         padded = kernel(*by_hand, 1.3, 1.1, 1, "analytic")
@@ -376,19 +379,19 @@ def test_padding_broadcasts_batched_arguments_and_leaves_the_rest_alone(monkeypa
 def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_axis():
     """The planner pads its candidates (5 and 7 share one program; a path's samples are not
     a batch axis); the Newton IK's history keeps its step axis first."""
-    from jaxkin import plan, scara
+    from jaxkin import paths, plan, scara
 
     robot = scara.Scara.paper()
     rng = np.random.default_rng(6)
     t = np.linspace(0.0, 1.0, 9)[:, None]
     start = rng.uniform([60.0, -20.0, 40.0], [90.0, 20.0, 80.0], (7, 1, 3))
-    path = plan.path_from_samples(start + t * [10.0, 5.0, -5.0], dt=0.1)
+    path = paths.path_from_samples(start + t * [10.0, 5.0, -5.0], dt=0.1)
     parts = [jax.tree.map(lambda x, n=n: x[:n], path) for n in (5, 7)]
-    results, counts = [], []
-    for part in parts:
-        results.append(plan.evaluate(robot, part))
-        counts.append(plan._evaluate_jit._cache_size())
-    assert counts[1] == counts[0]  # 7 candidates reuse the program compiled for 5
+    results = [plan.evaluate(robot, parts[0])]
+    with compilations() as count:
+        results.append(plan.evaluate(robot, parts[1]))
+    # 7 candidates reuse the program compiled for 5
+    assert count.compiled(plan._evaluate_jit.jitted.__name__) == 0
     for part, got in zip(parts, results, strict=True):
         want = plan._evaluate_jit.jitted(robot, part, plan.robot_limits(robot, None), 1.0, 1)
         n = part.shape[0]

@@ -100,6 +100,7 @@ def assert_same(got: np.ndarray, expected: np.ndarray, rtol: float, message: str
         np.testing.assert_array_equal(got, expected, err_msg=message)
 
 
+@pytest.mark.slow
 def test_every_result_equals_one_process(runs):
     reference, results, _, _ = runs
     expected = _values(reference)
@@ -113,6 +114,7 @@ def test_every_result_equals_one_process(runs):
             assert_same(got[key], value, rtol, f"process {process}: {key}")
 
 
+@pytest.mark.slow
 def test_planner_outputs_are_global_arrays_over_both_processes(runs):
     _, results, _, _ = runs
     for result in results:
@@ -131,6 +133,7 @@ def test_planner_outputs_are_global_arrays_over_both_processes(runs):
         assert result["ws51.mask.0.held_rows"] == 51
 
 
+@pytest.mark.slow
 def test_command_line_writes_once_from_process_zero(runs):
     _, results, one, two = runs
     assert [int(r["writes"]) for r in results] == [2, 0]
@@ -147,6 +150,7 @@ def test_command_line_writes_once_from_process_zero(runs):
             np.testing.assert_array_equal(got[key], expected[key], err_msg=key)
 
 
+@pytest.mark.slow
 def test_distributed_option_reads_the_environment(monkeypatch):
     """--distributed passes JAX_NUM_PROCESSES and JAX_PROCESS_ID to jax.distributed (JAX reads
     JAX_COORDINATOR_ADDRESS itself), and a failure to join is one line naming the variables."""

@@ -78,11 +78,21 @@ def arm_files(path: Path) -> None:
                comments="")  # fmt: skip
 
 
-@pytest.mark.parametrize(
-    "page, number, language, code",
-    [b for b in BLOCKS if b[2] in RUNNABLE],
-    ids=[f"{b[0]}-{b[1]}" for b in BLOCKS if b[2] in RUNNABLE],
-)
+# Blocks that plan, optimise or solve URDF arms (each compiles for seconds): the slow tier.
+SLOW_BLOCKS = {"docs/planning.md-1", "docs/urdf.md-1", "docs/cli.md-1"}
+
+
+def _runnable_blocks() -> list:
+    cases = []
+    for block in BLOCKS:
+        if block[2] in RUNNABLE:
+            name = f"{block[0]}-{block[1]}"
+            slow = pytest.mark.slow if name in SLOW_BLOCKS else ()
+            cases.append(pytest.param(*block, id=name, marks=slow))
+    return cases
+
+
+@pytest.mark.parametrize("page, number, language, code", _runnable_blocks())
 def test_block_runs(page, number, language, code, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     if language == "python":

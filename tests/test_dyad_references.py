@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from jaxkin import Jet, dyad
-from tests.references.dyad import dyad_numpy, make_numba_dyad, random_dyads
+from tests.references.dyad import dyad_numpy, dyad_rows, make_numba_dyad, random_dyads
 
 
 @pytest.mark.parametrize("mode", [1, -1])
@@ -16,7 +16,14 @@ def test_numpy_and_numba_references_equal_jaxkin(mode):
     implementations = [dyad_numpy]
     numba_run = make_numba_dyad()
     if numba_run is not None:
-        implementations.append(numba_run)
+        rows_run = make_numba_dyad(rows=True)
+
+        def via_rows(*arrays_and_lengths):
+            *arrs, l_ac, l_bc, mode = arrays_and_lengths
+            out = rows_run(dyad_rows(*arrs), l_ac, l_bc, mode)
+            return out[0:2].T, out[2:4].T, out[4:6].T, out[6], out[7], out[8]
+
+        implementations += [numba_run, via_rows]
     for impl in implementations:
         c_p, c_v, c_a, phi, phi_dot, phi_ddot = impl(*arrays, l_ac, l_bc, mode)[:6]
         for mine, theirs in ((res.c.p, c_p), (res.c.v, c_v), (res.c.a, c_a)):

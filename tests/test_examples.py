@@ -13,6 +13,7 @@ import runpy
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -48,6 +49,7 @@ def test_planner_scara(tmp_path, capsys):
     np.testing.assert_allclose(np.diff(table[:, 0]), 2.0 / 99, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_optimise_scara(tmp_path, capsys):
     out = run("optimise_scara", tmp_path, capsys)
     assert number_after(out, "straight line's clearance from the post:") < 0
@@ -89,6 +91,7 @@ def test_delta_workspace(tmp_path, capsys):
     assert "shrinks with depth" in out
 
 
+@pytest.mark.slow
 def test_fixed_point_accuracy(tmp_path, capsys):
     out = run("fixed_point_accuracy", tmp_path, capsys)
     assert "smallest width with RMS Cartesian error <= 1 mm: 12 bits (truncation)" in out
@@ -122,6 +125,7 @@ def test_planar_2r_newton_iterates_match_the_printed_table():
     np.testing.assert_allclose(rows[-1, 1:3], [30.0, 90.0], atol=5e-3)
 
 
+@pytest.mark.slow
 def test_urdf_arm(tmp_path, capsys):
     out = run("urdf_arm", tmp_path, capsys, "200")
     assert "200 pose targets, no seed: 100.00% OK" in out

@@ -73,6 +73,7 @@ def _dyad(a, b, l_ac, l_bc):
     return res, jax.grad(loss)(b.p)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(data=st.data(), dtype=dtypes)
 def test_dyad_statuses_at_every_scale(data, dtype):
@@ -116,6 +117,7 @@ def _scara(robot, d):
     return res, back, jax.grad(loss)(d.p)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(data=st.data(), dtype=dtypes)
 def test_scara_statuses_and_round_trip_at_every_scale(data, dtype):
@@ -168,6 +170,7 @@ def _delta(robot, p, theta):
     return ik, fk, closed, grad
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(data=st.data(), dtype=dtypes)
 def test_delta_statuses_and_fk_at_every_scale(data, dtype):
@@ -212,6 +215,7 @@ def _arm(robot, target):
     return res, back, grad
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(data=st.data(), dtype=dtypes)
 def test_anthropomorphic_reach_at_every_scale(data, dtype):
@@ -231,6 +235,7 @@ def test_anthropomorphic_reach_at_every_scale(data, dtype):
     assert np.all(np.asarray(res.margin)[~reachable & clear] < 0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_puma_round_trip_at_the_ends_of_the_range(dtype):
     """The PUMA's analytic IK at the smallest and largest scales: same statuses and joint

@@ -18,7 +18,7 @@ import pytest
 from scipy.optimize import minimize
 
 import jaxkin
-from jaxkin import Status, delta, optimize, plan, scara, serial
+from jaxkin import Status, costs, delta, optimize, paths, plan, scara, serial
 from tests.helpers import compilations, tree_allfinite
 
 ROBOT = scara.Scara.paper()  # [Noriega]: 150, 80, 50 mm
@@ -30,21 +30,21 @@ KWARGS = dict(rest_to_rest=True, n_samples=N_SAMPLES)
 
 
 def _guesses(seed=1, noise=10.0, start=START, goal=GOAL):
-    return optimize.straight_line_guess(start, goal, 3, n_guesses=6, noise=noise, seed=seed)
+    return paths.straight_line_guess(start, goal, 3, n_guesses=6, noise=noise, seed=seed)
 
 
 def _with_obstacle(weight, threshold, centre, radius=10.0, safety=5.0):
     """The composed cost shared by the tests below (one structure: one compilation)."""
-    obstacles = optimize.Obstacles.create(spheres=([centre], [radius]), safety=safety)
-    return optimize.compose(
-        (weight, optimize.acceleration),
-        (10.0, optimize.SingularityBarrier(threshold)),
+    obstacles = costs.Obstacles.create(spheres=([centre], [radius]), safety=safety)
+    return costs.compose(
+        (weight, costs.acceleration),
+        (10.0, costs.SingularityBarrier(threshold)),
         (1e4, obstacles),
     )
 
 
 def test_bezier_basis_partition_of_unity_and_derivatives():
-    basis = optimize.bezier_basis(5, 201)
+    basis = paths.bezier_basis(5, 201)
     np.testing.assert_allclose(basis[0].sum(1), 1.0, rtol=1e-14)
     np.testing.assert_allclose(basis[1].sum(1), 0.0, atol=1e-12)
     s = np.linspace(0, 1, 201)
@@ -62,11 +62,11 @@ def test_bezier_basis_partition_of_unity_and_derivatives():
 def _losses(interior, n_samples=30, duration=2.0):
     """DEFAULT_COST of each guess ``(B, K', 3)`` (branch +1, no limits): the objective
     ``optimize`` minimises, assembled from its parts."""
-    basis = jnp.asarray(optimize.bezier_basis(interior.shape[-2] + 2, n_samples))
-    controls = optimize._full_controls(interior, START, GOAL, False)
+    basis = jnp.asarray(paths.bezier_basis(interior.shape[-2] + 2, n_samples))
+    controls = paths.bezier_controls(interior, START, GOAL, False)
     dt = duration / (n_samples - 1)
     sample = optimize._sample(ROBOT, controls, basis, duration, dt, plan.Limits.create(3), 1)
-    return optimize.DEFAULT_COST(sample)
+    return costs.DEFAULT_COST(sample)
 
 
 def test_gradients_match_central_differences_also_outside_the_workspace():
@@ -74,8 +74,8 @@ def test_gradients_match_central_differences_also_outside_the_workspace():
     two noisy guesses and for one far outside the 130 mm reach, where it is finite and
     non-zero (the unreachable penalty pulls the path back). The guesses' costs are
     independent, so one perturbation of a coordinate serves all three."""
-    guesses = [optimize.straight_line_guess(START, GOAL, 3, noise=15.0, seed=s)[0] for s in (0, 1)]
-    far = optimize.straight_line_guess(START, GOAL, 3)[0] + np.array([200.0, 0.0, 0.0])
+    guesses = [paths.straight_line_guess(START, GOAL, 3, noise=15.0, seed=s)[0] for s in (0, 1)]
+    far = paths.straight_line_guess(START, GOAL, 3)[0] + np.array([200.0, 0.0, 0.0])
     interior = np.stack([*guesses, far])
     losses = jax.jit(_losses)
     grad = np.asarray(jax.jit(jax.grad(lambda x: jnp.sum(_losses(x))))(interior))
@@ -91,6 +91,7 @@ def test_gradients_match_central_differences_also_outside_the_workspace():
     assert np.abs(grad[2]).sum() > 0
 
 
+@pytest.mark.slow
 def test_adam_decreases_cost_keeps_rest_to_rest_ends_and_leaves_workspace_violations():
     """Adam from six guesses, one starting partly outside the workspace: every cost decreases,
     every path ends feasible, and the fixed control points (start and goal twice each: the
@@ -120,7 +121,7 @@ def test_adam_decreases_cost_keeps_rest_to_rest_ends_and_leaves_workspace_violat
 
 def _reference_objective(start, goal, n_interior):
     """The rest-to-rest acceleration objective of one guess, written from the public API."""
-    basis = jnp.asarray(optimize.bezier_basis(n_interior + 4, N_SAMPLES))
+    basis = jnp.asarray(paths.bezier_basis(n_interior + 4, N_SAMPLES))
     dt = 1.0 / (N_SAMPLES - 1)
 
     @jax.jit
@@ -147,7 +148,7 @@ def _reference_objective(start, goal, n_interior):
 @pytest.fixture(scope="module")
 def problem():
     guesses = _guesses()
-    result = optimize.optimize(ROBOT, START, GOAL, guesses, cost=optimize.acceleration, **KWARGS)
+    result = optimize.optimize(ROBOT, START, GOAL, guesses, cost=costs.acceleration, **KWARGS)
     return guesses, result
 
 
@@ -182,22 +183,22 @@ def test_second_call_compiles_nothing(problem):
     new = [START + [5.0, 5.0, 0.0], GOAL - [5.0, 0.0, 5.0], guesses + 1.0]
     new = [np.asarray(x) for x in new]
     with compilations() as count:
-        optimize.optimize(ROBOT, *new, cost=optimize.acceleration, **KWARGS)
-    assert count["n"] == 0
+        optimize.optimize(ROBOT, *new, cost=costs.acceleration, **KWARGS)
+    assert count.n == 0
 
     # A composed cost with new weights, a new threshold and moved obstacles: one compilation
     # for the first, none for the others.
     optimize.optimize(
         ROBOT, START, GOAL, guesses, cost=_with_obstacle(1.0, 0.05, [90.0, 0, 60]), **KWARGS
     )
-    costs = [
+    moved = [
         _with_obstacle(2.0, 0.1, [95.0, 5.0, 60.0]),
         _with_obstacle(3.0, 0.2, [85.0, -5.0, 60.0]),
     ]
     with compilations() as count:
-        for c in costs:
+        for c in moved:
             optimize.optimize(ROBOT, START, GOAL, guesses, cost=c, **KWARGS)
-    assert count["n"] == 0
+    assert count.n == 0
 
 
 def test_guesses_are_independent(problem):
@@ -207,7 +208,7 @@ def test_guesses_are_independent(problem):
     guesses, result = problem
     others = _guesses(seed=7, noise=15.0)
     others[2] = guesses[2]
-    again = optimize.optimize(ROBOT, START, GOAL, others, cost=optimize.acceleration, **KWARGS)
+    again = optimize.optimize(ROBOT, START, GOAL, others, cost=costs.acceleration, **KWARGS)
     np.testing.assert_allclose(again.history[:, 2], result.history[:, 2], rtol=1e-12)
     np.testing.assert_allclose(again.controls[2], result.controls[2], rtol=1e-12)
     assert not np.allclose(again.history[:, 3], result.history[:, 3])
@@ -249,6 +250,7 @@ def test_obstacle_blocking_the_straight_line_is_avoided():
     assert bool(res.evaluation.feasible[best])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("robot", "start", "goal"),
     [
@@ -259,7 +261,7 @@ def test_obstacle_blocking_the_straight_line_is_avoided():
 def test_other_robots_and_joint_space_ends(robot, start, goal):
     """The defaults on other robots; the same ends given as joints (their forward kinematics)
     give the same problem (no new compilation either)."""
-    guesses = optimize.straight_line_guess(start, goal, 2, n_guesses=2, noise=0.0)
+    guesses = paths.straight_line_guess(start, goal, 2, n_guesses=2, noise=0.0)
     res = optimize.optimize(robot, start, goal, guesses, n_samples=30, steps=60)
     assert np.all(np.asarray(res.history[-1]) <= np.asarray(res.history[0]))
     assert np.all(np.asarray(res.evaluation.status) == Status.OK)
@@ -269,14 +271,14 @@ def test_other_robots_and_joint_space_ends(robot, start, goal):
         joint = optimize.optimize(
             robot, q_start, q_goal, guesses, n_samples=30, steps=60, space="joint"
         )
-    assert count["n"] == 0
+    assert count.n == 0
     np.testing.assert_allclose(joint.path.p[:, 0], np.broadcast_to(start, (2, 3)), atol=1e-9)
     np.testing.assert_allclose(joint.path.p[:, -1], np.broadcast_to(goal, (2, 3)), atol=1e-9)
     np.testing.assert_allclose(joint.cost, res.cost, rtol=1e-9)
 
 
 def test_bad_arguments():
-    guesses = optimize.straight_line_guess(START, GOAL, 2)
+    guesses = paths.straight_line_guess(START, GOAL, 2)
     with pytest.raises(ValueError, match="start"):
         optimize.optimize(ROBOT, START[:2], GOAL, guesses)
     with pytest.raises(ValueError, match="interior"):
@@ -286,4 +288,4 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="points"):
         optimize.optimize(serial.Puma560(), START, GOAL, guesses)
     with pytest.raises(ValueError, match="threshold"):
-        optimize.singularity_barrier(0.0)
+        costs.singularity_barrier(0.0)

@@ -17,7 +17,7 @@ import pytest
 
 import jaxkin
 from jaxkin import Jet, Status, delta, plan, scara, serial
-from tests.helpers import tree_allfinite
+from tests.helpers import marked_slow, tree_allfinite
 from tests.references import delta as delta_ref
 from tests.references import scara as scara_ref
 
@@ -204,6 +204,7 @@ def test_chunking_equals_one_call():
         assert_same_result(x, y)
 
 
+@pytest.mark.slow
 def test_sharded_equals_unsharded(tmp_path):
     """Evaluate on 2 forced CPU devices in a subprocess, in overlapping chunks (5 candidates
     padded to 6, chunks of 4 starting at 0 and 2), and compare with one call in this process
@@ -397,7 +398,7 @@ def test_delta_evaluation_equals_the_reference_ik():
     np.testing.assert_allclose(ev.q.p[:2], reference, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("name", list(ROBOTS))
+@pytest.mark.parametrize("name", marked_slow(ROBOTS, ["dh-table"]))
 def test_every_robot_with_default_arguments(name):
     """``evaluate(robot, path)`` returns, on the default branch, the joints the path was made
     from (rates included, 1e-9 of their scale) and they reach the path; zero candidates give
@@ -425,6 +426,7 @@ def test_every_robot_with_default_arguments(name):
     assert empty.costs.total.shape == (0,) and plan.best(empty, 1)[0].size == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(ROBOTS))
 def test_every_robot_best_branch(name):
     """``branch="best"`` keeps, per candidate, a branch of no greater cost than the default
@@ -473,87 +475,3 @@ def test_limits_validation():
         plan.Limits.create(3, v_max=[-1, 1, 1])
     with pytest.raises(ValueError, match="broadcast"):
         plan.Limits.create(3, a_max=[1, 2])
-
-
-def test_path_from_samples_reproduces_a_cubic_motion_exactly():
-    t = np.arange(12) * 0.1
-    coeffs = np.array([[1.0, -2.0, 0.5], [0.3, 0.0, 2.0], [-1.0, 0.7, 0.0], [0.2, 0.1, -0.4]])
-    p = sum(coeffs[k] * t[:, None] ** k for k in range(4))
-    v = sum(k * coeffs[k] * t[:, None] ** (k - 1) for k in range(1, 4))
-    a = sum(k * (k - 1) * coeffs[k] * t[:, None] ** (k - 2) for k in range(2, 4))
-    jet = plan.path_from_samples(p[None], 0.1)
-    np.testing.assert_allclose(jet.v[0], v, rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(jet.a[0], a, rtol=1e-9, atol=1e-9)
-    with pytest.raises(ValueError, match="dt"):
-        plan.path_from_samples(p[None], 0.0)
-
-
-def test_path_from_poses_against_scipy_splines_and_rotations():
-    """Positions: scipy's not-a-knot ``CubicSpline``. Orientations: scipy's spline of the
-    quaternion components (after the same sign choice, made here by a loop), turned into
-    rotations by scipy's ``Rotation``; the rates against central differences of that curve.
-    Quaternions given with flipped signs or unnormalised describe the same path."""
-    from scipy.interpolate import CubicSpline
-    from scipy.spatial.transform import Rotation
-
-    rng = np.random.default_rng(5)
-    n, t, dt = 3, 15, 0.1
-    rotvec = np.cumsum(rng.normal(scale=0.2, size=(n, t, 3)), axis=1)
-    xyzw = Rotation.from_rotvec(rotvec.reshape(-1, 3)).as_quat().reshape(n, t, 4)
-    quat = xyzw[..., [3, 0, 1, 2]]
-    positions = rng.normal(size=(n, t, 3))
-    given = quat * rng.choice([-2.0, 0.5], size=(n, t, 1))  # signs and lengths vary
-    jet = plan.path_from_poses(positions, given, dt)
-    assert jet.shape == (n, t, 4, 4)
-    np.testing.assert_array_equal(jet.p[..., 3, :], np.broadcast_to([0, 0, 0, 1.0], (n, t, 4)))
-    np.testing.assert_array_equal(jet.v[..., 3, :], 0.0)
-    times = np.arange(t) * dt
-    h = 1e-6
-    for c in range(n):
-        unit = quat[c].copy()
-        for k in range(1, t):
-            if unit[k] @ unit[k - 1] < 0:
-                unit[k] = -unit[k]
-        spline = CubicSpline(times, unit, axis=0)
-
-        def rotation(x, spline=spline):
-            s = spline(x)
-            return Rotation.from_quat(s[..., [1, 2, 3, 0]]).as_matrix()
-
-        np.testing.assert_allclose(jet.p[c, :, :3, :3], rotation(times), atol=1e-15)
-        central = (rotation(times + h) - rotation(times - h)) / (2 * h)
-
-        # Second differences straddle a knot, where the spline's third derivative jumps: the
-        # error is O(h), removed by one Richardson step.
-        def second_difference(h2, rotation=rotation):
-            return (rotation(times + h2) - 2 * rotation(times) + rotation(times - h2)) / h2**2
-
-        second = 2 * second_difference(1e-4) - second_difference(2e-4)
-        velocity, acceleration = jet.v[c, :, :3, :3], jet.a[c, :, :3, :3]
-        np.testing.assert_allclose(velocity, central, atol=1e-8 * np.abs(velocity).max())
-        np.testing.assert_allclose(acceleration, second, atol=1e-5 * np.abs(acceleration).max())
-        position = CubicSpline(times, positions[c], axis=0)
-        np.testing.assert_allclose(jet.p[c, :, :3, 3], positions[c], atol=0)
-        np.testing.assert_allclose(jet.v[c, :, :3, 3], position(times, 1), atol=1e-12)
-        np.testing.assert_allclose(jet.a[c, :, :3, 3], position(times, 2), atol=1e-10)
-    # R_dot R^T is skew: the rates are those of a rotation
-    omega = jet.v[..., :3, :3] @ np.swapaxes(jet.p[..., :3, :3], -1, -2)
-    np.testing.assert_allclose(omega, -np.swapaxes(omega, -1, -2), atol=1e-12)
-
-
-def test_path_from_poses_marks_bad_candidates_and_names_bad_arguments():
-    positions = np.zeros((2, 5, 3))
-    quat = np.tile([1.0, 0.0, 0.0, 0.0], (2, 5, 1))
-    positions[1, 2, 0] = np.nan
-    jet = plan.path_from_poses(positions, quat, 0.1)
-    assert np.all(np.isfinite(jet.v[0])) and np.all(np.isnan(jet.v[1, :, :3, 3]))
-    with pytest.raises(ValueError, match="quaternions: expected shape"):
-        plan.path_from_poses(positions, quat[..., :3], 0.1)
-    with pytest.raises(ValueError, match="positions: expected shape"):
-        plan.path_from_poses(positions[:, :1], quat[:, :1], 0.1)
-    with pytest.raises(ValueError, match="same leading axes"):
-        plan.path_from_poses(positions, quat[:1], 0.1)
-    with pytest.raises(ValueError, match="non-zero"):
-        plan.path_from_poses(positions, 0.0 * quat, 0.1)
-    with pytest.raises(ValueError, match="dt"):
-        plan.path_from_poses(positions, quat, -1.0)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import jaxkin
-from jaxkin import Jet, Status, delta, dyad, optimize, plan, scara, serial
+from jaxkin import Jet, Status, delta, dyad, optimize, paths, plan, scara, serial
 from jaxkin.cli import main
 
 
@@ -86,7 +86,7 @@ def test_empty_and_partly_invalid_batches():
     assert plan.best(ev, 3)[0].size == 0
     positions = np.linspace([100.0, 0.0, 50.0], [80.0, 40.0, 60.0], 10)[None].repeat(3, 0)
     positions[1, 4, 0] = np.nan
-    ev = plan.evaluate(robot, plan.path_from_samples(positions, 0.1), dt=0.1)
+    ev = plan.evaluate(robot, paths.path_from_samples(positions, 0.1), dt=0.1)
     assert list(np.asarray(ev.feasible)) == [True, False, True]
     assert np.all(np.asarray(ev.status)[1] == Status.INVALID_INPUT)
     guesses = np.array([[[90.0, 20.0, 55.0]], [[np.nan, 20.0, 55.0]]])

@@ -409,7 +409,7 @@ def test_jit_over_trajectories_without_recompilation():
     scara.ik(PAPER, d1)
     with compilations() as count:
         res2 = scara.ik(PAPER, d2)
-    assert count["n"] == 0
+    assert count.n == 0
     assert res2.q.shape == (4, 6, 3)
     # Under a user's jit the result equals the eager call (tracers skip host validation).
     jitted = jax.jit(lambda robot, d: scara.ik(robot, d, branch=-1))

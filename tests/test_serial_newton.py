@@ -289,7 +289,7 @@ def test_batch_broadcast_no_recompile_and_float32():
     with compilations() as count:
         _ik_body(chain, targets * 1.0, q0 + 0.1, eps_omega=1e-6, damping=0.01, max_iter=15)
         _ik_body(chain.replace(joint_names=("a", "b"), tip_link="tool"), targets, q0, max_iter=15)
-    assert count["n"] == 0
+    assert count.n == 0
     # float32 end to end (chain, target, seed): converges to the default tolerances.
     chain32 = jax.tree.map(lambda x: x.astype(jnp.float32), chain)
     res32 = _ik_body(chain32, targets.astype(np.float32), q0.astype(np.float32), max_iter=15)

@@ -23,8 +23,9 @@ from jax import monitoring
 from scipy.spatial.transform import Rotation
 
 import jaxkin
-from jaxkin import Jet, Status, _batching, plan, serial
+from jaxkin import Jet, Status, _batching, paths, plan, serial
 from jaxkin.serial import search
+from tests.helpers import marked_slow
 
 ROBOTS = importlib.metadata.distribution("example-robot-data").locate_file(
     "cmeel.prefix/share/example-robot-data/robots"
@@ -99,6 +100,7 @@ def _pose_error(a, b):
     return angle, np.linalg.norm(a[..., :3, 3] - b[..., :3, 3], axis=-1)
 
 
+@pytest.mark.parametrize("arm", marked_slow(ARMS, ["ur5", "so101"]), indirect=True)
 def test_ik_without_a_seed_solves_within_limits(arm):
     """200 targets made by Pinocchio from joints within the limits, no seed: at least 99.5 %
     are solved (all but one), every OK answer reaches its target within 1e-9 rad and 1e-9 m by
@@ -131,6 +133,7 @@ def _five_point(x, dt):
     return (x[..., :-4, :] - 8 * x[..., 1:-3, :] + 8 * x[..., 3:-1, :] - x[..., 4:, :]) / (12 * dt)
 
 
+@pytest.mark.slow
 def test_pose_paths_through_the_planner(arm):
     """Smooth joint motions within the limits, sampled as poses (Pinocchio), splined by
     ``path_from_poses``. Along every candidate whose Jacobian (Pinocchio's) stays well
@@ -156,7 +159,7 @@ def test_pose_paths_through_the_planner(arm):
     assert regular.sum() >= 3
     quat = Rotation.from_matrix(poses[..., :3, :3].reshape(-1, 3, 3)).as_quat()
     quat = quat.reshape(n, t, 4)[..., [3, 0, 1, 2]]
-    path = plan.path_from_poses(poses[..., :3, 3], quat, dt)
+    path = paths.path_from_poses(poses[..., :3, 3], quat, dt)
     ev = plan.evaluate(chain, path, dt=dt)
     assert np.all(np.asarray(ev.status)[regular] == Status.OK) and np.all(ev.feasible[regular])
     assert np.all(np.asarray(ev.min_margin)[regular] > 0)
@@ -273,6 +276,7 @@ def test_a_path_and_its_text_give_the_same_chain(tmp_path):
         serial.from_urdf(tmp_path / "missing.urdf", "camera")
 
 
+@pytest.mark.slow
 def test_command_line_pose_files_of_a_urdf_arm(tmp_path, capsys):
     """``jaxkin fk urdf --robot FILE --tip LINK`` writes pose columns (x, y, z, qw, qx, qy, qz
     and their rates) that Pinocchio's forward kinematics and five-point differences confirm;
@@ -331,6 +335,7 @@ def test_work_queue_gives_the_results_of_the_batch_in_step():
     assert np.mean(np.asarray(queued.status) == Status.OK) >= 0.95
 
 
+@pytest.mark.slow
 def test_host_thread_parts_give_the_results_of_one_thread():
     """A batch of at least two ``CHAIN_MIN_PART`` targets is split across the host threads,
     each part its own work queue: the same joints and statuses, bit for bit, as one thread."""

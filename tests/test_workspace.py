@@ -13,7 +13,7 @@ import pytest
 from jaxkin import FKResult, IKResult, Jet, Status, delta, scara, serial, workspace
 from jaxkin._geometry import LENGTH, geometry, number
 from jaxkin.robot import POINT, Robot
-from tests.helpers import compile_count
+from tests.helpers import compilations
 
 
 @geometry
@@ -149,7 +149,7 @@ def test_scara_workspace_is_its_annulus_and_a_planar_arm_gets_a_2d_grid():
 def test_a_repeated_sweep_compiles_nothing_new():
     bounds = ((-3.0, 3.0),) * 3
     workspace.sweep(Ball(2.0), bounds, 0.5, progress=False)
-    before = compile_count(workspace._reachable)
-    again = workspace.sweep(Ball(2.2), bounds, 0.5, progress=False)  # a new robot object
-    assert compile_count(workspace._reachable) == before
+    with compilations() as count:
+        again = workspace.sweep(Ball(2.2), bounds, 0.5, progress=False)  # a new robot object
+    assert count.n == 0
     assert again.n_reachable > 0

@@ -27,6 +27,8 @@ import os
 import sys
 from collections.abc import Sequence
 
+from .._compile_cache import enable_for_command
+
 __all__ = ["EXIT_BROKEN_PIPE", "EXIT_ERROR", "EXIT_INTERRUPTED", "main"]
 
 EXIT_ERROR = 2
@@ -41,6 +43,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--traceback" in argv
+    enable_for_command()  # the persistent compilation cache (docs/cli.md)
     try:
         args = build_parser().parse_args(argv)
         args.notes = []

@@ -12,7 +12,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching, _processes, plan
+from .. import _batching, _processes, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
 from ..status import status_names
@@ -137,7 +137,7 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
 
     def solve(p, v, a):
         if pose and inverse:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
-            jet = plan.pose_from_quaternions(p, v, a).astype(dtype)
+            jet = paths.pose_from_quaternions(p, v, a).astype(dtype)
         else:
             jet = Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
         if inverse:
@@ -153,7 +153,7 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     )
     q, qd, qdd, status = outputs[:4]
     if pose and not inverse:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
-        q, qd, qdd = plan.quaternions_from_pose(Jet(q, qd, qdd))
+        q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
         sign = files.quaternion_signs(traj.t, traj.candidate, valid, q[:, 3:])[:, None]
         for block in (q, qd, qdd):  # continuous along each candidate, as splines need
             block[:, 3:] *= sign

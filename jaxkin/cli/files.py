@@ -44,7 +44,7 @@ from typing import IO, Any
 import jax
 import numpy as np
 
-from .. import _batching, _splines, plan
+from .. import _batching, _splines, lie
 from .._progress import bar
 
 __all__ = [
@@ -507,7 +507,7 @@ def quaternion_signs(
     for label in np.unique(group[valid]):
         rows = np.flatnonzero(valid & (group == label))
         rows = rows[np.argsort(t[rows], kind="stable")]
-        sign[rows] = plan.continuous_signs(quat[rows])
+        sign[rows] = lie.hemisphere_signs(quat[rows], xp=np)
     return sign
 
 

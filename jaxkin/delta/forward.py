@@ -36,6 +36,7 @@ from jax.typing import ArrayLike
 from .. import _batching, _validate, newton
 from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
 from ..jet import Jet, lift
+from ..lie import cross_soa
 from ..result import FKResult, SolverResult
 from ..robot import solve_fk
 from ..status import STATUS_DTYPE, Status
@@ -45,7 +46,6 @@ from .geometry import (
     _any3,
     _centre_components,
     _cos_sin,
-    _cross3,
     _finite3,
     _home,
     _params,
@@ -273,14 +273,14 @@ def _sphere_intersection(robot: Delta, theta: Array):
     l_rod = jnp.asarray(robot.l_rod, theta.dtype)
     a = [c2[k] - c1[k] for k in range(3)]
     b = [c3[k] - c1[k] for k in range(3)]
-    n = _cross3(a, b)
+    n = cross_soa(a, b)
     aa = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
     bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2]
     nn = n[0] * n[0] + n[1] * n[1] + n[2] * n[2]
     rtol = singular_rtol(theta.dtype)
     collinear = nn <= rtol * aa * bb  # sin(angle(a, b))^2 <= sqrt(eps)
     inv_two_nn = 0.5 / jnp.where(collinear, 1.0, nn)
-    offset = _cross3([aa * b[k] - bb * a[k] for k in range(3)], n)
+    offset = cross_soa([aa * b[k] - bb * a[k] for k in range(3)], n)
     offset = [v * inv_two_nn for v in offset]
     centre = [c1[k] + offset[k] for k in range(3)]  # circumcentre O of the sphere centres
     flip = jnp.where(n[2] > 0, -1.0, 1.0)  # orient n downward (n_z <= 0)

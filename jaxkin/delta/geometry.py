@@ -234,10 +234,6 @@ def _centre_components(robot: Delta, theta: Array, cos_sin=None) -> tuple[tuple[
     return tuple(out)
 
 
-def _cross3(u, v):
-    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
-
-
 def _components(x: Array) -> tuple[Array, Array, Array]:
     return x[..., 0], x[..., 1], x[..., 2]
 
@@ -333,8 +329,6 @@ def compiled(
         return static(concrete, *args, **kwargs)
 
     call.takes_batch = bool(batched_argnames)
-    call._cache_size = static._cache_size  # for tests (both jits share one cache)
-    call._static = static  # for tests: the concrete-geometry kernel (a PartsJit when split)
     return call
 
 
@@ -349,9 +343,7 @@ def float_dtype(*xs: Any) -> Any:
 
 
 def as_coords(x: ArrayLike, name: str) -> Array:
-    x = jnp.asarray(x)
-    if not jnp.issubdtype(x.dtype, jnp.inexact):
-        x = x.astype(jnp.result_type(float))
+    x = _validate.as_float(x)
     if x.ndim == 0 or x.shape[-1] != 3:
         raise ValueError(f"{name}: expected shape (..., 3), got {tuple(x.shape)}")
     return x

@@ -28,6 +28,7 @@ from jax.typing import ArrayLike
 from .. import _validate, newton
 from .._numerics import all_finite, computed_once, singular_rtol
 from ..jet import Jet
+from ..lie import cross_soa
 from ..result import SolverResult
 from ..status import STATUS_DTYPE, Status
 from .geometry import (
@@ -36,7 +37,6 @@ from .geometry import (
     Delta,
     _components,
     _cos_sin,
-    _cross3,
     _dot3,
     _home,
     _params,
@@ -141,7 +141,7 @@ def _singularity_impl(robot: Delta, p: Array, theta: Array) -> SingularityResult
     d, jt, _, _ = _constraint_jacobians(robot, _components(p), *_cos_sin(theta))
     inverse = jnp.minimum(jnp.minimum(jnp.abs(jt[0]), jnp.abs(jt[1])), jnp.abs(jt[2]))
     inverse = inverse / (l_arm * l_rod)
-    direct = jnp.abs(_dot3(d[0], _cross3(d[1], d[2]))) / (l_rod * l_rod * l_rod)
+    direct = jnp.abs(_dot3(d[0], cross_soa(d[1], d[2]))) / (l_rod * l_rod * l_rod)
     rtol = singular_rtol(p.dtype)
     status = jnp.where(
         ~valid,

@@ -10,14 +10,13 @@ Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk
   body frame [Pineiro]) and ``from_urdf`` (the chain from a base link to a tip link of a URDF,
   the ``urdf`` extra).
 * ``space_jacobian``, ``body_jacobian``: the Jacobians of a chain; ``ik_newton``: the textbook
-  Newton-Raphson IK [Pineiro] from given starts; ``lie``: SO(3)/SE(3).
+  Newton-Raphson IK [Pineiro] from given starts.
 * The analytic arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``, ``Cylindrical``,
   ``Spherical``, ``Puma560``, ``Stanford``: ``ik`` (every branch at once), ``ik_jet`` (one
   branch with rates and a margin) and ``fk`` (in the form of the targets); an arm's
   ``dh_table()`` gives its chain with ``from_dh``.
 """
 
-from . import lie as lie
 from .arms import ARMS as ARMS
 from .arms import Anthropomorphic as Anthropomorphic
 from .arms import ArmIKResult as ArmIKResult
@@ -63,6 +62,5 @@ __all__ = [
     "ik",
     "ik_jet",
     "ik_newton",
-    "lie",
     "space_jacobian",
 ]

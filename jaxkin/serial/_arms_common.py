@@ -350,16 +350,9 @@ def check_robot(robot: Any, kinds: tuple[type, ...]) -> None:
         raise ValueError(f"robot: expected one of {names}, got {type(robot).__name__}")
 
 
-def _as_float(x: ArrayLike) -> Array:
-    arr = jnp.asarray(x)
-    if not jnp.issubdtype(arr.dtype, jnp.inexact):
-        arr = arr.astype(jnp.result_type(float))
-    return arr
-
-
 def ik_arm(robot: Arm, target: ArrayLike) -> ArmIKResult:
     """Validate ``target``'s shape and run the jitted analytic IK of ``robot``."""
-    target = _as_float(target)
+    target = _validate.as_float(target)
     shape = robot.TARGET_SHAPE
     n = len(shape)
     if target.ndim < n or tuple(target.shape[-n:]) != shape:

@@ -33,8 +33,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from .. import lie
 from .._trig import sincos
-from . import lie
 
 __all__ = [
     "angles",

@@ -22,8 +22,8 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
+from .. import lie
 from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
-from . import lie
 
 __all__ = [
     "body_twist",

@@ -33,11 +33,10 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate
+from .. import _validate, lie
 from .._geometry import REAL, Geometry, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
-from . import lie
 from .chain import Chain
 
 __all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "from_dh", "screws", "transforms"]

@@ -45,14 +45,14 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .. import _batching
+from .. import _batching, lie
 from .._numerics import all_finite, eps, isotropy, safe_sqrt
 from .._validate import is_concrete
 from ..jet import Jet
 from ..result import IKResult
 from ..robot import options
 from ..status import STATUS_DTYPE, Status
-from . import _kinematics, _starts, _step, lie
+from . import _kinematics, _starts, _step
 from ._starts import Box
 
 __all__ = ["LM_WEIGHT", "QUEUE_SLOTS", "Budget", "ChainIKOptions", "solve", "solve_paths"]

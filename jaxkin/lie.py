@@ -17,37 +17,56 @@ used, on a substituted safe angle (double-where), so values and gradients stay f
 ``t = pi`` the axis is read from the symmetric part ``(R + R^T)/2 - cos(t) I`` instead of
 ``R - R^T``. Everything is batched over leading axes, jit-able and follows the input dtype.
 The ``*_soa`` helpers work on rotations as nested lists of batch arrays (for fused kernels).
+
+Quaternions are ``(w, x, y, z)`` (Hamilton). ``quaternion_to_matrix`` is the quadratic map
+``R = Q(s) / |s|^2`` (any non-zero length), with ``Q(s) = quaternion_bilinear(s, s)``;
+``matrix_to_quaternion`` is Shepperd's method (of ``4 w^2 = 1 + tr R``, ``4 x^2 = 1 + 2 R_00
+- tr R``, ... the largest is taken, the others read from off-diagonal sums and differences;
+``w >= 0``); ``hemisphere_signs`` flips the signs of a sequence so that consecutive
+quaternions lie in one hemisphere (``q`` and ``-q`` are one rotation). Segment and box
+distances (``segment_point_distance``, ``point_box_distance``) serve the obstacle costs.
+
+The quaternion, sign and distance functions, and ``vee``, take ``xp``: ``jax.numpy`` (the
+default; traced by the caller's ``jit``) or ``numpy``, for path building on the host, which
+stays in float64 whatever JAX's x64 setting. The formula is written once for both.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .._numerics import computed_once, eps, safe_sqrt
+from ._numerics import computed_once, eps, safe_norm, safe_sqrt
+from ._validate import as_float
 
 __all__ = [
     "adjoint",
+    "cross_soa",
     "from_rotation_translation",
     "hat",
+    "hemisphere_signs",
+    "matrix_to_quaternion",
+    "point_box_distance",
+    "quaternion_bilinear",
+    "quaternion_product",
+    "quaternion_rates_of_rotation",
+    "quaternion_to_matrix",
+    "rotation_rates_of_quaternion",
     "se3_exp",
     "se3_hat",
     "se3_inverse",
     "se3_log",
     "se3_vee",
+    "segment_point_distance",
     "so3_exp",
     "so3_log",
     "vee",
 ]
-
-
-def _float(x: ArrayLike) -> Array:
-    x = jnp.asarray(x)
-    if not jnp.issubdtype(x.dtype, jnp.inexact):
-        x = x.astype(jnp.result_type(float))
-    return x
 
 
 def _small_angle(dtype) -> float:
@@ -58,7 +77,7 @@ def _small_angle(dtype) -> float:
 @jax.jit
 def hat(omega: ArrayLike) -> Array:
     """Skew-symmetric matrix of a 3-vector: ``(..., 3) -> (..., 3, 3)``, ``hat(a) b = a x b``."""
-    omega = _float(omega)
+    omega = as_float(omega)
     x, y, z = omega[..., 0], omega[..., 1], omega[..., 2]
     zero = jnp.zeros_like(x)
     return jnp.stack(
@@ -71,11 +90,16 @@ def hat(omega: ArrayLike) -> Array:
     )
 
 
-@jax.jit
-def vee(mat: ArrayLike) -> Array:
-    """Inverse of ``hat``: ``(..., 3, 3) -> (..., 3)`` (reads the antisymmetric part)."""
-    mat = _float(mat)
-    return 0.5 * jnp.stack(
+def vee(mat: ArrayLike, *, xp: Any = jnp, skew: bool = False) -> Array:
+    """Inverse of ``hat``: ``(..., 3, 3) -> (..., 3)``.
+
+    Reads the antisymmetric part ``(M - M^T) / 2``; with ``skew`` it reads ``(M_21, M_02,
+    M_10)`` of a matrix skew-symmetric by construction (as ``R_dot R^T``) as it is.
+    """
+    mat = as_float(mat) if xp is jnp else np.asarray(mat, dtype=float)
+    if skew:
+        return xp.stack([mat[..., 2, 1], mat[..., 0, 2], mat[..., 1, 0]], -1)
+    return 0.5 * xp.stack(
         [
             mat[..., 2, 1] - mat[..., 1, 2],
             mat[..., 0, 2] - mat[..., 2, 0],
@@ -88,7 +112,7 @@ def vee(mat: ArrayLike) -> Array:
 @jax.jit
 def se3_hat(xi: ArrayLike) -> Array:
     """4x4 matrix of a twist ``(omega, v)``: ``(..., 6) -> (..., 4, 4)``."""
-    xi = _float(xi)
+    xi = as_float(xi)
     top = jnp.concatenate([hat(xi[..., :3]), xi[..., 3:, None]], axis=-1)
     bottom = jnp.zeros((*xi.shape[:-1], 1, 4), xi.dtype)
     return jnp.concatenate([top, bottom], axis=-2)
@@ -97,7 +121,7 @@ def se3_hat(xi: ArrayLike) -> Array:
 @jax.jit
 def se3_vee(mat: ArrayLike) -> Array:
     """Inverse of ``se3_hat``: ``(..., 4, 4) -> (..., 6)`` ordered ``(omega, v)``."""
-    mat = _float(mat)
+    mat = as_float(mat)
     return jnp.concatenate([vee(mat[..., :3, :3]), mat[..., :3, 3]], axis=-1)
 
 
@@ -125,7 +149,7 @@ def _exp_coefficients(theta_sq: Array) -> tuple[Array, Array, Array]:
 @jax.jit
 def so3_exp(omega: ArrayLike) -> Array:
     """Rotation matrix of a rotation vector (Rodrigues): ``(..., 3) -> (..., 3, 3)``."""
-    omega = _float(omega)
+    omega = as_float(omega)
     a, b, _ = _exp_coefficients(jnp.sum(omega * omega, axis=-1))
     k = hat(omega)
     eye = jnp.eye(3, dtype=omega.dtype)
@@ -139,7 +163,7 @@ def se3_exp(xi: ArrayLike) -> Array:
     ``expm(se3_hat(xi))`` in closed form: ``R = I + A W + B W^2``, ``p = (I + B W + C W^2) v``
     with ``W = hat(omega)``.
     """
-    xi = _float(xi)
+    xi = as_float(xi)
     omega, v = xi[..., :3], xi[..., 3:]
     a, b, c = _exp_coefficients(jnp.sum(omega * omega, axis=-1))
     k = hat(omega)
@@ -154,7 +178,7 @@ def se3_exp(xi: ArrayLike) -> Array:
 @jax.jit
 def from_rotation_translation(rot: ArrayLike, p: ArrayLike) -> Array:
     """Assemble ``[[R, p], [0, 1]]`` from ``R`` (..., 3, 3) and ``p`` (..., 3)."""
-    rot, p = _float(rot), _float(p)
+    rot, p = as_float(rot), as_float(p)
     batch = jnp.broadcast_shapes(rot.shape[:-2], p.shape[:-1])
     dtype = jnp.result_type(rot, p)
     rot = jnp.broadcast_to(rot, (*batch, 3, 3)).astype(dtype)
@@ -231,6 +255,7 @@ def rotate_soa(rot: Rot, x: Vec, transpose: bool = False) -> Vec:
 
 
 def cross_soa(a: Vec, b: Vec) -> Vec:
+    """``a x b`` of vectors given as three batch arrays (or scalars) each."""
     return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
@@ -321,7 +346,7 @@ def so3_log(rot: ArrayLike) -> Array:
 
     Finite values and gradients at the identity and at half-turns (see module docstring).
     """
-    rot = _float(rot)
+    rot = as_float(rot)
     omega, _, _, _ = so3_log_soa([[rot[..., r, c] for c in range(3)] for r in range(3)])
     return jnp.stack(omega, axis=-1)
 
@@ -332,13 +357,13 @@ def se3_log(transform: ArrayLike) -> Array:
 
     Inverse of ``se3_exp`` for rotation angles in [0, pi].
     """
-    return jnp.stack(se3_log_soa(*unpack(_float(transform))), axis=-1)
+    return jnp.stack(se3_log_soa(*unpack(as_float(transform))), axis=-1)
 
 
 @jax.jit
 def se3_inverse(transform: ArrayLike) -> Array:
     """Inverse of a homogeneous transform: ``[[R^T, -R^T p], [0, 1]]``, ``(..., 4, 4)``."""
-    transform = _float(transform)
+    transform = as_float(transform)
     rot_t = jnp.swapaxes(transform[..., :3, :3], -1, -2)
     p = -jnp.einsum("...ij,...j->...i", rot_t, transform[..., :3, 3])
     return from_rotation_translation(rot_t, p)
@@ -350,10 +375,150 @@ def adjoint(transform: ArrayLike) -> Array:
 
     ``[[R, 0], [hat(p) R, R]]``.
     """
-    transform = _float(transform)
+    transform = as_float(transform)
     rot = transform[..., :3, :3]
     p_rot = hat(transform[..., :3, 3]) @ rot
     zero = jnp.zeros_like(rot)
     top = jnp.concatenate([rot, zero], axis=-1)
     bottom = jnp.concatenate([p_rot, rot], axis=-1)
     return jnp.concatenate([top, bottom], axis=-2)
+
+
+# ----------------------------------------------------------------------------------------------
+# Quaternions (w, x, y, z); ``xp`` is jax.numpy or numpy (module docstring).
+
+
+def quaternion_bilinear(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
+    """The symmetric bilinear form with ``Q(s) = quaternion_bilinear(s, s)``: ``(..., 4)``
+    twice -> ``(..., 3, 3)``; ``Q(s) / |s|^2`` is the rotation of ``s``, and being quadratic
+    its derivatives along ``s(t)`` are exact (``rotation_rates_of_quaternion``)."""
+    aw, ax, ay, az = xp.moveaxis(a, -1, 0)
+    bw, bx, by, bz = xp.moveaxis(b, -1, 0)
+    rows = [
+        [aw * bw + ax * bx - ay * by - az * bz, ax * by + ay * bx - (aw * bz + az * bw),
+         ax * bz + az * bx + (aw * by + ay * bw)],
+        [ax * by + ay * bx + (aw * bz + az * bw), aw * bw - ax * bx + ay * by - az * bz,
+         ay * bz + az * by - (aw * bx + ax * bw)],
+        [ax * bz + az * bx - (aw * by + ay * bw), ay * bz + az * by + (aw * bx + ax * bw),
+         aw * bw - ax * bx - ay * by + az * bz],
+    ]  # fmt: skip
+    return xp.stack([xp.stack(r, -1) for r in rows], -2)
+
+
+def quaternion_to_matrix(quat: ArrayLike, *, xp: Any = jnp) -> Array:
+    """Rotation matrix ``Q(s) / |s|^2`` of quaternions ``(..., 4)`` of any non-zero length:
+    ``(..., 3, 3)``."""
+    return rotation_rates_of_quaternion(quat, None, None, xp=xp)[0]
+
+
+def rotation_rates_of_quaternion(
+    s: ArrayLike, ds: ArrayLike | None, dds: ArrayLike | None, *, xp: Any = jnp
+) -> tuple[Array, Array | None, Array | None]:
+    """``R``, ``R_dot``, ``R_ddot`` of ``R(s) = Q(s) / |s|^2`` along a quaternion curve ``s(t)``
+    (``s`` any non-zero quaternion ``(..., 4)``, rates ``ds``, ``dds``; ``Q`` quadratic, so the
+    rates are exact). With ``ds`` and ``dds`` None only ``R`` is computed."""
+    norm2 = xp.sum(s * s, -1)[..., None, None]
+    rot = quaternion_bilinear(s, s, xp=xp) / norm2
+    if ds is None or dds is None:
+        return rot, None, None
+    d_norm2 = 2.0 * xp.sum(s * ds, -1)[..., None, None]
+    dd_norm2 = 2.0 * xp.sum(ds * ds + s * dds, -1)[..., None, None]
+    d_q = 2.0 * quaternion_bilinear(s, ds, xp=xp)
+    dd_q = 2.0 * quaternion_bilinear(ds, ds, xp=xp) + 2.0 * quaternion_bilinear(s, dds, xp=xp)
+    d_rot = (d_q - rot * d_norm2) / norm2
+    dd_rot = (dd_q - 2.0 * d_rot * d_norm2 - rot * dd_norm2) / norm2
+    return rot, d_rot, dd_rot
+
+
+def quaternion_product(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
+    """Hamilton product of quaternions ``(..., 4)``."""
+    aw, av, bw, bv = a[..., :1], a[..., 1:], b[..., :1], b[..., 1:]
+    return xp.concatenate([aw * bw - xp.sum(av * bv, -1, keepdims=True),
+                           aw * bv + bw * av + xp.cross(av, bv)], -1)  # fmt: skip
+
+
+def matrix_to_quaternion(rot: ArrayLike, *, xp: Any = jnp) -> Array:
+    """Unit quaternion ``(..., 4)`` of rotation matrices ``(..., 3, 3)`` by Shepperd's method,
+    ``w >= 0`` (module docstring)."""
+    trace = xp.trace(rot, axis1=-2, axis2=-1)[..., None]
+    # Of 4 w^2 = 1 + tr, 4 x^2 = 1 + 2 R_00 - tr, ..., the largest is well conditioned.
+    squares = 1.0 + xp.concatenate([trace, 2.0 * xp.diagonal(rot, 0, -2, -1) - trace], -1)
+    big = xp.argmax(squares, -1)
+    s = xp.sqrt(xp.maximum(xp.take_along_axis(squares, big[..., None], -1)[..., 0], 0.0))
+    m = rot
+    odd = xp.stack([m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0],
+                    m[..., 1, 0] - m[..., 0, 1]], -1)  # fmt: skip
+    even = xp.stack([m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0],
+                     m[..., 1, 2] + m[..., 2, 1]], -1)  # fmt: skip
+    half = 0.5 * s
+    inv = xp.where(s > 0, 0.5 / xp.where(s > 0, s, 1.0), 0.0)
+    cases = [
+        xp.stack([half, odd[..., 0] * inv, odd[..., 1] * inv, odd[..., 2] * inv], -1),
+        xp.stack([odd[..., 0] * inv, half, even[..., 0] * inv, even[..., 1] * inv], -1),
+        xp.stack([odd[..., 1] * inv, even[..., 0] * inv, half, even[..., 2] * inv], -1),
+        xp.stack([odd[..., 2] * inv, even[..., 1] * inv, even[..., 2] * inv, half], -1),
+    ]
+    quat = cases[3]
+    for k in (2, 1, 0):
+        quat = xp.where(big[..., None] == k, cases[k], quat)
+    quat = xp.where(quat[..., :1] < 0, -quat, quat)
+    return quat / xp.linalg.norm(quat, axis=-1, keepdims=True)
+
+
+def quaternion_rates_of_rotation(
+    rot: ArrayLike, d_rot: ArrayLike, dd_rot: ArrayLike, *, xp: Any = jnp
+) -> tuple[Array, Array, Array]:
+    """Unit quaternion of ``R`` (``matrix_to_quaternion``) and its rates along ``R(t)``.
+
+    From the angular velocity ``[omega]_x = R_dot R^T`` and acceleration ``[alpha]_x = R_ddot
+    R^T + R_dot R_dot^T``: ``q_dot = (0, omega) q / 2``, ``q_ddot = ((0, alpha) q + (0, omega)
+    q_dot) / 2`` (Hamilton products). Each ``(..., 4)``.
+    """
+    quat = matrix_to_quaternion(rot, xp=xp)
+    transpose = xp.swapaxes(rot, -1, -2)
+    omega = vee(d_rot @ transpose, xp=xp, skew=True)
+    alpha = vee(dd_rot @ transpose + d_rot @ xp.swapaxes(d_rot, -1, -2), xp=xp, skew=True)
+    zero = xp.zeros_like(omega[..., :1])
+    d_quat = 0.5 * quaternion_product(xp.concatenate([zero, omega], -1), quat, xp=xp)
+    dd_quat = 0.5 * (
+        quaternion_product(xp.concatenate([zero, alpha], -1), quat, xp=xp)
+        + quaternion_product(xp.concatenate([zero, omega], -1), d_quat, xp=xp)
+    )
+    return quat, d_quat, dd_quat
+
+
+def hemisphere_signs(quaternions: ArrayLike, *, xp: Any = jnp) -> Array:
+    """Signs ``(..., T)`` (+-1) that put consecutive quaternions ``(..., T, 4)`` in one
+    hemisphere (``q`` and ``-q`` are one rotation; a spline through them needs one sign); the
+    first sample keeps its own."""
+    q = quaternions
+    flips = xp.where(xp.sum(q[..., 1:, :] * q[..., :-1, :], -1) < 0.0, -1.0, 1.0)
+    return xp.concatenate([xp.ones_like(q[..., :1, 0]), xp.cumprod(flips, axis=-1)], -1)
+
+
+# ----------------------------------------------------------------------------------------------
+# Distances between points, segments and boxes (obstacle costs).
+
+
+def segment_point_distance(a: Array, b: Array, points: Array) -> Array:
+    """Distance from segments ``a -> b`` ``(..., d)`` to points ``(m, d)``: ``(..., m)``.
+
+    The nearest point is ``a + t (b - a)`` with ``t = clip((p - a).(b - a) / |b - a|^2, 0,
+    1)`` (``t = 0`` for a zero-length segment); the norm is ``safe_norm`` (finite gradients at
+    zero distance).
+    """
+    ab = (b - a)[..., None, :]
+    ap = points - a[..., None, :]
+    length_sq = jnp.sum(ab * ab, axis=-1)
+    t = jnp.clip(jnp.sum(ap * ab, -1) / jnp.where(length_sq > 0, length_sq, 1.0), 0.0, 1.0)
+    nearest = a[..., None, :] + t[..., None] * ab
+    return safe_norm(nearest - points)
+
+
+def point_box_distance(points: Array, centres: Array, half: Array) -> Array:
+    """Signed distance from points ``(..., d)`` to axis-aligned boxes (centres ``(m, d)``, half
+    side lengths ``(m, d)``): ``(..., m)``, negative inside (the depth to the nearest face)."""
+    offset = jnp.abs(points[..., None, :] - centres) - half
+    outside = safe_norm(jnp.maximum(offset, 0.0))
+    inside = jnp.minimum(jnp.max(offset, axis=-1), 0.0)
+    return outside + inside

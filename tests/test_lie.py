@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from jax.scipy.linalg import expm
 
-from jaxkin.serial import lie
+from jaxkin import lie
 from tests.helpers import BATCH_SHAPES, tree_allfinite
 
 RNG = np.random.default_rng(1)
@@ -165,3 +165,57 @@ def test_float32():
     np.testing.assert_allclose(back, xi, atol=2e-4)
     reference = np.asarray(lie.se3_exp(xi.astype(np.float64)))
     np.testing.assert_allclose(transforms, reference, atol=2e-6)
+
+
+# ------------------------------------------------------------------ quaternions and distances
+@pytest.mark.parametrize("xp", [np, jnp], ids=["numpy", "jax"])
+def test_quaternions_against_scipy(xp):
+    """Shepperd's method and the quadratic map against scipy's ``Rotation``, every branch of
+    Shepperd's choice (near-identity and half-turns about each axis) included; ``w >= 0``."""
+    from scipy.spatial.transform import Rotation
+
+    rotvec = np.concatenate(
+        [RNG.normal(size=(20, 3)), 1e-9 * RNG.normal(size=(2, 3)), np.pi * np.eye(3)]
+    )
+    mats = Rotation.from_rotvec(rotvec).as_matrix()
+    want = Rotation.from_rotvec(rotvec).as_quat()[:, [3, 0, 1, 2]]
+    want = np.where(want[:, :1] < 0, -want, want)
+    jit = jax.jit if xp is jnp else (lambda f: f)  # one compilation, not one per operation
+    quat = np.asarray(jit(lambda m: lie.matrix_to_quaternion(m, xp=xp))(mats))
+    signs = np.where(np.abs(want[:, :1]) < 1e-12, np.sign(np.sum(quat * want, -1))[:, None], 1)
+    np.testing.assert_allclose(quat, signs * want, atol=1e-15)
+    assert np.all(quat[:, 0] >= 0.0)
+    scaled = quat * RNG.uniform(0.5, 2.0, (len(quat), 1))  # any non-zero length
+    back = jit(lambda q: lie.quaternion_to_matrix(q, xp=xp))(scaled)
+    np.testing.assert_allclose(back, mats, atol=1e-15)
+    a, b = (Rotation.from_rotvec(RNG.normal(size=(5, 3))) for _ in range(2))
+    qa, qb = (r.as_quat()[:, [3, 0, 1, 2]] for r in (a, b))
+    product = np.asarray(jit(lambda x, y: lie.quaternion_product(x, y, xp=xp))(qa, qb))
+    np.testing.assert_allclose(lie.quaternion_to_matrix(product, xp=np), (a * b).as_matrix())
+
+
+def test_hemisphere_signs_make_neighbours_agree():
+    quat = RNG.normal(size=(3, 12, 4))
+    for signs in (lie.hemisphere_signs(quat, xp=np), jax.jit(lie.hemisphere_signs)(quat)):
+        signs = np.asarray(signs)
+        flipped = quat * signs[..., None]
+        assert np.all(signs[:, 0] == 1.0) and np.all(np.abs(signs) == 1.0)
+        assert np.all(np.sum(flipped[:, 1:] * flipped[:, :-1], -1) >= 0.0)
+
+
+def test_segment_and_box_distances_against_dense_sampling():
+    """The nearest point of a segment against 20,001 points along it; boxes against the
+    closed form of a point outside (distance to the clamped point) and inside (face depth)."""
+    a, b = RNG.normal(size=(2, 4, 3))
+    points = RNG.normal(size=(5, 3))
+    t = np.linspace(0.0, 1.0, 20001)[:, None, None]
+    dense = np.min(np.linalg.norm(a + t * (b - a) - points[:, None, None], axis=-1), axis=1).T
+    distance = jax.jit(lie.segment_point_distance)
+    np.testing.assert_allclose(distance(a, b, points), dense, atol=1e-7)
+    same = distance(a, a, points)
+    np.testing.assert_allclose(same, np.linalg.norm(a[:, None] - points, axis=-1), rtol=1e-15)
+    centres, half = np.zeros((1, 3)), np.array([[1.0, 2.0, 3.0]])
+    probe = np.array([[2.0, 0.5, 0.0], [2.0, 3.0, 4.0], [0.5, 0.0, 0.0], [0.0, 0.0, -2.5]])
+    want = [1.0, np.sqrt(3.0), -0.5, -0.5]
+    got = jax.jit(lie.point_box_distance)(probe, centres, half)
+    np.testing.assert_allclose(got[:, 0], want, rtol=1e-15)

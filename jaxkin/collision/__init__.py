@@ -1,0 +1,68 @@
+"""Collision geometry: primitives, exact signed distances, the world, robot bodies as data.
+
+- ``primitives``: ``Spheres``, ``Capsules``, ``Boxes`` (oriented), ``HalfSpaces`` as array
+  pytrees; ``point_cloud_spheres`` (voxel down-sampling).
+- ``distance``: closed-form signed distances of every robot/world pair (negative in
+  penetration, finite gradients everywhere).
+- ``world``: ``World`` and ``nearest_obstacles`` (per robot primitive, the smallest signed
+  distance over the world and which obstacle).
+- ``body``: ``Body``, spheres and capsules attached to links; ``Body.place(link_poses)``.
+- ``urdf``: ``body_from_urdf`` (``<collision>`` elements; meshes covered by spheres).
+- ``cover``: conservative sphere covers of meshes, capsule covers of boxes.
+- ``pairs``: self-collision link pairs (adjacency, SRDF ``disable_collisions``),
+  ``self_distances``, ``propose_disabled``.
+"""
+
+from . import distance as distance
+from .body import Body as Body
+from .cover import SphereCover as SphereCover
+from .cover import box_capsules as box_capsules
+from .cover import mesh_sphere_cover as mesh_sphere_cover
+from .pairs import SelfPairs as SelfPairs
+from .pairs import adjacent_links as adjacent_links
+from .pairs import propose_disabled as propose_disabled
+from .pairs import read_srdf_disabled as read_srdf_disabled
+from .pairs import self_collision_link_pairs as self_collision_link_pairs
+from .pairs import self_distances as self_distances
+from .primitives import Boxes as Boxes
+from .primitives import Capsules as Capsules
+from .primitives import HalfSpaces as HalfSpaces
+from .primitives import Spheres as Spheres
+from .primitives import point_cloud_spheres as point_cloud_spheres
+from .urdf import UrdfBody as UrdfBody
+from .urdf import body_from_urdf as body_from_urdf
+from .world import BOX as BOX
+from .world import CAPSULE as CAPSULE
+from .world import HALFSPACE as HALFSPACE
+from .world import SPHERE as SPHERE
+from .world import Nearest as Nearest
+from .world import World as World
+from .world import nearest_obstacles as nearest_obstacles
+
+__all__ = [
+    "BOX",
+    "CAPSULE",
+    "HALFSPACE",
+    "SPHERE",
+    "Body",
+    "Boxes",
+    "Capsules",
+    "HalfSpaces",
+    "Nearest",
+    "SelfPairs",
+    "SphereCover",
+    "Spheres",
+    "UrdfBody",
+    "World",
+    "adjacent_links",
+    "body_from_urdf",
+    "box_capsules",
+    "distance",
+    "mesh_sphere_cover",
+    "nearest_obstacles",
+    "point_cloud_spheres",
+    "propose_disabled",
+    "read_srdf_disabled",
+    "self_collision_link_pairs",
+    "self_distances",
+]

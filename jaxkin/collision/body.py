@@ -1,0 +1,182 @@
+"""A robot's body for collision: spheres and capsules attached to its links, as data.
+
+``Body`` lists spheres (centre and radius in their link's frame) and capsules (end points and
+radius in their link's frame), each with the index of its link in ``Body.links``. Positions and
+radii are array leaves (a different radius or a moved sphere does not recompile, and a body can
+be differentiated); the link of each primitive and the link names are static. ``place`` maps
+the primitives to the world given every link's pose, for any leading batch of configurations;
+the robot that owns the body supplies those poses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.typing import ArrayLike
+
+from .primitives import Capsules, Spheres
+
+__all__ = ["Body"]
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Body:
+    """Spheres and capsules attached to links.
+
+    Fields:
+        sphere_center: ``(ns, 3)``, in the frame of link ``links[sphere_link[i]]``.
+        sphere_radius: ``(ns,)``.
+        capsule_a, capsule_b: ``(nc, 3)``, segment end points in their link's frame.
+        capsule_radius: ``(nc,)``.
+        sphere_link, capsule_link: static tuples of link indices, one per primitive.
+        links: static tuple of link names (all links of the robot, with or without geometry).
+    """
+
+    sphere_center: jax.Array
+    sphere_radius: jax.Array
+    capsule_a: jax.Array
+    capsule_b: jax.Array
+    capsule_radius: jax.Array
+    sphere_link: tuple[int, ...] = dataclasses.field(metadata={"static": True})
+    capsule_link: tuple[int, ...] = dataclasses.field(metadata={"static": True})
+    links: tuple[str, ...] = dataclasses.field(metadata={"static": True})
+
+    @classmethod
+    def create(
+        cls,
+        links: tuple[str, ...] | list[str],
+        spheres: Mapping[str, tuple[ArrayLike, ArrayLike]] | None = None,
+        capsules: Mapping[str, tuple[ArrayLike, ArrayLike, ArrayLike]] | None = None,
+        dtype=None,
+    ) -> Body:
+        """A body from per-link primitives.
+
+        Args:
+            links: every link name, in the order of the poses ``place`` will receive.
+            spheres: link name -> ``(centers (k, 3), radii (k,))`` in that link's frame.
+            capsules: link name -> ``(a (k, 3), b (k, 3), radii (k,))`` in that link's frame.
+        """
+        links = tuple(links)
+        if len(set(links)) != len(links) or not all(isinstance(n, str) for n in links):
+            raise ValueError(f"links must be distinct link names, got {links!r}")
+        index = {name: i for i, name in enumerate(links)}
+        s_link, s_c, s_r, c_link, c_a, c_b, c_r = [], [], [], [], [], [], []
+        for name, (center, radius) in (spheres or {}).items():
+            if name not in index:
+                raise ValueError(f"spheres: unknown link {name!r} (links: {links})")
+            sph = Spheres.create(np.reshape(center, (-1, 3)), radius, np.float64)
+            s_link += [index[name]] * len(sph)
+            s_c.append(np.asarray(sph.center))
+            s_r.append(np.asarray(sph.radius))
+        for name, (a, b, radius) in (capsules or {}).items():
+            if name not in index:
+                raise ValueError(f"capsules: unknown link {name!r} (links: {links})")
+            cap = Capsules.create(
+                np.reshape(a, (-1, 3)), np.reshape(b, (-1, 3)), radius, np.float64
+            )
+            c_link += [index[name]] * len(cap)
+            c_a.append(np.asarray(cap.a))
+            c_b.append(np.asarray(cap.b))
+            c_r.append(np.asarray(cap.radius))
+        dtype = dtype or jnp.result_type(float)
+
+        def stack(parts: list[np.ndarray], tail: tuple[int, ...]) -> jax.Array:
+            arr = np.concatenate(parts) if parts else np.zeros((0, *tail))
+            return jnp.asarray(arr, dtype=dtype)
+
+        return cls(
+            stack(s_c, (3,)),
+            stack(s_r, ()),
+            stack(c_a, (3,)),
+            stack(c_b, (3,)),
+            stack(c_r, ()),
+            tuple(s_link),
+            tuple(c_link),
+            links,
+        )
+
+    @property
+    def num_spheres(self) -> int:
+        return len(self.sphere_link)
+
+    @property
+    def num_capsules(self) -> int:
+        return len(self.capsule_link)
+
+    def astype(self, dtype) -> Body:
+        return jax.tree.map(lambda x: x.astype(dtype), self)
+
+    def per_link(self) -> tuple[dict, dict]:
+        """Host-side ``(spheres, capsules)`` dictionaries by link name, as ``create`` takes."""
+        spheres: dict = {}
+        capsules: dict = {}
+        s_link, c_link = np.asarray(self.sphere_link, int), np.asarray(self.capsule_link, int)
+        for i, name in enumerate(self.links):
+            s, c = s_link == i, c_link == i
+            if s.any():
+                spheres[name] = (
+                    np.asarray(self.sphere_center)[s],
+                    np.asarray(self.sphere_radius)[s],
+                )
+            if c.any():
+                capsules[name] = (
+                    np.asarray(self.capsule_a)[c],
+                    np.asarray(self.capsule_b)[c],
+                    np.asarray(self.capsule_radius)[c],
+                )
+        return spheres, capsules
+
+    def with_link_spheres(self, spheres: Mapping[str, tuple[ArrayLike, ArrayLike]]) -> Body:
+        """This body with the given links' primitives replaced by the user's own spheres."""
+        own_s, own_c = self.per_link()
+        for name in spheres:
+            if name not in self.links:
+                raise ValueError(f"spheres: unknown link {name!r} (links: {self.links})")
+            own_s.pop(name, None)
+            own_c.pop(name, None)
+        return Body.create(self.links, {**own_s, **spheres}, own_c, dtype=self.sphere_radius.dtype)
+
+    def place(self, link_poses: jax.Array) -> tuple[Spheres, Capsules]:
+        """The primitives in the world frame, given every link's pose.
+
+        Args:
+            link_poses: ``(..., len(links), 4, 4)`` homogeneous transforms, world <- link.
+
+        Returns:
+            ``(Spheres, Capsules)`` with shapes ``(..., ns, 3)`` / ``(..., nc, 3)``.
+        """
+        if link_poses.shape[-3:] != (len(self.links), 4, 4):
+            raise ValueError(
+                f"link_poses: expected shape (..., {len(self.links)}, 4, 4), got {link_poses.shape}"
+            )
+
+        def to_world(points: jax.Array, link: tuple[int, ...]) -> jax.Array:
+            pose = link_poses[..., np.asarray(link, dtype=np.int32), :, :]
+            p = points.astype(pose.dtype)
+            # written out: a batched 3x3 product is an unfused, slow dot on CPU
+            rows = [
+                pose[..., i, 0] * p[..., 0]
+                + pose[..., i, 1] * p[..., 1]
+                + pose[..., i, 2] * p[..., 2]
+                + pose[..., i, 3]
+                for i in range(3)
+            ]
+            return jnp.stack(rows, axis=-1)
+
+        dtype = link_poses.dtype
+        batch = link_poses.shape[:-3]
+        spheres = Spheres(
+            to_world(self.sphere_center, self.sphere_link),
+            jnp.broadcast_to(self.sphere_radius.astype(dtype), (*batch, self.num_spheres)),
+        )
+        capsules = Capsules(
+            to_world(self.capsule_a, self.capsule_link),
+            to_world(self.capsule_b, self.capsule_link),
+            jnp.broadcast_to(self.capsule_radius.astype(dtype), (*batch, self.num_capsules)),
+        )
+        return spheres, capsules

@@ -1,0 +1,208 @@
+"""Collision primitives as array data: spheres, capsules, oriented boxes, half-spaces.
+
+Each kind is a frozen dataclass registered as a pytree whose fields are arrays with one row per
+primitive (shape ``(n, ...)``, any further leading axes broadcast), so moving or resizing a
+primitive changes values, never shapes, and a jitted check does not recompile. Build them with
+``create``, which validates concrete values on the host and raises ``ValueError`` naming the
+argument; the plain constructor is JAX's path (tracers, cotangents) and checks nothing.
+
+Point clouds enter as spheres: ``point_cloud_spheres`` down-samples on a voxel grid (host side)
+and puts one sphere on each occupied voxel's mean point, with a radius that contains every point
+of that voxel grown by the requested point radius.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.typing import ArrayLike
+
+__all__ = ["Boxes", "Capsules", "HalfSpaces", "Spheres", "point_cloud_spheres"]
+
+
+def _floats(x: ArrayLike, name: str, shape_tail: tuple[int, ...], dtype=None) -> np.ndarray:
+    """A finite float array whose trailing axes are ``shape_tail`` (checked on the host)."""
+    arr = np.asarray(x)
+    if arr.dtype.kind not in "fiu":
+        raise ValueError(f"{name} must hold real numbers, got dtype {arr.dtype}")
+    if shape_tail and arr.shape == shape_tail:
+        arr = arr[None]  # one primitive
+    tail = arr.shape[arr.ndim - len(shape_tail) :] if len(shape_tail) else ()
+    if arr.ndim < len(shape_tail) + 1 or tail != shape_tail:
+        want = ", ".join(["n", *map(str, shape_tail)])
+        raise ValueError(f"{name}: expected shape (..., {want}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite")
+    return arr.astype(dtype or jnp.result_type(float))
+
+
+def _nonnegative(arr: np.ndarray, name: str) -> np.ndarray:
+    if np.any(arr < 0):
+        raise ValueError(f"{name} must be >= 0, got minimum {arr.min()}")
+    return arr
+
+
+def _count(name: str, *arrays: np.ndarray, axes: tuple[int, ...]) -> None:
+    """Every field must have the same number of primitives (its row axis)."""
+    counts = {arr.shape[arr.ndim - k] for arr, k in zip(arrays, axes, strict=True)}
+    if len(counts) != 1:
+        raise ValueError(f"{name}: fields disagree on the number of primitives: {sorted(counts)}")
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Spheres:
+    """Spheres: ``center`` shape ``(..., n, 3)``, ``radius`` shape ``(..., n)`` (>= 0)."""
+
+    center: jax.Array
+    radius: jax.Array
+
+    @classmethod
+    def create(cls, center: ArrayLike, radius: ArrayLike, dtype=None) -> Spheres:
+        c = _floats(center, "center", (3,), dtype)
+        r = _nonnegative(
+            _floats(np.broadcast_to(radius, c.shape[:-1]), "radius", (), dtype), "radius"
+        )
+        return cls(jnp.asarray(c), jnp.asarray(r))
+
+    @classmethod
+    def empty(cls, dtype=None) -> Spheres:
+        return cls.create(np.zeros((0, 3)), np.zeros(0), dtype)
+
+    def __len__(self) -> int:
+        return self.radius.shape[-1]
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Capsules:
+    """Capsules (segments ``a``-``b`` grown by ``radius``): ``a, b`` ``(..., n, 3)``,
+    ``radius`` ``(..., n)``. A capsule with ``a == b`` is a sphere."""
+
+    a: jax.Array
+    b: jax.Array
+    radius: jax.Array
+
+    @classmethod
+    def create(cls, a: ArrayLike, b: ArrayLike, radius: ArrayLike, dtype=None) -> Capsules:
+        pa, pb = _floats(a, "a", (3,), dtype), _floats(b, "b", (3,), dtype)
+        _count("Capsules", pa, pb, axes=(2, 2))
+        r = _floats(np.broadcast_to(radius, pa.shape[:-1]), "radius", (), dtype)
+        return cls(jnp.asarray(pa), jnp.asarray(pb), jnp.asarray(_nonnegative(r, "radius")))
+
+    @classmethod
+    def empty(cls, dtype=None) -> Capsules:
+        return cls.create(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), dtype)
+
+    def __len__(self) -> int:
+        return self.radius.shape[-1]
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Boxes:
+    """Oriented boxes ``{center + rotation @ u : |u_i| <= half_extents_i}``.
+
+    ``center`` ``(..., n, 3)``; ``rotation`` ``(..., n, 3, 3)`` (columns: the box axes in the
+    world frame, a proper rotation); ``half_extents`` ``(..., n, 3)`` (>= 0).
+    """
+
+    center: jax.Array
+    rotation: jax.Array
+    half_extents: jax.Array
+
+    @classmethod
+    def create(
+        cls,
+        center: ArrayLike,
+        half_extents: ArrayLike,
+        rotation: ArrayLike | None = None,
+        dtype=None,
+    ) -> Boxes:
+        c = _floats(center, "center", (3,), dtype)
+        h = _nonnegative(
+            _floats(np.broadcast_to(half_extents, c.shape), "half_extents", (3,), dtype),
+            "half_extents",
+        )
+        if rotation is None:
+            rotation = np.broadcast_to(np.eye(3), (*c.shape[:-1], 3, 3))
+        rot = _floats(rotation, "rotation", (3, 3), dtype)
+        _count("Boxes", c, rot, axes=(2, 3))
+        err = np.abs(np.swapaxes(rot, -1, -2) @ rot - np.eye(3)).max(initial=0.0)
+        tol = 100.0 * np.sqrt(np.finfo(rot.dtype).eps)
+        if err > tol or np.any(np.linalg.det(rot.astype(float)) <= 0):
+            raise ValueError(
+                f"rotation must be proper rotation matrices (R^T R = I within {tol:.1e}, "
+                f"det > 0); largest |R^T R - I| is {err:.2e}"
+            )
+        return cls(jnp.asarray(c), jnp.asarray(rot), jnp.asarray(h))
+
+    @classmethod
+    def empty(cls, dtype=None) -> Boxes:
+        return cls.create(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3)), dtype)
+
+    def __len__(self) -> int:
+        return self.center.shape[-2]
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class HalfSpaces:
+    """Half-spaces ``{x : normal . x <= offset}``: ``normal`` ``(..., n, 3)`` (unit; ``create``
+    divides both by the normal's length), ``offset`` ``(..., n)``. The floor ``z <= 0`` is
+    ``normal=(0, 0, 1), offset=0``."""
+
+    normal: jax.Array
+    offset: jax.Array
+
+    @classmethod
+    def create(cls, normal: ArrayLike, offset: ArrayLike, dtype=None) -> HalfSpaces:
+        n = _floats(normal, "normal", (3,), dtype)
+        length = np.linalg.norm(n, axis=-1, keepdims=True)
+        if np.any(length == 0):
+            raise ValueError("normal must be non-zero vectors")
+        o = _floats(np.broadcast_to(offset, n.shape[:-1]), "offset", (), dtype)
+        return cls(jnp.asarray(n / length), jnp.asarray(o / length[..., 0]))
+
+    @classmethod
+    def empty(cls, dtype=None) -> HalfSpaces:
+        return cls.create(np.ones((0, 3)), np.zeros(0), dtype)
+
+    def __len__(self) -> int:
+        return self.offset.shape[-1]
+
+
+def point_cloud_spheres(
+    points: ArrayLike, voxel: float, point_radius: float = 0.0, dtype=None
+) -> Spheres:
+    """Spheres covering a point cloud after voxel down-sampling (host side, NumPy).
+
+    Points ``(n, 3)`` are binned on a grid of cell size ``voxel``; each occupied cell gives one
+    sphere at the mean of its points with radius ``point_radius`` plus the largest distance from
+    that mean to a point of the cell (at most ``voxel * sqrt(3)``), so every point, grown by
+    ``point_radius``, lies inside the spheres. The number of spheres is the number of occupied
+    cells: pad or fix the voxel size to keep a jitted check's shapes constant.
+    """
+    pts = _floats(points, "points", (3,), np.float64)
+    if pts.ndim != 2:
+        raise ValueError(f"points: expected shape (n, 3), got {pts.shape}")
+    if not (np.isfinite(voxel) and voxel > 0):
+        raise ValueError(f"voxel must be a positive cell size, got {voxel!r}")
+    if not (np.isfinite(point_radius) and point_radius >= 0):
+        raise ValueError(f"point_radius must be >= 0, got {point_radius!r}")
+    if len(pts) == 0:
+        return Spheres.empty(dtype)
+    cells = np.floor(pts / voxel).astype(np.int64)
+    _, cell_of, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    cell_of = cell_of.reshape(-1)
+    sums = np.zeros((len(counts), 3))
+    np.add.at(sums, cell_of, pts)
+    centers = sums / counts[:, None]
+    reach = np.zeros(len(counts))
+    np.maximum.at(reach, cell_of, np.linalg.norm(pts - centers[cell_of], axis=-1))
+    # one ulp-scale margin so rounding in another dtype still contains the points
+    margin = 4.0 * np.finfo(np.dtype(dtype or jnp.result_type(float))).eps * np.abs(pts).max()
+    return Spheres.create(centers, reach + point_radius + margin, dtype)

@@ -1,0 +1,228 @@
+"""The world: obstacles of every kind as arrays, and each robot primitive's nearest obstacle.
+
+``World`` holds ``Spheres``, ``Capsules``, ``Boxes`` and ``HalfSpaces`` (any of them empty).
+Its arrays are pytree leaves: moving, resizing or re-orienting obstacles keeps the shapes and
+so reuses a compiled check; adding or removing an obstacle changes a shape (pad with far-away
+obstacles to avoid that).
+
+``nearest_obstacles(spheres, capsules, world)`` gives, for every robot sphere and capsule (in
+world coordinates, any leading batch axes), the smallest signed distance over all obstacles and
+which obstacle attains it (``kind`` from ``SPHERE, CAPSULE, BOX, HALFSPACE`` and the index
+within that kind). With no obstacle at all the distance is the dtype's largest finite value
+and ``kind = index = -1``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+
+from . import distance as sd
+from .primitives import Boxes, Capsules, HalfSpaces, Spheres
+
+__all__ = ["BOX", "CAPSULE", "HALFSPACE", "SPHERE", "Nearest", "World", "nearest_obstacles"]
+
+SPHERE, CAPSULE, BOX, HALFSPACE = 0, 1, 2, 3
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class World:
+    """Obstacles by kind; build with ``World.create(spheres=..., boxes=...)`` (missing kinds
+    are empty)."""
+
+    spheres: Spheres
+    capsules: Capsules
+    boxes: Boxes
+    halfspaces: HalfSpaces
+
+    @classmethod
+    def create(
+        cls,
+        spheres: Spheres | None = None,
+        capsules: Capsules | None = None,
+        boxes: Boxes | None = None,
+        halfspaces: HalfSpaces | None = None,
+        dtype=None,
+    ) -> World:
+        given = {"spheres": spheres, "capsules": capsules, "boxes": boxes, "halfspaces": halfspaces}
+        kinds = {"spheres": Spheres, "capsules": Capsules, "boxes": Boxes, "halfspaces": HalfSpaces}
+        for name, value in given.items():
+            if value is not None and not isinstance(value, kinds[name]):
+                raise ValueError(
+                    f"{name} must be {kinds[name].__name__}, got {type(value).__name__}"
+                )
+        if dtype is None:
+            leaves = [leaf for v in given.values() if v is not None for leaf in jax.tree.leaves(v)]
+            dtype = jnp.result_type(*leaves) if leaves else jnp.result_type(float)
+        parts = {
+            name: jax.tree.map(lambda x: x if x.dtype == dtype else x.astype(dtype), value)
+            if value is not None
+            else kinds[name].empty(dtype)
+            for name, value in given.items()
+        }
+        return cls(**parts)
+
+    def astype(self, dtype) -> World:
+        return jax.tree.map(lambda x: x.astype(dtype), self)
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Nearest:
+    """Per robot primitive: ``distance`` (signed, smallest over the world), the obstacle's
+    ``kind`` (int8: ``SPHERE, CAPSULE, BOX, HALFSPACE``; -1 with no obstacle) and its
+    ``index`` (int32) within that kind. Shapes ``(..., n)``."""
+
+    distance: jax.Array
+    kind: jax.Array
+    index: jax.Array
+
+
+def _pairs_sphere(c: jax.Array, r: jax.Array, world: World) -> list[tuple[int, jax.Array]]:
+    """Signed distances ``(..., n, m_kind)`` from spheres ``(c, r)`` to each non-empty kind."""
+    ci, ri = c[..., :, None, :], r[..., :, None]
+    out = []
+    w = world
+    if len(w.spheres):
+        out.append(
+            (
+                SPHERE,
+                sd.sphere_sphere(
+                    ci, ri, w.spheres.center[..., None, :, :], w.spheres.radius[..., None, :]
+                ),
+            )
+        )
+    if len(w.capsules):
+        cap = w.capsules
+        out.append(
+            (
+                CAPSULE,
+                sd.sphere_capsule(
+                    ci, ri, cap.a[..., None, :, :], cap.b[..., None, :, :], cap.radius[..., None, :]
+                ),
+            )
+        )
+    if len(w.boxes):
+        box = w.boxes
+        out.append(
+            (
+                BOX,
+                sd.sphere_box(
+                    ci,
+                    ri,
+                    box.center[..., None, :, :],
+                    box.rotation[..., None, :, :, :],
+                    box.half_extents[..., None, :, :],
+                ),
+            )
+        )
+    if len(w.halfspaces):
+        hs = w.halfspaces
+        out.append(
+            (
+                HALFSPACE,
+                sd.sphere_halfspace(ci, ri, hs.normal[..., None, :, :], hs.offset[..., None, :]),
+            )
+        )
+    return out
+
+
+def _pairs_capsule(
+    a: jax.Array, b: jax.Array, r: jax.Array, world: World
+) -> list[tuple[int, jax.Array]]:
+    """Signed distances ``(..., n, m_kind)`` from capsules ``(a, b, r)`` to each kind."""
+    ai, bi, ri = a[..., :, None, :], b[..., :, None, :], r[..., :, None]
+    out = []
+    w = world
+    if len(w.spheres):
+        sph = w.spheres
+        out.append(
+            (
+                SPHERE,
+                sd.sphere_capsule(
+                    sph.center[..., None, :, :], sph.radius[..., None, :], ai, bi, ri
+                ),
+            )
+        )
+    if len(w.capsules):
+        cap = w.capsules
+        out.append(
+            (
+                CAPSULE,
+                sd.capsule_capsule(
+                    ai,
+                    bi,
+                    ri,
+                    cap.a[..., None, :, :],
+                    cap.b[..., None, :, :],
+                    cap.radius[..., None, :],
+                ),
+            )
+        )
+    if len(w.boxes):
+        box = w.boxes
+        out.append(
+            (
+                BOX,
+                sd.capsule_box(
+                    ai,
+                    bi,
+                    ri,
+                    box.center[..., None, :, :],
+                    box.rotation[..., None, :, :, :],
+                    box.half_extents[..., None, :, :],
+                ),
+            )
+        )
+    if len(w.halfspaces):
+        hs = w.halfspaces
+        out.append(
+            (
+                HALFSPACE,
+                sd.capsule_halfspace(
+                    ai, bi, ri, hs.normal[..., None, :, :], hs.offset[..., None, :]
+                ),
+            )
+        )
+    return out
+
+
+def _reduce(per_kind: list[tuple[int, jax.Array]], batch: tuple[int, ...], dtype) -> Nearest:
+    """Smallest distance over the kinds' ``(..., n, m)`` matrices, and where it is."""
+    if not per_kind:
+        big = jnp.full(batch, jnp.finfo(dtype).max, dtype)
+        none = jnp.full(batch, -1)
+        return Nearest(big, none.astype(jnp.int8), none.astype(jnp.int32))
+    dists = jnp.stack([jnp.min(d, axis=-1) for _, d in per_kind], axis=-1)
+    which = jnp.stack([jnp.argmin(d, axis=-1) for _, d in per_kind], axis=-1)
+    kinds = jnp.asarray([k for k, _ in per_kind], dtype=jnp.int8)
+    best = jnp.argmin(dists, axis=-1)
+    distance = jnp.take_along_axis(dists, best[..., None], axis=-1)[..., 0]
+    index = jnp.take_along_axis(which, best[..., None], axis=-1)[..., 0]
+    return Nearest(distance, kinds[best], index.astype(jnp.int32))
+
+
+def nearest_obstacles(
+    spheres: Spheres, capsules: Capsules, world: World
+) -> tuple[Nearest, Nearest]:
+    """Each robot sphere's and capsule's nearest obstacle (smallest signed distance).
+
+    Args:
+        spheres: robot spheres in world coordinates, ``center (..., ns, 3)``.
+        capsules: robot capsules in world coordinates, ``a, b (..., nc, 3)``.
+        world: the obstacles (leading axes, if any, broadcast against the robot's).
+
+    Returns:
+        ``(for_spheres, for_capsules)``: ``Nearest`` with shapes ``(..., ns)`` and ``(..., nc)``.
+    """
+    dtype = jnp.result_type(spheres.radius, capsules.radius)
+    s = _reduce(_pairs_sphere(spheres.center, spheres.radius, world), spheres.radius.shape, dtype)
+    c = _reduce(
+        _pairs_capsule(capsules.a, capsules.b, capsules.radius, world),
+        capsules.radius.shape,
+        dtype,
+    )
+    return s, c
