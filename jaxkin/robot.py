@@ -1,7 +1,7 @@
 """The robot protocol: what every robot offers, and ``jaxkin.ik`` / ``jaxkin.fk``.
 
-Every robot geometry (``scara.Scara``, ``delta.Delta``, the serial arms, ``serial.DHTable``
-and ``serial.PoEChain``) is a ``Robot``. The planner, the optimiser, workspace sweeps and the
+Every robot geometry (``scara.Scara``, ``delta.Delta``, the serial arms, the chain robot
+``serial.Chain``) is a ``Robot``. The planner, the optimiser, workspace sweeps and the
 command line are written against this interface alone and never ask which robot they have:
 
 * ``robot.target``: what its inverse kinematics takes and its forward kinematics returns
@@ -224,6 +224,10 @@ class CompilePolicy:
             the kernel as constants (one compilation per robot; XLA folds its values).
         branch_as_data: the branch reaches the kernel as a traced index
             (``ik_kernel_indexed``), so every branch shares one compilation.
+        bucket: for an iterative kernel that ends a NaN input at once (a chain's IK search):
+            a concrete batch of two or more elements runs padded with NaN rows, spread among
+            its own, to the next power of two at least ``bucket`` (``_batching.bucket_size``),
+            at any size: batch sizes share one compilation per size class. None: not so.
     """
 
     pad: bool = True
@@ -231,6 +235,7 @@ class CompilePolicy:
     min_part: int | None = None
     constant_geometry: bool = False
     branch_as_data: bool = False
+    bucket: int | None = None
 
 
 KERNELS = ("ik_kernel", "fk_kernel")
@@ -398,7 +403,7 @@ def as_robot(robot: Any, name: str = "robot") -> Robot:
     if not isinstance(robot, Robot):
         raise ValueError(
             f"{name} must be a jaxkin robot (scara.Scara, delta.Delta, a serial arm, "
-            f"serial.JointChain, serial.DHTable or serial.PoEChain), got {type(robot).__name__}"
+            f"serial.Chain), got {type(robot).__name__}"
         )
     return robot
 
@@ -621,9 +626,27 @@ def _cast(x: Any, dtype: Any) -> Any:
 def _run(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
     """Apply the compile policy: one element straight to the kernel compiled for its shape
     (the single-query fast path), small batches padded, large ones as the policy says."""
-    if math.prod(batch) == 1 or not program.policy.pad or robot.batch_shape():
+    size = math.prod(batch)
+    if program.policy.bucket and size > 1 and not robot.batch_shape():
+        return _bucketed(program, robot, p, v, a, index, options, batch)
+    if size == 1 or not program.policy.pad or robot.batch_shape():
         return program.whole(robot, p, v, a, index, options, batch=batch)
     return program.padded(robot, p, v, a, index, options, batch=batch)
+
+
+def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
+    """``CompilePolicy.bucket``: the batch's rows spread among NaN rows, to the bucket's size,
+    and gathered back (tracers run as they are)."""
+    if not all(is_concrete(x) for x in jax.tree.leaves((robot, p, v, a, options))):
+        return program.whole(robot, p, v, a, index, options, batch=batch)
+    padded = _batching.bucket_size(math.prod(batch), program.policy.bucket)
+    core = p.ndim - len(batch)
+    p, v, a = (
+        None if x is None else _batching.spread_rows(x, batch, core, padded, np.nan)
+        for x in (p, v, a)
+    )
+    result = program.whole(robot, p, v, a, index, options, batch=(padded,))
+    return _batching.gather_back(result, batch)
 
 
 def ik(
