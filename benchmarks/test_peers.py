@@ -37,7 +37,7 @@ Tasks and solvers:
   1e-10, ``max_iter`` 20, its default, and 8: the batch steps until its last element
   converges, so the slowest element sets the cost);
 * PUMA 560 FK (1e4 configurations): pytorch_kinematics, roboticstoolbox (``ETS.fkine`` of the
-  batch), jaxkin ``serial.fk_dh`` and ``serial.fk``;
+  batch), jaxkin's DH kernel (``serial.dh.transforms``, what the arm runs) and ``serial.fk``;
 * URDF arms (UR5 and Franka Panda of example-robot-data, 500 poses from joints within the
   limits, no seed, joint limits on): roboticstoolbox ``ETS.ik_LM`` on the chain its own URDF
   parser builds (random restarts), pytorch_kinematics ``PseudoInverseIK`` (64 random retries
@@ -261,7 +261,7 @@ def test_ik_jaxkin_analytic(benchmark, puma, n):
 def test_ik_jaxkin_newton(benchmark, puma, n, max_iter):
     """Pseudo-inverse Newton; steps stop once every element converged, else at max_iter."""
     _, targets, seeds = puma[n]
-    table = serial.Puma560().dh_table()
+    table = serial.from_dh(serial.Puma560().dh_table())
     t, q0 = jnp.asarray(targets), jnp.asarray(seeds)
     res, rate = _run(
         benchmark,
@@ -373,9 +373,8 @@ def _fk_record(benchmark, solver, rate, t, targets, jaxkin=False):
 def test_fk_jaxkin_fk_dh(benchmark, fk_configs):
     q, targets = fk_configs
     table, qj = serial.Puma560().dh_table(), jnp.asarray(q)
-    t, rate = _run(
-        benchmark, lambda: serial.fk_dh(table, qj), FK_SIZE, "PUMA FK", "fk_dh", rounds=10
-    )
+    kernel = jax.jit(serial.dh.transforms)
+    t, rate = _run(benchmark, lambda: kernel(table, qj), FK_SIZE, "PUMA FK", "fk_dh", rounds=10)
     _fk_record(benchmark, "jaxkin.serial.fk_dh", rate, t, targets, jaxkin=True)
 
 
@@ -434,7 +433,7 @@ def urdf_arm(request):
     chain = serial.from_urdf(path, tip)
     model = pin.buildModelFromUrdf(path)
     data, frame = model.createData(), model.getFrameId(tip)
-    columns = [model.joints[model.getJointId(j)].idx_q for j in chain.names]
+    columns = [model.joints[model.getJointId(j)].idx_q for j in chain.joint_names]
 
     def fk(q):
         out = []
@@ -503,7 +502,7 @@ def test_urdf_ik_pytorch_kinematics(benchmark, urdf_arm):
     name, path, tip, chain, targets, _ = urdf_arm
     text = tasks.urdf_without_geometry(path)
     pchain = pk.build_serial_chain_from_urdf(text.encode(), tip).to(dtype=torch.float64)
-    assert tuple(pchain.get_joint_parameter_names()) == chain.names
+    assert tuple(pchain.get_joint_parameter_names()) == chain.joint_names
     limits = torch.as_tensor(np.stack([chain.lower, chain.upper], -1), dtype=torch.float64)
     # no seed: 64 random retries within the limits (as jaxkin's 64 restarts), limits on
     ik = pk.PseudoInverseIK(
@@ -541,7 +540,7 @@ def test_urdf_ik_pyroki(benchmark, urdf_arm):
     joints = solve.joints
     middle = (np.asarray(joints.lower_limits) + np.asarray(joints.upper_limits)) / 2
     q0 = jnp.broadcast_to(jnp.asarray(middle), (URDF_SIZE, len(middle)))
-    ours = [joints.actuated_names.index(j) for j in chain.names]
+    ours = [joints.actuated_names.index(j) for j in chain.joint_names]
     t = jnp.asarray(targets)
     q, rate = _run(benchmark, lambda: solve(t, q0), URDF_SIZE, f"{name} IK", "pyroki", rounds=3)
     q = np.asarray(q)[:, ours]

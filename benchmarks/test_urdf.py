@@ -54,7 +54,7 @@ def _pinocchio_loop(path: str, tip: str, chain, q: np.ndarray, jacobian: bool):
     model = pin.buildModelFromUrdf(path)
     data = model.createData()
     frame = model.getFrameId(tip)
-    columns = [model.joints[model.getJointId(j)].idx_q for j in chain.names]
+    columns = [model.joints[model.getJointId(j)].idx_q for j in chain.joint_names]
     full = np.tile(pin.neutral(model), (len(q), 1))
     full[:, columns] = q
 

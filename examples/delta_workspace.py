@@ -23,7 +23,7 @@ import numpy as np
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never does this
 
-from jaxkin import delta  # noqa: E402
+from jaxkin import delta, workspace  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     robot = delta.Delta.paper()
     bounds = ((-50.0, 50.0), (-50.0, 50.0), (-45.0, 45.0))
     start = time.perf_counter()
-    ws = delta.workspace(robot, bounds, args.resolution)
+    ws = workspace.sweep(robot, bounds, args.resolution)
     elapsed = time.perf_counter() - start
 
     print(f"Delta robot {robot.r_base}/{robot.r_platform}/{robot.l_arm}/{robot.l_rod} cm")

@@ -4,7 +4,7 @@ Links of 1 m; home M = Trans(2, 0, 0); body screws B1 = (0, 0, 1, 0, 2, 0) and
 B2 = (0, 0, 1, 0, 1, 0); target (x, y) = (0.366, 1.366) m with the end-effector x axis at
 120 degrees; seed theta0 = (0, 30 deg); tolerances eps_omega = 1e-3 rad, eps_v = 1e-4 m.
 
-The script runs ``jaxkin.serial.newton_ik`` and prints every iterate (joint angles, end
+The script runs ``jaxkin.serial.ik_newton`` and prints every iterate (joint angles, end
 position, body twist V_b = log(T_sb^-1 T_sd)) beside the table printed in the source. As
 ``docs/errata.md`` notes, the table is that of the body-frame update theta += J_b^+ V_b, and its
 4 rows are 3 updates. Writes ``planar_2r_newton.csv`` and, with matplotlib installed,
@@ -19,8 +19,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin import lie
-from jaxkin.serial import newton_ik, poe
+import jaxkin
+from jaxkin import lie, serial
 
 jax.config.update("jax_enable_x64", True)  # an application choice; the library never sets it
 
@@ -38,11 +38,11 @@ PAPER_DECIMALS = np.array([0, 2, 2, 3, 3, 3, 3, 3])
 COLUMNS = ["i", "theta1_deg", "theta2_deg", "x_m", "y_m", "omega_zb", "v_xb", "v_yb"]
 
 
-def chain() -> poe.PoEChain:
+def chain() -> serial.Chain:
     home = np.eye(4)
     home[0, 3] = 2.0
     screws = np.array([[0, 0, 1, 0, 2, 0], [0, 0, 1, 0, 1, 0]], dtype=np.float64)
-    return poe.PoEChain.create(screws, home, frame="body")
+    return serial.from_screws(screws, home, frame="body")
 
 
 def target() -> np.ndarray:
@@ -52,14 +52,14 @@ def target() -> np.ndarray:
     )
 
 
-def run() -> tuple[np.ndarray, newton_ik.NewtonIKResult]:
+def run() -> tuple[np.ndarray, serial.NewtonIKResult]:
     """Solve the example; return the computed table (one row per iterate) and the result."""
     arm, t_sd = chain(), target()
-    result = newton_ik.ik_newton(
-        arm, t_sd, np.radians([0.0, 30.0]), eps_omega=1e-3, eps_v=1e-4, max_iter=20
+    result = serial.ik_newton(
+        arm, t_sd, np.radians([0.0, 30.0]), eps_omega=1e-3, eps_v=1e-4, max_iter=20, frame="body"
     )
     iterates = np.asarray(result.history[: int(result.iterations) + 1])
-    t_sb = np.asarray(poe.chain_fk(arm, iterates))
+    t_sb = np.asarray(jaxkin.fk(arm, iterates).x.p)
     twist = np.asarray(lie.se3_log(lie.se3_inverse(t_sb) @ t_sd))
     rows = np.column_stack(
         [

@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     arm = serial.from_urdf(URDF, "tool0")
-    print(f"{URDF.name}: joints {', '.join(arm.names)} ({arm.joint_types})")
+    print(f"{URDF.name}: joints {', '.join(arm.joint_names)} ({arm.joint_types})")
     q = np.random.default_rng(0).uniform(arm.lower, arm.upper, size=(args.n, arm.n_joints))
     targets = jaxkin.fk(arm, q).x.p
     began = time.perf_counter()
@@ -87,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"best candidate {best}: integrated squared joint acceleration {cost:.3g}, "
           f"tool pose from its joints within {drift:.1e} of the path")  # fmt: skip
     table = np.c_[np.arange(t) * dt, ev.q.p[best], ev.q.v[best], ev.q.a[best]]
-    header = ["t", *arm.names, *(f"{j}_dot" for j in arm.names), *(f"{j}_ddot" for j in arm.names)]
+    names = arm.joint_names
+    header = ["t", *names, *(f"{j}_dot" for j in names), *(f"{j}_ddot" for j in names)]
     output = args.output_dir / "urdf_arm_best.csv"
     np.savetxt(output, table, delimiter=",", header=",".join(header), comments="")
     print(f"wrote {output}")

@@ -13,6 +13,9 @@
   sharded over the devices when there are several, else run on the host threads.
 * **Host chunks** (``host_chunks``): a host-side loop over fixed-size, padded chunks (files of
   the command line, voxels of a workspace sweep), so one compilation serves every chunk.
+* **Work queue inside a kernel** (``work_queue``): an iterative kernel whose elements need very
+  different numbers of steps (a chain's IK search) keeps a fixed number of lanes iterating and
+  hands each lane the next element as its own ends.
 * **Padded small batches** (``PaddedJit``): a small concrete batch is flattened and padded to a
   power of two, so calls whose batch shapes differ (a replanning loop whose
   candidate count changes, a batch ``(3, 5)`` then ``(12,)``) share one compilation per size.
@@ -25,6 +28,7 @@ process may run on; ``1`` turns host parts off. How the thresholds below were me
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import inspect
 import math
@@ -573,6 +577,47 @@ def _pad_leaf(leaf: Any, batch: tuple[int, ...], core: int, padded: int) -> Any:
     return np.concatenate([flat, np.broadcast_to(flat[-1:], (padded - len(flat), *shape))])
 
 
+def bucket_size(size: int, smallest: int) -> int:
+    """The size a batch of an iterative kernel is computed at when its padding rows cost
+    almost nothing (they are marked done from the start): ``size`` for a single element (the
+    one-query shape), else the next power of two, at least ``smallest``. No upper bound: each
+    size class is one compilation, and a class at most doubles the rows."""
+    if size <= 1:
+        return size
+    return max(smallest, 1 << (size - 1).bit_length())
+
+
+def spread_positions(size: int, padded: int) -> np.ndarray:
+    """Where the ``size`` rows of a batch sit among ``padded`` rows: spread evenly, so that
+    every host-thread part of the padded batch holds its share of real rows."""
+    return (np.arange(size) * padded) // max(size, 1)
+
+
+def spread_rows(leaf: Any, batch: tuple[int, ...], core: int, padded: int, fill: float) -> Any:
+    """``leaf`` ``(*batch, *core)`` as a host array ``(padded, *core)``: the batch's rows at
+    ``spread_positions``, ``fill`` elsewhere (e.g. NaN: rows an iterative kernel marks
+    invalid at once)."""
+    host = np.asarray(leaf)
+    shape = host.shape[host.ndim - core :] if core else ()
+    flat = np.broadcast_to(host, (*batch, *shape)).reshape((-1, *shape))
+    out = np.full((padded, *shape), fill, flat.dtype)
+    out[spread_positions(len(flat), padded)] = flat
+    return out
+
+
+def gather_back(tree: Any, batch: tuple[int, ...]) -> Any:
+    """The batch's rows (``spread_positions``) of every leaf of a kernel's output on the
+    spread rows, reshaped to ``batch``: one small program per output structure and shape."""
+    leaves, structure = jax.tree.flatten(tree)
+    rows = jnp.asarray(spread_positions(math.prod(batch), leaves[0].shape[0]), jnp.int32)
+    return jax.tree.unflatten(structure, _gather(leaves, rows, batch))
+
+
+@functools.partial(jax.jit, static_argnames=("batch",))
+def _gather(leaves: list, rows: Array, batch: tuple[int, ...]) -> list:
+    return [leaf[rows].reshape((*batch, *leaf.shape[1:])) for leaf in leaves]
+
+
 @functools.partial(jax.jit, static_argnames=("axes", "batch", "size"))
 def _cut(leaves: list, axes: tuple[int, ...], batch: tuple[int, ...], size: int) -> list:
     """Each output leaf's first ``size`` rows on its batch axis, that axis reshaped to
@@ -592,3 +637,67 @@ def _field(path: tuple) -> str | None:
         if isinstance(key, jax.tree_util.GetAttrKey):
             return key.name
     return None
+
+
+# ------------------------------------------------------------------ work queue in a kernel
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class QueueState:
+    """The ``lax.while_loop`` state of ``work_queue``.
+
+    Attributes:
+        slot: ``(lanes,)`` int32, the element each lane holds (``>= size``: the lane is idle).
+        lanes: the per-lane state, a pytree whose leaves lead with the lane axis.
+        out: the per-element outputs, a pytree whose leaves lead with the element axis.
+        following: the next element to hand out (int32 scalar).
+        steps: steps taken (int32 scalar).
+    """
+
+    slot: Array
+    lanes: Any
+    out: Any
+    following: Array
+    steps: Array
+
+
+def work_queue(
+    step: Callable[[Array, Any], tuple[Any, Array, Any]],
+    fresh: Callable[[Array], Any],
+    out: Any,
+    size: int,
+    lanes: int,
+    max_steps: int,
+) -> Any:
+    """Run ``size`` elements of an iterative kernel on ``lanes`` lanes, refilled as they end.
+
+    A batch iterated in step costs its hardest element's work times its size; a queue costs
+    about its elements' total work. ``fresh(slot)`` is the lane state of elements ``slot``
+    ``(lanes,)`` (past the end: an idle lane); ``step(slot, state)`` advances every lane once
+    and returns ``(state, finished, result)``: ``finished`` ``(lanes,)`` marks lanes whose
+    element has ended, ``result`` their outputs (leaves ``(lanes, ...)``), written to ``out``
+    (leaves ``(size, ...)``) at the element's index. Finished lanes take the next elements in
+    order. Stops when every element has ended or after ``max_steps`` steps; returns ``out``.
+    """
+
+    def body(state: QueueState) -> QueueState:
+        kept, finished, result = step(state.slot, state.lanes)
+        where = jnp.where(finished, state.slot, size)  # out of range: dropped
+        written = jax.tree.map(lambda o, r: o.at[where].set(r, mode="drop"), state.out, result)
+        rank = jnp.cumsum(finished, dtype=jnp.int32) - 1
+        slot = jnp.where(finished, state.following + rank, state.slot)
+        following = state.following + jnp.sum(finished, dtype=jnp.int32)
+        refill = jax.tree.map(
+            lambda a, b: jnp.where(finished.reshape(finished.shape + (1,) * (a.ndim - 1)), b, a),
+            kept,
+            fresh(slot),
+        )
+        return QueueState(slot, refill, written, following, state.steps + 1)
+
+    def cond(state: QueueState) -> Array:
+        return jnp.any(state.slot < size) & (state.steps < max_steps)
+
+    slot = jnp.arange(lanes, dtype=jnp.int32)
+    init = QueueState(slot, fresh(slot), out, jnp.int32(lanes), jnp.int32(0))
+    return jax.lax.while_loop(cond, body, init).out

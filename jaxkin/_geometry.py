@@ -3,7 +3,9 @@
 Every robot geometry (``Scara``, ``Delta``, the arms, DH and PoE chains, joint limits) is a
 frozen dataclass declared with ``@geometry``. Its numeric fields are pytree leaves (so a
 geometry can be differentiated, for calibration, and vmapped over); fields marked ``static``
-(joint types, frames) are part of the tree structure.
+(joint types, frames) are part of the tree structure. Fields marked ``label`` (names of joints
+and links) travel with the tree structure but compare equal whatever their values, so two
+geometries that differ only in labels share every compiled program.
 
 Validation happens in one way, whether a geometry is built by its constructor or by a factory
 (``create``, ``paper``): ``__post_init__`` checks every field declared with ``number(...)``
@@ -62,6 +64,36 @@ def static(default: Any = dataclasses.MISSING) -> Any:
     if default is dataclasses.MISSING:
         return dataclasses.field(metadata={"static": True})
     return dataclasses.field(default=default, metadata={"static": True})
+
+
+def label(default: Any = dataclasses.MISSING) -> Any:
+    """A name (joint or link names): kept by every pytree operation, never a compilation key.
+
+    Labels ride in the tree structure inside a ``Labels`` holder that compares equal to any
+    other, so renaming a joint does not recompile. A jitted function that *returns* such a
+    geometry returns the labels it was first traced with; kernels return arrays, not robots.
+    """
+    if default is dataclasses.MISSING:
+        return dataclasses.field(metadata={"label": True})
+    return dataclasses.field(default=default, metadata={"label": True})
+
+
+class Labels:
+    """The label fields of one geometry, in the tree structure; equal to every ``Labels``."""
+
+    __slots__ = ("values",)
+
+    def __init__(self, values: tuple) -> None:
+        self.values = values
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Labels)
+
+    def __hash__(self) -> int:
+        return hash(Labels)
+
+    def __repr__(self) -> str:
+        return f"Labels{self.values!r}"
 
 
 def _shape_matches(actual: tuple[int, ...], expected: Shape) -> bool:
@@ -142,25 +174,38 @@ class Geometry:
 
 def geometry(cls: type) -> type:
     """Class decorator: a frozen dataclass registered as a pytree that skips validation on
-    unflatten (see the module docstring). Fields declared with ``static()`` are metadata."""
+    unflatten (see the module docstring). Fields declared with ``static()`` are metadata, those
+    declared with ``label()`` metadata that never keys a compilation."""
     cls = dataclasses.dataclass(frozen=True)(cls)
     fields = dataclasses.fields(cls)
-    data = tuple(f.name for f in fields if not f.metadata.get("static"))
+
+    def is_data(f: dataclasses.Field) -> bool:
+        return not (f.metadata.get("static") or f.metadata.get("label"))
+
+    data = tuple(f.name for f in fields if is_data(f))
     meta = tuple(f.name for f in fields if f.metadata.get("static"))
+    labels = tuple(f.name for f in fields if f.metadata.get("label"))
+
+    def aux_of(obj: Any) -> tuple:
+        aux = tuple(getattr(obj, n) for n in meta)
+        return (*aux, Labels(tuple(getattr(obj, n) for n in labels))) if labels else aux
 
     def flatten_with_keys(obj: Any):
         children = [(jax.tree_util.GetAttrKey(n), getattr(obj, n)) for n in data]
-        return children, tuple(getattr(obj, n) for n in meta)
+        return children, aux_of(obj)
 
     def flatten(obj: Any):
-        return [getattr(obj, n) for n in data], tuple(getattr(obj, n) for n in meta)
+        return [getattr(obj, n) for n in data], aux_of(obj)
 
     def unflatten(aux: tuple, children: Any) -> Any:
         obj = object.__new__(cls)
         for name, value in zip(data, children, strict=True):
             object.__setattr__(obj, name, value)
-        for name, value in zip(meta, aux, strict=True):
+        for name, value in zip(meta, aux[: len(meta)], strict=True):
             object.__setattr__(obj, name, value)
+        if labels:
+            for name, value in zip(labels, aux[-1].values, strict=True):
+                object.__setattr__(obj, name, value)
         return obj
 
     jax.tree_util.register_pytree_with_keys(cls, flatten_with_keys, unflatten, flatten)

@@ -1,7 +1,7 @@
 """The robot protocol: what every robot offers, and ``jaxkin.ik`` / ``jaxkin.fk``.
 
-Every robot geometry (``scara.Scara``, ``delta.Delta``, the serial arms, ``serial.DHTable``
-and ``serial.PoEChain``) is a ``Robot``. The planner, the optimiser, workspace sweeps and the
+Every robot geometry (``scara.Scara``, ``delta.Delta``, the serial arms, the chain robot
+``serial.Chain``) is a ``Robot``. The planner, the optimiser, workspace sweeps and the
 command line are written against this interface alone and never ask which robot they have:
 
 * ``robot.target``: what its inverse kinematics takes and its forward kinematics returns
@@ -243,6 +243,10 @@ class CompilePolicy:
             the kernel as constants (one compilation per robot; XLA folds its values).
         branch_as_data: the branch reaches the kernel as a traced index
             (``ik_kernel_indexed``), so every branch shares one compilation.
+        bucket: for an iterative kernel that ends a NaN input at once (a chain's IK search):
+            a concrete batch of two or more elements runs padded with NaN rows, spread among
+            its own, to the next power of two at least ``bucket`` (``_batching.bucket_size``),
+            at any size: batch sizes share one compilation per size class. None: not so.
     """
 
     pad: bool = True
@@ -250,6 +254,7 @@ class CompilePolicy:
     min_part: int | None = None
     constant_geometry: bool = False
     branch_as_data: bool = False
+    bucket: int | None = None
 
 
 KERNELS = ("ik_kernel", "fk_kernel")
@@ -418,7 +423,7 @@ def as_robot(robot: Any, name: str = "robot") -> Robot:
     if not isinstance(robot, Robot):
         raise ValueError(
             f"{name} must be a jaxkin robot (scara.Scara, delta.Delta, a serial arm, "
-            f"serial.JointChain, serial.DHTable or serial.PoEChain), got {type(robot).__name__}"
+            f"serial.Chain), got {type(robot).__name__}"
         )
     return robot
 
@@ -454,24 +459,30 @@ _DEFAULTS: dict[type, Any] = {}
 # ------------------------------------------------------------------------------ the pipeline
 
 
-def _float_dtype(*dtypes: Any) -> Any:
-    """The floating dtype inputs of ``dtypes`` are computed in (canonical for the x64 flag)."""
+def _float_dtype(dtypes: tuple, canonical: bool) -> Any:
+    """The floating dtype inputs of ``dtypes`` are computed in (canonical for the x64 flag;
+    ``canonical``: the inputs are JAX arrays, whose dtypes already are)."""
+    if canonical and len(dtypes) == 1 and dtypes[0] in _FLOATS:
+        return dtypes[0]
     key = (dtypes, jax.config.jax_enable_x64)
     found = _FLOAT_DTYPES.get(key)
     if found is None:
-        canonical = (jax.dtypes.canonicalize_dtype(d) for d in dtypes)
-        found = _FLOAT_DTYPES[key] = jnp.result_type(*canonical, float)
+        canonical_dtypes = (jax.dtypes.canonicalize_dtype(d) for d in dtypes)
+        found = _FLOAT_DTYPES[key] = jnp.result_type(*canonical_dtypes, float)
     return found
 
 
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 _FLOAT_DTYPES: dict[Any, Any] = {}
 
 
-def promoted(*dtypes: Any) -> Any:
-    """``jnp.result_type`` of ``dtypes``, cached (a chain's ``work_dtype`` on every call)."""
-    found = _PROMOTED.get(dtypes)
+def promoted(dtype: Any, other: Any) -> Any:
+    """``jnp.result_type(dtype, other)``, cached (a chain's ``work_dtype`` on every call)."""
+    if dtype is other:
+        return dtype
+    found = _PROMOTED.get((dtype, other))
     if found is None:
-        found = _PROMOTED[dtypes] = jnp.result_type(*dtypes)
+        found = _PROMOTED[(dtype, other)] = jnp.result_type(dtype, other)
     return found
 
 
@@ -588,8 +599,9 @@ def _inputs(robot: Robot, x: Any, name: str, core: tuple[int, ...]):
         raise ValueError(
             f"{name}: {type(robot).__name__} expects shape (..., {want}), got {tuple(shape)}"
         )
-    dtype = robot.work_dtype(_float_dtype(*(y.dtype for y in arrays)))
-    arrays = [y if y.dtype == dtype else _cast(y, dtype) for y in arrays]
+    canonical = all(type(y) in _JAX_TYPES for y in arrays)
+    dtype = robot.work_dtype(_float_dtype(tuple(y.dtype for y in arrays), canonical))
+    arrays = [y if y.dtype is dtype or y.dtype == dtype else _cast(y, dtype) for y in arrays]
     batch = tuple(shape[: len(shape) - k])
     extra = robot.batch_shape()
     if extra:
@@ -601,7 +613,12 @@ def _inputs(robot: Robot, x: Any, name: str, core: tuple[int, ...]):
 def _array(x: Any) -> Any:
     """``x`` as an array with a shape and a dtype (JAX and NumPy arrays and tracers as they
     are; anything else through NumPy)."""
-    if isinstance(x, jax.Array | np.ndarray):
+    if type(x) in _ARRAY_TYPES:
+        return x
+    if isinstance(x, _ARRAYS):
+        if isinstance(x, jax.Array) and not isinstance(x, jax.core.Tracer):
+            _ARRAY_TYPES.add(type(x))
+            _JAX_TYPES.add(type(x))
         return x
     if not hasattr(x, "shape") or not hasattr(x, "dtype"):
         try:
@@ -614,6 +631,11 @@ def _array(x: Any) -> Any:
     return x
 
 
+_ARRAYS = (jax.Array, np.ndarray)
+_ARRAY_TYPES = {np.ndarray}  # concrete array types seen: checked before the slower isinstance
+_JAX_TYPES: set[type] = set()  # concrete JAX array types seen
+
+
 def _cast(x: Any, dtype: Any) -> Any:
     """``x`` in ``dtype``: on the host for NumPy input (no dispatch), else one JAX cast."""
     if isinstance(x, np.ndarray):
@@ -624,9 +646,27 @@ def _cast(x: Any, dtype: Any) -> Any:
 def _run(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
     """Apply the compile policy: one element straight to the kernel compiled for its shape
     (the single-query fast path), small batches padded, large ones as the policy says."""
-    if math.prod(batch) == 1 or not program.policy.pad or robot.batch_shape():
+    size = math.prod(batch)
+    if program.policy.bucket and size > 1 and not robot.batch_shape():
+        return _bucketed(program, robot, p, v, a, index, options, batch)
+    if size == 1 or not program.policy.pad or robot.batch_shape():
         return program.whole(robot, p, v, a, index, options, batch=batch)
     return program.padded(robot, p, v, a, index, options, batch=batch)
+
+
+def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
+    """``CompilePolicy.bucket``: the batch's rows spread among NaN rows, to the bucket's size,
+    and gathered back (tracers run as they are)."""
+    if not all(is_concrete(x) for x in jax.tree.leaves((robot, p, v, a, options))):
+        return program.whole(robot, p, v, a, index, options, batch=batch)
+    padded = _batching.bucket_size(math.prod(batch), program.policy.bucket)
+    core = p.ndim - len(batch)
+    p, v, a = (
+        None if x is None else _batching.spread_rows(x, batch, core, padded, np.nan)
+        for x in (p, v, a)
+    )
+    result = program.whole(robot, p, v, a, index, options, batch=(padded,))
+    return _batching.gather_back(result, batch)
 
 
 def ik(

@@ -1,4 +1,4 @@
-"""SCARA robot: inverse kinematics on the RRR dyad [Noriega, sec. 3], forward kinematics, workspace.
+"""SCARA robot: inverse kinematics on the RRR dyad [Noriega, sec. 3], forward kinematics.
 
 Frame [Noriega, Fig. 5]: origin O on the floor, z up. A column of height ``l_oa`` carries the
 shoulder A = (0, 0, l_oa); the arm AB (``l_ab``) turns about the vertical through A by
@@ -39,7 +39,6 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _validate, dyad, planar
-from . import workspace as _workspace
 from ._geometry import LENGTH, geometry, number
 from ._numerics import all_finite, computed_once
 from ._trig import cos_alone, sin_alone, sincos
@@ -58,7 +57,6 @@ __all__ = [
     "fk",
     "ik",
     "relative_elbow_angle",
-    "workspace",
 ]
 
 BRANCHES = dyad.MODES
@@ -417,9 +415,3 @@ def fk(robot: Scara, q: Jet | ArrayLike) -> FKResult:
             shapes that do not broadcast.
     """
     return solve_fk(_check_robot(robot), q, Scara.FKOptions())
-
-
-def workspace(robot: Scara, bounds: Any = None, resolution: float | None = None, **options: Any):
-    """Voxel sweep of the reachable workspace (``jaxkin.workspace.sweep``; default box
-    ``Scara.workspace_box``; a voxel is reachable where the IK is solved, singular included)."""
-    return _workspace.sweep(_check_robot(robot), bounds, resolution, **options)

@@ -21,7 +21,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin import Jet, cli, delta, files, optimize, paths, plan, scara
+from jaxkin import Jet, cli, delta, files, optimize, paths, plan, scara, workspace
 
 ROBOT = scara.Scara.paper()
 N, T = 4, 12  # candidates and samples; the optimiser's paths have the same shape
@@ -121,7 +121,7 @@ def run(out_dir: Path, distributed: bool) -> dict[str, np.ndarray]:
             out[f"host{n}.best"], out[f"host{n}.best_totals"] = plan.best(ev, 3)
 
         for resolution in RESOLUTIONS:
-            sweep = delta.workspace(DELTA, resolution=resolution, chunk_size=SWEEP_CHUNK)
+            sweep = workspace.sweep(DELTA, resolution=resolution, chunk_size=SWEEP_CHUNK)
             name = f"ws{sweep.mask.shape[0]}"
             _save_tree(out, f"{name}.mask", sweep.mask)
             out[f"{name}.count"] = np.asarray(sweep.n_reachable)

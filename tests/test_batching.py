@@ -258,7 +258,7 @@ def test_chain_fk_and_jacobians_in_parts_equal_whole_batch(small_parts, parts_ra
     """A chain's FK (at rest, its zero rates then written outside the kernel; and with rates)
     and both Jacobians, split in parts, equal the whole batch bit for bit."""
     monkeypatch.setattr(_batching, "SHARED_ZEROS_MIN", 16)
-    chain = serial.JointChain.from_poe(serial.poe_from_dh(serial.Puma560().dh_table()))
+    chain = serial.from_dh(serial.Puma560().dh_table())
     rng = np.random.default_rng(4)
     q = rng.uniform(-2, 2, (101, 6))
     q[7] = np.nan
@@ -401,9 +401,9 @@ def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_ax
         np.testing.assert_allclose(got.costs.total, want.costs.total, rtol=1e-12)
 
     # Newton IK: (3, 5) runs as 64; against the 64-element program called unpadded.
-    arm = serial.Puma560().dh_table()
+    arm = serial.from_dh(serial.Puma560().dh_table())
     q = rng.uniform(-1.0, 1.0, (64, 6))
-    target = serial.fk_dh(arm, q)
+    target = jaxkin.fk(arm, q).x.p
     whole = serial.ik_newton(arm, target, q + 0.05, max_iter=6)
     q0 = (q[:15] + 0.05).reshape(3, 5, 6)
     got = serial.ik_newton(arm, target[:15].reshape(3, 5, 4, 4), q0, max_iter=6)

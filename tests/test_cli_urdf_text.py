@@ -24,7 +24,7 @@ URDF = """<?xml version="1.0" encoding="{encoding}"?>
 
 
 def same_chain(a, b):
-    assert a.names == b.names == ("hanché", "coude")
+    assert a.joint_names == b.joint_names == ("hanché", "coude")
     for field in ("screws", "home", "lower", "upper", "velocity"):
         np.testing.assert_array_equal(np.asarray(getattr(a, field)), np.asarray(getattr(b, field)))
 

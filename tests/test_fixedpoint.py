@@ -9,13 +9,13 @@ import pytest
 
 from jaxkin import fixedpoint
 from jaxkin.serial.arms import Anthropomorphic, ik_all_branches
-from jaxkin.serial.dh import fk_dh
+from jaxkin.serial.dh import transforms
 
 
 def fk(robot, q):
     """The DH forward kinematics of an arm: the 4x4 transform of its last frame."""
     q = jnp.asarray(q)
-    return fk_dh(robot.dh_table(q.dtype), q)
+    return transforms(robot.dh_table(q.dtype), q)
 
 
 ROBOT = Anthropomorphic(0.3, 0.25, 0.2)

@@ -30,9 +30,19 @@ GEOMETRIES = {
     "Puma560": (serial.Puma560, {}),
     "Stanford": (serial.Stanford, dict(d1=0.4, a2=0.3)),
     "DHTable": (serial.DHTable, dict(a=[0.0, 0.4], alpha=[1.5, 0.0], d=[0.5, 0.0])),
-    "PoEChain": (
-        serial.PoEChain,
-        dict(screws=[[0.0, 0, 1, 0, 0, 0], [0.0, 0, 0, 0, 0, 1]], home=np.eye(4)),
+    "Chain": (
+        serial.Chain,
+        dict(
+            screws=[[0.0, 0, 1, 0, 0, 0], [0.0, 0, 0, 0, 0, 1]],
+            home=np.eye(4),
+            multiplier=[1.0, 1.0],
+            offset=[0.0, 0.0],
+            lower=[-1.0, -np.inf],
+            upper=[1.0, 0.5],
+            velocity=[2.0, np.inf],
+            follows=(0, 1),
+            joint_kinds=("revolute", "prismatic"),
+        ),
     ),
     "JointLimits": (jaxkin.JointLimits, dict(lower=[-1.0, -2.0], upper=[1.0, 2.0])),
 }
@@ -83,12 +93,14 @@ def test_factories_validate_like_constructors():
         serial.DHTable.create(a=[0.0, 1.0], alpha=[0.0], d=[0.0, 0.0])
     with pytest.raises(ValueError, match=r"DHTable\.joint_types"):
         serial.DHTable.create(a=[0.0], alpha=[0.0], d=[0.0], joint_types="X")
-    with pytest.raises(ValueError, match=r"PoEChain\.screws"):
-        serial.PoEChain.create([[0.0, 0, 2, 0, 0, 0]], np.eye(4))
-    with pytest.raises(ValueError, match=r"PoEChain\.home"):
-        serial.PoEChain.create([[0.0, 0, 1, 0, 0, 0]], 2 * np.eye(4))
-    with pytest.raises(ValueError, match=r"PoEChain\.frame"):
-        serial.PoEChain.create([[0.0, 0, 1, 0, 0, 0]], np.eye(4), frame="tool")
+    with pytest.raises(ValueError, match=r"Chain\.screws"):
+        serial.Chain.create([[0.0, 0, 2, 0, 0, 0]], np.eye(4))
+    with pytest.raises(ValueError, match=r"Chain\.home"):
+        serial.Chain.create([[0.0, 0, 1, 0, 0, 0]], 2 * np.eye(4))
+    with pytest.raises(ValueError, match=r"^screws: rows"):
+        serial.from_screws([[0.0, 0, 2, 0, 0, 0]], np.eye(4))
+    with pytest.raises(ValueError, match=r"frame must be one of"):
+        serial.from_screws([[0.0, 0, 1, 0, 0, 0]], np.eye(4), frame="tool")
     with pytest.raises(ValueError, match=r"JointLimits"):
         jaxkin.JointLimits([1.0], [0.0])
     with pytest.raises(ValueError, match=r"limits\['theta1'\]"):

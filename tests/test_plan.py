@@ -357,7 +357,7 @@ def test_robot_own_velocity_limits_apply_and_intersect_with_the_users():
 
 
 def test_a_chains_velocity_is_its_own_limit():
-    chain = serial.JointChain.create(
+    chain = serial.Chain.create(
         [[0, 0, 1, 0, 0, 0], [0, 0, 1, 0, -1, 0]], np.eye(4), velocity=[0.84, np.inf]
     )
     own = chain.joint_limits()
@@ -556,7 +556,7 @@ ROBOTS = {
     "anthropomorphic": serial.Anthropomorphic(0.3, 0.25, 0.2),
     "planar-2r": serial.Planar2R(1.0, 0.6),
     "puma560": serial.Puma560(),
-    "dh-table": serial.DHTable([1.0, 0.6], [0.0, 0.0], [0.0, 0.0]),  # [Pineiro]'s 2R chain
+    "dh-table": serial.from_dh(serial.DHTable([1.0, 0.6], [0.0, 0.0], [0.0, 0.0])),  # 2R chain
 }
 JOINT_PATHS = {  # each on the default branch
     "anthropomorphic": ([0.4, 0.5, -0.9], [0.2, 0.1, 0.3]),  # front_up: the elbow above

@@ -60,14 +60,14 @@ ROBOTS = {
     ),
     "puma560": (serial.Puma560, lambda r, n: r.uniform(0.3, 1.2, (n, 6))),
     "stanford": (lambda: serial.Stanford(0.4, 0.3), lambda r, n: r.uniform(0.3, 1.2, (n, 6))),
-    "dh-table": (
-        lambda: serial.DHTable.create(
-            a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0.0, 0.0]
+    "dh-chain": (
+        lambda: serial.from_dh(
+            serial.DHTable.create(a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0, 0])
         ),
         lambda r, n: r.uniform(0.3, 1.2, (n, 3)),
     ),
-    "poe-chain": (
-        lambda: serial.poe_from_dh(serial.Puma560().dh_table()),
+    "screw-chain": (
+        lambda: serial.from_dh(serial.Puma560().dh_table()),
         lambda r, n: r.uniform(0.3, 1.2, (n, 6)),
     ),
 }
@@ -163,7 +163,7 @@ def test_plain_arrays_are_at_rest_and_errors_name_the_argument(name):
 
 
 @pytest.mark.parametrize(
-    "name", marked_slow(["scara", "delta", "anthropomorphic", "puma560", "dh-table"], ["dh-table"])
+    "name", marked_slow(["scara", "delta", "anthropomorphic", "puma560", "dh-chain"], ["dh-chain"])
 )
 def test_jit_vmap_and_no_recompilation(name):
     """Under a user's jit and vmap the protocol gives the eager values; a repeated call with new
@@ -323,7 +323,7 @@ def test_options_are_frozen_dataclasses_and_unknown_keys_are_named():
 def test_a_new_tolerance_compiles_nothing_new():
     """Tolerances of a chain's IK are data (``options(dynamic=...)``): a new value reuses the
     compiled search."""
-    chain = serial.PoEChain.create(*_planar_screws())
+    chain = serial.from_screws(*_planar_screws())
     target = np.asarray(jaxkin.fk(chain, np.array([[0.3, 0.4]])).x.p)
     jaxkin.ik(chain, target, position_tol=1e-8)
     with compilations() as count:
@@ -340,7 +340,7 @@ def _planar_screws():
     return screws, home
 
 
-@pytest.mark.parametrize("name", ["scara", "delta", "poe-chain"])
+@pytest.mark.parametrize("name", ["scara", "delta", "screw-chain"])
 def test_single_query_gives_the_batched_results(name):
     """One target (batch ``()``) runs straight in the program compiled for its shape, without
     padding: the same joints and statuses as that element of a batch (to 4 ulp of the robot's
@@ -354,7 +354,7 @@ def test_single_query_gives_the_batched_results(name):
         assert one_ik.q.p.shape == (robot.n_joints,) and one_ik.status.shape == ()
         assert int(one_ik.status) == int(batched_ik.status[i])
         assert int(one_fk.status) == int(batched_fk.status[i])
-        _close(one_ik.q.p, batched_ik.q.p[i], tol * 1e3 if name == "poe-chain" else tol)
+        _close(one_ik.q.p, batched_ik.q.p[i], tol * 1e3 if name == "screw-chain" else tol)
         _close(one_fk.x.p, batched_fk.x.p[i], tol)
     with compilations() as count:
         jax.block_until_ready(jaxkin.fk(robot, q[2]).x.p)

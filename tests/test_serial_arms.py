@@ -27,14 +27,14 @@ from jaxkin.serial.arms import (
     Stanford,
     ik_all_branches,
 )
-from jaxkin.serial.dh import fk_dh
+from jaxkin.serial.dh import transforms
 from tests.helpers import BATCH_SHAPES, compilations, tree_allfinite
 
 
 def fk(robot, q):
     """The DH forward kinematics of an arm: the 4x4 transform of its last frame."""
     q = jnp.asarray(q)
-    return fk_dh(robot.dh_table(q.dtype), q)
+    return transforms(robot.dh_table(q.dtype), q)
 
 
 PI = np.pi
@@ -390,9 +390,7 @@ def test_anthropomorphic_branch_labels_are_geometric():
 
 
 def _frames(robot, q):
-    from jaxkin.serial.dh import fk_dh
-
-    return fk_dh(robot.dh_table(jnp.float64), q, all_frames=True)
+    return transforms(robot.dh_table(jnp.float64), jnp.asarray(q, jnp.float64), all_frames=True)
 
 
 def test_puma_has_eight_distinct_solutions_with_expected_pairs():

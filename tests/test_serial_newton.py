@@ -7,27 +7,42 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxkin import Status
-from jaxkin.serial import dh, newton_ik, poe
+import jaxkin
+from jaxkin import Status, serial
+from jaxkin.serial import _step, dh, newton
 from tests.helpers import compilations, tree_allfinite
 
 RNG = np.random.default_rng(11)
 
-PUMA = dh.DHTable.create(
-    a=[0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0],
-    alpha=[np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0],
-    d=[0.0, 0.0, 0.15005, 0.4318, 0.0, 0.0],
-    joint_types="RRRRRR",
+PUMA = serial.from_dh(
+    dh.DHTable.create(
+        a=[0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0],
+        alpha=[np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0],
+        d=[0.0, 0.0, 0.15005, 0.4318, 0.0, 0.0],
+        joint_types="RRRRRR",
+    )
 )
-ANTHRO = dh.DHTable.create(a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0.0, 0.0])
+ANTHRO = serial.from_dh(
+    dh.DHTable.create(a=[0.0, 0.4, 0.3], alpha=[np.pi / 2, 0.0, 0.0], d=[0.5, 0.0, 0.0])
+)
 
 
-def _planar_2r_body() -> poe.PoEChain:
+def _fk(chain, q):
+    """The chain's tip transforms (``jaxkin.fk(chain, q).x.p``)."""
+    return np.asarray(jaxkin.fk(chain, q).x.p)
+
+
+def _ik_body(chain, *args, **kwargs):
+    """``ik_newton`` with [Pineiro]'s body-frame update."""
+    return newton.ik_newton(chain, *args, frame="body", **kwargs)
+
+
+def _planar_2r_body() -> serial.Chain:
     """[Pineiro]'s 2R arm: M = Trans(2, 0, 0), B1 = (0,0,1, 0,2,0), B2 = (0,0,1, 0,1,0)."""
     home = np.eye(4)
     home[0, 3] = 2.0
     screws = np.array([[0, 0, 1, 0, 2, 0], [0, 0, 1, 0, 1, 0]], dtype=float)
-    return poe.PoEChain.create(screws, home, frame="body")
+    return serial.from_screws(screws, home, frame="body")
 
 
 def _planar_target(x, y, phi):
@@ -70,7 +85,7 @@ def _well_conditioned(n, batch=5):
 def test_step_matches_pinv_and_damped_formula(n, damping):
     jac = _well_conditioned(n)
     twist = RNG.normal(size=(5, 6))
-    step = np.asarray(newton_ik._newton_step(jnp.asarray(jac), jnp.asarray(twist), damping))
+    step = np.asarray(_step.damped_step(jnp.asarray(jac), jnp.asarray(twist), damping))
     if damping == 0.0:
         # Soft cut-off mu = sqrt(eps) trace(J^T J): relative deviation from pinv <= mu / s^2,
         # here <= 1.5e-8 * 24 / 0.25 ~ 1.5e-6 (module docstring).
@@ -91,9 +106,9 @@ def test_step_at_singular_jacobian_is_finite_and_is_pinv():
     col = RNG.normal(size=6)
     jac = np.stack([col, col, RNG.normal(size=6)], axis=-1)
     twist = RNG.normal(size=6)
-    step = np.asarray(newton_ik._newton_step(jnp.asarray(jac), jnp.asarray(twist), 0.0))
+    step = np.asarray(_step.damped_step(jnp.asarray(jac), jnp.asarray(twist), 0.0))
     np.testing.assert_allclose(step, np.linalg.pinv(jac) @ twist, rtol=1e-6, atol=1e-7)
-    zero = newton_ik._newton_step(jnp.zeros((6, 2)), jnp.asarray(twist), 0.0)
+    zero = _step.damped_step(jnp.zeros((6, 2)), jnp.asarray(twist), 0.0)
     np.testing.assert_array_equal(zero, 0.0)
 
 
@@ -101,10 +116,8 @@ def test_planar_2r_quadratic_convergence():
     # Error of iterate k+1 is O(error_k^2) once close: check e_{k+1} <= 2 e_k^2.
     chain = _planar_2r_body()
     q_true = np.array([0.4, 1.1])
-    target = poe.chain_fk(chain, q_true)
-    res = newton_ik.ik_newton(
-        chain, target, q_true + np.array([0.3, -0.25]), eps_omega=1e-13, eps_v=1e-13
-    )
+    target = _fk(chain, q_true)
+    res = _ik_body(chain, target, q_true + np.array([0.3, -0.25]), eps_omega=1e-13, eps_v=1e-13)
     assert bool(res.converged)
     errs = np.linalg.norm(np.asarray(res.history) - q_true, axis=-1)[: int(res.iterations) + 1]
     assert errs[-1] < 1e-12
@@ -121,9 +134,9 @@ def test_random_reachable_targets(name, table, noise, min_success):
     """Targets = FK of random configurations; seeds perturbed by U(-noise, noise) rad."""
     n = table.n_joints
     q_true = RNG.uniform(-np.pi, np.pi, size=(200, n))
-    targets = np.asarray(dh.fk_dh(table, q_true))
+    targets = np.asarray(_fk(table, q_true))
     q0 = q_true + RNG.uniform(-noise, noise, size=q_true.shape)
-    res = newton_ik.ik_newton(table, targets, q0, eps_omega=1e-10, eps_v=1e-10, max_iter=20)
+    res = newton.ik_newton(table, targets, q0, eps_omega=1e-10, eps_v=1e-10, max_iter=20)
     ok = np.asarray(res.converged)
     its = np.asarray(res.iterations)[ok]
     print(
@@ -133,23 +146,23 @@ def test_random_reachable_targets(name, table, noise, min_success):
     assert ok.mean() >= min_success
     assert np.all(np.asarray(res.status)[ok] == Status.OK)
     assert np.all(np.asarray(res.status)[~ok] == Status.NOT_CONVERGED)
-    ang, lin = _pose_errors(dh.fk_dh(table, res.q), targets)
+    ang, lin = _pose_errors(_fk(table, res.q), targets)
     assert np.all(ang[ok] <= 1e-9) and np.all(lin[ok] <= 1e-9)
     assert tree_allfinite(res)
 
 
 @pytest.mark.parametrize("frame", ["space", "body"])
 def test_frames_and_error_field(frame):
-    chain = poe.poe_from_dh(ANTHRO)
+    chain = ANTHRO
     q_true = RNG.uniform(-2.0, 2.0, size=(20, 3))
-    targets = np.asarray(poe.chain_fk(chain, q_true))
-    res = newton_ik.ik_newton(chain, targets, q_true + 0.2, frame=frame)
+    targets = np.asarray(_fk(chain, q_true))
+    res = newton.ik_newton(chain, targets, q_true + 0.2, frame=frame)
     assert np.all(np.asarray(res.converged))
     err = np.asarray(res.error)
     assert err.shape == (20, 2)
     assert np.all(err[:, 0] <= 1e-3) and np.all(err[:, 1] <= 1e-4)
     # |omega| of the twist is the rotation angle in either frame (independent NumPy residual).
-    ang, _ = _pose_errors(poe.chain_fk(chain, res.q), targets)
+    ang, _ = _pose_errors(_fk(chain, res.q), targets)
     np.testing.assert_allclose(err[:, 0], ang, atol=1e-7)
 
 
@@ -157,7 +170,7 @@ def test_step_limit_bounds_revolute_steps_and_changes_nothing_where_it_does_not_
     # Random configurations kept away from the PUMA's singularities (wrist: sin q5 = 0; elbow
     # stretched or folded: sin(q3 + psi) = 0; wrist centre on the shoulder cylinder |d3|).
     q_true = RNG.uniform(-np.pi, np.pi, size=(800, 6))
-    t_true = np.asarray(dh.fk_dh(PUMA, q_true))
+    t_true = np.asarray(_fk(PUMA, q_true))
     psi = np.arctan2(0.4318, 0.0203)
     away = (np.abs(np.sin(q_true[:, 4])) >= 0.1) & (np.abs(np.sin(q_true[:, 2] + psi)) >= 0.1)
     away &= np.hypot(t_true[:, 0, 3], t_true[:, 1, 3]) >= 0.15005 + 0.05
@@ -165,9 +178,9 @@ def test_step_limit_bounds_revolute_steps_and_changes_nothing_where_it_does_not_
     n = len(q_true)
     q0 = q_true + RNG.uniform(-0.5, 0.5, size=q_true.shape)
     tight = dict(eps_omega=1e-10, eps_v=1e-10, max_iter=20)
-    free = newton_ik.ik_newton(PUMA, targets, q0, max_step=None, **tight)
+    free = newton.ik_newton(PUMA, targets, q0, max_step=None, **tight)
     for max_step in (1.0, 0.6):
-        res = newton_ik.ik_newton(PUMA, targets, q0, max_step=max_step, **tight)
+        res = newton.ik_newton(PUMA, targets, q0, max_step=max_step, **tight)
         steps = np.abs(np.diff(np.asarray(res.history), axis=0))
         assert steps.max() <= max_step * (1.0 + 1e-12)
         # Where the unlimited iteration never stepped further than max_step, the limit never
@@ -177,10 +190,10 @@ def test_step_limit_bounds_revolute_steps_and_changes_nothing_where_it_does_not_
         assert unbound.sum() > n // 4
         np.testing.assert_array_equal(np.asarray(res.q)[unbound], np.asarray(free.q)[unbound])
     # Default limit (1 rad): every target reached, within the independent NumPy check.
-    res = newton_ik.ik_newton(PUMA, targets, q0, **tight)
+    res = newton.ik_newton(PUMA, targets, q0, **tight)
     print(f"\nPUMA, seeds +-0.5 rad: success {np.mean(free.converged):.3f} without the limit")
     assert np.all(np.asarray(res.converged))
-    ang, lin = _pose_errors(dh.fk_dh(PUMA, res.q), targets)
+    ang, lin = _pose_errors(_fk(PUMA, res.q), targets)
     assert ang.max() <= 1e-9 and lin.max() <= 1e-9
 
 
@@ -191,9 +204,9 @@ def test_step_limit_leaves_prismatic_joints_free():
     screws = np.array([[0, 0, 1, 0, 1, 0], [0, 0, 0, 1, 0, 0]], dtype=float)
     home = np.eye(4)
     home[0, 3] = 1.0
-    chain = poe.PoEChain.create(screws, home, frame="body")
-    target = np.asarray(poe.chain_fk(chain, np.array([0.7, 5.0])))
-    res = newton_ik.ik_newton(chain, target, np.array([0.7, 0.0]), max_step=0.1)
+    chain = serial.from_screws(screws, home, frame="body")
+    target = np.asarray(_fk(chain, np.array([0.7, 5.0])))
+    res = _ik_body(chain, target, np.array([0.7, 0.0]), max_step=0.1)
     assert bool(res.converged) and int(res.iterations) == 1
     np.testing.assert_allclose(res.q, [0.7, 5.0], atol=1e-12)
 
@@ -205,7 +218,7 @@ def test_history_held_after_convergence_and_elements_independent():
     )
     q0 = np.array([[0.0, 0.5236], [0.3, 1.0], [0.2, 0.3], [-0.5, 0.6]])
     # max_iter 15 as in the tests below: one compilation serves them all.
-    res = newton_ik.ik_newton(chain, targets, q0, max_iter=15)
+    res = _ik_body(chain, targets, q0, max_iter=15)
     history = np.asarray(res.history)
     assert history.shape == (16, 4, 2)
     np.testing.assert_array_equal(history[0], q0)
@@ -214,7 +227,7 @@ def test_history_held_after_convergence_and_elements_independent():
     for i, k in enumerate(its):
         np.testing.assert_array_equal(history[k:, i], np.broadcast_to(res.q[i], (16 - k, 2)))
         assert np.all(np.any(history[1 : k + 1, i] != history[:k, i], axis=-1))
-        single = newton_ik.ik_newton(chain, targets[i], q0[i], max_iter=15)
+        single = _ik_body(chain, targets[i], q0[i], max_iter=15)
         np.testing.assert_array_equal(single.q, res.q[i])
         assert int(single.iterations) == k
 
@@ -226,7 +239,7 @@ def test_unreachable_and_invalid_input():
     targets[1, 2, 3] = 0.5
     targets[2, 0, 3] = np.nan
     q0 = np.array([[0.1, 0.2], [0.1, 0.2], [0.1, 0.2], [np.inf, 0.5]])
-    res = newton_ik.ik_newton(chain, targets, q0, max_iter=15)
+    res = _ik_body(chain, targets, q0, max_iter=15)
     assert [Status(int(s)).name for s in res.status] == [
         "NOT_CONVERGED",
         "NOT_CONVERGED",
@@ -239,9 +252,7 @@ def test_unreachable_and_invalid_input():
     with pytest.raises(RuntimeError, match="NOT_CONVERGED"):
         res.raise_if_failed()
     # Gradients through the unrolled iterations stay finite even for failing elements.
-    grad = jax.grad(lambda t: newton_ik.ik_newton(chain, t, q0, max_iter=5).q.sum())(
-        jnp.asarray(targets)
-    )
+    grad = jax.grad(lambda t: _ik_body(chain, t, q0, max_iter=5).q.sum())(jnp.asarray(targets))
     assert tree_allfinite(grad)
 
 
@@ -252,15 +263,15 @@ def test_joint_limits_and_damping():
     target = _planar_2r_pose([0.3, 0.9])
     q0 = np.array([0.1, 0.5])
     tight = dict(eps_omega=1e-10, eps_v=1e-10)
-    free = newton_ik.ik_newton(chain, target, q0, **tight)
+    free = _ik_body(chain, target, q0, **tight)
     assert bool(free.converged)
     np.testing.assert_allclose(free.q, [0.3, 0.9], atol=1e-9)
     lower, upper = np.array([-np.pi, -np.pi]), np.array([np.pi, 0.0])
-    limited = newton_ik.ik_newton(chain, target, q0, limits=(lower, upper), max_iter=15)
+    limited = _ik_body(chain, target, q0, limits=(lower, upper), max_iter=15)
     history = np.asarray(limited.history)
     assert np.all(history >= lower) and np.all(history <= upper)
     assert int(limited.status) == Status.NOT_CONVERGED
-    damped = newton_ik.ik_newton(chain, target, q0, damping=0.05, max_iter=40, **tight)
+    damped = _ik_body(chain, target, q0, damping=0.05, max_iter=40, **tight)
     assert bool(damped.converged)
     assert int(damped.iterations) > int(free.iterations)  # damping slows the final approach
     np.testing.assert_allclose(damped.q, [0.3, 0.9], atol=1e-9)
@@ -272,18 +283,16 @@ def test_batch_broadcast_no_recompile_and_float32():
         np.stack([RNG.uniform(0.0, 0.8, (3, 5)), RNG.uniform(0.6, 1.8, (3, 5))], axis=-1)
     )
     q0 = np.array([0.2, 1.0])  # one seed broadcast over the (3, 5) batch
-    res = newton_ik.ik_newton(chain, targets, q0, max_iter=15)
+    res = _ik_body(chain, targets, q0, max_iter=15)
     assert res.q.shape == (3, 5, 2) and res.history.shape == (16, 3, 5, 2)
     assert res.status.shape == (3, 5) and res.error.shape == (3, 5, 2)
-    others = targets * 1.0, q0 + 0.1
     with compilations() as count:
-        newton_ik.ik_newton(chain, *others, eps_omega=1e-6, damping=0.01, max_iter=15)
+        _ik_body(chain, targets * 1.0, q0 + 0.1, eps_omega=1e-6, damping=0.01, max_iter=15)
+        _ik_body(chain.replace(joint_names=("a", "b"), tip_link="tool"), targets, q0, max_iter=15)
     assert count.n == 0
     # float32 end to end (chain, target, seed): converges to the default tolerances.
     chain32 = jax.tree.map(lambda x: x.astype(jnp.float32), chain)
-    res32 = newton_ik.ik_newton(
-        chain32, targets.astype(np.float32), q0.astype(np.float32), max_iter=15
-    )
+    res32 = _ik_body(chain32, targets.astype(np.float32), q0.astype(np.float32), max_iter=15)
     assert res32.q.dtype == jnp.float32
     assert np.mean(np.asarray(res32.converged)) >= np.mean(np.asarray(res.converged)) - 0.1
     ok = np.asarray(res32.converged) & np.asarray(res.converged)
@@ -310,6 +319,30 @@ def test_validation():
     for kwargs, match in cases:
         args = dict(target=target, q0=q0) | kwargs
         with pytest.raises(ValueError, match=match):
-            newton_ik.ik_newton(chain, **args)
-    with pytest.raises(ValueError, match="chain: expected a PoEChain or a DHTable"):
-        newton_ik.ik_newton("arm", target, q0)
+            newton.ik_newton(chain, **args)
+    with pytest.raises(ValueError, match="chain: expected a serial.Chain"):
+        newton.ik_newton("arm", target, q0)
+    with pytest.raises(ValueError, match="chain: expected a serial.Chain"):
+        newton.ik_newton(dh.DHTable.create(a=[1.0, 1.0], alpha=[0, 0], d=[0, 0]), target, q0)
+
+
+def _not_rigid(good):
+    """``good`` (4, 4) spoilt four ways: rotation block scaled by 2 (the log of ``R^T R_d =
+    2 I`` reads as angle 0: it looked solved), mirrored (det -1), skewed by 1e-6 (beyond
+    ``sqrt(eps)``), a NaN in the rotation."""
+    bad = np.stack([good] * 4)
+    bad[0, :3, :3] *= 2.0
+    bad[1, :3, 2] *= -1.0
+    bad[2, 0, 1] += 1e-6
+    bad[3, 1, 1] = np.nan
+    return bad
+
+
+def test_a_target_that_is_not_a_rigid_transform_is_never_ok():
+    chain = _planar_2r_body()
+    good = _planar_2r_pose([0.3, 0.9])
+    targets = np.concatenate([good[None], _not_rigid(good)])
+    res = _ik_body(chain, targets, np.array([0.3, 0.9]), max_iter=15)
+    names = [Status(int(s)).name for s in res.status]
+    assert names == ["OK"] + ["INVALID_INPUT"] * 4
+    assert tree_allfinite(res)

@@ -14,14 +14,17 @@ import importlib.metadata
 import io
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pinocchio as pin
 import pytest
 import yourdfpy
+from jax import monitoring
 from scipy.spatial.transform import Rotation
 
 import jaxkin
-from jaxkin import Jet, Status, paths, plan, serial
+from jaxkin import Jet, Status, _batching, paths, plan, serial
+from jaxkin.serial import search
 from tests.helpers import marked_slow
 
 ROBOTS = importlib.metadata.distribution("example-robot-data").locate_file(
@@ -44,7 +47,7 @@ def arm(request):
     name = request.param
     chain = serial.from_urdf(_path(name), ARMS[name][1])
     model = pin.buildModelFromUrdf(_path(name))
-    columns = [model.joints[model.getJointId(j)].idx_v for j in chain.names]
+    columns = [model.joints[model.getJointId(j)].idx_v for j in chain.joint_names]
     return name, chain, model, model.createData(), model.getFrameId(ARMS[name][1]), columns
 
 
@@ -74,8 +77,8 @@ def _pinocchio(arm_fixture, q):
 
 def test_joints_and_limits_are_those_pinocchio_reads(arm):
     _, chain, model, _, _, columns = arm
-    assert chain.names == tuple(model.names[model.getJointId(j)] for j in chain.names)
-    assert all(kind == "revolute" for kind in chain.kinds)
+    assert chain.joint_names == tuple(model.names[model.getJointId(j)] for j in chain.joint_names)
+    assert all(kind == "revolute" for kind in chain.joint_kinds)
     np.testing.assert_array_equal(chain.lower, model.lowerPositionLimit[columns])
     np.testing.assert_array_equal(chain.upper, model.upperPositionLimit[columns])
     np.testing.assert_array_equal(chain.velocity, model.velocityLimit[columns])
@@ -218,8 +221,8 @@ def test_mimic_continuous_prismatic_and_fixed_joints_match_yourdfpy():
     """A chain with every supported joint kind (and a side branch, ``side``, ignored):
     tip poses equal yourdfpy's own forward kinematics, which applies the mimic coupling."""
     chain = serial.from_urdf(MIMIC_URDF, "camera")
-    assert chain.names == ("turn", "reach", "tilt")
-    assert chain.kinds == ("continuous", "prismatic", "revolute")
+    assert chain.joint_names == ("turn", "reach", "tilt")
+    assert chain.joint_kinds == ("continuous", "prismatic", "revolute")
     assert chain.joint_types == "RPR"
     np.testing.assert_array_equal(chain.lower, [-np.inf, -0.1, -1.0])
     # the mimic joint's limits allow -3 <= -0.5 tilt + 0.1 <= 3: tilt keeps its own [-1, 1.2]
@@ -289,7 +292,7 @@ def test_command_line_pose_files_of_a_urdf_arm(tmp_path, capsys):
     fixture += (model.getFrameId("tool0"), list(range(6)))
     t = np.linspace(0.0, 1.0, 41)
     q = np.stack([0.3 + 0.5 * t, -1.0 + 0.3 * t, 1.2 - 0.2 * t, -0.5 + t, 1.0 + 0.4 * t, t], -1)
-    names = fixture[1].names
+    names = fixture[1].joint_names
     np.savetxt(tmp_path / "joints.csv", np.c_[t, q], delimiter=",", comments="",
                header="t," + ",".join(names))  # fmt: skip
     robot = ["--robot", _path("ur5"), "--tip", "tool0", "-q"]
@@ -314,22 +317,21 @@ def test_command_line_pose_files_of_a_urdf_arm(tmp_path, capsys):
     assert code == 2 and "--tip LINK is required" in capsys.readouterr().err
 
 
-def test_work_queue_gives_the_results_of_the_batch_in_step(monkeypatch):
-    """A batch larger than ``QUEUE_SLOTS`` runs as a work queue; run in step instead (a fresh
-    compilation with a queue larger than the batch), every target gets the same joints and
-    status, bit for bit: invalid and unreachable rows included."""
-    from jaxkin.serial import newton_ik
-
+def test_work_queue_gives_the_results_of_the_batch_in_step():
+    """A batch larger than ``QUEUE_SLOTS`` runs as a work queue; run in step instead (the
+    search kernel compiled with a queue larger than the batch), every target gets the same
+    joints and status, bit for bit: invalid and unreachable rows included."""
     chain = serial.from_urdf(MIMIC_URDF, "camera")
     q = np.random.default_rng(4).uniform([-4, -0.1, -1.0], [4, 0.25, 1.2], (100, 3))
     targets = np.array(jaxkin.fk(chain, q).x.p)
     targets[3, 0, 0] = np.nan
     targets[7, :3, 3] = 50.0
     queued = jaxkin.ik(chain, targets)
-    assert targets.shape[0] > newton_ik.QUEUE_SLOTS
-    monkeypatch.setattr(newton_ik, "QUEUE_SLOTS", 1000)
-    monkeypatch.setattr(jaxkin.robot, "_PROGRAMS", {})  # compile afresh
-    in_step = jaxkin.ik(chain, targets)
+    assert targets.shape[0] > search.QUEUE_SLOTS
+    tols = (jnp.asarray(1e-10), jnp.asarray(1e-10 * chain.length_scale()))
+    budget = search.Budget(12, 64, 12, slots=1000)
+    solve = jax.jit(search.solve, static_argnames=("budget", "use_limits", "rates"))
+    in_step = solve(chain, Jet.constant(targets), tols, budget, True, False)
     np.testing.assert_array_equal(queued.status, in_step.status)
     np.testing.assert_array_equal(queued.q.p, in_step.q.p)
     assert int(queued.status[3]) == Status.INVALID_INPUT
@@ -341,11 +343,8 @@ def test_work_queue_gives_the_results_of_the_batch_in_step(monkeypatch):
 def test_host_thread_parts_give_the_results_of_one_thread():
     """A batch of at least two ``CHAIN_MIN_PART`` targets is split across the host threads,
     each part its own work queue: the same joints and statuses, bit for bit, as one thread."""
-    from jaxkin import _batching
-    from jaxkin.serial import newton_ik
-
     chain = serial.from_urdf(MIMIC_URDF, "camera")
-    n = 2 * newton_ik.CHAIN_MIN_PART + 7
+    n = 2 * serial.chain.CHAIN_MIN_PART + 7
     q = np.random.default_rng(5).uniform([-4, -0.1, -1.0], [4, 0.25, 1.2], (n, 3))
     targets = jaxkin.fk(chain, q).x.p
     split = jaxkin.ik(chain, targets)
@@ -357,3 +356,53 @@ def test_host_thread_parts_give_the_results_of_one_thread():
     np.testing.assert_array_equal(split.status, whole.status)
     np.testing.assert_array_equal(split.q.p, whole.q.p)
     assert np.mean(np.asarray(split.status) == Status.OK) >= 0.95
+
+
+_TRACED: list[str] = []
+monitoring.register_event_duration_secs_listener(
+    lambda event, _, **kw: (
+        _TRACED.append(kw.get("fun_name", "")) if event.endswith("jaxpr_trace_duration") else None
+    )
+)
+
+
+def test_names_tip_and_batch_sizes_share_compilations():
+    """Joint and link names are labels: the same arm renamed, with another tip name, runs the
+    programs already compiled; batches of 2 to 32 targets share the IK's 32-row program (and
+    one target, of shape () or (1,), its 1-row program), with the results of the whole."""
+    chain = serial.from_urdf(MIMIC_URDF, "camera")
+    text = MIMIC_URDF.replace('"turn"', '"spin"').replace('"camera"', '"eye"')
+    renamed = serial.from_urdf(text, "eye", base_link="world")
+    assert renamed.joint_names[0] == "spin" and renamed.tip_link == "eye"
+    q = np.random.default_rng(6).uniform([-3, -0.1, -1.0], [3, 0.25, 1.2], (7, 3))
+    targets = np.asarray(jaxkin.fk(chain, q).x.p)
+    whole = jaxkin.ik(chain, targets)
+    single = jaxkin.ik(chain, targets[:1])
+    start = len(_TRACED)
+    few = jaxkin.ik(renamed, targets[:3])
+    grid = jaxkin.ik(renamed, targets[:6].reshape(2, 3, 4, 4))
+    one = jaxkin.ik(renamed, targets[0])
+    jaxkin.fk(renamed, q)
+    traced = _TRACED[start:]
+    assert not {"solve", "_fk_core"} & set(traced), traced
+    np.testing.assert_array_equal(few.q.p, whole.q.p[:3])
+    np.testing.assert_array_equal(grid.q.p, whole.q.p[:6].reshape(2, 3, 3))
+    np.testing.assert_array_equal(grid.status, whole.status[:6].reshape(2, 3))
+    np.testing.assert_array_equal(one.q.p, single.q.p[0])
+    assert one.q.p.shape == (3,) and one.status.shape == ()
+
+
+def test_a_target_that_is_not_a_rigid_transform_is_invalid_input():
+    """Rotation blocks that are not rotations (scaled, mirrored, skewed by 1e-6, NaN) are
+    ``INVALID_INPUT``, never ``OK``; the rigid target beside them is solved."""
+    chain = serial.from_urdf(MIMIC_URDF, "camera")
+    good = np.asarray(jaxkin.fk(chain, np.array([0.4, 0.1, 0.3])).x.p)
+    bad = np.stack([good] * 4)
+    bad[0, :3, :3] *= 2.0
+    bad[1, :3, 2] *= -1.0
+    bad[2, 0, 1] += 1e-6
+    bad[3, 1, 1] = np.nan
+    result = jaxkin.ik(chain, np.concatenate([good[None], bad]))
+    names = [Status(int(s)).name for s in result.status]
+    assert names == ["OK"] + ["INVALID_INPUT"] * 4
+    assert np.all(np.isfinite(np.asarray(result.q.p)))

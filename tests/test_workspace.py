@@ -110,7 +110,7 @@ def in_three_tori(points: np.ndarray) -> np.ndarray:
 
 def test_delta_workspace_is_the_intersection_of_three_tori():
     robot = delta.Delta.paper()
-    result = delta.workspace(robot, resolution=5.0, progress=False)
+    result = workspace.sweep(robot, resolution=5.0, progress=False)
     xs, ys, zs = result.axes
     x, y, z = np.meshgrid(xs, ys, zs, indexing="ij")
     points = np.stack([x.ravel(), y.ravel(), z.ravel()], -1)
@@ -127,7 +127,7 @@ def test_delta_workspace_is_the_intersection_of_three_tori():
 
 def test_scara_workspace_is_its_annulus_and_a_planar_arm_gets_a_2d_grid():
     robot = scara.Scara.paper()
-    result = scara.workspace(robot, resolution=10.0, progress=False)
+    result = workspace.sweep(robot, resolution=10.0, progress=False)
     xs, ys, zs = result.axes
     r = np.hypot(*np.meshgrid(xs, ys, indexing="ij"))
     tol = 1e-6 * 130.0

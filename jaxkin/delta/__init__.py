@@ -12,7 +12,7 @@ singularities and workspace.
 * Rates: analytic from the constraint Jacobians (``method="analytic"``) or by ``jaxkin.lift``
   (``"autodiff"``); ``singularity`` gives the inverse- and direct-type measures
   (``jaxkin.delta.jacobians``).
-* ``workspace``: a voxel sweep (``jaxkin.workspace.sweep``) over the box of [Cardona, sec. V].
+* ``Delta.workspace_box``: the box of [Cardona, sec. V] that ``jaxkin.workspace.sweep`` sweeps.
 
 Layers, bottom to top: ``_math`` (the kit), ``jacobians``, ``inverse``, ``forward``, ``robot``
 (the ``Delta`` class and the entry points above); no module imports one above it.
@@ -35,7 +35,6 @@ from .robot import fk_closed_form as fk_closed_form
 from .robot import ik as ik
 from .robot import singularity as singularity
 from .robot import which_branch as which_branch
-from .robot import workspace as workspace
 
 __all__ = [
     "BRANCHES",
@@ -51,5 +50,4 @@ __all__ = [
     "ik",
     "singularity",
     "which_branch",
-    "workspace",
 ]

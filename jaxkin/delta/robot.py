@@ -24,7 +24,6 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _batching, _validate
-from .. import workspace as _workspace
 from .._geometry import BOUND, LENGTH, geometry, number
 from ..jet import Jet
 from ..result import IKResult
@@ -34,7 +33,7 @@ from . import forward, inverse, jacobians
 from ._math import BRANCHES, JOINT_NAMES, UX, UY, as_coords, float_dtype
 from .options import DeltaFKOptions, DeltaIKOptions
 
-__all__ = ["Delta", "fk", "fk_closed_form", "ik", "singularity", "which_branch", "workspace"]
+__all__ = ["Delta", "fk", "fk_closed_form", "ik", "singularity", "which_branch"]
 
 
 @geometry
@@ -255,10 +254,3 @@ def singularity(
     p = jnp.broadcast_to(p, (*shape, 3)).astype(dtype)
     theta = jnp.broadcast_to(theta, (*shape, 3)).astype(dtype)
     return jacobians.singularity_jit(robot, p, theta)
-
-
-def workspace(robot: Delta, bounds: Any = None, resolution: float | None = None, **options: Any):
-    """Voxel sweep of the reachable workspace (``jaxkin.workspace.sweep``; default box
-    ``Delta.workspace_box``: for the paper's robot 101 x 101 x 91 voxels of 1 cm). A voxel is
-    reachable where ``ik`` gives ``OK`` or ``SINGULAR`` (the boundary itself is singular)."""
-    return _workspace.sweep(check_robot(robot), bounds, resolution, **options)

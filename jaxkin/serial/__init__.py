@@ -1,20 +1,21 @@
-"""Serial arms: DH and product-of-exponentials kinematics, analytic and numerical IK.
+"""Serial arms: one chain robot with its builders and solvers, and the analytic arms.
 
 Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk``).
 
-* ``DHTable``, ``fk_dh``: standard Denavit-Hartenberg forward kinematics
-  [Lopez-Villagomez, eq. 2].
-* ``PoEChain``, ``fk_poe``, ``chain_fk``, ``fk_chain``, ``space_jacobian``, ``body_jacobian``,
-  ``poe_from_dh``, ``change_frame``: product of exponentials [Pineiro] (rotations:
-  ``jaxkin.lie``).
-* ``JointChain``: a chain with named, typed, limited joints and mimic couplings;
-  ``from_urdf``: the chain from a base link to a tip link of a URDF (the ``urdf`` extra).
-* ``ik_newton``: Newton-Raphson IK with body/space twists [Pineiro], per-element convergence
-  from given seeds; ``ik_chain``: the protocol's IK of a chain (restarts, rates, margin).
+* ``Chain``: THE serial-chain robot (named, typed, limited joints, mimic couplings; pose
+  targets). Its forward kinematics is ``jaxkin.fk(chain, q)`` (``.x.p``: the tip's 4x4
+  transform), its IK ``jaxkin.ik(chain, pose)`` (the search of ``serial.search``).
+* Builders: ``from_dh`` (a ``DHTable``: standard Denavit-Hartenberg [Lopez-Villagomez, eq. 2];
+  ``dh_transform``, one link's transform), ``from_screws`` (product of exponentials, space or
+  body frame [Pineiro]) and ``from_urdf`` (the chain from a base link to a tip link of a URDF,
+  the ``urdf`` extra).
+* ``space_jacobian``, ``body_jacobian``: the Jacobians of a chain; ``ik_newton``: the textbook
+  Newton-Raphson IK [Pineiro] from given starts.
 * The analytic arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``, ``Cylindrical``,
   ``Spherical``, ``Puma560``, ``Stanford`` (``jaxkin.serial.arms``): ``ik_all_branches``
   (every branch at once), ``ik_jet`` (one branch with rates and a margin, as ``jaxkin.ik``)
-  and ``fk`` (in the form of the targets).
+  and ``fk`` (in the form of the targets); an arm's ``dh_table()`` gives its chain with
+  ``from_dh``.
 """
 
 from .arms import ARMS as ARMS
@@ -29,50 +30,38 @@ from .arms import Stanford as Stanford
 from .arms import fk as fk
 from .arms import ik_all_branches as ik_all_branches
 from .arms import ik_jet as ik_jet
-from .chain import JointChain as JointChain
+from .chain import Chain as Chain
+from .chain import body_jacobian as body_jacobian
+from .chain import space_jacobian as space_jacobian
 from .dh import DHTable as DHTable
 from .dh import dh_transform as dh_transform
-from .dh import fk_dh as fk_dh
-from .newton_ik import NewtonIKResult as NewtonIKResult
-from .newton_ik import ik_chain as ik_chain
-from .newton_ik import ik_newton as ik_newton
-from .poe import PoEChain as PoEChain
-from .poe import body_jacobian as body_jacobian
-from .poe import chain_fk as chain_fk
-from .poe import change_frame as change_frame
-from .poe import fk_chain as fk_chain
-from .poe import fk_poe as fk_poe
-from .poe import poe_from_dh as poe_from_dh
-from .poe import space_jacobian as space_jacobian
+from .dh import from_dh as from_dh
+from .newton import NewtonIKResult as NewtonIKResult
+from .newton import ik_newton as ik_newton
+from .poe import from_screws as from_screws
 from .urdf import from_urdf as from_urdf
 
 __all__ = [
     "ARMS",
     "Anthropomorphic",
     "ArmIKResult",
+    "Chain",
     "Cylindrical",
     "DHTable",
-    "JointChain",
     "NewtonIKResult",
     "Planar2R",
     "Planar3R",
-    "PoEChain",
     "Puma560",
     "Spherical",
     "Stanford",
     "body_jacobian",
-    "chain_fk",
-    "change_frame",
     "dh_transform",
     "fk",
-    "fk_chain",
-    "fk_dh",
-    "fk_poe",
+    "from_dh",
+    "from_screws",
     "from_urdf",
     "ik_all_branches",
-    "ik_chain",
     "ik_jet",
     "ik_newton",
-    "poe_from_dh",
     "space_jacobian",
 ]

@@ -1,18 +1,18 @@
-"""Joint chains: serial chains with named, typed, limited joints and mimic couplings.
+"""The chain robot: a serial chain with named, typed, limited joints and mimic couplings.
 
-A ``JointChain`` is what ``serial.from_urdf`` returns (and what ``JointChain.from_poe`` makes
-of a PoE chain or a DH table). It holds the ``m`` moving joints on the path from a base link to
-a tip link, each a unit screw ``S_i`` in the base frame (rows ``(omega, v)``, ``poe`` module),
-and the home pose ``M`` of the tip at ``theta = 0``::
+``Chain`` is the one serial-chain robot of jaxkin. Its builders read the usual descriptions:
+``serial.from_dh`` (a standard Denavit-Hartenberg table), ``serial.from_screws`` (screws and
+a home pose, in the base or the tool frame) and ``serial.from_urdf`` (the chain from a base
+link to a tip link of a URDF); ``Chain.create`` takes base-frame screws directly. It holds the
+``m`` moving joints on the path from the base to the tip, each a unit screw ``S_i`` in the base
+frame (rows ``(omega, v)``), and the home pose ``M`` of the tip at ``theta = 0``::
 
     T(q) = exp([S_1] theta_1) ... exp([S_m] theta_m) M,    theta_i = c_i q_{k(i)} + b_i
 
 ``q`` holds the ``n`` independent coordinates (one per joint that mimics no other); ``k(i)`` is
 the coordinate path joint ``i`` follows: itself (``c_i = 1``, ``b_i = 0``) or, for a mimic
-joint, its leader (URDF ``theta = multiplier * theta_leader + offset``). The Jacobians with
-respect to ``q`` sum the PoE columns (``J_theta``) of the joints that follow one coordinate::
-
-    J(q)[:, j] = sum_{i : k(i) = j} c_i J_theta(theta)[:, i]       (space or body frame)
+joint, its leader (URDF ``theta = multiplier * theta_leader + offset``). The kernels and the
+Jacobians' coupling are written in ``serial._kinematics``.
 
 Joint kinds: ``"revolute"`` (rad, position limits), ``"continuous"`` (rad, no position limits;
 the IK returns it wrapped to [-pi, pi)), ``"prismatic"`` (length). Limits are arrays of the
@@ -22,8 +22,14 @@ fixed in the base (on the first revolute axis): the sum of the distances between
 joint axes (from a point on one to its projection on the next) plus the prismatic strokes,
 each constant while the chain moves.
 
-Every numeric field is a pytree leaf (a chain built afresh with the same joints compiles
-nothing new); names, kinds, the coupling indices and the link names are static.
+Forward kinematics is ``jaxkin.fk(chain, q)``: its ``x`` is the Jet of the tip's 4x4 poses in
+the base frame, so ``jaxkin.fk(chain, q).x.p`` is THE way to the transform of the last frame.
+``space_jacobian`` and ``body_jacobian`` give the Jacobians; ``jaxkin.ik`` the IK search
+(``serial.search``) and ``serial.ik_newton`` the textbook Newton iteration from given starts.
+
+Every numeric field is a pytree leaf; the joint kinds and the coupling indices are static; the
+joint names and the link names are labels (``_geometry.label``): a chain that differs only in
+names (a renamed joint, the same arm loaded with another tip link name) compiles nothing new.
 """
 
 from __future__ import annotations
@@ -36,28 +42,72 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _validate, lie
-from .._geometry import BOUND, REAL, geometry, number, static
+from .. import _batching, _validate
+from .._geometry import BOUND, REAL, geometry, label, number, static
+from .._numerics import eps
 from ..jet import Jet
-from ..result import FKResult, forward_result
-from ..robot import POSE, CompilePolicy, JointLimits, Robot, fk, promoted
+from ..result import FKResult, IKResult, forward_result
+from ..robot import POSE, CompilePolicy, JointLimits, Robot, promoted
 from ..status import Status
-from . import dh as _dh
-from . import poe as _poe
-from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
+from . import _kinematics, search
+from .search import ChainIKOptions
 
-__all__ = ["JOINT_KINDS", "JointChain"]
+__all__ = ["JOINT_KINDS", "Chain", "body_jacobian", "space_jacobian"]
 
 JOINT_KINDS = ("revolute", "continuous", "prismatic")
+_UNIT_TOL = 1e-6  # tolerance on |omega| = 1 (revolute) or |v| = 1 with omega = 0 (prismatic)
+
+
+def check_screws_and_home(screws: ArrayLike, home: ArrayLike, prefix: str = "") -> None:
+    """Host-side: unit screws ``(m, 6)``, m >= 1, and a rigid ``home``; a ``ValueError``
+    naming ``{prefix}screws`` / ``{prefix}home`` otherwise."""
+    values = np.asarray(screws, dtype=np.float64)
+    if values.ndim != 2 or values.shape[0] < 1 or values.shape[1] != 6:
+        raise ValueError(f"{prefix}screws: expected shape (m, 6) with m >= 1, got {values.shape}")
+    w_norm = np.linalg.norm(values[:, :3], axis=1)
+    v_norm = np.linalg.norm(values[:, 3:], axis=1)
+    revolute = np.abs(w_norm - 1.0) <= _UNIT_TOL
+    prismatic = (w_norm <= _UNIT_TOL) & (np.abs(v_norm - 1.0) <= _UNIT_TOL)
+    bad = np.flatnonzero(~(revolute | prismatic))
+    if bad.size:
+        raise ValueError(
+            f"{prefix}screws: rows {bad.tolist()} are not unit screws (need |omega| = 1 for "
+            "a revolute joint, or omega = 0 and |v| = 1 for a prismatic joint); got "
+            f"|omega| = {w_norm[bad]}, |v| = {v_norm[bad]}"
+        )
+    m = np.asarray(home, dtype=np.float64)
+    if m.shape != (4, 4):
+        raise ValueError(f"{prefix}home: expected shape (4, 4), got {m.shape}")
+    rot = m[:3, :3]
+    if (
+        np.max(np.abs(m[3] - np.array([0.0, 0.0, 0.0, 1.0]))) > _UNIT_TOL
+        or np.max(np.abs(rot.T @ rot - np.eye(3))) > _UNIT_TOL
+        or np.linalg.det(rot) < 0.0
+    ):
+        raise ValueError(
+            f"{prefix}home: expected a rigid transform [[R, p], [0, 0, 0, 1]] with R a "
+            f"rotation (R^T R = I, det R = +1), got {m}"
+        )
+
+
+def positive(x: ArrayLike, name: str, allow_zero: bool = False) -> None:
+    """Host side: a ``ValueError`` naming ``name`` unless ``x`` is finite and positive (or
+    non-negative); tracers pass unchecked."""
+    if _validate.is_concrete(x):
+        values = np.asarray(x, dtype=np.float64)
+        bad = ~np.isfinite(values) | (values < 0.0 if allow_zero else values <= 0.0)
+        if np.any(bad):
+            kind = "non-negative" if allow_zero else "positive"
+            raise ValueError(f"{name} must be {kind} and finite, got {values}")
 
 
 @geometry
-class JointChain(Robot):
+class Chain(Robot):
     """A serial chain with named joints, joint kinds, limits and mimic couplings (pose targets).
 
     The constructor validates every field (a ``ValueError`` naming it); ``create`` has keyword
-    defaults, ``from_poe`` converts a ``PoEChain`` or ``DHTable`` and ``serial.from_urdf``
-    reads a URDF.
+    defaults; ``serial.from_dh``, ``serial.from_screws`` and ``serial.from_urdf`` build one
+    from a DH table, screws or a URDF.
 
     Attributes:
         screws: unit screws of the ``m`` moving joints on the path, base frame, ``(m, 6)``.
@@ -67,9 +117,10 @@ class JointChain(Robot):
         lower, upper: position limits of the ``n`` coordinates, ``(n,)``, ``+-inf`` for none.
         velocity: speed limits ``|q_dot| <= velocity``, ``(n,)``, ``+inf`` for none.
         follows: static, ``k(i)`` per path joint (``m`` ints in ``[0, n)``).
-        names: static, the ``n`` joint names (unique).
-        kinds: static, ``"revolute"``, ``"continuous"`` or ``"prismatic"`` per coordinate.
-        base_link, tip_link: static, the link names (for messages; may be empty).
+        joint_kinds: static, ``"revolute"``, ``"continuous"`` or ``"prismatic"`` per coordinate
+            (the protocol's ``joint_types`` is its ``"R"``/``"P"`` view).
+        joint_names: label, the ``n`` coordinate names (unique); empty for ``q1 ... qn``.
+        base_link, tip_link: labels, the link names (for messages; may be empty).
     """
 
     screws: Array = number(REAL, (-1, 6))
@@ -80,67 +131,80 @@ class JointChain(Robot):
     upper: Array = number(BOUND, (-1,))
     velocity: Array = number(BOUND, (-1,))
     follows: tuple[int, ...] = static()
-    names: tuple[str, ...] = static()
-    kinds: tuple[str, ...] = static()
-    base_link: str = static(default="")
-    tip_link: str = static(default="")
+    joint_kinds: tuple[str, ...] = static()
+    joint_names: tuple[str, ...] = label(default=())
+    base_link: str = label(default="")
+    tip_link: str = label(default="")
 
     target: ClassVar = POSE
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
     IKOptions: ClassVar = ChainIKOptions
-    # The IK search is loop-bound: large batches run one work queue per host thread; batch
-    # sizes are not padded (every element costs a search). FK is cheap per element: large
-    # parts.
-    ik_policy: ClassVar = CompilePolicy(pad=False, threads=True, min_part=CHAIN_MIN_PART)
+    # The IK search is loop-bound: batch sizes share compilations by padding with NaN targets
+    # (ended at once) to a power of two, at least the work queue's lanes; large batches run one
+    # work queue per host thread. FK is cheap per element: padded, large parts.
+    ik_policy: ClassVar = CompilePolicy(
+        pad=False, bucket=search.QUEUE_SLOTS, threads=True, min_part=4 * search.QUEUE_SLOTS
+    )
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
     def _validate(self) -> None:
         super()._validate()
         m = int(jnp.shape(self.screws)[0])
-        names, kinds, follows = tuple(self.names), tuple(self.kinds), tuple(self.follows)
-        n = len(names)
+        names, kinds, follows = (
+            tuple(self.joint_names),
+            tuple(self.joint_kinds),
+            tuple(self.follows),
+        )
+        n = len(kinds)
+        names = names or tuple(f"q{j + 1}" for j in range(n))
         if n < 1 or m < 1:
-            raise ValueError(f"JointChain: needs at least one joint, got {m} screws, {n} names")
-        if len(set(names)) != n or not all(isinstance(x, str) and x for x in names):
-            raise ValueError(f"JointChain.names: expected unique non-empty strings, got {names}")
-        if len(kinds) != n or any(k not in JOINT_KINDS for k in kinds):
+            raise ValueError(f"Chain: needs at least one joint, got {m} screws, {n} joint kinds")
+        named = all(isinstance(x, str) and x for x in names)
+        if len(names) != n or len(set(names)) != n or not named:
             raise ValueError(
-                f"JointChain.kinds: expected {n} entries, each one of {JOINT_KINDS}, got {kinds}"
+                f"Chain.joint_names: expected {n} unique non-empty strings, got {names}"
+            )
+        if any(k not in JOINT_KINDS for k in kinds):
+            raise ValueError(
+                f"Chain.joint_kinds: expected {n} entries, each one of {JOINT_KINDS}, got {kinds}"
             )
         if len(follows) != m or any(
             isinstance(k, bool) or not isinstance(k, int | np.integer) or not 0 <= k < n
             for k in follows
         ):
-            raise ValueError(f"JointChain.follows: expected {m} indices in [0, {n}), got {follows}")
+            raise ValueError(f"Chain.follows: expected {m} indices in [0, {n}), got {follows}")
         if set(follows) != set(range(n)):
-            raise ValueError(f"JointChain.follows: every coordinate must move a joint, {follows}")
+            raise ValueError(f"Chain.follows: every coordinate must move a joint, {follows}")
         for field, size in (("multiplier", m), ("offset", m)) + tuple(
             (f, n) for f in ("lower", "upper", "velocity")
         ):
             if int(jnp.shape(getattr(self, field))[0]) != size:
                 raise ValueError(
-                    f"JointChain.{field}: expected {size} entries, got "
+                    f"Chain.{field}: expected {size} entries, got "
                     f"{jnp.shape(getattr(self, field))[0]}"
                 )
-        object.__setattr__(self, "names", names)
-        object.__setattr__(self, "kinds", kinds)
+        for name in ("base_link", "tip_link"):
+            if not isinstance(getattr(self, name), str):
+                raise ValueError(f"Chain.{name}: expected a string, got {getattr(self, name)!r}")
+        object.__setattr__(self, "joint_names", names)
+        object.__setattr__(self, "joint_kinds", kinds)
         object.__setattr__(self, "follows", tuple(int(k) for k in follows))
         leaves = (self.screws, self.home, self.lower, self.upper, self.velocity)
         if not all(_validate.is_concrete(x) for x in leaves):
             return
-        _poe.check_screws_and_home(self.screws, self.home, "JointChain")
+        check_screws_and_home(self.screws, self.home, "Chain.")
         lower, upper = np.asarray(self.lower, float), np.asarray(self.upper, float)
         bad = np.flatnonzero(lower > upper)
         if bad.size:
             raise ValueError(
-                f"JointChain: joint {names[bad[0]]!r} has lower limit {lower[bad[0]]} > upper "
+                f"Chain: joint {names[bad[0]]!r} has lower limit {lower[bad[0]]} > upper "
                 f"{upper[bad[0]]}"
             )
         bad = np.flatnonzero(~(np.asarray(self.velocity, float) > 0))
         if bad.size:
             raise ValueError(
-                f"JointChain.velocity: joint {names[bad[0]]!r} needs a positive speed limit "
+                f"Chain.velocity: joint {names[bad[0]]!r} needs a positive speed limit "
                 f"(inf for none), got {np.asarray(self.velocity)[bad[0]]}"
             )
         prismatic_rows = np.linalg.norm(np.asarray(self.screws, float)[:, :3], axis=1) < 0.5
@@ -149,7 +213,7 @@ class JointChain(Robot):
             rows = [i for i, k in enumerate(self.follows) if k == j and own[i]]
             if not any(prismatic_rows[i] == (kind == "prismatic") for i in rows):
                 raise ValueError(
-                    f"JointChain: joint {names[j]!r} is {kind} but no screw following it with "
+                    f"Chain: joint {names[j]!r} is {kind} but no screw following it with "
                     "multiplier 1 and offset 0 is of that kind (a rotation for revolute and "
                     "continuous joints, a translation for prismatic ones)"
                 )
@@ -162,22 +226,26 @@ class JointChain(Robot):
         cls,
         screws: ArrayLike,
         home: ArrayLike,
-        names: Sequence[str] | None = None,
-        kinds: Sequence[str] | None = None,
+        joint_names: Sequence[str] | None = None,
+        joint_kinds: Sequence[str] | None = None,
         lower: ArrayLike | None = None,
         upper: ArrayLike | None = None,
         velocity: ArrayLike | None = None,
         mimic: dict[int, tuple[int, float, float]] | None = None,
-    ) -> JointChain:
-        """A chain from space-frame screws ``(m, 6)`` and ``home``, keyword defaults.
+        base_link: str = "",
+        tip_link: str = "",
+    ) -> Chain:
+        """A chain from base-frame screws ``(m, 6)`` and ``home``, keyword defaults.
 
         Args:
             screws, home: as the attributes (base frame).
-            names: one per independent joint; default ``q1 ... qn``.
-            kinds: one per independent joint; default from the screws (revolute or prismatic).
+            joint_names: one per independent joint; default ``q1 ... qn``.
+            joint_kinds: one per independent joint; default from the screws (revolute or
+                prismatic).
             lower, upper, velocity: ``(n,)`` limits; default none (``+-inf``).
             mimic: ``{row: (leader row, multiplier, offset)}``: path joint ``row`` follows the
                 joint in row ``leader`` (which mimics no other).
+            base_link, tip_link: the link names (labels).
 
         Raises:
             ValueError: malformed fields (see the class) or a mimic entry that does not name a
@@ -197,26 +265,30 @@ class JointChain(Robot):
         multiplier = np.array([float(mimic[i][1]) if i in mimic else 1.0 for i in range(m)])
         offset = np.array([float(mimic[i][2]) if i in mimic else 0.0 for i in range(m)])
         n = len(own)
-        if kinds is None and m:
+        if joint_kinds is None and m and screws.shape[1:] == (6,):
             rotating = np.linalg.norm(screws[own, :3], axis=1) > 0.5
-            kinds = tuple("revolute" if r else "prismatic" for r in rotating)
-        names = tuple(f"q{j + 1}" for j in range(n)) if names is None else tuple(names)
+            joint_kinds = tuple("revolute" if r else "prismatic" for r in rotating)
         bounds = [
             np.full(n, fill) if x is None else np.asarray(x, dtype=float)
             for x, fill in ((lower, -np.inf), (upper, np.inf), (velocity, np.inf))
         ]
-        return cls(screws, home, multiplier, offset, *bounds, follows, names, tuple(kinds or ()))
-
-    @classmethod
-    def from_poe(cls, chain: _poe.PoEChain | _dh.DHTable) -> JointChain:
-        """The same chain (same ``q``, same ``T(q)``) with default names and no limits."""
-        poe_chain = _poe.change_frame(_poe.as_poe(chain), "space")
-        return cls.create(np.asarray(poe_chain.screws), np.asarray(poe_chain.home))
+        return cls(
+            screws,
+            home,
+            multiplier,
+            offset,
+            *bounds,
+            follows=follows,
+            joint_kinds=tuple(joint_kinds or ()),
+            joint_names=tuple(joint_names or ()),
+            base_link=base_link,
+            tip_link=tip_link,
+        )
 
     # -------------------------------------------------------------------- the robot protocol
     @property
     def n_joints(self) -> int:
-        return len(self.names)
+        return len(self.joint_kinds)
 
     @property
     def n_path_joints(self) -> int:
@@ -229,19 +301,16 @@ class JointChain(Robot):
         return screws.dtype if hasattr(screws, "dtype") else jnp.asarray(screws).dtype
 
     @property
-    def joint_names(self) -> tuple[str, ...]:
-        return self.names
-
-    @property
     def joint_types(self) -> str:
-        return "".join("P" if k == "prismatic" else "R" for k in self.kinds)
+        """The protocol's view of ``joint_kinds``: ``"P"`` for prismatic, ``"R"`` else."""
+        return "".join("P" if k == "prismatic" else "R" for k in self.joint_kinds)
 
     def joint_limits(self) -> JointLimits:
         return JointLimits(self.lower, self.upper, self.velocity)
 
     def length_scale(self) -> Any:
         """``|p_home|`` plus the distances of the revolute axes from the base origin (``|v_i|``
-        of their screws); 1 when all are zero (the ``PoEChain`` measure)."""
+        of their screws); 1 when all are zero."""
         rotating = jnp.any(self.screws[:, :3] != 0, axis=-1)
         offsets = jnp.where(rotating, jnp.linalg.norm(self.screws[:, 3:], axis=-1), 0.0)
         total = jnp.linalg.norm(self.home[:3, 3]) + jnp.sum(offsets)
@@ -270,89 +339,90 @@ class JointChain(Robot):
         radius = radius + jnp.linalg.norm(self.home[:3, 3] - current)
         return centre, radius
 
-    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> Any:
-        from .newton_ik import chain_ik_kernel
+    def ik_kernel(self, target: Jet, branch: Any, options: ChainIKOptions, rates: bool) -> IKResult:
+        """The IK search of ``serial.search`` (its module docstring): ``OK`` means the tool's
+        rotation angle to the target is at most ``orientation_tol`` and its distance at most
+        ``position_tol`` at the returned joints; with ``use_limits`` the joints of every status
+        but ``OUT_OF_LIMITS`` lie within the limits; continuous joints come back in
+        [-pi, pi)."""
+        chain = _validate.cast_leaves(self, target.dtype)
+        budget = search.Budget(options.max_iter, options.restarts, options.max_iter)
+        tols = _tolerances(chain, target.dtype, options)
+        return search.solve(chain, target, tols, budget, options.use_limits, rates)
 
-        return chain_ik_kernel(self, target, options, rates)
-
-    def ik_path_kernel(self, path: Jet, index: Any, options: Any) -> Any:
-        from .newton_ik import chain_ik_path_kernel
-
-        return chain_ik_path_kernel(self, path, options)
+    def ik_path_kernel(self, path: Jet, index: Any, options: ChainIKOptions) -> IKResult:
+        """The search along sampled paths ``(..., T, 4, 4)``: the first sample as
+        ``ik_kernel``, every later one warm-started from the previous solution with
+        ``warm_iter`` updates (``search.solve_paths``)."""
+        chain = _validate.cast_leaves(self, path.dtype)
+        budget = search.Budget(options.max_iter, options.restarts, options.warm_iter)
+        tols = _tolerances(chain, path.dtype, options)
+        return search.solve_paths(chain, path, tols, budget, options.use_limits)
 
     def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
-        return _fk_core(_validate.cast_leaves(self, q.dtype), q, rates)
+        """The tip's pose ``T(q)`` (``x``: a Jet of 4x4 transforms in the base frame);
+        ``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``."""
+        chain = _validate.cast_leaves(self, q.dtype)
+        return forward_result(lambda joints: _kinematics.pose(chain, joints), q, rates, 2)
 
     def work_dtype(self, dtype: Any) -> Any:
-        return promoted(dtype, self.dtype)
+        return promoted(dtype, self.screws.dtype)
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
 
 
-# ------------------------------------------------------------------------------ kernels
-def angles(chain: JointChain, q: Array) -> Array:
-    """``theta_i = c_i q_{k(i)} + b_i``: ``(..., n) -> (..., m)``."""
-    if chain.follows != tuple(range(chain.n_joints)):
-        q = q[..., np.asarray(chain.follows)]
-    return q * chain.multiplier + chain.offset
+# ------------------------------------------------------------------------------ Jacobians
+def _jacobian_impl(chain: Chain, q: Array, which: str) -> Array:
+    return _kinematics.fk_and_jacobian(chain, q, which)[2]
 
 
-def couple(chain: JointChain, jac: Array) -> Array:
-    """Jacobian columns of the path joints ``(..., 6, m)`` -> of the coordinates ``(..., 6, n)``
-    (module docstring)."""
-    if chain.follows == tuple(range(chain.n_joints)):
-        return jac * chain.multiplier
-    onto = jnp.asarray(follow_matrix(chain), jac.dtype)
-    return jnp.einsum("...im,mn->...in", jac * chain.multiplier, onto)
+# Large batches split across host threads (memory-bound: 36-42 outputs per element).
+_jacobian_jit = _batching.PaddedJit(
+    _batching.PartsJit(_jacobian_impl, static_argnames=("which",), batched_argnames=("q",)),
+    {"q": 1},
+)
 
 
-def follow_matrix(chain: JointChain) -> np.ndarray:
-    """``(m, n)``: 1 where path joint ``i`` follows coordinate ``k(i)``, else 0."""
-    onto = np.zeros((chain.n_path_joints, chain.n_joints))
-    onto[np.arange(chain.n_path_joints), np.asarray(chain.follows)] = 1.0
-    return onto
+def _checked(chain: Chain, q: ArrayLike) -> tuple[Chain, Array]:
+    """The chain and ``q`` ``(..., n)`` in their common floating dtype, or a ``ValueError``."""
+    if not isinstance(chain, Chain):
+        raise ValueError(f"chain: expected a serial.Chain, got {type(chain).__name__}")
+    return check_q(chain, q)
 
 
-def poe_chain(chain: JointChain) -> _poe.PoEChain:
-    """The PoE chain of the path joints (no validation: works on traced chains)."""
-    out = object.__new__(_poe.PoEChain)
-    for name, value in (("screws", chain.screws), ("home", chain.home), ("frame", "space")):
-        object.__setattr__(out, name, value)
-    return out
+def check_q(chain: Chain, q: ArrayLike) -> tuple[Chain, Array]:
+    """``chain`` and ``q`` in the promotion of their dtypes (and float); ``q`` of shape
+    ``(..., n)``, else a ``ValueError`` naming ``q``."""
+    q = jnp.asarray(q)
+    n = chain.n_joints
+    if q.ndim == 0 or q.shape[-1] != n:
+        raise ValueError(
+            f"q: expected shape (..., {n}) (last axis = the chain's {n} joints), "
+            f"got {tuple(q.shape)}"
+        )
+    dtype = jnp.result_type(q, chain.dtype, float)
+    return _validate.cast_leaves(chain, dtype), _validate.cast_leaves(q, dtype)
 
 
-def fk_rp(chain: JointChain, q: Array) -> tuple[Array, Array]:
-    """Tip ``(R (..., 3, 3), p (..., 3))`` at ``q`` ``(..., n)``."""
-    return _poe._fk_rp(poe_chain(chain), angles(chain, q))
+def space_jacobian(chain: Chain, q: ArrayLike) -> Array:
+    """Space Jacobian ``J_s`` ``(..., 6, n)`` of a ``Chain`` at ``q`` ``(..., n)``:
+    ``V_s = J_s q_dot`` with ``[V_s] = T_dot T^-1``, rows ``(omega, v)`` (``_kinematics``)."""
+    chain, q = _checked(chain, q)
+    return _jacobian_jit(chain, q, "space", batch=q.shape[:-1])
 
 
-def fk_and_jacobian(chain: JointChain, q: Array, which: str) -> tuple[Array, Array, Array]:
-    """``(R, p, J)`` with ``J`` the ``which`` (``"space"``/``"body"``) Jacobian with respect
-    to ``q``, ``(..., 6, n)``."""
-    rot, p, jac = _poe._fk_and_jacobian(poe_chain(chain), angles(chain, q), which)
-    return rot, p, couple(chain, jac)
+def body_jacobian(chain: Chain, q: ArrayLike) -> Array:
+    """Body Jacobian ``J_b`` ``(..., 6, n)`` of a ``Chain`` at ``q`` ``(..., n)``:
+    ``V_b = J_b q_dot`` with ``[V_b] = T^-1 T_dot``, rows ``(omega, v)``."""
+    chain, q = _checked(chain, q)
+    return _jacobian_jit(chain, q, "body", batch=q.shape[:-1])
 
 
-def _fk_core(chain: JointChain, q: Jet, rates: bool) -> FKResult:
-    """``FKResult`` at ``q`` (at rest its rates are zero, and the pipeline writes them)."""
-
-    def pose(joints):
-        return lie.from_rotation_translation(*fk_rp(chain, joints))
-
-    return forward_result(pose, q, rates, 2)
-
-
-def fk_joint_chain(chain: JointChain, q: Jet | ArrayLike) -> FKResult:
-    """Forward kinematics as the robot protocol has it: ``jaxkin.fk(chain, q)``.
-
-    Args:
-        chain: a ``JointChain``.
-        q: joint coordinates ``(..., n)``: a Jet (the pose's rates by ``jaxkin.lift``) or an
-            array (at rest).
-
-    Returns:
-        ``FKResult``: ``x`` (Jet of 4x4 tip poses in the base frame) and ``status``
-        (``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``).
-    """
-    return fk(chain, q)
+def _tolerances(chain: Chain, dtype: Any, options: ChainIKOptions) -> tuple[Array, Array]:
+    """``(orientation_tol, position_tol)`` as ``dtype`` arrays (traceable): the options', or
+    the defaults ``max(1e-10, 1000 eps)`` (rad) and that times ``chain.length_scale()``."""
+    default = max(1e-10, 1e3 * eps(dtype))
+    rot = default if options.orientation_tol is None else options.orientation_tol
+    pos = default * chain.length_scale() if options.position_tol is None else options.position_tol
+    return jnp.asarray(rot, dtype), jnp.asarray(pos, dtype)

@@ -10,18 +10,22 @@ transform from frame ``i-1`` to frame ``i`` is the *standard* (distal) conventio
 
 and the chain's transform is ``T = T_1 T_2 ... T_n`` (eq. 6; tests check both against sympy).
 Joint variables add to the offsets: a revolute joint (``'R'``) uses ``theta_i + q_i``, a
-prismatic one (``'P'``) ``d_i + q_i``. A ``DHTable`` is a robot of the protocol whose targets
-are poses. Lengths in the caller's unit, angles in radians. FK has no failure cases: NaN or inf
-in ``q`` reaches only the affected elements (``fk_chain`` flags them ``INVALID_INPUT``).
+prismatic one (``'P'``) ``d_i + q_i``. Lengths in the caller's unit, angles in radians.
 
-The kernel multiplies the link transforms entry by entry (a rotation is a nested list of
-batch arrays, see ``lie``) with the joints' ``cos``/``sin`` materialised once.
+A ``DHTable`` is data, not a robot: ``from_dh(table)`` builds the ``serial.Chain`` with the
+same ``q`` and the same ``T(q)`` (joint ``i`` moves about, or along, the ``z`` axis of DH frame
+``i - 1`` at ``q = 0``: ``S_i = (z, -z x o)`` or ``(0, z)`` with ``z``, ``o`` that frame's
+axis and origin in base coordinates; ``M = T(0)``), whose forward kinematics is
+``jaxkin.fk(chain, q)``. ``transforms`` is the DH kernel itself (the analytic arms' forward
+kinematics): it multiplies the link transforms entry by entry (a rotation is a nested list of
+batch arrays, see ``lie``) with the joints' ``cos``/``sin`` materialised once. NaN or inf in
+``q`` reaches only the affected elements.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, ClassVar
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -29,16 +33,13 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate, lie
-from .._geometry import REAL, geometry, number, static
+from .. import _validate, lie
+from .._geometry import REAL, Geometry, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
-from ..jet import Jet
-from ..robot import POSE, CompilePolicy, Robot, promoted
-from ..status import Status
-from ._chain_options import CHAIN_MIN_PART, ChainIKOptions
+from .chain import Chain
 
-__all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "fk_dh"]
+__all__ = ["JOINT_TYPES", "DHTable", "dh_transform", "from_dh", "screws", "transforms"]
 
 JOINT_TYPES = ("R", "P")
 
@@ -54,12 +55,11 @@ def _common_floats(obj: Any, names: tuple[str, ...]) -> None:
 
 
 @geometry
-class DHTable(Robot):
-    """A serial chain given by its standard Denavit-Hartenberg table (one row per joint).
+class DHTable(Geometry):
+    """A standard Denavit-Hartenberg table (one row per joint): the data ``from_dh`` reads.
 
-    A robot of the protocol whose targets are poses (``jaxkin.ik`` solves it by Newton with
-    restarts, ``jaxkin.serial.newton_ik.ik_chain``). The constructor validates every field
-    (a ``ValueError`` naming it); ``create`` is the same with keyword defaults.
+    The constructor validates every field (a ``ValueError`` naming it); ``create`` is the same
+    with keyword defaults.
 
     Attributes:
         a: link lengths ``a_i``, shape ``(n,)``.
@@ -77,12 +77,6 @@ class DHTable(Robot):
     d: Array = number(REAL, (-1,))
     theta: Array = number(REAL, (-1,), default=None)
     joint_types: tuple[str, ...] = static(default=None)
-
-    target: ClassVar = POSE
-    branches: ClassVar = ("newton",)
-    reachable: ClassVar = (Status.OK,)
-    IKOptions: ClassVar = ChainIKOptions
-    ik_policy: ClassVar = CompilePolicy(pad=False, threads=True, min_part=CHAIN_MIN_PART)
 
     def _validate(self) -> None:
         if self.theta is None and _validate.is_concrete(self.a):
@@ -127,34 +121,6 @@ class DHTable(Robot):
     def dtype(self):
         return jnp.asarray(self.a).dtype
 
-    @property
-    def joint_names(self) -> tuple[str, ...]:
-        return tuple(f"q{i + 1}" for i in range(self.n_joints))
-
-    def length_scale(self) -> Any:
-        """``sum |a_i| + sum |d_i|`` (1 for a table of zero lengths)."""
-        total = jnp.sum(jnp.abs(self.a)) + jnp.sum(jnp.abs(self.d))
-        return jnp.where(total > 0, total, 1.0)
-
-    def link_segments(self, q: Array, x: Array) -> Array:
-        """Base -> the origin of each DH frame in turn, ``(..., n, 2, 3)``."""
-        frames = _fk_dh_impl(_validate.cast_leaves(self, q.dtype), q, True)[..., :3, 3]
-        points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
-        return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
-
-    def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> Any:
-        from .newton_ik import chain_ik_kernel
-
-        return chain_ik_kernel(self, target, options, rates)
-
-    def fk_kernel(self, q: Jet, options: Any, rates: bool) -> Any:
-        from .poe import _fk_chain_core
-
-        return _fk_chain_core(_validate.cast_leaves(self, q.dtype), q, rates)
-
-    def work_dtype(self, dtype: Any) -> Any:
-        return promoted(dtype, self.dtype)
-
 
 def dh_transform(a: ArrayLike, alpha: ArrayLike, d: ArrayLike, theta: ArrayLike) -> Array:
     """Standard DH link transform ``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` [Lopez-Villagomez, eq. 2].
@@ -196,7 +162,11 @@ def _joint_parameters(table: DHTable, q: Array) -> tuple[Array, Array, Array, Ar
     return a, alpha, d, theta
 
 
-def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
+def transforms(table: DHTable, q: Array, all_frames: bool = False) -> Array:
+    """The DH kernel: ``T = T_1(q_1) ... T_n(q_n)`` [Lopez-Villagomez, eq. 6] at ``q``
+    ``(..., n)`` in the table's dtype, ``(..., 4, 4)``; with ``all_frames`` every frame
+    ``T_1 ... T_i`` (frame ``i`` of the DH convention, base coordinates), ``(..., n, 4, 4)``.
+    Pure and traceable (no validation)."""
     _, _, d, theta = _joint_parameters(table, q)
     # Materialise sin/cos once (one stacked array, see computed_once): XLA's CPU fusion would
     # recompute them in every output loop. Joint-major (n, ...): each joint's row is contiguous
@@ -223,44 +193,58 @@ def _fk_dh_impl(table: DHTable, q: Array, all_frames: bool) -> Array:
     return frames[-1]
 
 
-# The table has no batch axes: only the joints are padded.
-_fk_dh_jit = _batching.PaddedJit(jax.jit(_fk_dh_impl, static_argnames=("all_frames",)), {"q": 1})
+def screws(table: DHTable) -> tuple[Array, Array]:
+    """The base-frame screws ``(n, 6)`` and home pose ``(4, 4)`` of the chain with the same
+    ``T(q)`` (module docstring); pure and traceable."""
+    zeros = jnp.zeros((table.n_joints,), table.dtype)
+    frames = transforms(table, zeros, all_frames=True)  # (n, 4, 4): frames 1..n
+    base = jnp.eye(4, dtype=table.dtype)[None]
+    before = jnp.concatenate([base, frames[:-1]], axis=0)  # frame i-1 for joint i
+    z_axis = before[:, :3, 2]
+    origin = before[:, :3, 3]
+    rows = []
+    for i, kind in enumerate(table.joint_types):
+        if kind == "R":
+            rows.append(jnp.concatenate([z_axis[i], -jnp.cross(z_axis[i], origin[i])]))
+        else:
+            rows.append(jnp.concatenate([jnp.zeros_like(z_axis[i]), z_axis[i]]))
+    return jnp.stack(rows), frames[-1]
 
 
-def check_q(q: ArrayLike, n: int, dtype) -> Array:
-    """``q`` as an array of shape ``(..., n)`` in its promotion with ``dtype`` (and float).
-
-    Raises:
-        ValueError: ``q``'s last axis is not ``n``.
-    """
-    if not isinstance(q, jax.Array):
-        q = jnp.asarray(q)
-    if q.ndim == 0 or q.shape[-1] != n:
-        raise ValueError(
-            f"q: expected shape (..., {n}) (last axis = the chain's {n} joints), "
-            f"got {tuple(q.shape)}"
-        )
-    return _validate.cast_leaves(q, jnp.result_type(q, dtype, float))
+_screws_jit = jax.jit(screws)
 
 
-def fk_dh(table: DHTable, q: ArrayLike, all_frames: bool = False) -> Array:
-    """Forward kinematics of a DH chain: ``T = T_1(q_1) ... T_n(q_n)`` [Lopez-Villagomez, eq. 6].
+def from_dh(
+    table: DHTable,
+    joint_names: Sequence[str] | None = None,
+    lower: ArrayLike | None = None,
+    upper: ArrayLike | None = None,
+    velocity: ArrayLike | None = None,
+    base_link: str = "",
+    tip_link: str = "",
+) -> Chain:
+    """The ``serial.Chain`` of a DH table: the same ``q`` (radians for ``'R'``, length for
+    ``'P'``) and the same ``T(q)`` (module docstring).
 
     Args:
-        table: the chain (``DHTable.create``).
-        q: joint variables, shape ``(..., n)`` (radians for 'R', length units for 'P').
-        all_frames: if True, return every intermediate frame ``T_1 ... T_i`` for
-            ``i = 1..n`` (frame ``i`` of the DH convention, in base coordinates).
-
-    Returns:
-        ``(..., 4, 4)`` base-to-end-effector transforms, or ``(..., n, 4, 4)`` with
-        ``all_frames``. The dtype is the promotion of ``q`` and the table.
+        table: the table (``DHTable.create(a=..., alpha=..., d=...)``, or an analytic arm's
+            ``dh_table()``).
+        joint_names, lower, upper, velocity, base_link, tip_link: as ``Chain.create``
+            (default names ``q1 ... qn``, no limits).
 
     Raises:
-        ValueError: ``table`` is not a ``DHTable`` or ``q``'s last axis is not ``n``.
+        ValueError: ``table`` is not a ``DHTable``, or a malformed name or limit.
     """
     if not isinstance(table, DHTable):
-        raise ValueError(f"table: expected a DHTable, got {type(table).__name__}")
-    q = check_q(q, table.n_joints, table.dtype)
-    table = _validate.cast_leaves(table, q.dtype)
-    return _fk_dh_jit(table, q, bool(all_frames), batch=q.shape[:-1])
+        raise ValueError(f"table: expected a serial.DHTable, got {type(table).__name__}")
+    rows, home = _screws_jit(table)
+    return Chain.create(
+        np.asarray(rows),
+        np.asarray(home),
+        joint_names=joint_names,
+        lower=lower,
+        upper=upper,
+        velocity=velocity,
+        base_link=base_link,
+        tip_link=tip_link,
+    )

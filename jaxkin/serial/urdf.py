@@ -1,4 +1,4 @@
-"""URDF import: ``from_urdf(source, tip_link, base_link=None)`` -> a ``JointChain``.
+"""URDF import: ``from_urdf(source, tip_link, base_link=None)`` -> a ``serial.Chain``.
 
 The file is parsed by yourdfpy (the optional ``urdf`` extra: ``pip install 'jaxkin[urdf]'``),
 without meshes or scene graph; this module only walks the joint tree. From the tip link up to
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .chain import JointChain
+from .chain import Chain
 
 __all__ = ["from_urdf"]
 
@@ -152,7 +152,7 @@ def _limits(joint) -> tuple[float, float, float]:
     return lower, upper, velocity
 
 
-def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = None) -> JointChain:
+def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = None) -> Chain:
     """The chain from ``base_link`` to ``tip_link`` of a URDF (module docstring).
 
     Args:
@@ -161,9 +161,9 @@ def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = 
         base_link: the link the pose is expressed in; None for the root link.
 
     Returns:
-        A ``JointChain`` (a robot of the protocol: ``jaxkin.ik``/``jaxkin.fk`` with 4x4
+        A ``serial.Chain`` (a robot of the protocol: ``jaxkin.ik``/``jaxkin.fk`` with 4x4
         poses) whose coordinates are the independent moving joints on the path, named as in
-        the URDF, base to tip.
+        the URDF, base to tip (``joint_names``; their URDF types in ``joint_kinds``).
 
     Raises:
         ValueError: an unreadable source, an unknown link, no path from the base to the tip, no
@@ -236,7 +236,7 @@ def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = 
                 f"joint {moving[i].name!r}: its limits leave no position for its leader "
                 f"{moving[leader].name!r}"
             )
-    return JointChain(
+    return Chain(
         np.stack(rows),
         frame,
         np.array([c for _, c, _ in couplings]),
@@ -244,9 +244,9 @@ def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = 
         lower,
         upper,
         velocity,
-        tuple(coordinate[leader] for leader, _, _ in couplings),
-        tuple(moving[i].name for i in own),
-        tuple(moving[i].type for i in own),
-        base_link,
-        tip_link,
+        follows=tuple(coordinate[leader] for leader, _, _ in couplings),
+        joint_kinds=tuple(moving[i].type for i in own),
+        joint_names=tuple(moving[i].name for i in own),
+        base_link=base_link,
+        tip_link=tip_link,
     )

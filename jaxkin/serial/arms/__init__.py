@@ -17,9 +17,10 @@ position IK; a pose target is a Jet of 4x4 matrices) and a margin; ``ik_jet`` is
 ``ik_all_branches(arm, target)``: every branch, ``ArmIKResult`` with ``q``
 ``(..., n_branches, n_joints)``, ``valid`` and ``status`` ``(..., n_branches)``;
 ``result.branch("front_up")`` selects one. ``jaxkin.fk(arm, q)`` (or ``fk``): an ``FKResult``
-whose ``x`` is in the form of the targets (``fk_dh(arm.dh_table(), q)`` gives the 4x4
-transform). Statuses and the margin: ``jaxkin.serial.arms.kernels``; accuracy in float64 and
-float32: ``docs/performance.md``; formulas: ``docs/robots.md``.
+whose ``x`` is in the form of the targets (the 4x4 transform of the last DH frame:
+``jaxkin.fk(serial.from_dh(arm.dh_table()), q).x.p``). Statuses and the margin:
+``jaxkin.serial.arms.kernels``; accuracy in float64 and float32: ``docs/performance.md``;
+formulas: ``docs/robots.md``.
 
 Layers, bottom to top: ``_kit`` (two-link, wrist, polar, angle wrapping), ``kernels`` (the
 shared IK/FK kernels, which read an arm through its methods), ``base`` (the ``Arm`` class and

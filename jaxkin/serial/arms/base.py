@@ -23,7 +23,7 @@ from ...jet import Jet
 from ...result import FKResult, IKResult
 from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
 from ...status import Status
-from ..dh import DHTable, fk_dh
+from ..dh import DHTable, transforms
 from .kernels import ArmIKResult, fk_kernel, ik_all_jit, ik_branch_kernel
 
 __all__ = ["Arm", "fk", "ik_all_branches", "ik_jet"]
@@ -67,7 +67,7 @@ class Arm(Robot, abstract=True):
 
     def dh_table(self, dtype=None) -> DHTable:  # pragma: no cover - overridden
         """The arm's standard DH table (the 4x4 transform of its last frame is
-        ``fk_dh(arm.dh_table(), q)``)."""
+        ``jaxkin.fk(serial.from_dh(arm.dh_table()), q).x.p``)."""
         raise NotImplementedError
 
     def ik_branches(self, target: Array) -> tuple[Array, Array]:  # pragma: no cover
@@ -76,7 +76,7 @@ class Arm(Robot, abstract=True):
 
     def link_segments(self, q: Array, x: Array) -> Array:
         """Base -> the origin of each DH frame in turn, ``(..., n, 2, d)``."""
-        frames = fk_dh(self.dh_table(q.dtype), q, all_frames=True)[..., :3, 3]
+        frames = transforms(self.dh_table(q.dtype), q, all_frames=True)[..., :3, 3]
         points = jnp.concatenate([jnp.zeros_like(frames[..., :1, :]), frames], axis=-2)
         points = points[
             ..., : 2 if self.target.shape == (2,) or self.target.name == "planar pose" else 3
@@ -171,7 +171,8 @@ def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
         ``FKResult``: ``x`` (Jet ``(..., *robot.target.shape)``: the point, the planar pose
         ``(x, y, phi)`` with phi in (-pi, pi], or the 4x4 pose) and ``status`` (``OK``, or
         ``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``). The
-        4x4 transform of the last DH frame is ``fk_dh(robot.dh_table(), q)``.
+        4x4 transform of the last DH frame is
+        ``jaxkin.fk(serial.from_dh(robot.dh_table()), q).x.p``.
 
     Raises:
         ValueError: ``robot`` is not an analytic arm or ``q``'s last axis is not ``n_joints``.

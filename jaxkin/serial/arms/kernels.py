@@ -29,8 +29,8 @@ from ...jet import Jet, lift
 from ...result import FKResult, IKResult, SolverResult, forward_result
 from ...robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE, Robot
 from ...status import STATUS_DTYPE, Status
-from .. import poe as _poe
-from ..dh import fk_dh
+from .. import _kinematics
+from .. import dh as _dh
 
 __all__ = [
     "FAR",
@@ -132,7 +132,7 @@ ik_all_jit = _batching.PaddedJit(jax.jit(ik_all_kernel), {})
 
 def _task(robot: Robot, q: Array) -> Array:
     """The forward kinematics in the form of the arm's targets, ``(..., *target.shape)``."""
-    frame = fk_dh(robot.dh_table(q.dtype), q)
+    frame = _dh.transforms(robot.dh_table(q.dtype), q)
     if robot.target is PLANAR_POINT:
         return frame[..., :2, 3]
     if robot.target is PLANAR_POSE:
@@ -160,8 +160,8 @@ def _scaled_jacobian(robot: Robot, q: Array, scale: Array) -> tuple[Array, Array
     pose ``(x_dot, y_dot, omega_z)``. Length rows are divided, prismatic columns multiplied,
     by ``scale``.
     """
-    chain = _poe._poe_from_dh_impl(robot.dh_table(q.dtype))
-    rot, p, jac = _poe._fk_and_jacobian(chain, q, "space")
+    screws, home = _dh.screws(robot.dh_table(q.dtype))
+    rot, p, jac = _kinematics.screws_fk_and_jacobian(screws, home, q, "space")
     omega, v = jac[..., :3, :], jac[..., 3:, :]
     p_dot = v + jnp.cross(omega, p[..., :, None], axis=-2)
     inv = 1.0 / scale[..., None, None]

@@ -139,7 +139,7 @@ class Puma560(Arm):
         q_pos = jnp.stack([q1, sol.q1, q3], axis=-1)  # (..., 2, 2, 3)
         batch = q_pos.shape[:-3]
         q_pos = q_pos.reshape(*batch, 4, 3)
-        # R_03 = Rz(q1) Ry(-(q2 + q3)) (DH rows 1-3; fk_dh checks it in the round-trip tests).
+        # R_03 = Rz(q1) Ry(-(q2 + q3)) (DH rows 1-3; checked by the round trips).
         # Stored once: every entry of R_03 (and so every wrist output loop) reads them
         q23 = q_pos[..., 1] + q_pos[..., 2]
         s1, c1, s23, c23 = computed_once(jnp.stack([*sincos(q_pos[..., 0]), *sincos(q23)]))

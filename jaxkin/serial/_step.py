@@ -1,0 +1,136 @@
+"""The damped least-squares step of a chain's IK, and the twist to a target pose.
+
+Both IKs of a chain (``newton``: the textbook iteration; ``search``: the robot's IK) take the
+step that solves, for the ``6 x n`` Jacobian ``J`` and the twist ``V`` to the target::
+
+    n <= 6:  (J^T J + mu I) dq = J^T V           n > 6:  dq = J^T (J J^T + mu I)^-1 V
+
+with ``mu = damping^2 + floor trace(J^T J)`` (``floor`` ``sqrt(eps)`` unless given: a soft
+cut-off of the singular values, so a rank-deficient ``J`` gives a finite step). The symmetric
+positive definite system is solved by a Cholesky factorisation unrolled over its static size
+(``spd_solve``): elementwise batch arithmetic, much faster on CPU than a batched LAPACK call for
+sizes up to 6. Matrices and vectors are nested lists of batch arrays (structure of arrays).
+
+The twist to a target ``T_d`` from the pose ``T = [R, p]`` is ``V_b = log(T^-1 T_d)``
+(``body_twist``): ``R_bd = R^T R_d``, ``p_bd = R^T (p_d - p)``; ``|omega|`` of the twist is the
+rotation angle of ``R_bd`` and ``|p_bd| = |p_d - p|`` the tool's distance to the target.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jax import Array
+
+from .. import lie
+from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
+
+__all__ = [
+    "body_twist",
+    "damped_step",
+    "damped_step_soa",
+    "limited",
+    "norm3",
+    "rigid_target",
+    "spd_solve",
+]
+
+
+def spd_solve(a: list[list[Array]], b: list[Array]) -> list[Array]:
+    """Solve ``a x = b`` for symmetric positive definite ``a`` (m x m nested lists of batch
+    arrays, lower triangle read) and ``b`` (m arrays), by an unrolled Cholesky factorisation."""
+    m = len(b)
+    tiny = float(jnp.finfo(jnp.result_type(b[0])).tiny) ** 0.5
+    chol: dict[tuple[int, int], Array] = {}
+    inv_diag: list[Array] = []
+    for j in range(m):
+        diag = a[j][j] - sum(chol[j, k] * chol[j, k] for k in range(j))
+        inv = jax.lax.rsqrt(jnp.maximum(diag, tiny))
+        inv_diag.append(inv)
+        for i in range(j + 1, m):
+            chol[i, j] = (a[i][j] - sum(chol[i, k] * chol[j, k] for k in range(j))) * inv
+    y: list[Array] = []
+    for i in range(m):
+        y.append((b[i] - sum(chol[i, k] * y[k] for k in range(i))) * inv_diag[i])
+    x: list[Array] = [b[0]] * m
+    for i in range(m - 1, -1, -1):
+        x[i] = (y[i] - sum(chol[k, i] * x[k] for k in range(i + 1, m))) * inv_diag[i]
+    return x
+
+
+def _computed(values: list[Array]) -> list[Array]:
+    """``values`` stored once (``computed_once``): fused into every reader, they made the
+    ``J J^T`` step ten times slower."""
+    return list(computed_once(jnp.stack(jnp.broadcast_arrays(*values))))
+
+
+def _dot(u: list[Array], v: list[Array]) -> Array:
+    return sum((a * b for a, b in zip(u[1:], v[1:], strict=True)), u[0] * v[0])
+
+
+def damped_step_soa(
+    columns: list[list[Array]], twist: list[Array], damping: Array, floor: float | None = None
+) -> list[Array]:
+    """The step (module docstring) for ``columns``, the ``n`` columns of ``J`` (each 6 arrays),
+    and ``twist`` (6 arrays); ``floor`` ``sqrt(eps)`` by default."""
+    n = len(columns)
+    gram = [[_dot(columns[i], columns[j]) if j <= i else None for j in range(n)] for i in range(n)]
+    trace = sum(gram[i][i] for i in range(1, n)) if n > 1 else 0.0
+    trace = gram[0][0] + trace
+    floor = singular_rtol(trace.dtype) if floor is None else floor
+    mu = damping * damping + floor * trace
+    if n <= 6:
+        for i in range(n):
+            gram[i][i] = gram[i][i] + mu
+        return spd_solve(gram, [_dot(col, twist) for col in columns])
+    rows = [[col[k] for col in columns] for k in range(6)]  # rows of J
+    outer = [[_dot(rows[i], rows[j]) if j <= i else None for j in range(6)] for i in range(6)]
+    for i in range(6):
+        outer[i][i] = outer[i][i] + mu
+    lower = iter(_computed([outer[i][j] for i in range(6) for j in range(i + 1)]))
+    outer = [[next(lower) if j <= i else None for j in range(6)] for i in range(6)]
+    y = _computed(spd_solve(outer, twist))
+    return [_dot(col, y) for col in columns]
+
+
+def damped_step(jac: Array, twist: Array, damping, floor: float | None = None) -> Array:
+    """Array front end of ``damped_step_soa``: ``jac`` (..., 6, n), ``twist`` (..., 6)."""
+    batch = jnp.broadcast_shapes(jac.shape[:-2], twist.shape[:-1])
+    columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
+    twist_list = [twist[..., k] for k in range(6)]
+    damping = jnp.asarray(damping, jac.dtype)
+    dq = damped_step_soa(columns, twist_list, damping, floor)
+    return jnp.stack([jnp.broadcast_to(x, batch) for x in dq], axis=-1)
+
+
+def limited(dq: Array, revolute: Array, max_step: Array) -> Array:
+    """``dq`` scaled, direction kept, so that no revolute joint moves more than ``max_step``."""
+    largest = jnp.max(jnp.where(revolute, jnp.abs(dq), 0.0), axis=-1, keepdims=True)
+    too_long = largest > max_step  # never true for max_step = inf (no limit)
+    return dq * jnp.where(too_long, max_step / jnp.where(too_long, largest, 1.0), 1.0)
+
+
+def body_twist(rot: Array, p: Array, target: Array) -> tuple[list[Array], list[Array]]:
+    """``V_b = log(T^-1 T_d)`` (6 arrays) and ``p_bd = R^T (p_d - p)`` (3 arrays)."""
+    rot_t = jnp.swapaxes(rot, -1, -2)
+    rot_bd = rot_t @ target[..., :3, :3]
+    p_bd = jnp.einsum("...ij,...j->...i", rot_t, target[..., :3, 3] - p)
+    p_bd = [p_bd[..., r] for r in range(3)]
+    twist = lie.se3_log_soa([[rot_bd[..., r, c] for c in range(3)] for r in range(3)], p_bd)
+    return twist, p_bd
+
+
+def rigid_target(target: Array) -> Array:
+    """True where a target ``(..., 4, 4)`` is finite and its rotation block is a rotation:
+    ``max |R^T R - I| <= sqrt(eps)`` and ``det R > 0`` (the twist to a non-rotation means
+    nothing, and could meet a tolerance by chance); False for NaN or inf anywhere."""
+    finite = all_finite(target.reshape(*target.shape[:-2], 16))
+    rot = jnp.where(finite[..., None, None], target[..., :3, :3], jnp.eye(3, dtype=target.dtype))
+    gram = jnp.swapaxes(rot, -1, -2) @ rot - jnp.eye(3, dtype=rot.dtype)
+    orthonormal = jnp.max(jnp.abs(gram), axis=(-2, -1)) <= singular_rtol(rot.dtype)
+    return finite & orthonormal & (jnp.linalg.det(rot) > 0)
+
+
+def norm3(x: list[Array]) -> Array:
+    """``|x|`` of 3 arrays (finite gradient at 0)."""
+    return safe_sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])

@@ -1,0 +1,522 @@
+"""The IK search of a chain (``jaxkin.ik`` of a ``serial.Chain``).
+
+In units of the chain's size and in the body frame, per element:
+
+* projected Levenberg-Marquardt: the step of ``serial._step`` with ``mu = LM_WEIGHT |V|^2``
+  (Yamashita and Fukushima; quadratic also near singular poses) and every iterate projected
+  onto the joint limits (a revolute joint outside them first tries the 2 pi turn that lands
+  inside; continuous joints wrap to [-pi, pi)): Kanzow, Yamashita and Fukushima (J. Comput.
+  Appl. Math. 172, 2004) prove local quadratic convergence to a solution inside the box.
+  Joints come back within the limits (but for ``OUT_OF_LIMITS``);
+* restarts, one after the other, ``max_iter`` updates each, from the starts of
+  ``serial._starts`` (the nearest pose of a fixed table, the middle of the limits,
+  the other groups' nearest, then seeds spread over the limits); the first run that meets the
+  tolerances ends the element's search; after the last, one unbounded run from the best
+  iterate tells ``OUT_OF_LIMITS`` (the pose is solved only outside the limits) from
+  ``NOT_CONVERGED``. ``UNREACHABLE``: the target lies beyond ``chain.reach()``. A batch larger
+  than ``QUEUE_SLOTS`` runs as a work queue (``_batching.work_queue``): that many lanes
+  iterate, and a lane whose target has ended takes the next one (the same updates, so the same
+  results, as in step);
+* ``OK`` only where ``angle(R^T R_d) <= orientation_tol`` and ``|p_d - p| <= position_tol``,
+  evaluated at the returned joints; ``INVALID_INPUT`` for NaN or inf in the target or its
+  rates, or a rotation block that is not a rotation (``serial._step.rigid_target``);
+* rates from the target's body twist, ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot -
+  J_b_dot q_dot)`` (minimum-norm for a redundant chain, least squares for one with fewer than
+  six joints), a Jacobian-based margin, and implicit derivatives (``dq = J_b^+ dV_b``).
+
+``solve_paths`` warm-starts along sampled paths: the first sample as ``solve``, every further
+one from the previous solution (one run, then the unbounded run); a sample that fails keeps its
+status, and the next one starts from the last solution.
+
+Every function here is pure and traceable (``solve`` and ``solve_paths`` are the kernels the
+chain robot compiles); the chain is read through its numeric fields, ``follows`` and
+``joint_kinds`` only.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from .. import _batching, lie
+from .._numerics import all_finite, eps, isotropy, safe_sqrt
+from .._validate import is_concrete
+from ..jet import Jet
+from ..result import IKResult
+from ..robot import options
+from ..status import STATUS_DTYPE, Status
+from . import _kinematics, _starts, _step
+from ._starts import Box
+
+__all__ = ["LM_WEIGHT", "QUEUE_SLOTS", "Budget", "ChainIKOptions", "solve", "solve_paths"]
+
+# Levenberg-Marquardt damping ``mu = LM_WEIGHT |V|^2``: any positive weight keeps
+# Yamashita-Fukushima's quadratic convergence; 1e-3 needed 3-5x fewer updates than 1 from far
+# starts (1,000 UR5 / Panda poses within the limits).
+LM_WEIGHT = 1e-3
+# Lanes of the work queue: batches up to this size run every target in step; larger ones keep
+# this many iterating and refill them as targets end (1e3-1e4 UR5 / Panda poses: 32-64 lanes
+# fastest, 4-7x the batch in step).
+QUEUE_SLOTS = 32
+
+_TWO_PI = 2.0 * np.pi
+
+
+def _count(value: Any, name: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ValueError(f"{name} must be an int >= 1, got {value!r}")
+
+
+def _tolerance(value: Any, name: str) -> Any:
+    """A positive finite tolerance as a float, or None; traced values pass (not user input)."""
+    if value is None or not is_concrete(value):
+        return value
+    if isinstance(value, bool | str | bytes) or np.ndim(value) != 0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    number = float(value)
+    if not (math.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return number
+
+
+@options(dynamic=("position_tol", "orientation_tol"))
+class ChainIKOptions:
+    """Options of a chain's IK (``jaxkin.ik(chain, pose, **options)``).
+
+    Attributes:
+        restarts: runs per element at most (>= 1), before the unbounded run.
+        max_iter: updates per run (>= 1).
+        warm_iter: updates of a later path sample's run from the previous solution (the
+            planner's warm-started IK along paths).
+        position_tol: length units; None for ``max(1e-10, 1000 eps) * chain.length_scale()``.
+            A new value compiles nothing new.
+        orientation_tol: rad; None for ``max(1e-10, 1000 eps)``.
+        use_limits: respect the chain's position limits (False: search without them).
+    """
+
+    restarts: int = 64
+    max_iter: int = 12
+    warm_iter: int = 20
+    position_tol: float | None = None
+    orientation_tol: float | None = None
+    use_limits: bool = True
+
+    def __post_init__(self) -> None:
+        for name in ("restarts", "max_iter", "warm_iter"):
+            _count(getattr(self, name), name)
+        for name in ("position_tol", "orientation_tol"):
+            object.__setattr__(self, name, _tolerance(getattr(self, name), name))
+        if not isinstance(self.use_limits, bool):
+            object.__setattr__(self, "use_limits", bool(self.use_limits))
+
+
+@dataclasses.dataclass(frozen=True)
+class Budget:
+    """The static shape of a search (hashable: a compilation key).
+
+    Attributes:
+        max_iter: updates per run.
+        runs: runs per element at most, before the unbounded run.
+        warm_iter: updates of a warm-started run along a path (``solve_paths``).
+        slots: lanes of the work queue (``QUEUE_SLOTS``); a batch of at most this many
+            elements iterates in step.
+    """
+
+    max_iter: int
+    runs: int
+    warm_iter: int
+    slots: int = QUEUE_SLOTS
+
+
+@dataclasses.dataclass(frozen=True)
+class _Runs:
+    """What every update of one search reads (closed over by its loops).
+
+    Attributes:
+        unit: the chain in units of its size.
+        seeds: ``(runs, n)`` starts of the later runs.
+        box: the joint box (units of the chain).
+        tol_rot, tol_pos: the tolerances (rad; units of the chain).
+        max_iter, runs: as ``Budget``.
+    """
+
+    unit: Any
+    seeds: Array
+    box: Box
+    tol_rot: Array
+    tol_pos: Array
+    max_iter: int
+    runs: int
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class _Lane:
+    """The search state of one element (or of every element of a batch in step).
+
+    Attributes:
+        q: the iterate ``(..., n)``.
+        run: the run it belongs to (int32; ``runs``: the unbounded run).
+        k: updates so far in this run (int32).
+        best_q, best: the iterate of least error ``|omega| + |p_bd|`` so far and that error.
+    """
+
+    q: Array
+    run: Array
+    k: Array
+    best_q: Array
+    best: Array
+
+
+@dataclasses.dataclass(frozen=True)
+class _Outcome:
+    """One update of every lane: the next ``lane``; which lanes ``ended``; for those, their
+    joints ``q`` and status ``code``."""
+
+    lane: _Lane
+    ended: Array
+    q: Array
+    code: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class _InStep:
+    """The ``lax.while_loop`` state of a batch iterated in step.
+
+    Attributes:
+        lane: every element's search state.
+        done: ended (or preset: invalid, unreachable), ``(...)``.
+        status: the status codes so far, ``(...)``.
+        steps: updates taken (int32 scalar).
+    """
+
+    lane: _Lane
+    done: Array
+    status: Array
+    steps: Array
+
+
+@dataclasses.dataclass(frozen=True)
+class _Prepared:
+    """A batch's targets made safe and put in units of the chain (``_prepare``).
+
+    Attributes:
+        safe: the target Jet with non-finite elements replaced by the identity at rest.
+        goal: ``safe.p`` with its translation divided by ``scale``, ``(..., 4, 4)``.
+        unit: the chain in units of its size; ``g``: ``q_unit = g q`` per coordinate.
+        scale: the chain's ``length_scale()``.
+        box: the joint box (units of the chain).
+        status: preset codes (``INVALID_INPUT``, ``UNREACHABLE``, else ``NOT_CONVERGED``).
+        done: preset elements (invalid or unreachable).
+        tol_rot, tol_pos: the tolerances (rad; units of the chain).
+        seeds: ``(runs, n)`` seeds.
+    """
+
+    safe: Jet
+    goal: Array
+    unit: Any
+    g: Array
+    scale: Array
+    box: Box
+    status: Array
+    done: Array
+    tol_rot: Array
+    tol_pos: Array
+    seeds: Array
+
+
+def _body_twists(target: Jet) -> tuple[Array, Array]:
+    """The target's body twist ``V = vee(T^-1 T_dot)`` and its time derivative
+    ``vee(T^-1 T_ddot - (T^-1 T_dot)^2)``, rows ``(omega, v)``, each ``(..., 6)``."""
+    inverse = lie.se3_inverse(target.p)
+    x = inverse @ target.v
+    y = inverse @ target.a - x @ x
+    twist, rate = lie.se3_vee(x), lie.se3_vee(y)
+    return twist, rate
+
+
+def _in_units(chain: Any, scale: Array) -> tuple[Any, Array, Array]:
+    """The chain in units of its size (lengths / ``scale``), the factors ``g`` of the
+    coordinates (``q_unit = g q``) and the mask of prismatic coordinates (whose joints slide)."""
+    sliding = jnp.all(chain.screws[:, :3] == 0, axis=-1)
+    onto = jnp.asarray(_kinematics.follow_matrix(chain), chain.screws.dtype)
+    prismatic = onto.T @ sliding.astype(chain.screws.dtype) > 0
+    f = jnp.where(sliding, 1.0 / scale, 1.0)  # theta_unit = f theta
+    g = jnp.where(prismatic, 1.0 / scale, 1.0)
+    unit = copy.copy(chain)  # the same chain with new numbers (no validation: traced values)
+    for name, value in (
+        ("screws", chain.screws.at[:, 3:].multiply(jnp.where(sliding, 1.0, 1.0 / scale)[:, None])),
+        ("home", chain.home.at[:3, 3].divide(scale)),
+        ("multiplier", chain.multiplier * f / g[np.asarray(chain.follows)]),
+        ("offset", chain.offset * f),
+        ("lower", chain.lower * g),
+        ("upper", chain.upper * g),
+    ):
+        object.__setattr__(unit, name, value)
+    return unit, g, prismatic
+
+
+def _turned(q: Array, box: Box, lower: Array, upper: Array) -> Array:
+    """``q`` with every revolute joint outside ``[lower, upper]`` turned by the multiple of
+    2 pi that brings it inside, where one does (the one nearest the range's middle: the only
+    one when the range is shorter than 2 pi); continuous joints wrapped to [-pi, pi)."""
+    middle = jnp.where(jnp.isfinite(lower) & jnp.isfinite(upper), 0.5 * (lower + upper), 0.0)
+    turned = q - _TWO_PI * jnp.round((q - middle) / _TWO_PI)
+    outside = (q < lower) | (q > upper)
+    q = jnp.where(box.revolute & outside & (turned >= lower) & (turned <= upper), turned, q)
+    return jnp.where(box.continuous, q - _TWO_PI * jnp.floor((q + np.pi) / _TWO_PI), q)
+
+
+def _projected(q: Array, box: Box, lower: Array, upper: Array) -> Array:
+    """The projection onto ``[lower, upper]`` after the 2 pi turns of ``_turned``."""
+    return jnp.clip(_turned(q, box, lower, upper), lower, upper)
+
+
+def _project(q: Array, box: Box) -> Array:
+    return _projected(q, box, box.lower, box.upper)
+
+
+def _residual(chain: Any, q: Array, target: Array):
+    """Body twist to the target (6 arrays), Jacobian columns, rotation and position errors."""
+    rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body")
+    twist, p_bd = _step.body_twist(rot, p, target)
+    columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
+    return twist, columns, _step.norm3(twist[:3]), _step.norm3(p_bd)
+
+
+def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
+    """One projected Levenberg-Marquardt update of every lane. ``starts`` ``(..., S, n)``: the
+    lane's first ``S`` runs' starts; ``done``: lanes that take no part."""
+    box, q = runs.box, lane.q
+    one = jnp.asarray(1.0, q.dtype)
+    bounded = jnp.any(jnp.isfinite(box.lower) | jnp.isfinite(box.upper))
+    last = runs.runs - 1 + bounded.astype(jnp.int32)  # the unbounded run comes last
+
+    twist, columns, err_rot, err_pos = _residual(runs.unit, q, goal)
+    free = lane.run >= runs.runs
+    turned = _turned(q, box, box.lower, box.upper)
+    within = jnp.all((turned >= box.lower) & (turned <= box.upper), axis=-1)
+    hit = (err_rot <= runs.tol_rot) & (err_pos <= runs.tol_pos)
+    score = err_rot + err_pos
+    improve = ~done & ~free & (score < lane.best)
+    best_q = jnp.where(improve[..., None], q, lane.best_q)
+    best = jnp.where(improve, score, lane.best)
+    spent = lane.k >= runs.max_iter
+    ended = ~done & (hit | (spent & (lane.run >= last)))
+    code = jnp.where(within, Status.OK, Status.OUT_OF_LIMITS)
+    code = jnp.where(hit, code, Status.NOT_CONVERGED).astype(STATUS_DTYPE)
+    # Levenberg-Marquardt damping mu = LM_WEIGHT |V|^2 (the floor 16 eps trace keeps it defined).
+    error_sq = sum(t * t for t in twist)
+    step = _step.damped_step_soa(columns, twist, safe_sqrt(LM_WEIGHT * error_sq), 16 * eps(q.dtype))
+    moved = q + _step.limited(jnp.stack(step, axis=-1), box.revolute, one)
+    # The unbounded run projects onto no limits: only its continuous joints wrap.
+    lo = jnp.where(free[..., None], -jnp.inf, box.lower)
+    hi = jnp.where(free[..., None], jnp.inf, box.upper)
+    moved = _projected(moved, box, lo, hi)
+    following = lane.run + 1
+    own = starts.shape[-2]
+    mine = jnp.take_along_axis(starts, jnp.minimum(following, own - 1)[..., None, None], -2)
+    shared = jnp.take(runs.seeds, jnp.minimum(following, runs.runs - 1), axis=0)
+    restart = _project(jnp.where((following < own)[..., None], mine[..., 0, :], shared), box)
+    restart = jnp.where((following < runs.runs)[..., None], restart, best_q)
+    q_next = jnp.where(spent[..., None], restart, moved)
+    q_end = jnp.where(hit[..., None], turned, best_q)
+    run = jnp.where(spent & ~done, following, lane.run)
+    k = jnp.where(spent, 0, lane.k + 1)
+    return _Outcome(_Lane(q_next, run, k, best_q, best), ended, q_end, code)
+
+
+def _fresh(q: Array) -> _Lane:
+    """The state of elements about to start their first run at ``q``."""
+    zeros = jnp.zeros(q.shape[:-1], jnp.int32)
+    return _Lane(q, zeros, zeros, q, jnp.full(q.shape[:-1], jnp.inf, q.dtype))
+
+
+def _search(
+    runs: _Runs, target: Array, starts: Array, done: Array, status: Array, slots: int | None
+) -> tuple[Array, Array]:
+    """Projected Levenberg-Marquardt with restarts (module docstring), in units of the chain.
+
+    ``target`` ``(..., 4, 4)``; ``starts`` ``(..., S, n)`` each element's first ``S`` runs'
+    starts (``runs.seeds`` the later runs', rows below ``S`` unused); ``done``/``status``
+    preset elements (invalid, unreachable). Every element iterates in step until the last has
+    ended, or, with more elements than ``slots``, as a work queue of ``slots`` lanes. Returns
+    ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``, ``NOT_CONVERGED`` or the preset status.
+    """
+    per_element = (runs.runs + 1) * (runs.max_iter + 1) + 2
+    batch = starts.shape[:-2]
+    size = math.prod(batch)
+    if slots is not None and size > slots:
+        flat = (target.reshape(size, 4, 4), starts.reshape(size, *starts.shape[-2:]))
+        q, status = _queued(runs, *flat, done.ravel(), status.ravel(), slots, per_element)
+        return q.reshape(*batch, -1), status.reshape(batch)
+
+    def body(state: _InStep) -> _InStep:
+        out = _update(runs, target, starts, state.lane, state.done)
+        status = jnp.where(out.ended, out.code, state.status)
+        q = jnp.where(
+            state.done[..., None], state.lane.q, jnp.where(out.ended[..., None], out.q, out.lane.q)
+        )
+        lane = dataclasses.replace(out.lane, q=q)
+        return _InStep(lane, state.done | out.ended, status, state.steps + 1)
+
+    def cond(state: _InStep) -> Array:
+        return (state.steps < per_element) & jnp.any(~state.done)
+
+    init = _InStep(_fresh(_project(starts[..., 0, :], runs.box)), done, status, jnp.int32(0))
+    final = jax.lax.while_loop(cond, body, init)
+    return final.lane.q, final.status
+
+
+def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: int):
+    """``_search`` as a work queue (``_batching.work_queue``) over flat ``(B, ...)`` elements.
+    Each element gets the same updates as in step (the same starts and seeds), so the same
+    results."""
+    size = starts.shape[0]
+
+    def fresh(slot: Array) -> _Lane:
+        return _fresh(_project(starts[jnp.minimum(slot, size - 1), 0], runs.box))
+
+    def step(slot: Array, lane: _Lane):
+        i = jnp.minimum(slot, size - 1)
+        preset = done[i] | (slot >= size)  # invalid, unreachable, or idle
+        out = _update(runs, target[i], starts[i], lane, preset)
+        # A preset element ends at once with its preset status and its start.
+        finished = out.ended | (preset & (slot < size))
+        q_out = jnp.where(out.ended[..., None], out.q, _project(starts[i, 0], runs.box))
+        code = jnp.where(out.ended, out.code, status[i])
+        return out.lane, finished, (q_out, code)
+
+    limit = (-(-size // slots) + 1) * per_element
+    initial = (_project(starts[:, 0], runs.box), status)
+    return _batching.work_queue(step, fresh, initial, size, slots, limit)
+
+
+def _prepare(chain: Any, target: Jet, tols: tuple[Array, Array], use_limits, runs: int):
+    """Units, limits, the preset statuses (invalid, unreachable), the tolerances in units of
+    the chain and the ``runs`` seeds of a batch (``_Prepared``)."""
+    dtype = target.dtype
+    flat = jnp.concatenate(
+        [x.reshape(*x.shape[:-2], 16) for x in (target.p, target.v, target.a)], -1
+    )
+    finite = all_finite(flat) & _step.rigid_target(target.p)
+    safe = Jet(
+        jnp.where(finite[..., None, None], target.p, jnp.eye(4, dtype=dtype)),
+        jnp.where(finite[..., None, None], target.v, 0.0),
+        jnp.where(finite[..., None, None], target.a, 0.0),
+    )
+    scale = jnp.asarray(chain.length_scale(), dtype)
+    unit, g, prismatic = _in_units(chain, scale)
+    n = chain.n_joints
+    if use_limits:
+        lower, upper = unit.lower, unit.upper
+    else:
+        lower, upper = jnp.full(n, -jnp.inf, dtype), jnp.full(n, jnp.inf, dtype)
+    continuous = jnp.asarray([k == "continuous" for k in chain.joint_kinds])
+    box = Box(lower, upper, ~prismatic, continuous)
+    goal = safe.p.at[..., :3, 3].divide(scale)
+    centre, radius = unit.reach()
+    distance = safe_sqrt(jnp.sum((goal[..., :3, 3] - centre) ** 2, axis=-1))
+    tol_rot, tol_pos = tols[0], tols[1] / scale
+    unreachable = finite & (distance > radius + tol_pos)
+    status = jnp.where(finite, Status.NOT_CONVERGED, Status.INVALID_INPUT)
+    status = jnp.where(unreachable, Status.UNREACHABLE, status).astype(STATUS_DTYPE)
+    seeds = _starts.seeds(box, runs, dtype)
+    return _Prepared(
+        safe, goal, unit, g, scale, box, status, ~finite | unreachable, tol_rot, tol_pos, seeds
+    )
+
+
+def _runs(prep: _Prepared, max_iter: int, runs: int) -> _Runs:
+    return _Runs(prep.unit, prep.seeds, prep.box, prep.tol_rot, prep.tol_pos, max_iter, runs)
+
+
+def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool) -> IKResult:
+    """Joint rates, margins and implicit derivatives at the solutions (module docstring)."""
+    unit, g, scale, target = prep.unit, prep.g, prep.scale, prep.safe
+    dtype = q_unit.dtype
+    ok = status == Status.OK
+    fixed = jax.lax.stop_gradient(q_unit)
+    rot, p, jac = _kinematics.fk_and_jacobian(unit, fixed, "body")
+    # Implicit derivatives: one Newton step at the solution, whose value is removed; the
+    # goal of a failed element is its own pose (finite derivatives of the log at identity).
+    reached = lie.from_rotation_translation(rot, p)
+    twist, _ = _step.body_twist(rot, p, jnp.where(ok[..., None, None], goal, reached))
+    floor = eps(dtype)
+    dq = _step.damped_step(jac, jnp.stack(twist, axis=-1), 0.0, floor)
+    q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
+    _, _, jac = _kinematics.fk_and_jacobian(unit, q_unit, "body")
+    rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
+    if rates:
+        velocity, acceleration = _body_twists(target)
+        q_dot = _step.damped_step(jac, velocity * rows, 0.0, floor)
+        jac_rate = jax.jvp(
+            lambda x: _kinematics.fk_and_jacobian(unit, x, "body")[2], (q_unit,), (q_dot,)
+        )[1]
+        drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
+        q_ddot = _step.damped_step(jac, acceleration * rows - drift, 0.0, floor)
+        okc = ok[..., None]
+        q_jet = Jet(q_unit / g, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
+    else:
+        q_jet = Jet.constant(q_unit / g)
+    goal_twist, p_bd = _step.body_twist(rot, p, goal)
+    error = jnp.minimum(_step.norm3(goal_twist[:3]) + _step.norm3(p_bd), 1.0)
+    solved = ok | (status == Status.OUT_OF_LIMITS)
+    margin = jnp.where(solved, isotropy(jac), -error)
+    margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)
+    return IKResult(q_jet, status, margin.astype(dtype))
+
+
+def solve(
+    chain: Any,
+    target: Jet,
+    tols: tuple[Array, Array],
+    budget: Budget,
+    use_limits: bool,
+    rates: bool,
+) -> IKResult:
+    """The search (module docstring) for targets ``(..., 4, 4)``, a Jet in the chain's dtype.
+
+    ``tols`` the ``(rotation, position)`` tolerances (rad, length); ``use_limits`` False
+    searches without the chain's position limits; ``rates`` False skips the joint rates
+    (zero)."""
+    prep = _prepare(chain, target, tols, use_limits, budget.runs)
+    runs = _runs(prep, budget.max_iter, budget.runs)
+    starts = _starts.first_starts(prep.unit, prep.goal, prep.box, prep.seeds)
+    q, status = _search(runs, prep.goal, starts, prep.done, prep.status, budget.slots)
+    return _finish(prep, prep.goal, q, status, rates)
+
+
+def solve_paths(
+    chain: Any, path: Jet, tols: tuple[Array, Array], budget: Budget, use_limits: bool
+) -> IKResult:
+    """The search along sampled paths ``(..., T, 4, 4)`` (module docstring), with rates."""
+    prep = _prepare(chain, path, tols, use_limits, budget.runs)
+    first = prep.goal[..., 0, :, :]
+    starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
+    runs = _runs(prep, budget.max_iter, budget.runs)
+    q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
+    warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1])
+
+    def step(previous, sample):
+        goal_t, done_t, status_t = sample
+        q_t, code_t = _search(warm, goal_t, previous[..., None, :], done_t, status_t, None)
+        solved = (code_t == Status.OK) | (code_t == Status.OUT_OF_LIMITS)
+        return jnp.where(solved[..., None], q_t, previous), (q_t, code_t)
+
+    rest = (
+        jnp.moveaxis(x[..., 1:, *([slice(None)] * k)], x.ndim - 1 - k, 0)
+        for x, k in ((prep.goal, 2), (prep.done, 0), (prep.status, 0))
+    )
+    _, (q_rest, code_rest) = jax.lax.scan(step, q, tuple(rest))
+    q = jnp.concatenate([q[..., None, :], jnp.moveaxis(q_rest, 0, -2)], axis=-2)
+    code = jnp.concatenate([code[..., None], jnp.moveaxis(code_rest, 0, -1)], axis=-1)
+    return _finish(prep, prep.goal, q, code, True)
