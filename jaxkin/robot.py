@@ -130,10 +130,14 @@ class JointLimits(Geometry):
 
     lower: Array = number(BOUND, (-1,))
     upper: Array = number(BOUND, (-1,))
-    velocity: Array = number(BOUND, None, default=math.inf)
-    acceleration: Array = number(BOUND, None, default=math.inf)
+    velocity: Array = number(BOUND, (-1,), default=math.inf)
+    acceleration: Array = number(BOUND, (-1,), default=math.inf)
 
     def _validate(self) -> None:
+        for name in ("velocity", "acceleration"):  # a scalar bound is every joint's
+            value = getattr(self, name)
+            if np.ndim(value) == 0 and is_concrete(value):
+                object.__setattr__(self, name, np.full(np.shape(self.lower), float(value)))
         super()._validate()
         lower, upper = (np.asarray(x, dtype=float) for x in (self.lower, self.upper))
         if lower.shape != upper.shape:
