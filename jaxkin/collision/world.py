@@ -81,113 +81,52 @@ class Nearest:
     index: jax.Array
 
 
-def _pairs_sphere(c: jax.Array, r: jax.Array, world: World) -> list[tuple[int, jax.Array]]:
-    """Signed distances ``(..., n, m_kind)`` from spheres ``(c, r)`` to each non-empty kind."""
-    ci, ri = c[..., :, None, :], r[..., :, None]
-    out = []
+def _obstacle_args(world: World) -> list[tuple[int, tuple[jax.Array, ...]]]:
+    """Each non-empty kind of obstacle with its arrays, given a new axis for the robot
+    primitives: ``(kind, arrays (..., 1, m_kind, ...))``."""
     w = world
-    if len(w.spheres):
-        out.append(
-            (
-                SPHERE,
-                sd.sphere_sphere(
-                    ci, ri, w.spheres.center[..., None, :, :], w.spheres.radius[..., None, :]
-                ),
-            )
+    kinds = [
+        (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
+        (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
+        (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
+        (HALFSPACE, w.halfspaces, (w.halfspaces.normal, w.halfspaces.offset)),
+    ]
+    core = {SPHERE: (1, 0), CAPSULE: (1, 1, 0), BOX: (1, 2, 1), HALFSPACE: (1, 0)}
+    return [
+        (
+            kind,
+            tuple(
+                x[(..., None) + (slice(None),) * (1 + c)]
+                for x, c in zip(xs, core[kind], strict=True)
+            ),
         )
-    if len(w.capsules):
-        cap = w.capsules
-        out.append(
-            (
-                CAPSULE,
-                sd.sphere_capsule(
-                    ci, ri, cap.a[..., None, :, :], cap.b[..., None, :, :], cap.radius[..., None, :]
-                ),
-            )
-        )
-    if len(w.boxes):
-        box = w.boxes
-        out.append(
-            (
-                BOX,
-                sd.sphere_box(
-                    ci,
-                    ri,
-                    box.center[..., None, :, :],
-                    box.rotation[..., None, :, :, :],
-                    box.half_extents[..., None, :, :],
-                ),
-            )
-        )
-    if len(w.halfspaces):
-        hs = w.halfspaces
-        out.append(
-            (
-                HALFSPACE,
-                sd.sphere_halfspace(ci, ri, hs.normal[..., None, :, :], hs.offset[..., None, :]),
-            )
-        )
-    return out
+        for kind, prims, xs in kinds
+        if len(prims)
+    ]
 
 
-def _pairs_capsule(
-    a: jax.Array, b: jax.Array, r: jax.Array, world: World
-) -> list[tuple[int, jax.Array]]:
-    """Signed distances ``(..., n, m_kind)`` from capsules ``(a, b, r)`` to each kind."""
-    ai, bi, ri = a[..., :, None, :], b[..., :, None, :], r[..., :, None]
-    out = []
-    w = world
-    if len(w.spheres):
-        sph = w.spheres
-        out.append(
-            (
-                SPHERE,
-                sd.sphere_capsule(
-                    sph.center[..., None, :, :], sph.radius[..., None, :], ai, bi, ri
-                ),
-            )
-        )
-    if len(w.capsules):
-        cap = w.capsules
-        out.append(
-            (
-                CAPSULE,
-                sd.capsule_capsule(
-                    ai,
-                    bi,
-                    ri,
-                    cap.a[..., None, :, :],
-                    cap.b[..., None, :, :],
-                    cap.radius[..., None, :],
-                ),
-            )
-        )
-    if len(w.boxes):
-        box = w.boxes
-        out.append(
-            (
-                BOX,
-                sd.capsule_box(
-                    ai,
-                    bi,
-                    ri,
-                    box.center[..., None, :, :],
-                    box.rotation[..., None, :, :, :],
-                    box.half_extents[..., None, :, :],
-                ),
-            )
-        )
-    if len(w.halfspaces):
-        hs = w.halfspaces
-        out.append(
-            (
-                HALFSPACE,
-                sd.capsule_halfspace(
-                    ai, bi, ri, hs.normal[..., None, :, :], hs.offset[..., None, :]
-                ),
-            )
-        )
-    return out
+# Per robot primitive, the distance to each kind of obstacle (robot arguments first).
+_SPHERE_TO = {
+    SPHERE: sd.sphere_sphere,
+    CAPSULE: sd.sphere_capsule,
+    BOX: sd.sphere_box,
+    HALFSPACE: sd.sphere_halfspace,
+}
+_CAPSULE_TO = {
+    SPHERE: lambda a, b, r, c, rc: sd.sphere_capsule(c, rc, a, b, r),
+    CAPSULE: sd.capsule_capsule,
+    BOX: sd.capsule_box,
+    HALFSPACE: sd.capsule_halfspace,
+}
+
+
+def _pairs(distance_to: dict, robot: tuple[jax.Array, ...], cores: tuple[int, ...], world):
+    """Signed distances ``(..., n, m_kind)`` from the robot primitives ``robot`` (arrays
+    ``(..., n, *core)`` with ``len(core)`` in ``cores``) to each non-empty kind of obstacle."""
+    ri = tuple(
+        x[(..., slice(None), None) + (slice(None),) * c] for x, c in zip(robot, cores, strict=True)
+    )
+    return [(kind, distance_to[kind](*ri, *args)) for kind, args in _obstacle_args(world)]
 
 
 def _reduce(per_kind: list[tuple[int, jax.Array]], batch: tuple[int, ...], dtype) -> Nearest:
@@ -219,10 +158,8 @@ def nearest_obstacles(
         ``(for_spheres, for_capsules)``: ``Nearest`` with shapes ``(..., ns)`` and ``(..., nc)``.
     """
     dtype = jnp.result_type(spheres.radius, capsules.radius)
-    s = _reduce(_pairs_sphere(spheres.center, spheres.radius, world), spheres.radius.shape, dtype)
-    c = _reduce(
-        _pairs_capsule(capsules.a, capsules.b, capsules.radius, world),
-        capsules.radius.shape,
-        dtype,
-    )
+    robot_spheres = (spheres.center, spheres.radius)
+    s = _reduce(_pairs(_SPHERE_TO, robot_spheres, (1, 0), world), spheres.radius.shape, dtype)
+    robot_capsules = (capsules.a, capsules.b, capsules.radius)
+    c = _reduce(_pairs(_CAPSULE_TO, robot_capsules, (1, 1, 0), world), capsules.radius.shape, dtype)
     return s, c
