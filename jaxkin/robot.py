@@ -136,7 +136,9 @@ class JointLimits(Geometry):
     def _validate(self) -> None:
         for name in ("velocity", "acceleration"):  # a scalar bound is every joint's
             value = getattr(self, name)
-            if np.ndim(value) == 0 and is_concrete(value):
+            if not is_concrete(value) or isinstance(value, bool | np.bool_) or np.ndim(value):
+                continue
+            if np.asarray(value).dtype.kind in "fiu":
                 object.__setattr__(self, name, np.full(np.shape(self.lower), float(value)))
         super()._validate()
         lower, upper = (np.asarray(x, dtype=float) for x in (self.lower, self.upper))
