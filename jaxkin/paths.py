@@ -1,4 +1,9 @@
-"""Task-space paths for the planner, built on the host from samples or poses.
+"""Paths for the planner, built on the host from samples, poses or joint waypoints.
+
+A ``Path`` is a ``Jet`` of samples ``(N, T, ...)`` taken every ``dt`` that carries ``dt`` and
+its ``space``: ``"task"`` (targets of the robot: points, poses) or ``"joint"`` (joint
+coordinates ``(N, T, n_joints)``). ``jaxkin.plan.evaluate`` reads both from it, so the sampling
+period is given once, where the rates are made.
 
 ``path_from_samples`` splines sampled points (``(..., T, d)``, a fixed time step) per
 coordinate with a cubic spline and takes its exact first and second derivatives at the samples
@@ -18,12 +23,18 @@ polynomials ``B_i`` of degree ``K - 1`` and ``s = t / duration``; ``bezier_basis
 the basis and its first two derivatives on the host, ``bezier_path`` evaluates a ``Jet`` (in
 JAX, differentiable in the control points), ``bezier_controls`` adds the fixed end points and
 ``straight_line_guess`` makes initial interior points.
+
+``path_from_joint_waypoints`` builds joint-space candidates: the cubic spline through joint
+waypoints equally spaced in time, sampled every ``dt`` with its exact rates.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import Any
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -31,11 +42,15 @@ from jax.typing import ArrayLike
 
 from . import _splines, _validate, lie
 from .jet import Jet
+from .timing import _hermite
 
 __all__ = [
+    "SPACES",
+    "Path",
     "bezier_basis",
     "bezier_controls",
     "bezier_path",
+    "path_from_joint_waypoints",
     "path_from_poses",
     "path_from_samples",
     "pose_from_quaternions",
@@ -44,8 +59,59 @@ __all__ = [
 ]
 
 
-def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") -> Jet:
-    """Jet of paths sampled at a fixed time step, rates from a cubic spline (host side).
+SPACES = ("task", "joint")
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Path(Jet):
+    """A ``Jet`` of sampled paths that knows its sampling period and space.
+
+    Attributes:
+        p, v, a: samples and their exact first and second time derivatives, shape
+            ``(N, T, *coords)``: the robot's target shape in task space, ``(n_joints,)`` in
+            joint space.
+        dt: the time between consecutive samples (positive; static: a Python float).
+        space: ``"task"`` (end-effector targets) or ``"joint"`` (joint coordinates).
+
+    Indexing, ``map`` and ``astype`` keep ``dt`` and ``space``.
+    """
+
+    dt: float = dataclasses.field(metadata=dict(static=True))
+    space: str = dataclasses.field(default="task", metadata=dict(static=True))
+
+    def __post_init__(self) -> None:
+        _validate.positive_number(self.dt, "dt")
+        _validate.choice(self.space, "space", SPACES)
+
+    def with_jet(self, jet: Jet) -> Path:
+        """``jet`` with this path's ``dt`` and ``space``."""
+        return Path(jet.p, jet.v, jet.a, dt=self.dt, space=self.space)
+
+    def __getitem__(self, index: Any) -> Path:
+        return self.with_jet(Jet.__getitem__(self, index))
+
+    def astype(self, dtype: Any) -> Path:
+        return self.with_jet(Jet.astype(self, dtype))
+
+    def map(self, fn: Any) -> Path:
+        return self.with_jet(Jet.map(self, fn))
+
+    @property
+    def jet(self) -> Jet:
+        """The samples as a plain ``Jet``."""
+        return Jet(self.p, self.v, self.a)
+
+
+def _path(p: Any, v: Any, a: Any, dt: float, space: str) -> Path:
+    jet = Jet.of(p, v, a)
+    return Path(jet.p, jet.v, jet.a, dt=float(dt), space=space)
+
+
+def path_from_samples(
+    positions: ArrayLike, dt: float, end: str = "not-a-knot", space: str = "task"
+) -> Path:
+    """Path of samples taken at a fixed time step, rates from a cubic spline (host side).
 
     Each coordinate of each candidate is interpolated by a cubic spline through its samples
     (``"not-a-knot"`` ends reproduce any cubic exactly) and
@@ -56,12 +122,59 @@ def path_from_samples(positions: ArrayLike, dt: float, end: str = "not-a-knot") 
         positions: shape ``(N, T, d)`` (any leading dims), samples ``dt`` apart. A candidate
             with a NaN or inf sample gets NaN rates: its samples are ``INVALID_INPUT`` in
             ``evaluate``, and the other candidates are unaffected.
-        dt: the time step (positive).
+        dt: the time step (positive), carried by the returned ``Path``.
         end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
+        space: ``"task"`` (the samples are the robot's targets) or ``"joint"`` (joint
+            coordinates ``(N, T, n_joints)``).
     """
     positions = np.asarray(positions, dtype=float)
     _check_samples(positions, "positions", None, dt)
-    return Jet.of(*_splined(positions, dt, end))
+    _validate.choice(space, "space", SPACES)
+    return _path(*_splined(positions, dt, end), dt, space)
+
+
+def path_from_joint_waypoints(
+    waypoints: ArrayLike, dt: float, steps: int, end: str = "not-a-knot"
+) -> Path:
+    """Joint-space candidates through waypoints, sampled at a control period (host side).
+
+    Waypoint ``k`` of each candidate is reached at time ``t_k = k steps dt``; each joint
+    follows the cubic spline through the waypoints at those times (``end`` condition as in
+    SciPy's ``CubicSpline``), sampled every ``dt``, with the spline's exact velocity and
+    acceleration: on segment ``[t_k, t_k+1]`` the cubic Hermite interpolant of the waypoints
+    and the spline's slopes there (``jaxkin._splines``).
+
+    Args:
+        waypoints: joint coordinates, shape ``(N, K, n)`` (any leading dims), ``K >= 2``.
+        dt: the control period (positive).
+        steps: samples per segment, a positive integer: ``T = (K - 1) steps + 1`` samples.
+        end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
+
+    Returns:
+        A joint-space ``Path`` of shape ``(N, T, n)``. A candidate with a non-finite waypoint
+        gets NaN samples (``INVALID_INPUT`` in ``evaluate``); the others are unaffected.
+    """
+    waypoints = np.asarray(waypoints, dtype=float)
+    _check_samples(waypoints, "waypoints", None, dt)
+    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
+        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    _validate.choice(end, "end", _splines.END_CONDITIONS)
+    segment_time = int(steps) * float(dt)
+    count = waypoints.shape[-2]
+    knots = np.arange(count) * segment_time
+    finite = np.all(np.isfinite(waypoints), axis=(-2, -1))[..., None, None]
+    clean = np.where(finite, waypoints, 0.0)
+    slopes, _ = _splines.derivatives(np.broadcast_to(knots, clean.shape[:-1]), clean, end=end)
+    fractions = np.arange(steps) / steps
+    tau = np.concatenate([np.tile(fractions, count - 1), [1.0]])[:, None]
+    segment = np.concatenate([np.repeat(np.arange(count - 1), steps), [count - 2]])
+    y0, y1 = clean[..., segment, :], clean[..., segment + 1, :]
+    m0, m1 = slopes[..., segment, :], slopes[..., segment + 1, :]
+    value, velocity, acceleration = _hermite(y0, m0, y1, m1, segment_time, tau)
+    value, velocity, acceleration = (
+        np.where(finite, x, np.nan) for x in (value, velocity, acceleration)
+    )
+    return _path(value, velocity, acceleration, dt, "joint")
 
 
 def _splined(positions: np.ndarray, dt: float, end: str) -> tuple[np.ndarray, ...]:
@@ -84,7 +197,7 @@ def _check_samples(x: np.ndarray, name: str, width: int | None, dt: float) -> No
 
 def path_from_poses(
     positions: ArrayLike, quaternions: ArrayLike, dt: float, end: str = "not-a-knot"
-) -> Jet:
+) -> Path:
     """Jet of pose paths ``(..., T, 4, 4)`` sampled at a fixed time step (host side).
 
     The pose target of the 6-DOF arms and chains is a homogeneous transform ``T = [[R, p],
@@ -103,8 +216,9 @@ def path_from_poses(
         end: the spline end condition, ``"not-a-knot"`` or ``"natural"``.
 
     Returns:
-        A ``Jet`` of shape ``(..., T, 4, 4)``. A candidate with a non-finite sample gets NaN
-        rates (``INVALID_INPUT`` in ``evaluate``); the others are unaffected.
+        A task-space ``Path`` of shape ``(..., T, 4, 4)`` carrying ``dt``. A candidate with a
+        non-finite sample gets NaN rates (``INVALID_INPUT`` in ``evaluate``); the others are
+        unaffected.
 
     Raises:
         ValueError: shapes not ``(..., T, 3)`` and ``(..., T, 4)`` with the same leading axes
@@ -122,7 +236,8 @@ def path_from_poses(
     unit = _validate.quaternion_samples(quaternions, "quaternions")
     unit = unit * lie.hemisphere_signs(unit, xp=np)[..., None]
     p, v, a = _splined(np.concatenate([positions, unit], -1), dt, end)
-    return pose_from_quaternions(p, v, a)
+    pose = pose_from_quaternions(p, v, a)
+    return _path(pose.p, pose.v, pose.a, dt, "task")
 
 
 def pose_from_quaternions(p: ArrayLike, v: ArrayLike, a: ArrayLike) -> Jet:

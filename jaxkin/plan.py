@@ -55,8 +55,10 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _batching, _processes, _validate
+from . import timing as _timing
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
+from .paths import Path
 from .result import SolverResult
 from .robot import Robot, as_robot
 from .status import STATUS_DTYPE, Status
@@ -66,10 +68,14 @@ __all__ = [
     "Evaluation",
     "Limits",
     "STEP_RTOL",
+    "RANKINGS",
     "best",
     "evaluate",
     "jerk",
+    "joint_path",
+    "joint_scales",
     "limit_excess",
+    "retime",
     "trajectory_costs",
     "unexplained_steps",
     "unwrapped",
@@ -169,6 +175,12 @@ class Evaluation(SolverResult):
         branch: index into ``branches`` of the assembly mode/branch used, shape ``(N,)``.
         costs: ``Costs``, each ``(N,)``.
         branches: the robot's branch labels (static), e.g. ``(1, -1)`` for a SCARA.
+        tool: for joint-space candidates, Jet of the tool path by forward kinematics, shape
+            ``(N, T, *robot.target.shape)``; None for task-space ones (it is the given path).
+        dt: the sampling period the candidates were evaluated at (static).
+        space: ``"task"`` or ``"joint"``, the kind of candidates (static).
+        limits: the limits applied, ``(q_min, q_max, v_max, a_max)`` as tuples of floats
+            (static; ``applied_limits()`` gives them as ``Limits``).
     """
 
     q: Jet
@@ -179,6 +191,18 @@ class Evaluation(SolverResult):
     branch: Array
     costs: Costs
     branches: tuple = dataclasses.field(metadata=dict(static=True), default=())
+    tool: Jet | None = None
+    dt: float | None = dataclasses.field(metadata=dict(static=True), default=None)
+    space: str = dataclasses.field(metadata=dict(static=True), default="task")
+    limits: tuple = dataclasses.field(metadata=dict(static=True), default=())
+
+    def applied_limits(self) -> Limits:
+        """The joint limits this evaluation applied (the robot's and the user's)."""
+        if not self.limits:
+            raise ValueError(
+                "evaluation carries no limits: use the Evaluation returned by plan.evaluate"
+            )
+        return Limits(*(jnp.asarray(np.asarray(x, dtype=float)) for x in self.limits))
 
 
 def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
@@ -268,14 +292,17 @@ def unexplained_steps(q: Jet, dt: Any, unit: Any) -> Array:
 
 
 # ------------------------------------------------------------------ costs (reused by jaxkin.costs)
-def limit_excess(q: Jet, limits: Limits) -> Array:
-    """How far each sample exceeds its limits, summed over joints: shape ``q.shape[:-1]``."""
+def limit_excess(q: Jet, limits: Limits, scales: Any = (1.0, 1.0, 1.0)) -> Array:
+    """How far each sample exceeds its limits, summed over joints: shape ``q.shape[:-1]``;
+    each kind of excess divided by its per-joint scale (``scales``: position, speed and
+    acceleration, as ``joint_scales`` returns; 1 by default: the joints' own units)."""
     dtype = q.p.dtype
+    position, speed, acceleration = scales
     excess = (
-        jax.nn.relu(q.p - limits.q_max.astype(dtype))
-        + jax.nn.relu(limits.q_min.astype(dtype) - q.p)
-        + jax.nn.relu(jnp.abs(q.v) - limits.v_max.astype(dtype))
-        + jax.nn.relu(jnp.abs(q.a) - limits.a_max.astype(dtype))
+        jax.nn.relu(q.p - limits.q_max.astype(dtype)) / position
+        + jax.nn.relu(limits.q_min.astype(dtype) - q.p) / position
+        + jax.nn.relu(jnp.abs(q.v) - limits.v_max.astype(dtype)) / speed
+        + jax.nn.relu(jnp.abs(q.a) - limits.a_max.astype(dtype)) / acceleration
     )
     return jnp.sum(excess, axis=-1)
 
@@ -285,11 +312,35 @@ def jerk(q: Jet, dt: float) -> Array:
     return (q.a[..., 1:, :] - q.a[..., :-1, :]) / dt
 
 
-def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Costs:
-    """All per-candidate costs of joint trajectories ``q`` of shape ``(..., T, n)``."""
-    step = q.p[..., 1:, :] - q.p[..., :-1, :]
+def joint_scales(limits: Limits, unit: Any, weights: Any) -> tuple[Array, Array, Array]:
+    """Per-joint scales ``(position, speed, acceleration)``, each ``(n,)``, that make every
+    cost term dimensionless: ``unit / w`` for positions (``unit``: 1 rad, or the robot's
+    length for a prismatic joint; ``w`` the user's weight), ``v_max / w`` for speeds and
+    ``a_max / w`` for accelerations where the limit is finite and positive, ``unit / w`` (per
+    time unit) otherwise."""
+    unit = jnp.asarray(unit)
+    dtype = unit.dtype
+    weights = jnp.asarray(weights, dtype)
+
+    def scale(bound):
+        bound = bound.astype(dtype)
+        finite = jnp.isfinite(bound) & (bound > 0)
+        return jnp.where(finite, bound, unit) / weights
+
+    return unit / weights, scale(limits.v_max), scale(limits.a_max)
+
+
+def trajectory_costs(
+    q: Jet, dt: float, limits: Limits, feasible: Array, unit: Any = 1.0, weights: Any = 1.0
+) -> Costs:
+    """All per-candidate costs of joint trajectories ``q`` of shape ``(..., T, n)``, each
+    joint in its own units divided by its scale (``joint_scales``)."""
+    position, speed, acceleration = joint_scales(limits, unit, weights)
+    step = (q.p[..., 1:, :] - q.p[..., :-1, :]) / position
     path_length = jnp.sum(safe_norm(step), axis=-1)  # safe: zero steps keep finite gradients
-    j = jerk(q, dt)
+    v = q.v / speed
+    a = q.a / acceleration
+    j = jerk(q, dt) / acceleration
 
     def peak(x):
         return jnp.max(jnp.abs(x), axis=(-2, -1))
@@ -297,28 +348,37 @@ def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Cost
     def integral(x):
         return jnp.sum(x * x, axis=(-2, -1)) * dt
 
-    integrated_acceleration = integral(q.a)
+    integrated_acceleration = integral(a)
     return Costs(
         path_length=path_length,
-        peak_speed=peak(q.v),
-        integrated_speed=integral(q.v),
-        peak_acceleration=peak(q.a),
+        peak_speed=peak(v),
+        integrated_speed=integral(v),
+        peak_acceleration=peak(a),
         integrated_acceleration=integrated_acceleration,
         peak_jerk=peak(j),
         integrated_jerk=integral(j),
-        limit_violation=jnp.sum(limit_excess(q, limits), axis=-1),
+        limit_violation=jnp.sum(limit_excess(q, limits, (position, speed, acceleration)), -1),
         total=jnp.where(feasible, integrated_acceleration, jnp.inf),
     )
 
 
 # ------------------------------------------------------------------ the kernel
-def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) -> Evaluation:
-    """Every candidate on one branch; ``branch_index`` an int, or a traced one (``"best"``)."""
-    branches = robot.branches
-    # Along each candidate: an iterative IK warm-starts every sample from the previous one.
-    path = path.astype(robot.work_dtype(path.dtype))
-    res = robot.ik_path_kernel(path, branch_index, robot.IKOptions())
-    q, status, margin = res.q, res.status, res.margin
+def _joint_unit(robot, dtype) -> Array:
+    """The size of each joint, ``(n,)``: 1 rad, or the robot's length for a prismatic one."""
+    revolute = np.array([kind == "R" for kind in robot.joint_types])
+    return jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(dtype)
+
+
+def _checked(
+    robot, q: Jet, status: Array, margin: Array, moving: Array, limits: Limits, dt, weights
+) -> Evaluation:
+    """The per-sample checks every candidate goes through, then the summaries and costs.
+
+    ``q``: joints ``(N, T, n)`` as solved or given; ``status`` ``(N, T)`` of the solve (OK
+    where there are joints to check); ``margin`` ``(N, T)``; ``moving`` ``(N,)``: False for a
+    path at rest, whose steps no rates explain. Checks run in order, each only on the samples
+    still OK, so the first failing check names a sample: continuity, then limits.
+    """
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     solved = status == Status.OK
     dtype = q.p.dtype
@@ -327,17 +387,16 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) ->
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
-    # A path at rest (every target rate zero, e.g. plain positions) has no rates to explain
-    # its steps: it is only unwrapped.
-    moving = jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))
-    unit = jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(q.p.dtype)
+    unit = _joint_unit(robot, dtype)
     jumped = unexplained_steps(q, dt, unit) & solved[..., :-1] & moving[:, None]
     jumped = jnp.concatenate([jnp.zeros_like(jumped[..., :1]), jumped], axis=-1)
-    violated = limit_excess(q, limits) > 0
-    status = jnp.where(solved & jumped, jnp.int8(Status.DISCONTINUOUS), status)
-    status = jnp.where(
-        (status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status
-    ).astype(STATUS_DTYPE)
+    checks = (
+        (jumped, Status.DISCONTINUOUS),
+        (limit_excess(q, limits) > 0, Status.OUT_OF_LIMITS),
+    )
+    for failed, code in checks:
+        status = jnp.where((status == Status.OK) & failed, jnp.int8(code), status)
+    status = status.astype(STATUS_DTYPE)
     bad = status != Status.OK
     feasible = ~jnp.any(bad, axis=-1)
     first_failure = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
@@ -347,19 +406,65 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) ->
         feasible=feasible,
         first_failure=first_failure,
         min_margin=jnp.min(margin, axis=-1),
-        branch=jnp.full(feasible.shape, branch_index, jnp.int8),
-        costs=trajectory_costs(q, dt, limits, feasible),
-        branches=branches,
+        branch=jnp.zeros(feasible.shape, jnp.int8),
+        costs=trajectory_costs(q, dt, limits, feasible, unit, weights),
+        branches=robot.branches,
     )
 
 
-def _evaluate_impl(robot, path: Jet, limits: Limits, dt, branch: Any) -> Evaluation:
+def _moving(path: Jet) -> Array:
+    """``(N,)``: False for a candidate whose rates are all zero (a path at rest)."""
+    return jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))
+
+
+def _evaluate_branch(robot, path: Jet, limits: Limits, dt, weights, branch_index) -> Evaluation:
+    """Every task-space candidate on one branch; ``branch_index`` an int, or a traced one."""
+    # Along each candidate: an iterative IK warm-starts every sample from the previous one.
+    path = path.astype(robot.work_dtype(path.dtype))
+    res = robot.ik_path_kernel(path, branch_index, robot.IKOptions())
+    ev = _checked(robot, res.q, res.status, res.margin, _moving(path), limits, dt, weights)
+    return dataclasses.replace(ev, branch=jnp.full(ev.feasible.shape, branch_index, jnp.int8))
+
+
+def _wrapped_distance(q: Array, reference: Array, revolute: Any, unit: Array) -> Array:
+    """Mean over samples of the largest per-joint distance, revolute joints modulo 2 pi,
+    each joint in its ``unit``: ``(N, T, n)`` pairs -> ``(N,)``."""
+    turn = 2.0 * math.pi
+    d = q - reference
+    d = jnp.where(jnp.asarray(revolute), d - turn * jnp.round(d / turn), d) / unit
+    d = jnp.where(jnp.isfinite(d), jnp.abs(d), jnp.inf)
+    return jnp.mean(jnp.max(d, axis=-1), axis=-1)
+
+
+def _evaluate_joint(robot, path: Jet, limits: Limits, dt, weights) -> Evaluation:
+    """Joint-space candidates ``(N, T, n)``: the tool path by forward kinematics with rates,
+    then the checks of ``_checked``; the margin and branch from the IK of the tool path on
+    the branch whose joints are nearest the given ones."""
+    q = path.astype(robot.work_dtype(path.dtype))
+    fk = robot.fk_kernel(q, robot.FKOptions(), True)
+    revolute = np.array([kind == "R" for kind in robot.joint_types])
+    unit = _joint_unit(robot, q.dtype)
+    # The IK of the tool path on every branch; the nearest to the given joints is theirs.
+    indices = jnp.arange(len(robot.branches), dtype=jnp.int32)
+    every = jax.vmap(lambda i: robot.ik_path_kernel(fk.x, i, robot.IKOptions()))(indices)
+    distance = jax.vmap(lambda other: _wrapped_distance(other, q.p, revolute, unit))(every.q.p)
+    branch = jnp.argmin(distance, axis=0)
+    margin = jnp.take_along_axis(every.margin, branch[None, :, None], axis=0)[0]
+    ev = _checked(robot, q, fk.status, margin, _moving(q), limits, dt, weights)
+    return dataclasses.replace(ev, branch=branch.astype(jnp.int8), tool=fk.x)
+
+
+def _evaluate_impl(
+    robot, path: Jet, limits: Limits, dt, weights, branch: Any, space: str
+) -> Evaluation:
+    if space == "joint":
+        return _evaluate_joint(robot, path, limits, dt, weights)
     branches = robot.branches
     if branch != "best" or len(branches) == 1:
         index = 0 if branch == "best" else branches.index(branch)
-        return _evaluate_branch(robot, path, limits, dt, index)
+        return _evaluate_branch(robot, path, limits, dt, weights, index)
     indices = jnp.arange(len(branches), dtype=jnp.int32)
-    every = jax.vmap(lambda i: _evaluate_branch(robot, path, limits, dt, i))(indices)
+    every = jax.vmap(lambda i: _evaluate_branch(robot, path, limits, dt, weights, i))(indices)
     # Per candidate: the feasible branch of least total (the first on ties); when none is
     # feasible, the one that fails latest along the path (it got furthest).
     total = jnp.where(every.feasible, every.costs.total, jnp.inf)
@@ -377,36 +482,47 @@ def _evaluate_impl(robot, path: Jet, limits: Limits, dt, branch: Any) -> Evaluat
 
 
 # Candidates are padded (the core of a path: its samples and the target's axes, per call).
-_evaluate_jit = _batching.PaddedJit(jax.jit(_evaluate_impl, static_argnames=("branch",)), {})
+_evaluate_jit = _batching.PaddedJit(
+    jax.jit(_evaluate_impl, static_argnames=("branch", "space")), {}
+)
 
 
 # ------------------------------------------------------------------ public API
 def evaluate(
     robot: Robot,
-    path: Jet | ArrayLike,
+    path: Jet,
     limits: Limits | None = None,
     branch: Any = None,
-    dt: float = 1.0,
+    dt: float | None = None,
     chunk_size: int | None = None,
+    *,
+    weights: ArrayLike | None = None,
 ) -> Evaluation:
-    """Evaluate N candidate end-effector trajectories (see the module docstring).
+    """Evaluate N candidate trajectories, in task or joint space (see the module docstring).
 
     Args:
         robot: any robot of the protocol (``jaxkin.robot``).
-        path: Jet (or plain targets, at rest) of shape ``(N, T, *robot.target.shape)``; build
-            one from sampled points with ``jaxkin.paths.path_from_samples``. Host arrays (the
-            same on every process), or global ``jax.Array``s split along the candidate axis
-            only.
+        path: a ``paths.Path`` (a ``Jet`` that carries its sampling period and space): task
+            space ``(N, T, *robot.target.shape)`` from ``paths.path_from_samples`` or
+            ``paths.path_from_poses``, joint space ``(N, T, n_joints)`` from
+            ``paths.path_from_joint_waypoints`` or ``paths.path_from_samples(..., space=
+            "joint")``; or a plain task-space ``Jet`` with ``dt``. Host arrays (the same on
+            every process), or global ``jax.Array``s split along the candidate axis only.
         limits: joint ``Limits``, intersected with the robot's own position, velocity and
             acceleration limits (``robot.joint_limits()``), which always apply.
-        branch: the branch held along every candidate (one of ``robot.branches``; None for
-            ``robot.default_branch``), or ``"best"``: every branch is evaluated and, per
-            candidate, the feasible one with the lowest ``costs.total`` is kept.
-        dt: sample spacing in time (for the integrated costs, jerk and the continuity check:
-            it must be the spacing the path's rates were made with).
+        branch: for task-space candidates, the branch held along every candidate (one of
+            ``robot.branches``; None for ``robot.default_branch``), or ``"best"``: every
+            branch is evaluated and, per candidate, the feasible one with the lowest
+            ``costs.total`` is kept. Joint-space candidates have their branch read from the
+            joints (it is not a choice).
+        dt: the sample spacing in time, for a plain ``Jet`` (required: the rates' time unit);
+            a ``Path`` carries its own (an equal ``dt`` may be repeated, another one is an
+            error).
         chunk_size: candidates per call on one device (default
             ``_batching.plan_chunk_samples() // T``, divided by the number of branches for
             ``"best"``).
+        weights: per-joint weights ``(n,)`` of the costs (default 1): each joint's terms are
+            multiplied by its weight (``joint_scales``).
 
     Returns:
         An ``Evaluation``; ``branch`` tells which branch each candidate used. Zero candidates
@@ -414,25 +530,30 @@ def evaluate(
         candidate axis (replicated when N is not a multiple of ``jax.device_count()``).
 
     Raises:
-        ValueError: not a robot, a path not of shape ``(N, T, *target)`` with T >= 2, an
-            unknown branch, a non-positive dt, limits of the wrong size, a global path split
-            along another axis, or host paths whose shapes differ between processes.
+        ValueError: not a robot, plain arrays (no rates: build a path), a path not of shape
+            ``(N, T, *target)`` (task) or ``(N, T, n_joints)`` (joint) with T >= 2, an
+            unknown branch, a missing, conflicting or non-positive dt, limits or weights of
+            the wrong size, a global path split along another axis, or host paths whose
+            shapes differ between processes.
     """
     robot = as_robot(robot)
-    if branch != "best":
+    path, dt, space = _as_path(path, dt)
+    if space == "task" and branch != "best":
         branch = robot.check_branch(branch)
-    target = robot.target.shape
-    path = _validate.as_jet(path, "path", coords=None)
+    if space == "joint":
+        branch = robot.default_branch
+    target = robot.target.shape if space == "task" else (robot.n_joints,)
     if path.p.ndim != 2 + len(target) or path.shape[2:] != target or path.shape[1] < 2:
+        kind = f"{robot.target.name} targets" if space == "task" else "joint coordinates"
         raise ValueError(
             f"path: expected shape (N, T, {', '.join(map(str, target))}) with T >= 2 for "
-            f"{type(robot).__name__} ({robot.target.name} targets), got {path.shape}"
+            f"{type(robot).__name__} ({space} space: {kind}), got {path.shape}"
         )
-    dt = _validate.positive_number(dt, "dt")
     limits = robot_limits(robot, limits)
+    weights = _weights(weights, robot.n_joints)
     n, t = path.shape[:2]
-    # "best" holds every branch of a chunk at once
-    held = len(robot.branches) if branch == "best" else 1
+    # "best" holds every branch of a chunk at once; a joint path solves every branch once
+    held = len(robot.branches) if (branch == "best" or space == "joint") else 1
     if chunk_size is None:
         chunk_size = max(1, _batching.plan_chunk_samples() // (t * held))
     elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
@@ -442,41 +563,175 @@ def evaluate(
         candidates = chunk.shape[0]
         samples = _batching.padded_size(candidates) * t * held
         pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
-        return _evaluate_jit(robot, chunk, limits, float(dt), branch, batch=(candidates,), pad=pad)
+        return _evaluate_jit(
+            robot, chunk, limits, dt, weights, branch, space, batch=(candidates,), pad=pad
+        )
 
     if n == 0:  # the kernel's shapes from one placeholder candidate, then none of it
         placeholder = jax.tree.map(lambda x: jnp.zeros((1, *x.shape[1:]), x.dtype), path)
-        return jax.tree.map(lambda x: x[:0], call(placeholder))
-    return _batching.map_candidates(call, path, chunk_size)
+        ev = jax.tree.map(lambda x: x[:0], call(placeholder))
+    else:
+        ev = _batching.map_candidates(call, path, chunk_size)
+    applied = tuple(tuple(float(x) for x in np.asarray(b)) for b in jax.tree.leaves(limits))
+    return dataclasses.replace(ev, dt=dt, space=space, limits=applied)
 
 
-def best(evaluation: Evaluation, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``k`` best feasible candidates by ``costs.total`` (host side).
+PLAIN_ARRAY_HELP = (
+    "path: plain positions have no rates (every rate cost would be 0 and the continuity "
+    "check blind); build a path that carries its rates and sampling period: "
+    "paths.path_from_samples(positions, dt) (task space; space='joint' for joint "
+    "samples), paths.path_from_poses(positions, quaternions, dt) or "
+    "paths.path_from_joint_waypoints(waypoints, dt, steps)"
+)
+
+
+def _as_path(path: Any, dt: Any) -> tuple[Jet, float, str]:
+    """The candidates as a plain ``Jet``, their sampling period and space (host side)."""
+    if not isinstance(path, Jet):
+        raise ValueError(PLAIN_ARRAY_HELP + f", got {type(path).__name__}")
+    if isinstance(path, Path):
+        if dt is not None and _validate.positive_number(dt, "dt") != path.dt:
+            raise ValueError(
+                f"dt: the path carries its sampling period {path.dt}, got another dt={dt!r} "
+                "(give it once: leave dt out)"
+            )
+        dt, space = path.dt, path.space
+    elif dt is None:
+        raise ValueError(
+            "dt is required for a plain Jet path (the time step its rates were made with); "
+            "or build a path that carries it: paths.path_from_samples(positions, dt)"
+        )
+    else:
+        space = "task"
+    dt = _validate.positive_number(dt, "dt")
+    jet = _validate.as_jet(Jet(path.p, path.v, path.a), "path", coords=None)
+    return jet, dt, space
+
+
+def _weights(weights: Any, n: int) -> Array:
+    """Per-joint cost weights ``(n,)``: positive and finite (1 when None)."""
+    if weights is None:
+        return jnp.ones(n)
+    arr = np.asarray(weights, dtype=float)
+    try:
+        arr = np.broadcast_to(arr, (n,)).astype(float)
+    except ValueError:
+        raise ValueError(f"weights must broadcast to shape ({n},), got {arr.shape}") from None
+    if not np.all(np.isfinite(arr) & (arr > 0)):
+        raise ValueError(f"weights must be positive and finite, got {arr}")
+    return jnp.asarray(arr)
+
+
+RANKINGS = ("cost", "duration")
+
+
+@jax.jit
+def _feasible_only(timed: _timing.Timing, feasible: Array) -> _timing.Timing:
+    """``timed`` with the candidates that are not feasible marked ``UNTIMEABLE`` (zeros)."""
+    ok = feasible & (timed.status == Status.OK)
+    status = jnp.where(feasible, timed.status, jnp.int8(Status.UNTIMEABLE)).astype(STATUS_DTYPE)
+
+    def zero(x):
+        return jnp.where(ok.reshape(ok.shape + (1,) * (x.ndim - ok.ndim)), x, 0.0)
+
+    return _timing.Timing(
+        zero(timed.duration), status, zero(timed.t), zero(timed.speed), zero(timed.acceleration)
+    )
+
+
+def joint_path(evaluation: Evaluation) -> _timing.JointPath:
+    """Each candidate's joint trajectory as a geometric path to retime: the path parameter is
+    the sample time ``s = k dt``, so ``dq/ds`` and ``d2q/ds2`` are the joint rates."""
+    if evaluation.dt is None:
+        raise ValueError("evaluation has no dt: use the Evaluation returned by plan.evaluate")
+    q = evaluation.q
+    times = jnp.arange(q.shape[-2], dtype=q.dtype) * jnp.asarray(evaluation.dt, q.dtype)
+    return _timing.JointPath(jnp.broadcast_to(times, q.shape[:-1]), q.p, q.v, q.a)
+
+
+def retime(
+    evaluation: Evaluation, *, scheme: str = "interpolation", speed_bound: str = "grid"
+) -> _timing.Timing:
+    """The time-optimal timing of every candidate's joint path (``jaxkin.timing.retime``,
+    batched TOPP-RA: one compiled call for the N candidates) under the velocity and
+    acceleration limits the evaluation applied, from rest to rest.
+
+    The geometric path of a candidate is its joint trajectory ``ev.q`` with the sample time
+    as path parameter (``joint_path``); between samples, the cubic Hermite interpolant of the
+    joints and their rates. A candidate that is not feasible, or whose path cannot be timed,
+    has status ``UNTIMEABLE`` (``INVALID_INPUT`` for non-finite joints of a feasible one) and
+    zero placeholders. ``timing.sample(plan.joint_path(ev), timed, period)`` samples the
+    retimed trajectories at a control period.
+
+    Raises:
+        ValueError: an evaluation without limits or dt (not from ``evaluate``), or limits
+            with no finite velocity or acceleration bound (any duration would do).
+    """
+    limits = evaluation.applied_limits()
+    v_max, a_max = np.asarray(limits.v_max), np.asarray(limits.a_max)
+    if not np.any(np.isfinite(v_max) | np.isfinite(a_max)):
+        raise ValueError(
+            "retiming needs a finite velocity or acceleration limit: the robot has none; "
+            "give them with limits=plan.Limits.create(n, v_max=..., a_max=...)"
+        )
+    path = joint_path(evaluation)
+    dtype = path.q.dtype
+    timed = _timing.retime(
+        path,
+        jnp.asarray(v_max, dtype),
+        jnp.asarray(a_max, dtype),
+        scheme=scheme,
+        speed_bound=speed_bound,
+    )
+    return _feasible_only(timed, evaluation.feasible)
+
+
+def best(
+    evaluation: Evaluation,
+    k: int,
+    by: str = "cost",
+    timing: _timing.Timing | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` best feasible candidates (host side), by cost or by duration.
 
     With an evaluation split over several processes (``jax.distributed``) every process calls
     it: each ranks the candidates it holds, the lists are gathered, and every process gets
     the same global answer.
 
+    Args:
+        evaluation: from ``evaluate``.
+        k: how many, a positive integer.
+        by: ``"cost"`` (``costs.total``, the smoothest first) or ``"duration"`` (the
+            minimum duration under the joints' velocity and acceleration limits, the fastest
+            first: ``retime``; candidates that cannot be timed are left out).
+        timing: ``retime(evaluation)`` when already computed (for ``by="duration"``).
+
     Returns:
-        ``(indices, totals)``: candidate indices sorted by increasing ``costs.total`` (ties by
-        index) and their costs, NumPy; fewer than ``k`` when fewer candidates are feasible.
+        ``(indices, values)``: candidate indices sorted by increasing cost or duration (ties
+        by index) and those values, NumPy; fewer than ``k`` when fewer candidates are
+        feasible (and timed).
     """
-    if not (isinstance(k, int) and k >= 1):
+    if not (isinstance(k, int) and not isinstance(k, bool) and k >= 1):
         raise ValueError(f"k must be a positive integer, got {k!r}")
-    indices, totals = [], []
-    held = zip(
-        _processes.local_rows(evaluation.costs.total),
-        _processes.local_rows(evaluation.feasible),
-        strict=True,
-    )
-    for (start, total), (_, feasible) in held:
-        feasible = np.flatnonzero(feasible)
-        order = feasible[np.argsort(total[feasible], kind="stable")][:k]
+    _validate.choice(by, "by", RANKINGS)
+    if by == "cost":
+        key, usable = evaluation.costs.total, evaluation.feasible
+    else:
+        if timing is None:
+            timing = retime(evaluation)
+        elif not isinstance(timing, _timing.Timing):
+            raise ValueError(f"timing must be plan.retime's Timing, got {type(timing).__name__}")
+        key, usable = timing.duration, timing.status == Status.OK
+    indices, values = [], []
+    held = zip(_processes.local_rows(key), _processes.local_rows(usable), strict=True)
+    for (start, value), (_, ok) in held:
+        ok = np.flatnonzero(ok)
+        order = ok[np.argsort(value[ok], kind="stable")][:k]
         indices.append(order + start)
-        totals.append(total[order])
-    index, total = np.concatenate(indices), np.concatenate(totals)
-    if not _processes.fetchable(evaluation.costs.total):
-        index, total = _processes.allgather_rows(index), _processes.allgather_rows(total)
-        order = np.lexsort((index, total))[:k]  # by total, then by index: a stable sort
-        index, total = index[order], total[order]
-    return index, total
+        values.append(value[order])
+    index, value = np.concatenate(indices), np.concatenate(values)
+    if not _processes.fetchable(key):
+        index, value = _processes.allgather_rows(index), _processes.allgather_rows(value)
+        order = np.lexsort((index, value))[:k]  # by value, then by index: a stable sort
+        index, value = index[order], value[order]
+    return index, value
