@@ -5,8 +5,8 @@ control points), sampled at T = 100 instants over 2 s with exact velocity and ac
 ``jaxkin.plan.evaluate`` solves the inverse kinematics of all 10^6 samples in both assembly
 modes in one call, keeps per candidate the feasible mode with the smoothest joint motion, and
 reports feasibility, where infeasible candidates first fail, and costs; ``plan.best`` ranks
-them. Writes ``planner_scara_best.csv`` (the best candidate's joints and rates) and, with
-matplotlib, ``planner_scara.png`` (every candidate in the arm's plane, the best five
+them by cost, and by the duration of their time-optimal retiming (``by="duration"``). Writes
+``planner_scara_best.csv`` (the best candidate's joints and rates) and, with matplotlib, ``planner_scara.png`` (every candidate in the arm's plane, the best five
 highlighted over the robot at the start, and the best candidate's joint trajectories).
 
 Run: ``jaxkin demo`` or ``python examples/planner_scara.py [N] [--output-dir DIR]``.
@@ -31,15 +31,16 @@ GOAL = np.array([-20.0, 100.0, 80.0])
 DURATION, N_SAMPLES = 2.0, 100
 
 
-def random_candidates(n: int, seed: int = 0):
-    """Jet (n, T, 3) of random cubic Bezier paths START -> GOAL, exact derivatives."""
+def random_candidates(n: int, seed: int = 0) -> paths.Path:
+    """Path (n, T, 3) of random cubic Bezier paths START -> GOAL, exact derivatives."""
     rng = np.random.default_rng(seed)
     interior = (START + GOAL) / 2 + rng.normal(scale=60.0, size=(n, 2, 3)) * [1, 1, 0.2]
     controls = np.concatenate(
         [np.broadcast_to(START, (n, 1, 3)), interior, np.broadcast_to(GOAL, (n, 1, 3))], axis=1
     )
     basis = paths.bezier_basis(4, N_SAMPLES)
-    return paths.bezier_path(controls, basis, DURATION)
+    curves = paths.bezier_path(controls, basis, DURATION)
+    return paths.Path.from_jet(curves, dt=DURATION / (N_SAMPLES - 1))
 
 
 def plot(path, ev, best, output: Path) -> Path | None:
@@ -92,13 +93,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     n, output = args.n, args.output_dir
     path = random_candidates(n)
-    dt = DURATION / (N_SAMPLES - 1)
-    limits = plan.Limits.create(3, v_max=[10.0, 12.0, 200.0])  # rad/s, rad/s, mm/s
+    dt = path.dt
+    # rad/s, rad/s, mm/s and rad/s^2, rad/s^2, mm/s^2
+    limits = plan.Limits.create(3, v_max=[10.0, 12.0, 200.0], a_max=[40.0, 50.0, 2000.0])
     start = time.perf_counter()
-    ev = jax.block_until_ready(plan.evaluate(ROBOT, path, limits, branch="best", dt=dt))
+    ev = jax.block_until_ready(plan.evaluate(ROBOT, path, limits, branch="best"))
     first = time.perf_counter() - start
     start = time.perf_counter()
-    ev = jax.block_until_ready(plan.evaluate(ROBOT, path, limits, branch="best", dt=dt))
+    ev = jax.block_until_ready(plan.evaluate(ROBOT, path, limits, branch="best"))
     second = time.perf_counter() - start
 
     feasible = np.asarray(ev.feasible)
@@ -118,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     modes = np.asarray(ev.branch)[feasible]
     print(f"  chosen mode among feasible: +1 x {np.sum(modes == 0)}, -1 x {np.sum(modes == 1)}")
     best, totals = plan.best(ev, 5)
-    print("  best 5 (integrated squared joint acceleration):")
+    print("  best 5 (integrated squared joint acceleration, each joint's over its limit):")
     for i, total in zip(best, totals, strict=True):
         print(
             f"    candidate {i:5d}: cost {total:10.3f}, min margin {ev.min_margin[i]:.3f}, "
@@ -126,6 +128,10 @@ def main(argv: list[str] | None = None) -> int:
         )
     if best.size == 0:
         return 0
+    fastest, durations = plan.best(ev, 5, by="duration")  # time-optimal retiming (TOPP-RA)
+    print("  fastest 5 within the velocity and acceleration limits:")
+    for i, duration in zip(fastest, durations, strict=True):
+        print(f"    candidate {i:5d}: {duration:.3f} s (sampled over {DURATION:.1f} s)")
     t = np.arange(N_SAMPLES) * dt
     q = ev.q
     names = ROBOT.joint_names

@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     quaternions = np.broadcast_to(_quaternion_about_z(0.5 * np.pi * s[..., 0], down), (n, t, 4))
     path = paths.path_from_poses(positions, quaternions, dt)  # (64, 50, 4, 4)
     began = time.perf_counter()
-    ev = plan.evaluate(arm, path, dt=dt)
+    ev = plan.evaluate(arm, path)  # the path carries its dt
     jax.block_until_ready(ev.costs.total)
     elapsed = time.perf_counter() - began
     feasible = np.asarray(ev.feasible)

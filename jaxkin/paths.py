@@ -84,6 +84,11 @@ class Path(Jet):
         _validate.positive_number(self.dt, "dt")
         _validate.choice(self.space, "space", SPACES)
 
+    @classmethod
+    def from_jet(cls, jet: Jet, dt: float, space: str = "task") -> Path:
+        """A ``Jet`` of samples ``dt`` apart (e.g. ``bezier_path``'s) as a ``Path``."""
+        return cls(jet.p, jet.v, jet.a, dt=_validate.positive_number(dt, "dt"), space=space)
+
     def with_jet(self, jet: Jet) -> Path:
         """``jet`` with this path's ``dt`` and ``space``."""
         return Path(jet.p, jet.v, jet.a, dt=self.dt, space=self.space)

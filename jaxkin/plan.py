@@ -1,38 +1,66 @@
 """Planner backend: evaluate N candidate trajectories of any robot in one call, and rank them.
 
-A planner hands ``evaluate`` a ``Jet`` of end-effector paths of shape ``(N, T, *target)`` (N
-candidates, T samples at a fixed time step ``dt``; ``target`` the robot's target shape, e.g.
-``(3,)`` for a point, ``(4, 4)`` for a pose) and gets back, per candidate, the joint
-trajectories, feasibility, the first failing sample, the smallest singularity margin and
-costs. The robot is anything implementing the robot protocol (``jaxkin.robot``).
+A planner hands ``evaluate`` N candidates of T samples taken every ``dt``, as a
+``paths.Path`` (a ``Jet`` that carries ``dt`` and its space, so the sampling period is given
+once, where the rates are made):
 
-Costs, per candidate (joint units: rad for revolute joints, the length unit for prismatic ones;
-sums run over joints and samples, ``dt`` is the sample spacing)::
+* **task space**, shape ``(N, T, *target)`` (``target`` the robot's target shape, e.g.
+  ``(3,)`` for a point, ``(4, 4)`` for a pose; ``paths.path_from_samples``,
+  ``paths.path_from_poses``): the inverse kinematics of every sample with rates, on one branch
+  or the best one per candidate;
+* **joint space**, shape ``(N, T, n_joints)`` (``paths.path_from_joint_waypoints``,
+  ``paths.path_from_samples(..., space="joint")``): the forward kinematics of every sample
+  with rates gives the tool path (``Evaluation.tool``); the singularity margin is the IK's on
+  the branch whose joints are nearest the given ones (``Evaluation.branch``).
 
-    path_length             sum_t |q[t+1] - q[t]|                  (Euclidean norm over joints)
-    peak_speed              max_t max_j |q_dot|
-    integrated_speed        sum_t |q_dot|^2 dt
-    peak_acceleration       max_t max_j |q_ddot|
-    integrated_acceleration sum_t |q_ddot|^2 dt
-    peak_jerk               max_t max_j |jerk|,   jerk[t] = (q_ddot[t+1] - q_ddot[t]) / dt
-    integrated_jerk         sum_t |jerk|^2 dt
-    limit_violation         sum_t sum_j of how far q, |q_dot|, |q_ddot| exceed their limits
+It gets back, per candidate, the joint trajectories, feasibility, the first failing sample,
+the smallest singularity margin and costs. Plain arrays (positions without rates) are
+refused: every rate cost would be zero and the continuity check blind. The robot is anything
+implementing the robot protocol (``jaxkin.robot``).
+
+Costs, per candidate, each joint in its own units divided by its scale so that no cost adds
+radians to millimetres (``joint_scales``): positions by the joint's unit ``u_j`` (1 rad, or
+the robot's length ``robot.length_scale()`` for a prismatic joint), speeds by its velocity
+limit ``v_max_j`` and accelerations (and jerks) by its acceleration limit ``a_max_j`` where
+those are finite, by ``u_j`` (per time unit) otherwise; user ``weights`` ``w_j`` multiply
+every term of joint ``j``. With ``v~ = w q_dot / v_max``, ``a~ = w q_ddot / a_max`` (sums run
+over joints and samples, ``dt`` the sample spacing)::
+
+    path_length             sum_t |w (q[t+1] - q[t]) / u|           (Euclidean norm over joints)
+    peak_speed              max_t max_j |v~|                        (1 = at the limit)
+    integrated_speed        sum_t |v~|^2 dt
+    peak_acceleration       max_t max_j |a~|
+    integrated_acceleration sum_t |a~|^2 dt
+    peak_jerk               max_t max_j |j~|,   j~[t] = w (q_ddot[t+1] - q_ddot[t]) / (dt a_max)
+    integrated_jerk         sum_t |j~|^2 dt
+    limit_violation         sum_t sum_j of how far q, |q_dot|, |q_ddot| exceed their limits,
+                            each excess divided by the same scale
     total                   integrated_acceleration where feasible, +inf otherwise
 
-``total`` ranks candidates in ``best`` and ``branch="best"``: the smoothest feasible joint
-motion wins. Jerk is the only finite difference (of the exact accelerations). Feasible means
-every sample's status is ``OK``: solved, regular, continuous and within every position, speed
-and acceleration limit. The limits are the robot's own (``robot.joint_limits()``) intersected
-with the user's ``Limits``. A candidate keeps one branch from start to end: a path that would
-need a switch passes through a singularity, which the kernel reports.
+Changing a unit (millimetres to metres for a prismatic joint, with its limits) changes no
+cost. ``total`` ranks candidates in ``best`` and ``branch="best"``: the smoothest feasible
+joint motion wins. Jerk is the only finite difference (of the exact accelerations).
+
+Feasible means every sample's status is ``OK``: solved (task space: the IK; joint space:
+finite joints and rates), regular (task space: a singular sample has no joint rates),
+continuous and within every position, speed and acceleration limit. The limits are the robot's
+own (``robot.joint_limits()``) intersected with the user's ``Limits``. A task-space candidate
+keeps one branch from start to end: a path that would need a switch passes through a
+singularity, which the kernel reports. Per-sample checks run in order on the samples still
+``OK`` (``_checked``): ``DISCONTINUOUS`` then ``OUT_OF_LIMITS``.
 
 Continuity: revolute joints are unwrapped along each candidate (``unwrapped``: each sample the
 ``2 pi`` representative nearest the previous one), a candidate that leaves a joint's range is
 moved by the whole turns (nearest zero) that bring it inside, if any (``within_turns``), and
 then the limits are checked. A sample whose step from the previous one its rates do not
 explain (``unexplained_steps``: the solution switched) is ``DISCONTINUOUS``, which wins over
-``OUT_OF_LIMITS`` at the same sample. A candidate whose target rates are all zero (a path at
-rest) has no rates to explain its steps: it is only unwrapped.
+``OUT_OF_LIMITS`` at the same sample. A candidate given as a ``Jet`` whose rates are all zero
+(a path explicitly at rest) has no rates to explain its steps: it is only unwrapped.
+
+Duration: ``retime`` times every feasible candidate's joint path as fast as the velocity and
+acceleration limits allow (``jaxkin.timing``, batched TOPP-RA, one compiled call), and
+``best(ev, k, by="duration")`` ranks by that duration; a candidate that is not feasible or
+cannot be timed is ``UNTIMEABLE`` and left out.
 
 Scale: huge N is processed in chunks of about ``jaxkin._batching.plan_chunk_samples()`` samples,
 so memory stays bounded besides the returned arrays; the chunks run on the host threads. With

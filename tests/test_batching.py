@@ -393,7 +393,8 @@ def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_ax
     # 7 candidates reuse the program compiled for 5
     assert count.compiled(plan._evaluate_jit.jitted.__name__) == 0
     for part, got in zip(parts, results, strict=True):
-        want = plan._evaluate_jit.jitted(robot, part, plan.robot_limits(robot, None), 1.0, 1)
+        limits, weights = plan.robot_limits(robot, None), np.ones(3)
+        want = plan._evaluate_jit.jitted(robot, part.jet, limits, part.dt, weights, 1, "task")
         n = part.shape[0]
         assert got.q.p.shape == (n, 9, 3) and got.costs.total.shape == (n,)
         np.testing.assert_array_equal(got.status, want.status)

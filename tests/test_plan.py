@@ -23,7 +23,7 @@ from jaxkin._geometry import LENGTH, geometry, number
 from jaxkin.jet import lift
 from jaxkin.result import FKResult, IKResult
 from jaxkin.robot import PLANAR_POINT, Robot
-from tests.helpers import marked_slow, tree_allfinite
+from tests.helpers import compilations, marked_slow, tree_allfinite
 from tests.references import delta as delta_ref
 from tests.references import scara as scara_ref
 
@@ -98,22 +98,36 @@ def test_joint_values_equal_the_reference_ik(branch):
 
 
 def test_costs_against_direct_numpy_formulas():
+    """Each joint's terms in its own units over its scale: speeds over a finite v_max, else
+    over the joint's unit (1 rad; the robot's reach 130 mm for the column), accelerations
+    likewise with a_max, times the user's weights; limit excess over the same scales."""
     path, dt = spiral_candidates()
-    ev = plan.evaluate(ROBOT, path, dt=dt)
+    v_max, a_max = np.array([np.inf, 0.9, 60.0]), np.array([1.0, np.inf, np.inf])
+    weights = np.array([1.0, 2.0, 0.5])
+    limits = plan.Limits.create(3, v_max=v_max, a_max=a_max)
+    ev = plan.evaluate(ROBOT, path, limits, dt=dt, weights=weights)
     q = [np.asarray(x) for x in (ev.q.p, ev.q.v, ev.q.a)]
+    unit = np.array([1.0, 1.0, 130.0])  # rad, rad, the SCARA's reach l_ab + l_bc (mm)
+    speed = np.where(np.isfinite(v_max), v_max, unit) / weights
+    accel = np.where(np.isfinite(a_max), a_max, unit) / weights
     c = ev.costs
-    np.testing.assert_allclose(
-        c.path_length, np.linalg.norm(np.diff(q[0], axis=1), axis=-1).sum(1), rtol=1e-12
-    )
-    np.testing.assert_allclose(c.peak_speed, np.abs(q[1]).max(axis=(1, 2)), rtol=1e-14)
-    np.testing.assert_allclose(c.integrated_speed, (q[1] ** 2).sum((1, 2)) * dt, rtol=1e-12)
-    np.testing.assert_allclose(c.peak_acceleration, np.abs(q[2]).max(axis=(1, 2)), rtol=1e-14)
-    np.testing.assert_allclose(c.integrated_acceleration, (q[2] ** 2).sum((1, 2)) * dt, rtol=1e-12)
-    jerk = np.diff(q[2], axis=1) / dt
+    steps = np.diff(q[0], axis=1) * weights / unit
+    np.testing.assert_allclose(c.path_length, np.linalg.norm(steps, axis=-1).sum(1), rtol=1e-12)
+    v, a = q[1] / speed, q[2] / accel
+    np.testing.assert_allclose(c.peak_speed, np.abs(v).max(axis=(1, 2)), rtol=1e-14)
+    np.testing.assert_allclose(c.integrated_speed, (v**2).sum((1, 2)) * dt, rtol=1e-12)
+    np.testing.assert_allclose(c.peak_acceleration, np.abs(a).max(axis=(1, 2)), rtol=1e-14)
+    np.testing.assert_allclose(c.integrated_acceleration, (a**2).sum((1, 2)) * dt, rtol=1e-12)
+    jerk = np.diff(q[2], axis=1) / dt / accel
     np.testing.assert_allclose(c.peak_jerk, np.abs(jerk).max(axis=(1, 2)), rtol=1e-12)
     np.testing.assert_allclose(c.integrated_jerk, (jerk**2).sum((1, 2)) * dt, rtol=1e-12)
-    np.testing.assert_allclose(c.total, c.integrated_acceleration, rtol=0)
-    np.testing.assert_array_equal(c.limit_violation, 0.0)
+    excess = np.maximum(np.abs(q[1]) - v_max, 0.0) / speed
+    excess += np.maximum(np.abs(q[2]) - a_max, 0.0) / accel
+    np.testing.assert_allclose(c.limit_violation, excess.sum((1, 2)), rtol=1e-12, atol=1e-300)
+    assert np.any(c.limit_violation > 0)
+    feasible = np.asarray(ev.feasible)
+    np.testing.assert_array_equal(c.total[feasible], c.integrated_acceleration[feasible])
+    assert np.all(np.isinf(np.asarray(c.total)[~feasible]))
 
 
 def test_unreachable_and_singular_samples_fail_at_the_right_index():
@@ -325,7 +339,7 @@ def test_a_solution_switch_mid_path_is_discontinuous():
     np.testing.assert_array_equal(ev.feasible, [False, True])
     np.testing.assert_array_equal(ev.first_failure, [switch, -1])
     assert np.isinf(ev.costs.total[0]) and np.isfinite(ev.costs.total[1])
-    at_rest = plan.evaluate(ElbowSwitcher(), points, dt=dt)
+    at_rest = plan.evaluate(ElbowSwitcher(), Jet.constant(points), dt=dt)  # explicitly at rest
     assert np.all(at_rest.status == Status.OK) and np.all(at_rest.feasible)
 
 
@@ -606,7 +620,7 @@ def test_delta_evaluation_equals_the_reference_ik():
     robot = delta.Delta.paper()
     p = delta_circles()
     p[2, 10:, 0] += 60.0  # leaves the workspace at sample 10
-    ev = plan.evaluate(robot, p, branch="best")  # plain positions: a path at rest
+    ev = plan.evaluate(robot, Jet.constant(p), branch="best", dt=1.0)  # a path at rest
     assert list(np.asarray(ev.feasible)) == [True, True, False]
     assert ev.first_failure[2] == 10 and ev.status[2, 10] == Status.UNREACHABLE
     assert np.all(np.asarray(ev.branch)[:2] == 0)  # at rest both cost 0: the first wins
@@ -666,9 +680,24 @@ def test_every_robot_best_branch(name):
         ({"robot": "scara"}, "robot must be"),
         ({"branch": 2}, "branch"),
         ({"branch": "out"}, "branch"),
-        ({"path": np.zeros((4, 3))}, "path: expected shape"),
-        ({"path": np.zeros((4, 1, 3))}, "T >= 2"),
-        ({"path": np.zeros((2, 5, 2))}, r"path: expected shape \(N, T, 3\)"),
+        ({"path": Jet.constant(np.zeros((4, 3)))}, "path: expected shape"),
+        ({"path": Jet.constant(np.zeros((4, 1, 3)))}, "T >= 2"),
+        ({"path": Jet.constant(np.zeros((2, 5, 2)))}, r"path: expected shape \(N, T, 3\)"),
+        (
+            {"path": np.full((2, 5, 3), 90.0)},
+            r"no rates.*paths\.path_from_samples\(positions, dt\)",
+        ),
+        ({"dt": None}, "dt is required"),
+        (
+            {"path": paths.path_from_samples(np.full((2, 5, 3), 90.0), 0.1), "dt": 0.2},
+            "carries its sampling period",
+        ),
+        (
+            {"path": paths.path_from_samples(np.full((2, 5, 2), 0.1), 0.1, space="joint")},
+            r"expected shape \(N, T, 3\).*joint space",
+        ),
+        ({"weights": [1.0, 0.0, 1.0]}, "weights"),
+        ({"weights": [1.0, 1.0]}, "weights"),
         ({"robot": serial.Planar2R(1.0, 0.6)}, r"path: expected shape \(N, T, 2\)"),
         ({"robot": serial.Puma560()}, r"path: expected shape \(N, T, 4, 4\)"),
         ({"dt": 0.0}, "dt"),
@@ -679,7 +708,7 @@ def test_every_robot_best_branch(name):
     ],
 )
 def test_bad_input(kwargs, match):
-    args = {"robot": ROBOT, "path": np.full((2, 5, 3), 90.0)}
+    args = {"robot": ROBOT, "path": Jet.constant(np.full((2, 5, 3), 90.0)), "dt": 0.1}
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         plan.evaluate(**args)
@@ -692,3 +721,166 @@ def test_limits_validation():
         plan.Limits.create(3, v_max=[-1, 1, 1])
     with pytest.raises(ValueError, match="broadcast"):
         plan.Limits.create(3, a_max=[1, 2])
+
+
+# ------------------------------------------------------------------- joint-space candidates
+JOINT_DT, JOINT_STEPS = 0.05, 8
+
+
+def scara_waypoints(n=4, k=4, seed=3):
+    """Joint waypoints ``(n, k, 3)`` of the paper SCARA (theta1, theta2, l3) away from its
+    singularities (theta2 in (0, pi)) and inside its column's stroke."""
+    rng = np.random.default_rng(seed)
+    low, high = np.array([-1.0, 0.6, 60.0]), np.array([1.0, 2.2, 110.0])
+    return rng.uniform(low, high, (n, k, 3))
+
+
+def scara_fk_numpy(q):
+    """The paper SCARA's forward kinematics [Noriega, eqs. 1-15 inverted]: the arm's second
+    link at the absolute angle theta1 - theta2, the column l3 below the base height."""
+    l_oa, l_ab, l_bc = 150.0, 80.0, 50.0
+    t1, t2, l3 = q[..., 0], q[..., 1], q[..., 2]
+    x = l_ab * np.cos(t1) + l_bc * np.cos(t1 - t2)
+    y = l_ab * np.sin(t1) + l_bc * np.sin(t1 - t2)
+    return np.stack([x, y, l_oa - l3], -1)
+
+
+def test_joint_space_candidates_against_independent_fk_and_finite_differences():
+    """Joint-space candidates: the joints come back as given, the tool path equals the
+    closed-form FK (1e-12 mm) and its rates the central differences of that FK along SciPy's
+    spline through the same waypoints (h = 1e-4 s: 1e-6 of the scale); the branch and margin
+    are those of a task-space evaluation of the tool path on that branch."""
+    from scipy.interpolate import CubicSpline
+
+    way = scara_waypoints()
+    path = paths.path_from_joint_waypoints(way, JOINT_DT, JOINT_STEPS)
+    ev = plan.evaluate(ROBOT, path)
+    assert ev.space == "joint" and ev.dt == JOINT_DT and np.all(ev.feasible)
+    np.testing.assert_allclose(ev.q.p, path.p, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(ev.q.v, path.v)
+    times = np.arange(path.shape[1]) * JOINT_DT
+    spline = CubicSpline(np.arange(way.shape[1]) * JOINT_DT * JOINT_STEPS, way, axis=1)
+    np.testing.assert_allclose(path.p, spline(times), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(ev.tool.p, scara_fk_numpy(spline(times)), rtol=0, atol=1e-10)
+    h, scale = 1e-4, 150.0
+    ahead, behind = scara_fk_numpy(spline(times + h)), scara_fk_numpy(spline(times - h))
+    middle = scara_fk_numpy(spline(times))
+    np.testing.assert_allclose(ev.tool.v, (ahead - behind) / (2 * h), rtol=0, atol=1e-6 * scale)
+    second = (ahead - 2 * middle + behind) / h**2
+    np.testing.assert_allclose(ev.tool.a, second, rtol=0, atol=1e-5 * scale)
+    # The same motion as a task-space path on the branch it was read from.
+    for b in np.unique(np.asarray(ev.branch)):
+        rows = np.flatnonzero(np.asarray(ev.branch) == b)
+        task = paths.Path.from_jet(ev.tool[rows], JOINT_DT)
+        back = plan.evaluate(ROBOT, task, branch=ROBOT.branches[int(b)])
+        np.testing.assert_allclose(back.q.p, path.p[rows], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(back.min_margin, ev.min_margin[rows], rtol=1e-9)
+
+
+def test_joint_space_limits_continuity_and_wraps():
+    """A joint path over its limit is OUT_OF_LIMITS from the first sample beyond it; a full
+    turn between samples that the rates do not explain is DISCONTINUOUS; a wrap of
+    theta1 from pi to -pi is unwrapped and feasible."""
+    t = np.arange(JOINT_STEPS * 3 + 1) * JOINT_DT
+    base = np.stack([np.pi - 0.5 + 0.04 * t / JOINT_DT, 1.0 + 0 * t, 80.0 + 0 * t], -1)
+    wrapped = base.copy()
+    wrapped[:, 0] = np.angle(np.exp(1j * base[:, 0]))  # jumps from pi to -pi mid-path
+    jumped = base.copy()
+    jumped[10:, 1] += 2.0  # a step no rate explains
+    ranged = base.copy()
+    ranged[:, 2] = 80.0 + 10.0 * t  # the column moves 10 mm/s
+    q = np.stack([base, wrapped, jumped, ranged])
+    v = np.stack([np.gradient(x, JOINT_DT, axis=0) for x in (base, base, base, ranged)])
+    path = paths.Path(q, v, np.zeros_like(q), dt=JOINT_DT, space="joint")
+    limits = plan.Limits.create(3, q_max=[np.inf, np.inf, 85.0])
+    ev = plan.evaluate(ROBOT, path, limits)
+    np.testing.assert_array_equal(ev.feasible, [True, True, False, False])
+    np.testing.assert_allclose(ev.q.p[1], base, rtol=0, atol=1e-12)  # unwrapped
+    assert ev.first_failure[2] == 10 and ev.status[2, 10] == Status.DISCONTINUOUS
+    first_over = int(np.argmax(ranged[:, 2] > 85.0))
+    assert ev.first_failure[3] == first_over and ev.status[3, first_over] == Status.OUT_OF_LIMITS
+
+
+def test_cost_scaling_invariance_under_a_change_of_length_unit():
+    """The same SCARA and candidates in metres instead of millimetres (the column's position,
+    speed and acceleration limits converted too): every cost is the same (1e-9) and so is
+    the ranking, by cost and by duration."""
+    path, dt = spiral_candidates()
+    v_max, a_max = np.array([2.0, 3.0, 40.0]), np.array([6.0, 8.0, 100.0])
+    mm = plan.Limits.create(3, v_max=v_max, a_max=a_max)
+    to_m = np.array([1.0, 1.0, 1e-3])
+    metres = plan.Limits.create(3, v_max=v_max * to_m, a_max=a_max * to_m)
+    small = scara.Scara(0.15, 0.08, 0.05)
+    in_mm = plan.evaluate(ROBOT, path, mm, branch="best", dt=dt)
+    in_m = plan.evaluate(small, path.map(lambda x: x * 1e-3), metres, branch="best", dt=dt)
+    np.testing.assert_allclose(in_m.q.p, in_mm.q.p * to_m, rtol=1e-9, atol=1e-12)
+    for name in ("path_length", "peak_speed", "integrated_acceleration", "limit_violation"):
+        np.testing.assert_allclose(
+            getattr(in_m.costs, name), getattr(in_mm.costs, name), rtol=1e-9, atol=1e-12
+        )
+    np.testing.assert_array_equal(plan.best(in_m, 5)[0], plan.best(in_mm, 5)[0])
+    by_mm, by_m = plan.best(in_mm, 5, by="duration"), plan.best(in_m, 5, by="duration")
+    np.testing.assert_array_equal(by_m[0], by_mm[0])
+    np.testing.assert_allclose(by_m[1], by_mm[1], rtol=1e-9)
+
+
+def test_retime_and_rank_by_duration():
+    """``plan.retime`` equals ``timing.retime`` of each candidate's joint trajectory (sample
+    times as the path parameter) under the limits applied; an infeasible candidate is
+    UNTIMEABLE and left out of ``best(by="duration")``, which sorts the others by duration;
+    a second call of the same shapes compiles nothing."""
+    from jaxkin import timing
+
+    path = paths.path_from_joint_waypoints(scara_waypoints(n=5), JOINT_DT, JOINT_STEPS)
+    v_max, a_max = np.array([12.0, 5.0, 200.0]), np.array([60.0, 25.0, 800.0])
+    # theta2 in [0, 2]: one candidate reaches 2.006 (and no whole turn brings it inside)
+    q_min, q_max = [-np.inf, 0.0, -np.inf], [np.inf, 2.0, np.inf]
+    limits = plan.Limits.create(3, q_min, q_max, v_max, a_max)
+    ev = plan.evaluate(ROBOT, path, limits)
+    feasible = np.asarray(ev.feasible)
+    np.testing.assert_array_equal(feasible, [True, True, True, False, True])
+    timed = plan.retime(ev)
+    times = np.broadcast_to(np.arange(path.shape[1]) * JOINT_DT, path.shape[:2])
+    alone = timing.retime(timing.JointPath(times, ev.q.p, ev.q.v, ev.q.a), v_max, a_max)
+    np.testing.assert_allclose(timed.duration[feasible], alone.duration[feasible], rtol=1e-12)
+    assert np.all(np.asarray(timed.status)[~feasible] == Status.UNTIMEABLE)
+    assert np.all(np.asarray(timed.duration)[~feasible] == 0.0)
+    order, durations = plan.best(ev, 10, by="duration", timing=timed)
+    ok = np.flatnonzero(feasible & np.asarray(alone.ok))
+    np.testing.assert_array_equal(order, ok[np.argsort(np.asarray(alone.duration)[ok])])
+    np.testing.assert_allclose(durations, np.asarray(alone.duration)[order], rtol=1e-12)
+    np.testing.assert_array_equal(plan.best(ev, 2, by="duration")[0], order[:2])
+    # The retimed trajectories stay within the velocity limits at the grid (the samples).
+    speeds = np.abs(np.asarray(ev.q.v)) * np.asarray(timed.speed)[..., None]
+    assert np.all(speeds[feasible] <= v_max * (1 + 1e-9))
+    other = paths.path_from_joint_waypoints(scara_waypoints(n=5, seed=4), JOINT_DT, JOINT_STEPS)
+    with compilations() as count:
+        plan.retime(plan.evaluate(ROBOT, other, limits))
+    assert count.n == 0, count.events
+    with pytest.raises(ValueError, match="by must be one of"):
+        plan.best(ev, 1, by="speed")
+    with pytest.raises(ValueError, match="finite velocity or acceleration limit"):
+        plan.retime(plan.evaluate(ROBOT, path))
+
+
+@pytest.mark.slow
+def test_durations_against_toppra():
+    """Joint-space candidates through 4 waypoints (one cubic per joint: toppra's spline
+    through the same waypoints is the same curve): ``plan.retime``'s durations within 1 % of
+    toppra's TOPP-RA on the same grid (the samples), and the ranking is the same."""
+    from tests.test_timing import toppra_durations
+
+    way = scara_waypoints(n=6, seed=9)
+    path = paths.path_from_joint_waypoints(way, 0.25, JOINT_STEPS)  # slow: feasible as sampled
+    v_max, a_max = np.array([12.0, 5.0, 200.0]), np.array([60.0, 25.0, 800.0])
+    ev = plan.evaluate(ROBOT, path, plan.Limits.create(3, v_max=v_max, a_max=a_max))
+    assert np.all(ev.feasible)
+    grid = np.arange(path.shape[1]) / JOINT_STEPS  # toppra's s: waypoint k at s = k
+    count = len(way)
+    reference = toppra_durations(
+        way, np.tile(v_max, (count, 1)), np.tile(a_max, (count, 1)), grid, "interpolation"
+    )
+    timed = plan.retime(ev)
+    np.testing.assert_allclose(timed.duration, reference, rtol=1e-2)
+    order, _ = plan.best(ev, count, by="duration", timing=timed)
+    np.testing.assert_array_equal(order, np.argsort(reference, kind="stable"))

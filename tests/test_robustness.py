@@ -81,12 +81,12 @@ def test_targets_whose_squared_distance_overflows_are_unreachable(dtype):
 
 def test_empty_and_partly_invalid_batches():
     robot = scara.Scara.paper()
-    ev = plan.evaluate(robot, np.zeros((0, 5, 3)))
+    ev = plan.evaluate(robot, paths.path_from_samples(np.zeros((0, 5, 3)), 0.1))
     assert ev.feasible.shape == (0,) and ev.q.p.shape == (0, 5, 3)
     assert plan.best(ev, 3)[0].size == 0
     positions = np.linspace([100.0, 0.0, 50.0], [80.0, 40.0, 60.0], 10)[None].repeat(3, 0)
     positions[1, 4, 0] = np.nan
-    ev = plan.evaluate(robot, paths.path_from_samples(positions, 0.1), dt=0.1)
+    ev = plan.evaluate(robot, paths.path_from_samples(positions, 0.1))
     assert list(np.asarray(ev.feasible)) == [True, False, True]
     assert np.all(np.asarray(ev.status)[1] == Status.INVALID_INPUT)
     guesses = np.array([[[90.0, 20.0, 55.0]], [[np.nan, 20.0, 55.0]]])
