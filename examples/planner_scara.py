@@ -6,8 +6,9 @@ control points), sampled at T = 100 instants over 2 s with exact velocity and ac
 modes in one call, keeps per candidate the feasible mode with the smoothest joint motion, and
 reports feasibility, where infeasible candidates first fail, and costs; ``plan.best`` ranks
 them by cost, and by the duration of their time-optimal retiming (``by="duration"``). Writes
-``planner_scara_best.csv`` (the best candidate's joints and rates) and, with matplotlib, ``planner_scara.png`` (every candidate in the arm's plane, the best five
-highlighted over the robot at the start, and the best candidate's joint trajectories).
+``planner_scara_best.csv`` (the best candidate's joints and rates) and, with matplotlib,
+``planner_scara.png`` (every candidate in the arm's plane, the best five highlighted over the
+robot at the start, and the best candidate's joint trajectories).
 
 Run: ``jaxkin demo`` or ``python examples/planner_scara.py [N] [--output-dir DIR]``.
 """
