@@ -107,3 +107,50 @@ def test_quaternion_rows_round_trip_a_pose_path():
     back = paths.pose_from_quaternions(p, v, a)
     for got, want in ((back.p, jet.p), (back.v, jet.v), (back.a, jet.a)):
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+def test_a_path_carries_its_sampling_period_and_space():
+    """``path_from_samples`` / ``path_from_poses`` return ``Path``s with their ``dt``;
+    indexing, ``map``, ``astype`` and ``jax.tree.map`` keep it; a bad dt or space is named."""
+    import jax
+
+    path = paths.path_from_samples(np.zeros((3, 5, 2)), 0.25)
+    assert isinstance(path, paths.Path) and path.dt == 0.25 and path.space == "task"
+    for part in (path[:2], path.map(lambda x: 2 * x), jax.tree.map(lambda x: x[1:], path)):
+        assert isinstance(part, paths.Path) and part.dt == 0.25 and part.space == "task"
+    assert path[:2].shape == (2, 5, 2) and type(path.jet) is paths.Jet
+    joint = paths.path_from_samples(np.zeros((3, 5, 2)), 0.5, space="joint")
+    assert joint.space == "joint" and joint.dt == 0.5
+    poses = paths.path_from_poses(np.zeros((1, 4, 3)), np.tile([1.0, 0, 0, 0], (1, 4, 1)), 0.1)
+    assert isinstance(poses, paths.Path) and poses.dt == 0.1
+    with pytest.raises(ValueError, match="dt"):
+        paths.Path(path.p, path.v, path.a, dt=0.0)
+    with pytest.raises(ValueError, match="space"):
+        paths.path_from_samples(np.zeros((3, 5, 2)), 0.1, space="tool")
+
+
+def test_path_from_joint_waypoints_against_scipy():
+    """The not-a-knot and natural splines through waypoints at ``t_k = k steps dt``, sampled
+    every ``dt``: values and rates equal SciPy's ``CubicSpline`` (1e-10 of their scale); a
+    candidate with a NaN waypoint is NaN, the others unaffected; bad arguments named."""
+    from scipy.interpolate import CubicSpline
+
+    rng = np.random.default_rng(4)
+    way = rng.normal(size=(3, 5, 2))
+    way[2, 1, 0] = np.nan
+    dt, steps = 0.02, 7
+    times = np.arange(4 * steps + 1) * dt
+    for end in ("not-a-knot", "natural"):
+        path = paths.path_from_joint_waypoints(way, dt, steps, end=end)
+        assert path.shape == (3, 4 * steps + 1, 2) and path.space == "joint" and path.dt == dt
+        for c in range(2):
+            spline = CubicSpline(np.arange(5) * steps * dt, way[c], axis=0, bc_type=end)
+            for order, x in enumerate((path.p, path.v, path.a)):
+                want = spline(times, order)
+                scale = np.abs(want).max()
+                np.testing.assert_allclose(x[c], want, rtol=0, atol=1e-10 * scale)
+        assert np.all(np.isnan(np.asarray(path.v[2])))
+    with pytest.raises(ValueError, match="steps"):
+        paths.path_from_joint_waypoints(way, dt, 0)
+    with pytest.raises(ValueError, match="waypoints"):
+        paths.path_from_joint_waypoints(way[:, :1], dt, 3)
