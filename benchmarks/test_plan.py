@@ -68,3 +68,43 @@ def test_optimiser_steps(measure, n_guesses):
         n_guesses=n_guesses,
     )
     assert np.all(np.isfinite(np.asarray(jax.device_get(result))))
+
+
+def _joint_candidates(n):
+    """SCARA joint-space candidates: splines through 4 random waypoints, T samples."""
+    rng = np.random.default_rng(1)
+    start, goal = np.array([0.2, 1.2, 60.0]), np.array([1.4, 0.6, 90.0])
+    middle = start + (goal - start) * np.array([[1 / 3], [2 / 3]])
+    middle = middle + rng.normal(size=(n, 2, 3)) * [0.1, 0.1, 3.0]
+    ends = [np.broadcast_to(x, (n, 1, 3)) for x in (start, goal)]
+    waypoints = np.concatenate([ends[0], middle, ends[1]], axis=1)
+    return paths.path_from_joint_waypoints(waypoints, 0.02, (T - 1) // 3)
+
+
+JOINT_LIMITS = plan.Limits.create(
+    3, v_max=[3.0, 3.0, 150.0], a_max=[12.0, 12.0, 600.0]
+)  # rad, mm per second
+
+
+@pytest.mark.parametrize("n", [1_000])
+def test_plan_evaluate_joint_space(measure, n):
+    robot, path = ROBOTS["scara"][0], _joint_candidates(n)
+    measure(
+        lambda: plan.evaluate(robot, path, JOINT_LIMITS),
+        n,
+        kernel="plan.evaluate[scara, joint space]",
+        dtype="float64",
+        samples_per_candidate=path.shape[1],
+    )
+
+
+@pytest.mark.parametrize("n", [1_000])
+def test_plan_retime(measure, n):
+    ev = plan.evaluate(ROBOTS["scara"][0], _joint_candidates(n), JOINT_LIMITS)
+    measure(
+        lambda: plan.retime(ev).duration,
+        n,
+        kernel="plan.retime[scara]",
+        dtype="float64",
+        samples_per_candidate=ev.q.shape[1],
+    )
