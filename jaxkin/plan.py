@@ -363,7 +363,7 @@ def trajectory_costs(
 ) -> Costs:
     """All per-candidate costs of joint trajectories ``q`` of shape ``(..., T, n)``, each
     joint in its own units divided by its scale (``joint_scales``)."""
-    position, speed, acceleration = joint_scales(limits, unit, weights)
+    position, speed, acceleration = joint_scales(limits, jnp.asarray(unit, q.p.dtype), weights)
     step = (q.p[..., 1:, :] - q.p[..., :-1, :]) / position
     path_length = jnp.sum(safe_norm(step), axis=-1)  # safe: zero steps keep finite gradients
     v = q.v / speed
