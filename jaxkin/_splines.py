@@ -15,9 +15,13 @@ Then ``s''(t_i) = (6 d_i - 4 m_i - 2 m_{i+1}) / h_i`` (the last knot from its le
 ``n = 1`` gives zero rates, ``n = 2`` the straight line, ``n = 3`` (not-a-knot) the parabola.
 Every leading axis is a separate spline, solved by the Thomas algorithm vectorised over the
 batch; ``by_group`` handles candidates of different lengths and skips non-finite samples.
+``hermite`` evaluates the cubic on one interval from its end values and slopes (the joint paths
+of ``jaxkin.timing`` and ``jaxkin.paths.path_from_joint_waypoints``).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
@@ -198,3 +202,28 @@ def by_group(
         velocity[index] = v
         acceleration[index] = a
     return velocity, acceleration
+
+
+def hermite(y0: Any, m0: Any, y1: Any, m1: Any, h: Any, tau: Any) -> tuple:
+    """Cubic Hermite interpolant on ``[s0, s0 + h]`` at ``s = s0 + tau h``: value, d/ds, d2/ds2.
+
+    ``y``, ``m`` are the values and slopes at the ends; broadcasting shapes; NumPy or JAX
+    arrays (plain arithmetic).
+    """
+    t2 = tau * tau
+    t3 = t2 * tau
+    value = (
+        (2.0 * t3 - 3.0 * t2 + 1.0) * y0
+        + (t3 - 2.0 * t2 + tau) * h * m0
+        + (3.0 * t2 - 2.0 * t3) * y1
+        + (t3 - t2) * h * m1
+    )
+    slope = (
+        6.0 * (t2 - tau) * (y0 - y1) / h
+        + (3.0 * t2 - 4.0 * tau + 1.0) * m0
+        + (3.0 * t2 - 2.0 * tau) * m1
+    )
+    curvature = (12.0 * tau - 6.0) * (y0 - y1) / (h * h) + (
+        (6.0 * tau - 4.0) * m0 + (6.0 * tau - 2.0) * m1
+    ) / h
+    return value, slope, curvature

@@ -42,7 +42,6 @@ from jax.typing import ArrayLike
 
 from . import _splines, _validate, lie
 from .jet import Jet
-from .timing import _hermite
 
 __all__ = [
     "SPACES",
@@ -175,7 +174,7 @@ def path_from_joint_waypoints(
     segment = np.concatenate([np.repeat(np.arange(count - 1), steps), [count - 2]])
     y0, y1 = clean[..., segment, :], clean[..., segment + 1, :]
     m0, m1 = slopes[..., segment, :], slopes[..., segment + 1, :]
-    value, velocity, acceleration = _hermite(y0, m0, y1, m1, segment_time, tau)
+    value, velocity, acceleration = _splines.hermite(y0, m0, y1, m1, segment_time, tau)
     value, velocity, acceleration = (
         np.where(finite, x, np.nan) for x in (value, velocity, acceleration)
     )

@@ -148,28 +148,8 @@ class RetimedTrajectory:
 # Paths
 
 
-def _hermite(y0: Array, m0: Array, y1: Array, m1: Array, h: Array, tau: Array) -> tuple:
-    """Cubic Hermite interpolant on ``[s0, s0 + h]`` at ``s = s0 + tau h``: value, d/ds, d2/ds2.
-
-    ``y``, ``m`` are the values and slopes at the ends; broadcasting shapes.
-    """
-    t2 = tau * tau
-    t3 = t2 * tau
-    value = (
-        (2.0 * t3 - 3.0 * t2 + 1.0) * y0
-        + (t3 - 2.0 * t2 + tau) * h * m0
-        + (3.0 * t2 - 2.0 * t3) * y1
-        + (t3 - t2) * h * m1
-    )
-    slope = (
-        6.0 * (t2 - tau) * (y0 - y1) / h
-        + (3.0 * t2 - 4.0 * tau + 1.0) * m0
-        + (3.0 * t2 - 2.0 * tau) * m1
-    )
-    curvature = (12.0 * tau - 6.0) * (y0 - y1) / (h * h) + (
-        (6.0 * tau - 4.0) * m0 + (6.0 * tau - 2.0) * m1
-    ) / h
-    return value, slope, curvature
+# The cubic Hermite interpolant of the paths, shared with ``jaxkin.paths`` (NumPy or JAX).
+_hermite = _splines.hermite
 
 
 def _spline_slopes(knots: Array, end: str) -> Array:
