@@ -285,11 +285,26 @@ def _project(q: Array, box: Box) -> Array:
 
 
 def _residual(chain: Any, q: Array, target: Array):
-    """Body twist to the target (6 arrays), Jacobian columns, rotation and position errors."""
+    """The residual the search drives to zero, the Jacobian columns of the same rows, the
+    rotation and the position errors. A pose target: the body twist ``log(T^-1 T_d)`` (6
+    arrays) and the body Jacobian; a point target (``chain.target_kind == "point"``, the target
+    a pose whose translation is the point): ``p_bd = R^T (p_d - p)`` (3 arrays) and the body
+    Jacobian's linear rows (``R^T p_dot``), no rotation error."""
     rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body")
     twist, p_bd = _step.body_twist(rot, p, target)
+    err_pos = _step.norm3(p_bd)
+    if chain.target_kind == "point":
+        columns = [[jac[..., k, i] for k in range(3, 6)] for i in range(jac.shape[-1])]
+        return p_bd, columns, jnp.zeros_like(err_pos), err_pos
     columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
-    return twist, columns, _step.norm3(twist[:3]), _step.norm3(p_bd)
+    return twist, columns, _step.norm3(twist[:3]), err_pos
+
+
+def _task_jacobian(chain: Any, q: Array) -> Array:
+    """The Jacobian the rates are solved with: the body Jacobian ``(..., 6, n)`` (pose
+    targets), or the tip origin's ``(..., 3, n)`` in the base frame, ``R J_b[3:]`` (points)."""
+    rot, _, jac = _kinematics.fk_and_jacobian(chain, q, "body")
+    return rot @ jac[..., 3:, :] if chain.target_kind == "point" else jac
 
 
 def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
@@ -446,21 +461,25 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     ok = status == Status.OK
     fixed = jax.lax.stop_gradient(q_unit)
     rot, p, jac = _kinematics.fk_and_jacobian(unit, fixed, "body")
+    point = unit.target_kind == "point"
     # Implicit derivatives: one Newton step at the solution, whose value is removed; the
     # goal of a failed element is its own pose (finite derivatives of the log at identity).
     reached = lie.from_rotation_translation(rot, p)
-    twist, _ = _step.body_twist(rot, p, jnp.where(ok[..., None, None], goal, reached))
+    twist, p_bd = _step.body_twist(rot, p, jnp.where(ok[..., None, None], goal, reached))
     floor = eps(dtype)
-    dq = _step.damped_step(jac, jnp.stack(twist, axis=-1), 0.0, floor)
+    if point:
+        dq = _step.damped_step(jac[..., 3:, :], jnp.stack(p_bd, axis=-1), 0.0, floor)
+    else:
+        dq = _step.damped_step(jac, jnp.stack(twist, axis=-1), 0.0, floor)
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
-    _, _, jac = _kinematics.fk_and_jacobian(unit, q_unit, "body")
+    jac = _task_jacobian(unit, q_unit)
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
     if rates:
-        velocity, acceleration = _body_twists(target)
+        # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
+        velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
+        rows = rows[3:] if point else rows
         q_dot = _step.damped_step(jac, velocity * rows, 0.0, floor)
-        jac_rate = jax.jvp(
-            lambda x: _kinematics.fk_and_jacobian(unit, x, "body")[2], (q_unit,), (q_dot,)
-        )[1]
+        jac_rate = jax.jvp(lambda x: _task_jacobian(unit, x), (q_unit,), (q_dot,))[1]
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
         q_ddot = _step.damped_step(jac, acceleration * rows - drift, 0.0, floor)
         okc = ok[..., None]
@@ -468,7 +487,8 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     else:
         q_jet = Jet.constant(q_unit / g)
     goal_twist, p_bd = _step.body_twist(rot, p, goal)
-    error = jnp.minimum(_step.norm3(goal_twist[:3]) + _step.norm3(p_bd), 1.0)
+    rotation_error = 0.0 if point else _step.norm3(goal_twist[:3])
+    error = jnp.minimum(rotation_error + _step.norm3(p_bd), 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
     margin = jnp.where(solved, isotropy(jac), -error)
     margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)
