@@ -7,6 +7,9 @@ a zero quaternion is invalid input and stays out of the others' splines); end to
 ``ik`` of such a file must solve every non-zero row (its FK returns the written pose) and mark
 the zero rows ``INVALID_INPUT``.
 
+The library's ``paths.path_from_poses`` follows the same rule: any length and sign per sample
+gives the unit path, and a zero quaternion is refused naming the argument.
+
 Output paths: every kind of thing a path can name (a new name, a regular file, a read-only
 one, a symlink to a file, a dangling symlink, a chain of links, a link to a directory, a
 directory, a named pipe, a socket, a device node, a hard link to the input, the input through
@@ -90,6 +93,45 @@ def test_pose_files_scale_sign_and_zero_rows(tmp_path_factory, n, exponents, fli
     for g, r in zip(got, ref, strict=True):
         np.testing.assert_allclose(g[~zero], r, rtol=0, atol=1e-11)
         assert np.all(np.isnan(g[zero][:, :3, :3]))
+
+
+@given(
+    candidates=st.integers(1, 3),
+    n=st.integers(4, 30),
+    seed=st.integers(0, 2**32 - 1),
+    exponent_range=st.floats(0, 150),
+    zero=st.booleans(),
+)
+@SETTINGS
+def test_path_from_poses_scale_sign_and_zero_rows(candidates, n, seed, exponent_range, zero):
+    """The library's pose paths follow the same rule as the files: every quaternion scaled by
+    ``10^e`` (``|e|`` up to 150) with a random sign gives the unit path's poses and rates
+    (1e-11; ``R`` a rotation at every sample), and a zero quaternion is refused naming
+    ``quaternions`` (the library takes whole arrays: no row to mark)."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, n)
+    dt = float(t[1] - t[0])
+    axes = rng.normal(size=(candidates, 3))
+    axes /= np.linalg.norm(axes, axis=-1, keepdims=True)
+    rates = rng.uniform(-3.0, 3.0, candidates)
+    blocks = [rotation_path(t, axis, rate) for axis, rate in zip(axes, rates, strict=True)]
+    p = np.stack([b[0] for b in blocks])
+    q = np.stack([b[1] for b in blocks])
+    scale = 10.0 ** rng.uniform(-exponent_range, exponent_range, (candidates, n))
+    scale *= rng.choice([-1.0, 1.0], (candidates, n))
+    reference = paths.path_from_poses(p, q, dt)
+    scaled = q * scale[..., None]
+    if zero:
+        scaled[rng.integers(candidates), rng.integers(n)] = 0.0
+        with pytest.raises(ValueError, match="quaternions"):
+            paths.path_from_poses(p, scaled, dt)
+        return
+    got = paths.path_from_poses(p, scaled, dt)
+    for g, r in zip((got.p, got.v, got.a), (reference.p, reference.v, reference.a), strict=True):
+        np.testing.assert_allclose(np.asarray(g), np.asarray(r), rtol=0, atol=1e-11)
+    rot = np.asarray(got.p)[..., :3, :3]
+    gram = rot @ np.swapaxes(rot, -1, -2)
+    np.testing.assert_allclose(gram, np.broadcast_to(np.eye(3), rot.shape), rtol=0, atol=1e-12)
 
 
 def test_ur5_ik_of_a_scaled_signed_pose_file_with_zero_rows(tmp_path, capsys):

@@ -1,17 +1,21 @@
 """URDF chains: parsed joints, forward kinematics and Jacobians against Pinocchio (its own URDF
 parser, on the UR5 and Franka Panda files of example-robot-data), mimic, continuous and
-prismatic joints against yourdfpy's own forward kinematics, errors that name the link or joint,
-IK with no seed checked with Pinocchio's forward kinematics, and pose paths through the planner
-checked by the forward kinematics of the planned joints (rates included).
+prismatic joints against yourdfpy's own forward kinematics, errors that name the link or joint
+(every defect Pinocchio's parser refuses is refused here too), IK with no seed checked with
+Pinocchio's forward kinematics, pose paths through the planner checked by the forward
+kinematics of the planned joints (rates included), and point targets (``target="point"``) on
+a 3-joint DH arm (its closed form) and the 5-joint SO-101 (Pinocchio).
 
 Tolerances: 1e-12 for forward kinematics and Jacobians (float64, chains of about 1 m); the IK
-at its default tolerances (1e-10 rad and 1e-10 of the chain's size), checked at 1e-9.
+at its default tolerances (1e-10 rad and 1e-10 of the chain's size), checked at 1e-9 (or at
+the position tolerance itself for point targets).
 """
 
 from __future__ import annotations
 
 import importlib.metadata
 import io
+import re
 
 import jax
 import jax.numpy as jnp
@@ -406,3 +410,210 @@ def test_a_target_that_is_not_a_rigid_transform_is_invalid_input():
     names = [Status(int(s)).name for s in result.status]
     assert names == ["OK"] + ["INVALID_INPUT"] * 4
     assert np.all(np.isfinite(np.asarray(result.q.p)))
+
+
+# ----------------------------------------------------------------- what the reader refuses
+_TILT_ORIGIN = '<origin xyz="0.1 0.02 0" rpy="0 0.4 0"/>'
+DEFECTS = {
+    "duplicate joint": (
+        ('<joint name="side"', '<joint name="tilt"'),
+        "two joints are named 'tilt'",
+    ),
+    "duplicate link": (
+        ('<link name="camera"/>', '<link name="camera"/><link name="camera"/>'),
+        "two links are named 'camera'",
+    ),
+    "two parent joints": (
+        ('<child link="finger_b"/>', '<child link="finger_a"/>'),
+        "link 'finger_a' is the child of two joints, 'tilt_mimic' and 'side'",
+    ),
+    "NaN in an origin's xyz": (
+        (_TILT_ORIGIN, '<origin xyz="nan 0.02 0" rpy="0 0.4 0"/>'),
+        "joint 'tilt': <origin> has a NaN or inf",
+    ),
+    "inf in an origin's rpy": (
+        (_TILT_ORIGIN, '<origin xyz="0.1 0.02 0" rpy="0 inf 0"/>'),
+        "joint 'tilt': <origin> has a NaN or inf",
+    ),
+    "NaN off the path": (
+        ('<origin xyz="0 0.05 0"/>', '<origin xyz="0 NaN 0"/>'),
+        "joint 'side': <origin> has a NaN or inf",
+    ),
+    "NaN in an axis": (
+        ('<axis xyz="0 1 0"/>', '<axis xyz="0 nan 0"/>'),
+        "joint 'tilt': <axis> has a NaN or inf",
+    ),
+    "inf in a limit": (
+        ('lower="-1" upper="1.2"', 'lower="-1" upper="inf"'),
+        "joint 'tilt': <limit upper> has a NaN or inf",
+    ),
+    "NaN speed limit": (
+        ('effort="1" velocity="2"', 'effort="1" velocity="nan"'),
+        "joint 'tilt': <limit velocity> has a NaN or inf",
+    ),
+    "NaN mimic multiplier": (
+        ('multiplier="-0.5"', 'multiplier="nan"'),
+        "joint 'tilt_mimic': <mimic multiplier> has a NaN or inf",
+    ),
+}
+
+
+@pytest.mark.parametrize("defect", list(DEFECTS))
+def test_the_reader_refuses_what_pinocchio_refuses_naming_the_joint_or_link(defect):
+    """Each defect is refused by Pinocchio's own URDF parser (urdfdom) and by ours, whose
+    message names the joint or link."""
+    change, message = DEFECTS[defect]
+    text = MIMIC_URDF.replace(*change)
+    assert text != MIMIC_URDF
+    pin.buildModelFromXML(MIMIC_URDF)  # the unchanged file loads
+    with pytest.raises(ValueError):
+        pin.buildModelFromXML(text)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        serial.from_urdf(text, "camera")
+
+
+@pytest.mark.parametrize(
+    ("mimic", "message"),
+    [
+        ('multiplier="0" offset="5"', "multiplier 0, so it stays at its offset 5.0, outside"),
+        ('multiplier="1" offset="10"', "its limits leave no position for its leader 'tilt'"),
+    ],
+)
+def test_a_mimic_joint_that_can_never_be_within_its_limits_is_refused(mimic, message):
+    """``tilt_mimic`` (limits [-3, 3]) at ``c tilt + b``, tilt in [-1, 1.2]: a constant 5, or
+    [9, 11.2]. Pinocchio loads both files (it does not check mimic limits); the chain would
+    answer poses no limit-respecting robot reaches."""
+    text = MIMIC_URDF.replace('multiplier="-0.5" offset="0.1"', mimic)
+    pin.buildModelFromXML(text)
+    with pytest.raises(ValueError, match=re.escape(message)) as refused:
+        serial.from_urdf(text, "camera")
+    assert str(refused.value).startswith("joint 'tilt_mimic': ")
+
+
+def test_a_constant_mimic_joint_within_its_limits_is_kept():
+    chain = serial.from_urdf(
+        MIMIC_URDF.replace('multiplier="-0.5" offset="0.1"', 'multiplier="0" offset="0.5"'),
+        "camera",
+    )
+    assert chain.joint_names == ("turn", "reach", "tilt")
+    np.testing.assert_array_equal(chain.multiplier, [1.0, 1.0, 1.0, 0.0])
+    np.testing.assert_array_equal(chain.offset, [0.0, 0.0, 0.0, 0.5])
+    np.testing.assert_array_equal(chain.lower, [-np.inf, -0.1, -1.0])  # tilt's own limits
+
+
+def test_an_unknown_target_kind_is_refused():
+    with pytest.raises(ValueError, match="target: expected one of"):
+        serial.from_urdf(MIMIC_URDF, "camera", target="position")
+    with pytest.raises(ValueError, match="Chain.target_kind"):
+        serial.Chain.create(np.array([[0.0, 0, 1, 0, 0, 0]]), np.eye(4), target="frame")
+
+
+# ------------------------------------------------------------------------ point targets
+def _dh_point(a, alpha, d, q):
+    """The tip origin of a standard DH chain, ``prod Rz(q) Tz(d) Tx(a) Rx(alpha)``, in numpy."""
+    pose = np.broadcast_to(np.eye(4), (*q.shape[:-1], 4, 4)).copy()
+    for i in range(q.shape[-1]):
+        c, s = np.cos(q[..., i]), np.sin(q[..., i])
+        ca, sa = np.cos(alpha[i]), np.sin(alpha[i])
+        link = np.zeros((*q.shape[:-1], 4, 4))
+        link[..., 0, :] = np.stack([c, -s * ca, s * sa, a[i] * c], -1)
+        link[..., 1, :] = np.stack([s, c * ca, -c * sa, a[i] * s], -1)
+        link[..., 2, :] = [0.0, sa, ca, d[i]]
+        link[..., 3, 3] = 1.0
+        pose = pose @ link
+    return pose[..., :3, 3]
+
+
+ELBOW = {"a": [0.0, 0.4, 0.3], "alpha": [np.pi / 2, 0.0, 0.0], "d": [0.2, 0.0, 0.0]}
+
+
+def test_point_chains_return_points_and_pose_chains_are_unchanged():
+    """``target="point"``: ``fk`` gives the tip origin (the DH closed form, 1e-12) with its
+    rates; the same table as a pose chain still gives 4x4 poses with the same translation."""
+    table = serial.DHTable.create(**ELBOW)
+    point = serial.from_dh(table, target="point")
+    pose = serial.from_dh(table)
+    assert point.target is jaxkin.robot.POINT and pose.target is jaxkin.robot.POSE
+    q = np.random.default_rng(5).uniform(-3, 3, (7, 3))
+    q_dot = np.random.default_rng(6).normal(size=(7, 3))
+    x = jaxkin.fk(point, Jet(q, q_dot, np.zeros_like(q))).x
+    assert x.p.shape == (7, 3)
+    expected = _dh_point(ELBOW["a"], ELBOW["alpha"], ELBOW["d"], q)
+    np.testing.assert_allclose(x.p, expected, rtol=0, atol=1e-12)
+    h = 1e-6  # central differences of the closed form: O(h^2) ~ 1e-12
+    by_differences = (
+        _dh_point(ELBOW["a"], ELBOW["alpha"], ELBOW["d"], q + h * q_dot)
+        - _dh_point(ELBOW["a"], ELBOW["alpha"], ELBOW["d"], q - h * q_dot)
+    ) / (2 * h)
+    np.testing.assert_allclose(x.v, by_differences, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(jaxkin.fk(pose, q).x.p[..., :3, 3], expected, atol=1e-12)
+
+
+@pytest.mark.slow
+def test_a_three_joint_point_chain_solves_positions_with_rates():
+    """Points of an elbow arm (from joints within the limits): ``OK`` and the DH closed form at
+    the returned joints is the point to the position tolerance; joint rates reproduce the
+    point's velocity (a square Jacobian); NaN and out-of-reach points are flagged."""
+    table = serial.DHTable.create(**ELBOW)
+    limits = np.full(3, 2.5)
+    chain = serial.from_dh(table, lower=-limits, upper=limits, target="point")
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-2.4, 2.4, (30, 3))
+    q_dot = rng.normal(size=(30, 3))
+    target = jaxkin.fk(chain, Jet(q, q_dot, np.zeros_like(q))).x
+    p = np.concatenate([np.asarray(target.p), [[np.nan, 0, 0], [2.0, 0, 0.2]]])
+    v = np.concatenate([np.asarray(target.v), np.zeros((2, 3))])
+    result = jaxkin.ik(chain, Jet(p, v, np.zeros_like(p)))
+    status = np.asarray(result.status)
+    assert status[:30].tolist() == [Status.OK] * 30
+    assert status[30:].tolist() == [Status.INVALID_INPUT, Status.UNREACHABLE]
+    solved = np.asarray(result.q.p)[:30]
+    assert np.all(np.abs(solved) <= 2.5)
+    reached = _dh_point(ELBOW["a"], ELBOW["alpha"], ELBOW["d"], solved)
+    tolerance = 1e-10 * float(chain.length_scale())
+    assert np.max(np.linalg.norm(reached - p[:30], axis=-1)) <= tolerance
+    # the rates: J(q) q_dot = p_dot at the solution (whichever branch it is)
+    by_rates = jaxkin.fk(chain, Jet(solved, np.asarray(result.q.v)[:30], np.zeros((30, 3)))).x.v
+    np.testing.assert_allclose(by_rates, v[:30], rtol=0, atol=1e-8 * np.abs(v).max())
+
+
+@pytest.mark.slow
+def test_a_five_joint_arm_solves_positions_checked_by_pinocchio():
+    """The SO-101 (5 joints to ``gripper_frame_link``) with point targets: every point of a
+    configuration within the limits is ``OK``, within the limits, and Pinocchio's placement of
+    the tip frame at the returned joints is the point to the position tolerance; the same
+    points as a planned path (``plan.evaluate``) come back solved and continuous."""
+    chain = serial.from_urdf(_path("so101"), ARMS["so101"][1], target="point")
+    assert chain.n_joints == 5 and chain.target.shape == (3,)
+    model = pin.buildModelFromUrdf(_path("so101"))
+    data = model.createData()
+    frame = model.getFrameId(ARMS["so101"][1])
+    columns = [model.joints[model.getJointId(j)].idx_q for j in chain.joint_names]
+
+    def tip(q):
+        full = pin.neutral(model)
+        full[columns] = q
+        pin.framesForwardKinematics(model, data, full)
+        return data.oMf[frame].translation.copy()
+
+    q = _random_q(chain, 48, 11)
+    points = np.array([tip(qi) for qi in q])
+    np.testing.assert_allclose(jaxkin.fk(chain, q).x.p, points, rtol=0, atol=1e-12)
+    result = jaxkin.ik(chain, points)
+    assert np.all(np.asarray(result.status) == Status.OK)
+    solved = np.asarray(result.q.p)
+    assert np.all((solved >= chain.lower) & (solved <= chain.upper))
+    reached = np.array([tip(qi) for qi in solved])
+    tolerance = 1e-10 * float(chain.length_scale())
+    assert np.max(np.linalg.norm(reached - points, axis=-1)) <= tolerance
+
+    # a path of points made from a slow joint motion, evaluated as a plan
+    dt, t = 0.02, np.arange(40) * 0.02
+    motion = 0.3 * np.sin(np.outer(t, [1.0, 0.7, -0.5, 0.9, 1.3]))[None] + np.array(
+        [0.2, -0.3, 0.4, 0.1, -0.2]
+    )
+    path = paths.path_from_samples(np.array([[tip(qi) for qi in motion[0]]]), dt)
+    ev = plan.evaluate(chain, path, dt=dt)
+    assert np.all(np.asarray(ev.status) == Status.OK) and bool(np.asarray(ev.feasible)[0])
+    along = np.array([tip(qi) for qi in np.asarray(ev.q.p)[0]])
+    assert np.max(np.linalg.norm(along - path.p[0], axis=-1)) <= 1e-9

@@ -6,7 +6,8 @@ the target, then from the middle of the limits, then from the
 nearest of each further group; later runs from fixed seeds spread uniformly over the limits.
 Every table and seed comes from a fixed generator: the same starts every call. Nearness is
 ``|p - p_d|^2 + w^2 |R - R_d|_F^2`` in units of the chain's size (``w = ROTATION_WEIGHT``),
-evaluated as one matrix product in float32 (it only ranks starts).
+evaluated as one matrix product in float32 (it only ranks starts); ``w = 0`` for a chain whose
+targets are points.
 """
 
 from __future__ import annotations
@@ -73,9 +74,11 @@ def _near_starts(unit: Any, goal: Array, box: Box) -> Array:
     table = spread(box, jnp.asarray(u, goal.dtype))
     rot, p = _kinematics.fk_rp(unit, table)
 
+    weight = 0.0 if unit.target_kind == "point" else ROTATION_WEIGHT  # a point: p only
+
     def features(rot, p):
         flat = rot.reshape(*rot.shape[:-2], 9)
-        return jnp.concatenate([p, ROTATION_WEIGHT * flat], -1).astype(jnp.float32)
+        return jnp.concatenate([p, weight * flat], -1).astype(jnp.float32)
 
     ours = features(rot, p)
     theirs = features(goal[..., :3, :3], goal[..., :3, 3])

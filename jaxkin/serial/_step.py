@@ -3,9 +3,10 @@
 Both IKs of a chain (``newton``: the textbook iteration; ``search``: the robot's IK) take the
 step that solves, for the ``6 x n`` Jacobian ``J`` and the twist ``V`` to the target::
 
-    n <= 6:  (J^T J + mu I) dq = J^T V           n > 6:  dq = J^T (J J^T + mu I)^-1 V
+    n <= r:  (J^T J + mu I) dq = J^T V           n > r:  dq = J^T (J J^T + mu I)^-1 V
 
-with ``mu = damping^2 + floor trace(J^T J)`` (``floor`` ``sqrt(eps)`` unless given: a soft
+(``r`` rows: 6 for a pose target, 3 for a point target) with
+``mu = damping^2 + floor trace(J^T J)`` (``floor`` ``sqrt(eps)`` unless given: a soft
 cut-off of the singular values, so a rank-deficient ``J`` gives a finite step). The symmetric
 positive definite system is solved by a Cholesky factorisation unrolled over its static size
 (``spd_solve``): elementwise batch arithmetic, much faster on CPU than a batched LAPACK call for
@@ -71,33 +72,34 @@ def _dot(u: list[Array], v: list[Array]) -> Array:
 def damped_step_soa(
     columns: list[list[Array]], twist: list[Array], damping: Array, floor: float | None = None
 ) -> list[Array]:
-    """The step (module docstring) for ``columns``, the ``n`` columns of ``J`` (each 6 arrays),
-    and ``twist`` (6 arrays); ``floor`` ``sqrt(eps)`` by default."""
-    n = len(columns)
+    """The step (module docstring) for ``columns``, the ``n`` columns of ``J`` (each ``r``
+    arrays), and ``twist`` (``r`` arrays); ``floor`` ``sqrt(eps)`` by default."""
+    n, r = len(columns), len(twist)
     gram = [[_dot(columns[i], columns[j]) if j <= i else None for j in range(n)] for i in range(n)]
     trace = sum(gram[i][i] for i in range(1, n)) if n > 1 else 0.0
     trace = gram[0][0] + trace
     floor = singular_rtol(trace.dtype) if floor is None else floor
     mu = damping * damping + floor * trace
-    if n <= 6:
+    if n <= r:
         for i in range(n):
             gram[i][i] = gram[i][i] + mu
         return spd_solve(gram, [_dot(col, twist) for col in columns])
-    rows = [[col[k] for col in columns] for k in range(6)]  # rows of J
-    outer = [[_dot(rows[i], rows[j]) if j <= i else None for j in range(6)] for i in range(6)]
-    for i in range(6):
+    rows = [[col[k] for col in columns] for k in range(r)]  # rows of J
+    outer = [[_dot(rows[i], rows[j]) if j <= i else None for j in range(r)] for i in range(r)]
+    for i in range(r):
         outer[i][i] = outer[i][i] + mu
-    lower = iter(_computed([outer[i][j] for i in range(6) for j in range(i + 1)]))
-    outer = [[next(lower) if j <= i else None for j in range(6)] for i in range(6)]
+    lower = iter(_computed([outer[i][j] for i in range(r) for j in range(i + 1)]))
+    outer = [[next(lower) if j <= i else None for j in range(r)] for i in range(r)]
     y = _computed(spd_solve(outer, twist))
     return [_dot(col, y) for col in columns]
 
 
 def damped_step(jac: Array, twist: Array, damping, floor: float | None = None) -> Array:
-    """Array front end of ``damped_step_soa``: ``jac`` (..., 6, n), ``twist`` (..., 6)."""
+    """Array front end of ``damped_step_soa``: ``jac`` (..., r, n), ``twist`` (..., r)."""
     batch = jnp.broadcast_shapes(jac.shape[:-2], twist.shape[:-1])
-    columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
-    twist_list = [twist[..., k] for k in range(6)]
+    r = jac.shape[-2]
+    columns = [[jac[..., k, i] for k in range(r)] for i in range(jac.shape[-1])]
+    twist_list = [twist[..., k] for k in range(r)]
     damping = jnp.asarray(damping, jac.dtype)
     dq = damped_step_soa(columns, twist_list, damping, floor)
     return jnp.stack([jnp.broadcast_to(x, batch) for x in dq], axis=-1)

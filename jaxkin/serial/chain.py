@@ -24,6 +24,10 @@ each constant while the chain moves.
 
 Forward kinematics is ``jaxkin.fk(chain, q)``: its ``x`` is the Jet of the tip's 4x4 poses in
 the base frame, so ``jaxkin.fk(chain, q).x.p`` is THE way to the transform of the last frame.
+A chain built with ``target_kind="point"`` (``from_urdf(..., target="point")`` and the other
+builders' ``target`` argument) takes and returns the tip's origin ``p(q)`` ``(3,)`` instead:
+its IK solves position only (the residual is ``p_d - p(q)``), for chains of fewer than six
+joints (a leg's foot, a finger's tip, a 5-joint arm).
 ``space_jacobian`` and ``body_jacobian`` give the Jacobians; ``jaxkin.ik`` the IK search
 (``serial.search``) and ``serial.ik_newton`` the textbook Newton iteration from given starts.
 
@@ -47,14 +51,15 @@ from .._geometry import BOUND, REAL, geometry, label, number, static
 from .._numerics import eps
 from ..jet import Jet
 from ..result import FKResult, IKResult, forward_result
-from ..robot import POSE, CompilePolicy, JointLimits, Robot, promoted
+from ..robot import POINT, POSE, CompilePolicy, JointLimits, Robot, Target, promoted
 from ..status import Status
 from . import _kinematics, search
 from .search import ChainIKOptions
 
-__all__ = ["JOINT_KINDS", "Chain", "body_jacobian", "space_jacobian"]
+__all__ = ["JOINT_KINDS", "TARGETS", "Chain", "body_jacobian", "space_jacobian"]
 
 JOINT_KINDS = ("revolute", "continuous", "prismatic")
+TARGETS = ("pose", "point")  # ``Chain.target_kind``: the tip's 4x4 pose, or its origin (3,)
 _UNIT_TOL = 1e-6  # tolerance on |omega| = 1 (revolute) or |v| = 1 with omega = 0 (prismatic)
 
 
@@ -121,6 +126,8 @@ class Chain(Robot):
             (the protocol's ``joint_types`` is its ``"R"``/``"P"`` view).
         joint_names: label, the ``n`` coordinate names (unique); empty for ``q1 ... qn``.
         base_link, tip_link: labels, the link names (for messages; may be empty).
+        target_kind: static, ``"pose"`` (targets are 4x4 poses, ``target`` is ``POSE``) or
+            ``"point"`` (the tip's origin ``(3,)``, ``target`` is ``POINT``).
     """
 
     screws: Array = number(REAL, (-1, 6))
@@ -135,8 +142,8 @@ class Chain(Robot):
     joint_names: tuple[str, ...] = label(default=())
     base_link: str = label(default="")
     tip_link: str = label(default="")
+    target_kind: str = static(default="pose")
 
-    target: ClassVar = POSE
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
     IKOptions: ClassVar = ChainIKOptions
@@ -148,8 +155,17 @@ class Chain(Robot):
     )
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
+    @property
+    def target(self) -> Target:
+        """``POSE`` (4x4 poses) or ``POINT`` (the tip's origin), after ``target_kind``."""
+        return POINT if self.target_kind == "point" else POSE
+
     def _validate(self) -> None:
         super()._validate()
+        if self.target_kind not in TARGETS:
+            raise ValueError(
+                f"Chain.target_kind: expected one of {TARGETS}, got {self.target_kind!r}"
+            )
         m = int(jnp.shape(self.screws)[0])
         names, kinds, follows = (
             tuple(self.joint_names),
@@ -234,6 +250,7 @@ class Chain(Robot):
         mimic: dict[int, tuple[int, float, float]] | None = None,
         base_link: str = "",
         tip_link: str = "",
+        target: str = "pose",
     ) -> Chain:
         """A chain from base-frame screws ``(m, 6)`` and ``home``, keyword defaults.
 
@@ -246,6 +263,7 @@ class Chain(Robot):
             mimic: ``{row: (leader row, multiplier, offset)}``: path joint ``row`` follows the
                 joint in row ``leader`` (which mimics no other).
             base_link, tip_link: the link names (labels).
+            target: ``"pose"`` or ``"point"`` (``target_kind``).
 
         Raises:
             ValueError: malformed fields (see the class) or a mimic entry that does not name a
@@ -283,6 +301,7 @@ class Chain(Robot):
             joint_names=tuple(joint_names or ()),
             base_link=base_link,
             tip_link=tip_link,
+            target_kind=target,
         )
 
     # -------------------------------------------------------------------- the robot protocol
@@ -348,7 +367,7 @@ class Chain(Robot):
         chain = _validate.cast_leaves(self, target.dtype)
         budget = search.Budget(options.max_iter, options.restarts, options.max_iter)
         tols = _tolerances(chain, target.dtype, options)
-        return search.solve(chain, target, tols, budget, options.use_limits, rates)
+        return search.solve(chain, self._as_pose(target), tols, budget, options.use_limits, rates)
 
     def ik_path_kernel(self, path: Jet, index: Any, options: ChainIKOptions) -> IKResult:
         """The search along sampled paths ``(..., T, 4, 4)``: the first sample as
@@ -357,12 +376,31 @@ class Chain(Robot):
         chain = _validate.cast_leaves(self, path.dtype)
         budget = search.Budget(options.max_iter, options.restarts, options.warm_iter)
         tols = _tolerances(chain, path.dtype, options)
-        return search.solve_paths(chain, path, tols, budget, options.use_limits)
+        return search.solve_paths(chain, self._as_pose(path), tols, budget, options.use_limits)
+
+    def _as_pose(self, target: Jet) -> Jet:
+        """Point targets ``(..., 3)`` as the poses the search reads (identity rotation, the
+        point as translation, its rates in the translation column); poses unchanged."""
+        if self.target_kind != "point":
+            return target
+
+        def embed(x: Array, corner: float) -> Array:
+            column = jnp.concatenate([x, jnp.full(x.shape[:-1] + (1,), corner, x.dtype)], -1)
+            block = jnp.zeros(x.shape[:-1] + (4, 3), x.dtype)
+            block = block.at[..., :3, :].set(corner * jnp.eye(3, dtype=x.dtype))
+            return jnp.concatenate([block, column[..., None]], -1)
+
+        return Jet(embed(target.p, 1.0), embed(target.v, 0.0), embed(target.a, 0.0))
 
     def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
-        """The tip's pose ``T(q)`` (``x``: a Jet of 4x4 transforms in the base frame);
-        ``INVALID_INPUT`` for NaN/inf in ``q``, where ``x`` is the pose at ``q = 0``."""
+        """The tip's pose ``T(q)`` (``x``: a Jet of 4x4 transforms in the base frame), or its
+        origin ``p(q)`` ``(..., 3)`` for point targets; ``INVALID_INPUT`` for NaN/inf in
+        ``q``, where ``x`` is the pose (point) at ``q = 0``."""
         chain = _validate.cast_leaves(self, q.dtype)
+        if self.target_kind == "point":
+            return forward_result(
+                lambda joints: _kinematics.pose(chain, joints)[..., :3, 3], q, rates, 1
+            )
         return forward_result(lambda joints: _kinematics.pose(chain, joints), q, rates, 2)
 
     def work_dtype(self, dtype: Any) -> Any:

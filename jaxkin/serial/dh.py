@@ -222,6 +222,7 @@ def from_dh(
     velocity: ArrayLike | None = None,
     base_link: str = "",
     tip_link: str = "",
+    target: str = "pose",
 ) -> Chain:
     """The ``serial.Chain`` of a DH table: the same ``q`` (radians for ``'R'``, length for
     ``'P'``) and the same ``T(q)`` (module docstring).
@@ -229,7 +230,7 @@ def from_dh(
     Args:
         table: the table (``DHTable.create(a=..., alpha=..., d=...)``, or an analytic arm's
             ``dh_table()``).
-        joint_names, lower, upper, velocity, base_link, tip_link: as ``Chain.create``
+        joint_names, lower, upper, velocity, base_link, tip_link, target: as ``Chain.create``
             (default names ``q1 ... qn``, no limits).
 
     Raises:
@@ -247,4 +248,5 @@ def from_dh(
         velocity=velocity,
         base_link=base_link,
         tip_link=tip_link,
+        target=target,
     )

@@ -40,6 +40,7 @@ def from_screws(
     velocity: ArrayLike | None = None,
     base_link: str = "",
     tip_link: str = "",
+    target: str = "pose",
 ) -> Chain:
     """The ``serial.Chain`` of unit screws ``(m, 6)`` and a home pose (module docstring).
 
@@ -49,8 +50,8 @@ def from_screws(
             (prismatic), within 1e-6.
         home: the tool pose at ``q = 0`` (``M``), a rigid ``(4, 4)`` transform.
         frame: ``'space'`` (``S_i``, base frame) or ``'body'`` (``B_i``, home tool frame).
-        joint_names, joint_kinds, lower, upper, velocity, base_link, tip_link: as
-            ``Chain.create``.
+        joint_names, joint_kinds, lower, upper, velocity, base_link, tip_link, target: as
+            ``Chain.create`` (``target="point"``: position-only targets).
 
     Raises:
         ValueError: a bad ``frame``, screws that are not unit screws, a ``home`` that is not
@@ -74,4 +75,5 @@ def from_screws(
         velocity=velocity,
         base_link=base_link,
         tip_link=tip_link,
+        target=target,
     )

@@ -22,7 +22,12 @@ In units of the chain's size and in the body frame, per element:
   rates, or a rotation block that is not a rotation (``serial._step.rigid_target``);
 * rates from the target's body twist, ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot -
   J_b_dot q_dot)`` (minimum-norm for a redundant chain, least squares for one with fewer than
-  six joints), a Jacobian-based margin, and implicit derivatives (``dq = J_b^+ dV_b``).
+  six joints), a Jacobian-based margin, and implicit derivatives (``dq = J_b^+ dV_b``);
+* a chain whose targets are points (``target_kind == "point"``; the chain robot passes them
+  as poses of identity rotation) drives the position error ``p_bd = R^T (p_d - p)`` alone to
+  zero with the body Jacobian's linear rows (``_residual``, the one place the residual is
+  formed): ``OK`` on ``|p_d - p| <= position_tol``, rates ``q_dot = J_p^+ p_dot`` with
+  ``J_p = R J_b[3:]`` the tip origin's Jacobian in the base frame.
 
 ``solve_paths`` warm-starts along sampled paths: the first sample as ``solve``, every further
 one from the previous solution (one run, then the unbounded run); a sample that fails keeps its
@@ -284,12 +289,28 @@ def _project(q: Array, box: Box) -> Array:
     return _projected(q, box, box.lower, box.upper)
 
 
-def _residual(chain: Any, q: Array, target: Array):
-    """Body twist to the target (6 arrays), Jacobian columns, rotation and position errors."""
-    rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body")
+def _residual(chain: Any, q: Array, target: Array, fk: tuple | None = None):
+    """The residual the search drives to zero, the Jacobian columns of the same rows, the
+    rotation and the position errors. A pose target: the body twist ``log(T^-1 T_d)`` (6
+    arrays) and the body Jacobian; a point target (``chain.target_kind == "point"``, the target
+    a pose whose translation is the point): ``p_bd = R^T (p_d - p)`` (3 arrays) and the body
+    Jacobian's linear rows (``R^T p_dot``), no rotation error. ``fk``: ``(R, p, J_b)`` at
+    ``q`` when already computed."""
+    rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body") if fk is None else fk
     twist, p_bd = _step.body_twist(rot, p, target)
+    err_pos = _step.norm3(p_bd)
+    if chain.target_kind == "point":
+        columns = [[jac[..., k, i] for k in range(3, 6)] for i in range(jac.shape[-1])]
+        return p_bd, columns, jnp.zeros_like(err_pos), err_pos
     columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
-    return twist, columns, _step.norm3(twist[:3]), _step.norm3(p_bd)
+    return twist, columns, _step.norm3(twist[:3]), err_pos
+
+
+def _task_jacobian(chain: Any, q: Array) -> Array:
+    """The Jacobian the rates are solved with: the body Jacobian ``(..., 6, n)`` (pose
+    targets), or the tip origin's ``(..., 3, n)`` in the base frame, ``R J_b[3:]`` (points)."""
+    rot, _, jac = _kinematics.fk_and_jacobian(chain, q, "body")
+    return rot @ jac[..., 3:, :] if chain.target_kind == "point" else jac
 
 
 def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
@@ -445,30 +466,32 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     dtype = q_unit.dtype
     ok = status == Status.OK
     fixed = jax.lax.stop_gradient(q_unit)
-    rot, p, jac = _kinematics.fk_and_jacobian(unit, fixed, "body")
+    fk = _kinematics.fk_and_jacobian(unit, fixed, "body")
+    point = unit.target_kind == "point"
     # Implicit derivatives: one Newton step at the solution, whose value is removed; the
     # goal of a failed element is its own pose (finite derivatives of the log at identity).
-    reached = lie.from_rotation_translation(rot, p)
-    twist, _ = _step.body_twist(rot, p, jnp.where(ok[..., None, None], goal, reached))
+    reached = lie.from_rotation_translation(fk[0], fk[1])
+    toward = jnp.where(ok[..., None, None], goal, reached)
+    residual, columns, _, _ = _residual(unit, fixed, toward, fk)
     floor = eps(dtype)
-    dq = _step.damped_step(jac, jnp.stack(twist, axis=-1), 0.0, floor)
+    dq = jnp.stack(_step.damped_step_soa(columns, residual, 0.0, floor), axis=-1)
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
-    _, _, jac = _kinematics.fk_and_jacobian(unit, q_unit, "body")
+    jac = _task_jacobian(unit, q_unit)
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
     if rates:
-        velocity, acceleration = _body_twists(target)
+        # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
+        velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
+        rows = rows[3:] if point else rows
         q_dot = _step.damped_step(jac, velocity * rows, 0.0, floor)
-        jac_rate = jax.jvp(
-            lambda x: _kinematics.fk_and_jacobian(unit, x, "body")[2], (q_unit,), (q_dot,)
-        )[1]
+        jac_rate = jax.jvp(lambda x: _task_jacobian(unit, x), (q_unit,), (q_dot,))[1]
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
         q_ddot = _step.damped_step(jac, acceleration * rows - drift, 0.0, floor)
         okc = ok[..., None]
         q_jet = Jet(q_unit / g, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
     else:
         q_jet = Jet.constant(q_unit / g)
-    goal_twist, p_bd = _step.body_twist(rot, p, goal)
-    error = jnp.minimum(_step.norm3(goal_twist[:3]) + _step.norm3(p_bd), 1.0)
+    _, _, err_rot, err_pos = _residual(unit, fixed, goal, fk)
+    error = jnp.minimum(err_rot + err_pos, 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
     margin = jnp.where(solved, isotropy(jac), -error)
     margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)

@@ -16,9 +16,19 @@ joint (``theta = multiplier * theta_leader + offset``) becomes a path joint foll
 leader's coordinate (a chain of mimics is composed); its own position and speed limits are
 carried over to the leader (``lower <= c q + b <= upper`` and ``|c q_dot| <= v``). Limits:
 ``<limit lower upper>`` of revolute and prismatic joints (none when absent), ``velocity`` as
-the speed limit (none when absent or not positive). Errors name the link or joint: an unknown
-link, no path from the base to the tip, an unsupported joint type, a zero axis, a mimic joint
-whose leader is not on the path.
+the speed limit (none when absent or not positive).
+
+The reader refuses, as Pinocchio's does, a file whose joints do not form a tree: two joints
+(or two links) of one name, a link that is the child of two joints. It also refuses numbers
+that mean nothing: NaN or inf in a joint's ``<origin>`` (``xyz``, ``rpy``), ``<axis>``,
+``<limit>`` or ``<mimic>``, and a mimic joint whose value ``c theta_leader + b`` can never lie
+within its own limits (a constant ``b`` outside them when ``c = 0``, or no overlap over the
+leader's range). Errors name the link or joint: an unknown link, no path from the base to the
+tip, an unsupported joint type, a zero axis, a mimic joint whose leader is not on the path.
+
+``target="point"`` builds a chain whose targets are the tip link's origin ``(3,)`` (position
+only: a leg's foot, a finger's tip, an arm of fewer than six joints), ``"pose"`` (the default)
+one whose targets are the tip's 4x4 pose.
 """
 
 from __future__ import annotations
@@ -30,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .chain import Chain
+from .chain import TARGETS, Chain
 
 __all__ = ["from_urdf"]
 
@@ -74,17 +84,72 @@ def _load(source: str | os.PathLike) -> object:
         etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
     except etree.XMLSyntaxError as exc:
         raise ValueError(f"{where}: not well-formed XML ({exc})") from None
-    try:
-        model = yourdfpy.URDF.load(
-            io.BytesIO(data),
-            build_scene_graph=False,
-            build_collision_scene_graph=False,
-            load_meshes=False,
-            load_collision_meshes=False,
-        )
+    try:  # NaN or inf in an origin is named per joint after loading (_check_numbers)
+        with np.errstate(invalid="ignore", over="ignore"):
+            model = yourdfpy.URDF.load(
+                io.BytesIO(data),
+                build_scene_graph=False,
+                build_collision_scene_graph=False,
+                load_meshes=False,
+                load_collision_meshes=False,
+            )
     except Exception as exc:  # a malformed element: yourdfpy raises what its parser meets
         raise ValueError(f"{where}: not a readable URDF ({type(exc).__name__}: {exc})") from None
     return model.robot
+
+
+def _check_tree(robot) -> None:
+    """Unique joint and link names, and one parent joint per link (Pinocchio's own checks)."""
+    for kind, names in (
+        ("joint", [joint.name for joint in robot.joints]),
+        ("link", [link.name for link in robot.links]),
+    ):
+        seen: set[str] = set()
+        for name in names:
+            if name in seen:
+                raise ValueError(
+                    f"robot {robot.name!r}: two {kind}s are named {name!r} ({kind} names must "
+                    "be unique)"
+                )
+            seen.add(name)
+    parent: dict[str, str] = {}
+    for joint in robot.joints:
+        if joint.child in parent:
+            raise ValueError(
+                f"link {joint.child!r} is the child of two joints, {parent[joint.child]!r} and "
+                f"{joint.name!r} (a link has one parent joint)"
+            )
+        parent[joint.child] = joint.name
+
+
+def _check_numbers(robot) -> None:
+    """NaN or inf in a joint's origin, axis, limit or mimic: a ``ValueError`` naming it."""
+    for joint in robot.joints:
+        fields = [("<origin>", joint.origin), ("<axis>", joint.axis)]
+        if joint.limit is not None:
+            fields += [
+                (f"<limit {name}>", getattr(joint.limit, name))
+                for name in ("lower", "upper", "velocity", "effort")
+            ]
+        if joint.mimic is not None:
+            fields += [
+                (f"<mimic {name}>", getattr(joint.mimic, name)) for name in ("multiplier", "offset")
+            ]
+        for where, value in fields:
+            if value is None:
+                continue
+            try:
+                values = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"joint {joint.name!r}: {where} is not a number: {value!r}"
+                ) from None
+            if not np.all(np.isfinite(values)):
+                shown = "xyz/rpy" if where == "<origin>" else np.array2string(values)
+                raise ValueError(
+                    f"joint {joint.name!r}: {where} has a NaN or inf ({shown}); every number "
+                    "of a joint must be finite"
+                )
 
 
 def _listed(names: list[str], limit: int = 12) -> str:
@@ -152,26 +217,38 @@ def _limits(joint) -> tuple[float, float, float]:
     return lower, upper, velocity
 
 
-def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = None) -> Chain:
+def from_urdf(
+    source: str | os.PathLike, tip_link: str, base_link: str | None = None, target: str = "pose"
+) -> Chain:
     """The chain from ``base_link`` to ``tip_link`` of a URDF (module docstring).
 
     Args:
         source: a path to a ``.urdf`` file, or the URDF's XML text.
         tip_link: the link whose pose the chain computes (e.g. ``"tool0"``).
         base_link: the link the pose is expressed in; None for the root link.
+        target: ``"pose"``: targets are the tip's 4x4 poses; ``"point"``: the tip link's
+            origin ``(3,)`` in the base frame (position-only IK, e.g. for a chain of fewer
+            than six joints).
 
     Returns:
         A ``serial.Chain`` (a robot of the protocol: ``jaxkin.ik``/``jaxkin.fk`` with 4x4
-        poses) whose coordinates are the independent moving joints on the path, named as in
-        the URDF, base to tip (``joint_names``; their URDF types in ``joint_kinds``).
+        poses, or 3-vectors with ``target="point"``) whose coordinates are the independent
+        moving joints on the path, named as in the URDF, base to tip (``joint_names``; their
+        URDF types in ``joint_kinds``).
 
     Raises:
-        ValueError: an unreadable source, an unknown link, no path from the base to the tip, no
-            moving joint on it, a ``floating`` or ``planar`` joint on it, a zero axis, bad
-            limits, or a mimic joint whose leader is not a moving joint on the path.
+        ValueError: an unreadable source, duplicate joint or link names, a link with two parent
+            joints, NaN or inf in a joint's numbers, an unknown link, no path from the base to
+            the tip, no moving joint on it, a ``floating`` or ``planar`` joint on it, a zero
+            axis, bad limits, a mimic joint whose leader is not a moving joint on the path or
+            whose value can never lie within its own limits, or an unknown ``target``.
         ImportError: yourdfpy is not installed (the ``urdf`` extra).
     """
+    if target not in TARGETS:
+        raise ValueError(f"target: expected one of {TARGETS}, got {target!r}")
     robot = _load(source)
+    _check_tree(robot)
+    _check_numbers(robot)
     path, base_link = _path_joints(robot, tip_link, base_link)
     frame = np.eye(4)
     rows, moving = [], []
@@ -224,10 +301,18 @@ def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = 
     coordinate = {row: j for j, row in enumerate(own)}
     lower, upper, velocity = (np.array([_limits(moving[i])[k] for i in own]) for k in range(3))
     for i, (leader, c, b) in enumerate(couplings):
-        if leader == i or c == 0.0:
+        if leader == i:
             continue
         j = coordinate[leader]
         low, high, speed = _limits(moving[i])
+        if c == 0.0:
+            if not low <= b <= high:
+                raise ValueError(
+                    f"joint {moving[i].name!r}: it mimics {moving[leader].name!r} with "
+                    f"multiplier 0, so it stays at its offset {b}, outside its limits "
+                    f"[{low}, {high}]"
+                )
+            continue
         bounds = sorted(((low - b) / c, (high - b) / c))
         lower[j], upper[j] = max(lower[j], bounds[0]), min(upper[j], bounds[1])
         velocity[j] = min(velocity[j], speed / abs(c))
@@ -249,4 +334,5 @@ def from_urdf(source: str | os.PathLike, tip_link: str, base_link: str | None = 
         joint_names=tuple(moving[i].name for i in own),
         base_link=base_link,
         tip_link=tip_link,
+        target_kind=target,
     )
