@@ -697,13 +697,14 @@ def _hot_query(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> An
 
 def _hot_build(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> Any:
     """The single query compiled with the geometry and options as constants, or None when
-    the query is not one element of a concrete, unbatched robot (or the robot's IK is an
-    iterative search, whose program is dominated by its own iterations)."""
+    the query is not one element of a concrete, unbatched robot, or is the IK of a chain
+    (an iterative search, dominated by its own iterations) or of an analytic arm (all its
+    branches in one program: a second compilation of a minute would cost more than it saves)."""
     core = robot.target.shape if kind == "ik" else (robot.n_joints,)
     if np.shape(x) not in (core, (1, *core)) or robot.batch_shape():
         return None
-    if kind == "ik" and robot.ik_policy.bucket:
-        return None
+    if kind == "ik" and (robot.ik_policy.bucket or robot.ik_policy.branch_as_data):
+        return None  # a search, or every branch solved at once: compiles for tens of seconds
     if not all(is_concrete(leaf) for leaf in jax.tree.leaves(robot)):
         return None
     if kind == "ik":
