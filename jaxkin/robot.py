@@ -31,7 +31,12 @@ the robot's kernel runs in one compiled program per robot class, branch and rate
 robot's compile policy (``CompilePolicy``, applied through ``jaxkin._batching``: small batches
 padded to a power of two, large ones split across host threads, a concrete geometry compiled in
 as constants). One element (batch ``()`` or ``(1,)``, the single query of a planner between
-batches) goes straight to the program compiled for its shape: no padding, no host copy.
+batches) goes straight to the program compiled for its shape: no padding, no host copy. A
+robot object asked the same single query (kind, branch, options, input shape and dtype) from a
+JAX or NumPy array ``_batching.HOT_AFTER`` times gets its own *hot* program: the geometry and
+options compiled in as constants, the outputs that do not depend on the input computed once,
+and no input work in Python (the key holds the shape and dtype already checked), in a table of
+the ``_batching.HOT_PROGRAMS`` most recent; its results and statuses are the batched path's.
 
 A new robot subclasses ``Robot`` (as a ``geometry`` dataclass whose fields are ``number``s),
 sets the class attributes and implements the pure kernels ``ik_kernel`` and ``fk_kernel``
