@@ -79,9 +79,9 @@ PLAN_PAD_SAMPLES = 1 << 15
 
 # A robot object asked one element at a time this many times (same kind, branch, options,
 # input shape and dtype) gets its own program with the geometry as constants (a compilation of
-# 0.1-2 s; the call then costs a third to a half of the generic one-element program's).
+# 0.1-2 s; the call then costs 0.3-0.75x the generic one-element path's, docs/performance.md).
 HOT_AFTER = 8
-# Hot single-query programs kept (least recently used dropped): each holds its robot.
+# Hot single-query programs kept (the earliest built dropped): each holds its robot.
 HOT_PROGRAMS = 32
 
 
@@ -89,8 +89,8 @@ HOT_PROGRAMS = 32
 
 
 class HotQueries:
-    """The compiled single queries of the robots asked most often, least recently used
-    dropped beyond ``HOT_PROGRAMS``.
+    """The compiled single queries of the robots asked most often, the earliest built dropped
+    beyond ``HOT_PROGRAMS`` (a lookup stays one dictionary read).
 
     ``get(key, owner, build)`` counts the calls of ``key`` (which starts with ``id(owner)``)
     and returns None until the ``HOT_AFTER``-th, which calls ``build()`` and keeps its result

@@ -36,7 +36,7 @@ robot object asked the same single query (kind, branch, options, input shape and
 JAX or NumPy array ``_batching.HOT_AFTER`` times gets its own *hot* program: the geometry and
 options compiled in as constants, the outputs that do not depend on the input computed once,
 and no input work in Python (the key holds the shape and dtype already checked), in a table of
-the ``_batching.HOT_PROGRAMS`` most recent; its results and statuses are the batched path's.
+the ``_batching.HOT_PROGRAMS`` most recently built; its results and statuses are the batched path's.
 
 A new robot subclasses ``Robot`` (as a ``geometry`` dataclass whose fields are ``number``s),
 sets the class attributes and implements the pure kernels ``ik_kernel`` and ``fk_kernel``
