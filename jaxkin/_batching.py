@@ -102,28 +102,38 @@ class HotQueries:
         self.size = HOT_PROGRAMS if size is None else size
         self.programs: dict[tuple, tuple[Any, Any]] = {}
         self.counts: dict[tuple, int] = {}
+        self.none: dict[tuple, Any] = {}  # keys without a program (batches): owner by key
 
     def get(self, key: tuple, owner: Any, build: Callable[[], Any]) -> Any:
         entry = self.programs.get(key)
         if entry is not None and entry[0] is owner:
             return entry[1]
+        if self.none.get(key) is owner:
+            return None
         count = self.counts.pop(key, 0) + 1
         if count < HOT_AFTER:
-            self.counts[key] = count  # most recent last
-            if len(self.counts) > 4 * self.size:
-                del self.counts[next(iter(self.counts))]
+            _bounded_put(self.counts, key, count, 4 * self.size)
             return None
         program = build()
-        self.programs.pop(key, None)
-        self.programs[key] = (owner, program)
-        if len(self.programs) > self.size:
-            del self.programs[next(iter(self.programs))]
+        if program is None:  # kept apart, so that batches never push programs out
+            _bounded_put(self.none, key, owner, 4 * self.size)
+        else:
+            _bounded_put(self.programs, key, (owner, program), self.size)
         return program
 
     def clear(self) -> None:
         """Forget every program and count."""
         self.programs.clear()
         self.counts.clear()
+        self.none.clear()
+
+
+def _bounded_put(table: dict, key: Any, value: Any, size: int) -> None:
+    """``table[key] = value`` as its newest entry, the oldest dropped beyond ``size``."""
+    table.pop(key, None)
+    table[key] = value
+    if len(table) > size:
+        del table[next(iter(table))]
 
 
 def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], Any]:

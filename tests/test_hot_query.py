@@ -119,3 +119,19 @@ def test_input_dependence_follows_nested_calls():
     np.testing.assert_array_equal(out["moving"], [0.0, 2.0, 4.0])
     np.testing.assert_array_equal(out["zeros"], np.zeros(3))
     np.testing.assert_array_equal(out["one"], np.ones(2))
+
+
+def test_batches_never_push_hot_programs_out(hot_after_two, monkeypatch):
+    """Keys without a program (batches, here of several sizes) are kept apart from the
+    programs, so a table of one program keeps it however many batch shapes come."""
+    monkeypatch.setattr(robot_module, "_HOT", _batching.HotQueries(size=1))
+    robot = scara.Scara.paper()
+    q = jnp.asarray([0.4, -0.7, 10.0])
+    for _ in range(2):
+        jaxkin.fk(robot, q)
+    (program,) = [entry[1] for entry in robot_module._HOT.programs.values()]
+    for n in (2, 3, 5, 6, 9):
+        for _ in range(2):
+            jaxkin.fk(robot, jnp.tile(q, (n, 1)))
+    assert [entry[1] for entry in robot_module._HOT.programs.values()] == [program]
+    assert len(robot_module._HOT.none) <= 4
