@@ -5,7 +5,9 @@ The shape a planner asks between batches (an OMPL-style validity checker asks on
 time). The time is the whole call from Python, returned values ready; the goal for the FK of a
 7-joint chain (the Franka Panda from example-robot-data, ``serial.from_urdf``) and the IK of a
 SCARA target is 30 us each on a 2-core CPU. A plain ``jax.jit`` of an identity on one small
-array is measured beside them as the floor of any JAX call.
+array is measured beside them as the floor of any JAX call. The warm-up rounds run the robot's
+hot single query (``jaxkin.robot``: built at the ``_batching.HOT_AFTER``-th call of one robot
+object), so the timed rounds measure it where the robot has one.
 """
 
 from __future__ import annotations

@@ -77,6 +77,171 @@ PAD_MAX = 1 << 12
 # (candidates x T x branches held): a few milliseconds of work.
 PLAN_PAD_SAMPLES = 1 << 15
 
+# A robot object asked one element at a time this many times (same kind, branch, options,
+# input shape and dtype) gets its own program with the geometry as constants (a compilation of
+# 0.1-2 s; the call then costs 0.3-0.75x the generic one-element path's, docs/performance.md).
+HOT_AFTER = 8
+# Hot single-query programs kept (the earliest built dropped): each holds its robot.
+HOT_PROGRAMS = 32
+
+
+# ------------------------------------------------------------------ hot single queries
+
+
+class HotQueries:
+    """The compiled single queries of the robots asked most often, the earliest built dropped
+    beyond ``HOT_PROGRAMS`` (a lookup stays one dictionary read).
+
+    ``get(key, owner, build)`` counts the calls of ``key`` (which starts with ``id(owner)``)
+    and returns None until the ``HOT_AFTER``-th, which calls ``build()`` and keeps its result
+    (a program, or None for a query that has none) with ``owner``: an entry answers only
+    while its owner is that very object (a key whose ``id`` was reused starts counting again).
+    """
+
+    def __init__(self, size: int | None = None) -> None:
+        self.size = HOT_PROGRAMS if size is None else size
+        self.programs: dict[tuple, tuple[Any, Any]] = {}
+        self.counts: dict[tuple, int] = {}
+        self.none: dict[tuple, Any] = {}  # keys without a program (batches): owner by key
+
+    def get(self, key: tuple, owner: Any, build: Callable[[], Any]) -> Any:
+        entry = self.programs.get(key)
+        if entry is not None and entry[0] is owner:
+            return entry[1]
+        if self.none.get(key) is owner:
+            return None
+        count = self.counts.pop(key, 0) + 1
+        if count < HOT_AFTER:
+            _bounded_put(self.counts, key, count, 4 * self.size)
+            return None
+        program = build()
+        if program is None:  # kept apart, so that batches never push programs out
+            _bounded_put(self.none, key, owner, 4 * self.size)
+        else:
+            _bounded_put(self.programs, key, (owner, program), self.size)
+        return program
+
+    def clear(self) -> None:
+        """Forget every program and count."""
+        self.programs.clear()
+        self.counts.clear()
+        self.none.clear()
+
+
+def _bounded_put(table: dict, key: Any, value: Any, size: int) -> None:
+    """``table[key] = value`` as its newest entry, the oldest dropped beyond ``size``."""
+    table.pop(key, None)
+    table[key] = value
+    if len(table) > size:
+        del table[next(iter(table))]
+
+
+def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], Any]:
+    """``fn`` (one array in, a pytree out) compiled for ``example``'s shape and dtype, its
+    output leaves that do not depend on the input (the zero rates of a query at rest) computed
+    once and returned as they are: every output of a compiled call costs about 1-2 us."""
+    traced = jax.jit(fn).trace(example)
+    tree = jax.tree.structure(traced.out_info)
+    moving = _input_dependent(traced.jaxpr.jaxpr)
+    fixed = [i for i, m in enumerate(moving) if not m]
+    moving = [i for i, m in enumerate(moving) if m]
+
+    def pick(indices: list[int]) -> Callable[[Array], list]:
+        return lambda x: [jax.tree.leaves(fn(x))[i] for i in indices]
+
+    leaves = [None] * tree.num_leaves
+    if fixed:
+        for i, value in zip(fixed, jax.jit(pick(fixed))(example), strict=True):
+            leaves[i] = value
+    compiled = jax.jit(pick(moving))
+    unflatten = _builder(traced.out_info) or tree.unflatten
+
+    def call(x: Array) -> Any:
+        out = leaves.copy()  # one list per call: calls from several threads
+        for i, value in zip(moving, compiled(x), strict=True):
+            out[i] = value
+        return unflatten(out)
+
+    return call
+
+
+def _builder(example: Any) -> Callable[[list], Any] | None:
+    """A faster ``unflatten`` of ``example``'s tree for nested frozen dataclasses (the
+    results: their ``__init__`` and JAX's unflatten cost several microseconds per call): the
+    objects made with ``object.__new__`` and their fields set in ``__dict__``, the fields that
+    hold no leaf copied from ``example``. None for any other tree."""
+    paths = [path for path, _ in jax.tree_util.tree_flatten_with_path(example)[0]]
+    if not paths or not all(
+        path and all(isinstance(k, jax.tree_util.GetAttrKey) for k in path) for path in paths
+    ):
+        return None
+
+    def node(obj: Any, entries: list[tuple[tuple, int]]) -> Callable[[list], Any] | None:
+        if not dataclasses.is_dataclass(obj) or not hasattr(obj, "__dict__"):
+            return None
+        template = dict(obj.__dict__)
+        leaves, children, groups = [], [], {}
+        for path, index in entries:
+            groups.setdefault(path[0].name, []).append((path[1:], index))
+        for name, group in groups.items():
+            if name not in template:
+                return None
+            if len(group) == 1 and not group[0][0]:
+                leaves.append((name, group[0][1]))
+                continue
+            if any(not rest for rest, _ in group):
+                return None
+            child = node(template[name], group)
+            if child is None:
+                return None
+            children.append((name, child))
+        cls = type(obj)
+
+        def build(values: list) -> Any:
+            out = object.__new__(cls)
+            fields = template.copy()
+            for name, index in leaves:
+                fields[name] = values[index]
+            for name, child in children:
+                fields[name] = child(values)
+            out.__dict__.update(fields)
+            return out
+
+        return build
+
+    return node(example, [(tuple(path), i) for i, path in enumerate(paths)])
+
+
+def _input_dependent(jaxpr: Any, inputs: list[bool] | None = None) -> list[bool]:
+    """Per output of ``jaxpr``: whether it depends on an input (``inputs``: which of its
+    inputs count; all by default). A nested call (``jit``, ``custom_jvp_call``) is followed
+    into its body; any other equation with a dependent operand has every result dependent."""
+    inputs = [True] * len(jaxpr.invars) if inputs is None else inputs
+    dependent = {id(v) for v, d in zip(jaxpr.invars, inputs, strict=True) if d}
+    for eqn in jaxpr.eqns:
+        operands = [not _is_literal(v) and id(v) in dependent for v in eqn.invars]
+        if not any(operands):
+            continue
+        body = None
+        if eqn.primitive.name in _CALLS:
+            body = next((eqn.params[k] for k in ("jaxpr", "call_jaxpr") if k in eqn.params), None)
+            body = getattr(body, "jaxpr", body)
+        if body is not None and len(getattr(body, "invars", ())) == len(operands):
+            results = _input_dependent(body, operands)
+        else:
+            results = [True] * len(eqn.outvars)
+        dependent.update(id(v) for v, d in zip(eqn.outvars, results, strict=True) if d)
+    return [not _is_literal(v) and id(v) in dependent for v in jaxpr.outvars]
+
+
+# Nested calls whose body runs once on the operands (not loops: a loop's carry mixes).
+_CALLS = frozenset({"pjit", "jit", "closed_call", "core_call", "custom_jvp_call", "remat"})
+
+
+def _is_literal(v: Any) -> bool:
+    return type(v).__name__ == "Literal"
+
+
 # ------------------------------------------------------------------ chunks in a kernel
 
 

@@ -78,7 +78,8 @@ def enable_for_command() -> Path | None:
     ``false`` or ``no``: off; anything else: that directory. A cache directory already set
     for JAX (``JAX_COMPILATION_CACHE_DIR``) is left as it is. Returns the directory in use, or
     None when off. A directory that cannot be used leaves the cache off (the command runs
-    anyway, compiling as usual).
+    anyway, compiling as usual). The command keeps every program it compiles (no minimum
+    compile time): its second run on the same kind of input then compiles nothing.
     """
     setting = os.environ.get(ENV_VAR, "").strip()
     if setting.lower() in _OFF:
@@ -86,6 +87,7 @@ def enable_for_command() -> Path | None:
     if jax.config.jax_compilation_cache_dir:
         return Path(jax.config.jax_compilation_cache_dir)
     try:
-        return enable_compilation_cache(setting or None)
+        # Every program, however quick to compile: a second run then compiles nothing.
+        return enable_compilation_cache(setting or None, min_compile_time_secs=0.0)
     except ValueError:
         return None

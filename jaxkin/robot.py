@@ -31,7 +31,12 @@ the robot's kernel runs in one compiled program per robot class, branch and rate
 robot's compile policy (``CompilePolicy``, applied through ``jaxkin._batching``: small batches
 padded to a power of two, large ones split across host threads, a concrete geometry compiled in
 as constants). One element (batch ``()`` or ``(1,)``, the single query of a planner between
-batches) goes straight to the program compiled for its shape: no padding, no host copy.
+batches) goes straight to the program compiled for its shape: no padding, no host copy. A
+robot object asked the same single query (kind, branch, options, input shape and dtype) from a
+JAX or NumPy array ``_batching.HOT_AFTER`` times gets its own *hot* program: the geometry and
+options compiled in as constants, the outputs that do not depend on the input computed once,
+and no input work in Python (the key holds the shape and dtype already checked), in a table of
+the ``_batching.HOT_PROGRAMS`` most recently built; its results and statuses are the batched path's.
 
 A new robot subclasses ``Robot`` (as a ``geometry`` dataclass whose fields are ``number``s),
 sets the class attributes and implements the pure kernels ``ik_kernel`` and ``fk_kernel``
@@ -675,6 +680,50 @@ def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: t
     return _batching.gather_back(result, batch)
 
 
+# ------------------------------------------------------------------ hot single queries
+
+
+def _hot_query(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> Any:
+    """The compiled single query of ``robot`` for this input's type, shape and dtype, once the
+    same robot object has asked it ``_batching.HOT_AFTER`` times (``_batching.HotQueries``);
+    None for anything else (the pipeline then does its usual input work)."""
+    kx = type(x)
+    if kx not in _JAX_TYPES and kx is not np.ndarray:
+        return None  # a Jet, a tracer, a list: the usual path
+    try:
+        key = (id(robot), kind, branch, options, x.shape, x.dtype, jax.config.jax_enable_x64)
+        entry = _HOT.programs.get(key)
+    except TypeError:  # options holding arrays (unhashable): the usual path
+        return None
+    if entry is not None and entry[0] is robot:
+        return entry[1]
+    return _HOT.get(key, robot, lambda: _hot_build(robot, kind, branch, options, x))
+
+
+def _hot_build(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> Any:
+    """The single query compiled with the geometry and options as constants, or None when
+    the query is not one element of a concrete, unbatched robot, or is the IK of a chain
+    (an iterative search, dominated by its own iterations) or of an analytic arm (all its
+    branches in one program: a second compilation of a minute would cost more than it saves)."""
+    core = robot.target.shape if kind == "ik" else (robot.n_joints,)
+    if np.shape(x) not in (core, (1, *core)) or robot.batch_shape():
+        return None
+    if kind == "ik" and (robot.ik_policy.bucket or robot.ik_policy.branch_as_data):
+        return None  # a search, or every branch solved at once: compiles for tens of seconds
+    if not all(is_concrete(leaf) for leaf in jax.tree.leaves(robot)):
+        return None
+    if kind == "ik":
+        try:
+            branch = robot.default_branch if branch is None else robot.check_branch(branch)
+        except ValueError:  # the usual path says so
+            return None
+        return _batching.hot_program(lambda y: solve_ik(robot, y, branch, options), x)
+    return _batching.hot_program(lambda y: solve_fk(robot, y, options), x)
+
+
+_HOT = _batching.HotQueries()
+
+
 def ik(
     robot: Robot,
     target: Jet | ArrayLike,
@@ -706,6 +755,9 @@ def ik(
 def solve_ik(robot: Robot, target: Any, branch: Any, options: Any, name: str = "target") -> Any:
     """``ik`` with ``options`` an ``IKOptions`` instance and the target named ``name`` in
     messages (a robot module's own function, e.g. ``scara.ik``, calls this)."""
+    hot = _hot_query(robot, "ik", branch, options, target)
+    if hot is not None:
+        return hot(target)
     branch = robot.default_branch if branch is None else robot.check_branch(branch)
     p, v, a, rates, batch = _inputs(robot, target, name, robot.target.shape)
     policy = robot.ik_policy
@@ -741,6 +793,9 @@ def fk(robot: Robot, q: Jet | ArrayLike, options: Any = None, **option_values: A
 
 def solve_fk(robot: Robot, q: Any, options: Any, name: str = "q") -> Any:
     """``fk`` with ``options`` an ``FKOptions`` instance and ``q`` named ``name``."""
+    hot = _hot_query(robot, "fk", None, options, q)
+    if hot is not None:
+        return hot(q)
     p, v, a, rates, batch = _inputs(robot, q, name, (robot.n_joints,))
     outside = _batching.zero_rates_outside(rates, batch)
     program = _program("fk", robot, (rates, outside), robot.fk_policy)

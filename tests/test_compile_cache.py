@@ -116,3 +116,47 @@ def test_console_script_fills_the_cache_unless_turned_off(tmp_path):
         [sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, env=env
     )
     assert proc.stdout.strip() == "None", proc.stderr
+
+
+_COUNTING_RUN = """
+import sys
+import jax.monitoring
+import jaxkin.cli
+counts = {"hits": 0, "misses": 0}
+def listen(event, **kwargs):
+    for name in counts:
+        if event == "/jax/compilation_cache/cache_" + name:
+            counts[name] += 1
+jax.monitoring.register_event_listener(listen)
+code = jaxkin.cli.main(sys.argv[1:])
+print("COUNTS", counts["hits"], counts["misses"])
+sys.exit(code)
+"""
+
+
+@pytest.mark.slow
+def test_second_command_run_compiles_nothing(tmp_path):
+    """The command's cache keeps every program it compiles: a second run of the same command
+    on another file of the same length loads each program (cache hits) and compiles none."""
+    t = np.linspace(0.0, 2.0, 20)
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX", "XDG_CACHE"))}
+    env["XDG_CACHE_HOME"] = str(tmp_path / "home")
+    counts = []
+    for run, phase in enumerate((0.0, 0.3)):
+        xyz = np.c_[t, 100 + 20 * np.sin(t + phase), -20 * np.cos(t), 50 + 10 * t]
+        np.savetxt(tmp_path / "in.csv", xyz, delimiter=",", header="t,x,y,z", comments="")
+        argv = ["ik", "scara", "--robot", "paper", "-q", "-i", "in.csv", "-o", f"out{run}.csv"]
+        proc = subprocess.run(
+            [sys.executable, "-c", _COUNTING_RUN, *argv],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            cwd=tmp_path,
+            env=env,
+        )
+        assert proc.returncode == 0, proc.stderr
+        line = next(x for x in proc.stdout.splitlines() if x.startswith("COUNTS"))
+        counts.append(tuple(int(x) for x in line.split()[1:]))
+    (_, first_misses), (second_hits, second_misses) = counts
+    assert first_misses > 0 and second_hits > 0
+    assert second_misses == 0, counts

@@ -1,0 +1,137 @@
+"""Hot single queries: a robot asked one element at a time gets its own program, the geometry
+compiled in as constants, with the results and statuses of the batched path."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxkin
+from jaxkin import _batching, scara, serial
+from jaxkin import robot as robot_module
+from jaxkin.jet import Jet
+from jaxkin.result import FKResult
+from jaxkin.status import Status
+from tests.helpers import compilations
+
+
+@pytest.fixture
+def hot_after_two(monkeypatch):
+    """Programs built at the second call (the default waits longer), from an empty table."""
+    monkeypatch.setattr(_batching, "HOT_AFTER", 2)
+    robot_module._HOT.clear()
+    yield
+    robot_module._HOT.clear()
+
+
+def _screw_chain():
+    """A spatial 3R chain (not planar: every joint moves the tip differently)."""
+    screws = np.array(
+        [[0, 0, 1, 0, 0, 0], [0, 1, 0, -0.4, 0, 0], [0, 1, 0, -0.9, 0, 0.3]], dtype=float
+    )
+    home = np.eye(4)
+    home[:3, 3] = [0.3, 0.0, 1.2]
+    return serial.from_screws(screws, home)
+
+
+def test_hot_scara_ik_and_fk_equal_the_batched_path(hot_after_two):
+    """The hot program's joints, rates, elbow and statuses equal the batch's element (4 ulp
+    of the robot's size): reachable, unreachable and NaN targets, batch () and (1,)."""
+    robot = scara.Scara.paper()
+    targets = jnp.asarray([[60.0, 70.0, 40.0], [500.0, 0.0, 40.0], [np.nan, 1.0, 2.0]])
+    batched = jaxkin.ik(robot, targets)
+    tol = 4 * np.finfo(np.float64).eps * float(robot.length_scale())
+    for i in range(3):
+        for shape in ((3,), (1, 3)):
+            target = targets[i].reshape(shape)
+            first = jaxkin.ik(robot, target)
+            hot = jaxkin.ik(robot, target)  # from the second call on: the hot program
+            assert type(hot) is type(first) and hot.q.p.shape == shape
+            for got in (first, hot):
+                assert int(got.status.reshape(())) == int(batched.status[i])
+                for leaf, want in zip(jax.tree.leaves(got), jax.tree.leaves(batched), strict=True):
+                    np.testing.assert_allclose(
+                        np.asarray(leaf, float).reshape(np.shape(want)[1:]),
+                        np.asarray(want[i], float),
+                        rtol=0,
+                        atol=tol,
+                    )
+    assert [int(s) for s in batched.status][2] == Status.INVALID_INPUT
+    q = batched.q.p[0]
+    want = jaxkin.fk(robot, batched.q.p)
+    for _ in range(2):
+        got = jaxkin.fk(robot, q)
+    assert isinstance(got, FKResult) and isinstance(got.x, Jet)
+    np.testing.assert_allclose(got.x.p, want.x.p[0], rtol=0, atol=tol)
+    np.testing.assert_array_equal(got.x.v, np.zeros(3))
+    assert int(got.status) == int(want.status[0])
+
+
+def test_hot_chain_fk_equals_the_batched_path_and_compiles_once(hot_after_two):
+    chain = _screw_chain()
+    qs = jnp.asarray([[0.3, -0.5, 1.1], [1.0, 0.2, -0.4], [np.inf, 0.0, 0.0]])
+    batched = jaxkin.fk(chain, qs)
+    for i in range(3):
+        jaxkin.fk(chain, qs[i])
+        got = jaxkin.fk(chain, qs[i])
+        np.testing.assert_allclose(got.x.p, batched.x.p[i], rtol=0, atol=1e-15)
+        np.testing.assert_array_equal(got.x.a, batched.x.a[i])
+        assert int(got.status) == int(batched.status[i])
+    with compilations() as count:
+        for i in range(3):
+            jax.block_until_ready(jaxkin.fk(chain, qs[i]).x.p)
+    assert count.n == 0
+
+
+def test_hot_programs_belong_to_one_robot_object(hot_after_two):
+    """Another robot (other lengths) is never answered by the first one's program; inputs
+    inside ``jit`` and Jets take the usual path."""
+    first, second = scara.Scara.paper(), scara.Scara(150.0, 60.0, 50.0)
+    q = jnp.asarray([0.4, -0.7, 10.0])
+    for _ in range(3):
+        a, b = jaxkin.fk(first, q).x.p, jaxkin.fk(second, q).x.p
+    np.testing.assert_allclose(a, jaxkin.fk(first, q[None]).x.p[0], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(b, jaxkin.fk(second, q[None]).x.p[0], rtol=0, atol=1e-13)
+    assert not np.allclose(a, b)
+    traced = jax.jit(lambda x: jaxkin.fk(first, x).x.p)(q)
+    np.testing.assert_allclose(traced, a, rtol=0, atol=1e-13)
+    jet = jaxkin.fk(first, Jet(q, jnp.ones(3), jnp.zeros(3)))
+    assert np.any(np.asarray(jet.x.v) != 0)
+
+
+def test_input_dependence_follows_nested_calls():
+    def fn(x):
+        inner = jax.jit(lambda y: (y * 2.0, jnp.zeros(3)))
+        moving, zeros = inner(x)
+        return {"moving": moving, "zeros": zeros, "one": jnp.ones(2), "sum": x + zeros}
+
+    traced = jax.jit(fn).trace(jnp.ones(3))
+    flags = _batching._input_dependent(traced.jaxpr.jaxpr)
+    names = [str(path[0].key) for path, _ in jax.tree_util.tree_flatten_with_path(fn(1.0))[0]]
+    assert dict(zip(names, flags, strict=True)) == {
+        "moving": True,
+        "one": False,
+        "sum": True,
+        "zeros": False,
+    }
+    program = _batching.hot_program(fn, jnp.ones(3))
+    out = program(jnp.arange(3.0))
+    np.testing.assert_array_equal(out["moving"], [0.0, 2.0, 4.0])
+    np.testing.assert_array_equal(out["zeros"], np.zeros(3))
+    np.testing.assert_array_equal(out["one"], np.ones(2))
+
+
+def test_batches_never_push_hot_programs_out(hot_after_two, monkeypatch):
+    """Keys without a program (batches, here of several sizes) are kept apart from the
+    programs, so a table of one program keeps it however many batch shapes come."""
+    monkeypatch.setattr(robot_module, "_HOT", _batching.HotQueries(size=1))
+    robot = scara.Scara.paper()
+    q = jnp.asarray([0.4, -0.7, 10.0])
+    for _ in range(2):
+        jaxkin.fk(robot, q)
+    (program,) = [entry[1] for entry in robot_module._HOT.programs.values()]
+    for n in (2, 3, 5, 6, 9):
+        for _ in range(2):
+            jaxkin.fk(robot, jnp.tile(q, (n, 1)))
+    assert [entry[1] for entry in robot_module._HOT.programs.values()] == [program]
+    assert len(robot_module._HOT.none) <= 4
