@@ -103,6 +103,7 @@ class HotQueries:
         self.programs: dict[tuple, tuple[Any, Any]] = {}
         self.counts: dict[tuple, int] = {}
         self.none: dict[tuple, Any] = {}  # keys without a program (batches): owner by key
+        self.by_value: dict[tuple, Any] = {}  # programs by the robot's values, for its copies
 
     def get(self, key: tuple, owner: Any, build: Callable[[], Any]) -> Any:
         entry = self.programs.get(key)
@@ -112,13 +113,13 @@ class HotQueries:
             return None
         count = self.counts.pop(key, 0) + 1
         if count < HOT_AFTER:
-            _bounded_put(self.counts, key, count, 4 * self.size)
+            bounded_put(self.counts, key, count, 4 * self.size)
             return None
         program = build()
         if program is None:  # kept apart, so that batches never push programs out
-            _bounded_put(self.none, key, owner, 4 * self.size)
+            bounded_put(self.none, key, owner, 4 * self.size)
         else:
-            _bounded_put(self.programs, key, (owner, program), self.size)
+            bounded_put(self.programs, key, (owner, program), self.size)
         return program
 
     def clear(self) -> None:
@@ -126,9 +127,10 @@ class HotQueries:
         self.programs.clear()
         self.counts.clear()
         self.none.clear()
+        self.by_value.clear()
 
 
-def _bounded_put(table: dict, key: Any, value: Any, size: int) -> None:
+def bounded_put(table: dict, key: Any, value: Any, size: int) -> None:
     """``table[key] = value`` as its newest entry, the oldest dropped beyond ``size``."""
     table.pop(key, None)
     table[key] = value

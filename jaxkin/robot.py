@@ -710,15 +710,27 @@ def _hot_build(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> An
         return None
     if kind == "ik" and (robot.ik_policy.bucket or robot.ik_policy.branch_as_data):
         return None  # a search, or every branch solved at once: compiles for tens of seconds
-    if not all(is_concrete(leaf) for leaf in jax.tree.leaves(robot)):
+    leaves, tree = jax.tree.flatten(robot)
+    if not all(is_concrete(leaf) for leaf in leaves):
         return None
     if kind == "ik":
         try:
             branch = robot.default_branch if branch is None else robot.check_branch(branch)
         except ValueError:  # the usual path says so
             return None
-        return _batching.hot_program(lambda y: solve_ik(robot, y, branch, options), x)
-    return _batching.hot_program(lambda y: solve_fk(robot, y, options), x)
+    # a robot rebuilt with the same values (a new object per episode) shares the program
+    values = tuple(
+        (np.asarray(leaf).dtype.str, np.shape(leaf), np.asarray(leaf).tobytes()) for leaf in leaves
+    )
+    key = (tree, values, kind, branch, options, x.shape, x.dtype, jax.config.jax_enable_x64)
+    if key in _HOT.by_value:
+        return _HOT.by_value[key]
+    if kind == "ik":
+        program = _batching.hot_program(lambda y: solve_ik(robot, y, branch, options), x)
+    else:
+        program = _batching.hot_program(lambda y: solve_fk(robot, y, options), x)
+    _batching.bounded_put(_HOT.by_value, key, program, _HOT.size)
+    return program
 
 
 _HOT = _batching.HotQueries()

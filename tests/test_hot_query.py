@@ -135,3 +135,20 @@ def test_batches_never_push_hot_programs_out(hot_after_two, monkeypatch):
             jaxkin.fk(robot, jnp.tile(q, (n, 1)))
     assert [entry[1] for entry in robot_module._HOT.programs.values()] == [program]
     assert len(robot_module._HOT.none) <= 4
+
+
+def test_a_robot_rebuilt_with_the_same_values_shares_the_hot_program(hot_after_two):
+    """A caller that builds its robot anew (same values) gets the program already compiled
+    for an equal robot: nothing compiles once the first object's program exists."""
+    target = jnp.asarray([60.0, 70.0, 40.0])
+    first = scara.Scara.paper()
+    for _ in range(3):  # the second call builds the hot program
+        jaxkin.ik(first, target)
+    with compilations() as count:
+        for _ in range(3):
+            robot = scara.Scara.paper()
+            for _ in range(3):  # its second call finds the equal robot's program
+                result = jaxkin.ik(robot, target)
+    assert count.n == 0
+    assert int(result.status) == Status.OK
+    assert len(robot_module._HOT.by_value) == 1
