@@ -71,7 +71,7 @@ def _near_starts(unit: Any, goal: Array, box: Box) -> Array:
     n = box.lower.shape[-1]
     u = np.random.default_rng(1).uniform(size=(TABLE_SIZE, n))
     table = spread(box, jnp.asarray(u, goal.dtype))
-    rot, p = _kinematics.fk_rp(unit, table)
+    rot, p = _kinematics.fk_rp(unit, table, looped=True)
 
     def features(rot, p):
         flat = rot.reshape(*rot.shape[:-2], 9)

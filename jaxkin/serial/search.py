@@ -55,7 +55,7 @@ from ..status import STATUS_DTYPE, Status
 from . import _kinematics, _starts, _step
 from ._starts import Box
 
-__all__ = ["LM_WEIGHT", "QUEUE_SLOTS", "Budget", "ChainIKOptions", "solve", "solve_paths"]
+__all__ = ["BLOCK", "LM_WEIGHT", "QUEUE_SLOTS", "Budget", "ChainIKOptions", "solve", "solve_paths"]
 
 # Levenberg-Marquardt damping ``mu = LM_WEIGHT |V|^2``: any positive weight keeps
 # Yamashita-Fukushima's quadratic convergence; 1e-3 needed 3-5x fewer updates than 1 from far
@@ -65,6 +65,10 @@ LM_WEIGHT = 1e-3
 # this many iterating and refill them as targets end (1e3-1e4 UR5 / Panda poses: 32-64 lanes
 # fastest, 4-7x the batch in step).
 QUEUE_SLOTS = 32
+# Targets per compiled call of a batch (``Chain.ik_policy``): every batch size of two or more
+# runs as blocks of this size, so one compilation serves them all; each block is a work queue
+# of ``QUEUE_SLOTS`` lanes.
+BLOCK = 8 * QUEUE_SLOTS
 
 _TWO_PI = 2.0 * np.pi
 
@@ -284,12 +288,12 @@ def _project(q: Array, box: Box) -> Array:
     return _projected(q, box, box.lower, box.upper)
 
 
-def _residual(chain: Any, q: Array, target: Array):
-    """Body twist to the target (6 arrays), Jacobian columns, rotation and position errors."""
-    rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body")
+def _residual(chain: Any, q: Array, target: Array) -> tuple[Array, Array, Array, Array]:
+    """The pose error at ``q``: the body twist to the target ``(..., 6)``, the body Jacobian
+    ``(..., 6, n)``, and the rotation and position errors ``|omega|``, ``|p_bd|``."""
+    rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body", looped=True)
     twist, p_bd = _step.body_twist(rot, p, target)
-    columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
-    return twist, columns, _step.norm3(twist[:3]), _step.norm3(p_bd)
+    return jnp.stack(twist, axis=-1), jac, _step.norm3(twist[:3]), _step.norm3(p_bd)
 
 
 def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
@@ -300,7 +304,7 @@ def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -
     bounded = jnp.any(jnp.isfinite(box.lower) | jnp.isfinite(box.upper))
     last = runs.runs - 1 + bounded.astype(jnp.int32)  # the unbounded run comes last
 
-    twist, columns, err_rot, err_pos = _residual(runs.unit, q, goal)
+    twist, jac, err_rot, err_pos = _residual(runs.unit, q, goal)
     free = lane.run >= runs.runs
     turned = _turned(q, box, box.lower, box.upper)
     within = jnp.all((turned >= box.lower) & (turned <= box.upper), axis=-1)
@@ -314,9 +318,10 @@ def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -
     code = jnp.where(within, Status.OK, Status.OUT_OF_LIMITS)
     code = jnp.where(hit, code, Status.NOT_CONVERGED).astype(STATUS_DTYPE)
     # Levenberg-Marquardt damping mu = LM_WEIGHT |V|^2 (the floor 16 eps trace keeps it defined).
-    error_sq = sum(t * t for t in twist)
-    step = _step.damped_step_soa(columns, twist, safe_sqrt(LM_WEIGHT * error_sq), 16 * eps(q.dtype))
-    moved = q + _step.limited(jnp.stack(step, axis=-1), box.revolute, one)
+    error_sq = jnp.sum(twist * twist, axis=-1)
+    damping = safe_sqrt(LM_WEIGHT * error_sq)
+    step = _step.damped_step_looped(jac, twist, damping, 16 * eps(q.dtype))
+    moved = q + _step.limited(step, box.revolute, one)
     # The unbounded run projects onto no limits: only its continuous joints wrap.
     lo = jnp.where(free[..., None], -jnp.inf, box.lower)
     hi = jnp.where(free[..., None], jnp.inf, box.upper)
@@ -445,24 +450,27 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     dtype = q_unit.dtype
     ok = status == Status.OK
     fixed = jax.lax.stop_gradient(q_unit)
-    rot, p, jac = _kinematics.fk_and_jacobian(unit, fixed, "body")
+    rot, p, jac = _kinematics.fk_and_jacobian(unit, fixed, "body", looped=True)
     # Implicit derivatives: one Newton step at the solution, whose value is removed; the
     # goal of a failed element is its own pose (finite derivatives of the log at identity).
     reached = lie.from_rotation_translation(rot, p)
     twist, _ = _step.body_twist(rot, p, jnp.where(ok[..., None, None], goal, reached))
     floor = eps(dtype)
-    dq = _step.damped_step(jac, jnp.stack(twist, axis=-1), 0.0, floor)
+    dq = _step.damped_step_looped(jac, jnp.stack(twist, axis=-1), jnp.zeros((), dtype), floor)
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
-    _, _, jac = _kinematics.fk_and_jacobian(unit, q_unit, "body")
+    _, _, jac = _kinematics.fk_and_jacobian(unit, q_unit, "body", looped=True)
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
     if rates:
         velocity, acceleration = _body_twists(target)
-        q_dot = _step.damped_step(jac, velocity * rows, 0.0, floor)
+        zero = jnp.zeros((), dtype)
+        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
         jac_rate = jax.jvp(
-            lambda x: _kinematics.fk_and_jacobian(unit, x, "body")[2], (q_unit,), (q_dot,)
+            lambda x: _kinematics.fk_and_jacobian(unit, x, "body", looped=True)[2],
+            (q_unit,),
+            (q_dot,),
         )[1]
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _step.damped_step(jac, acceleration * rows - drift, 0.0, floor)
+        q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
         okc = ok[..., None]
         q_jet = Jet(q_unit / g, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
     else:
