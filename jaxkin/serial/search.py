@@ -55,7 +55,16 @@ from ..status import STATUS_DTYPE, Status
 from . import _kinematics, _starts, _step
 from ._starts import Box
 
-__all__ = ["BLOCK", "LM_WEIGHT", "QUEUE_SLOTS", "Budget", "ChainIKOptions", "solve", "solve_paths"]
+__all__ = [
+    "BLOCK",
+    "FREE_RUNS",
+    "LM_WEIGHT",
+    "QUEUE_SLOTS",
+    "Budget",
+    "ChainIKOptions",
+    "solve",
+    "solve_paths",
+]
 
 # Levenberg-Marquardt damping ``mu = LM_WEIGHT |V|^2``: any positive weight keeps
 # Yamashita-Fukushima's quadratic convergence; 1e-3 needed 3-5x fewer updates than 1 from far
@@ -69,6 +78,10 @@ QUEUE_SLOTS = 32
 # runs as blocks of this size, so one compilation serves them all; each block is a work queue
 # of ``QUEUE_SLOTS`` lanes.
 BLOCK = 8 * QUEUE_SLOTS
+# Unbounded runs after the bounded ones of an element that none solved: the first from the best
+# iterate, the others from its first starts. One that meets the tolerances within the limits
+# solves the element; ``OUT_OF_LIMITS`` needs every one to meet them, each outside the limits.
+FREE_RUNS = 4
 
 _TWO_PI = 2.0 * np.pi
 
@@ -149,6 +162,7 @@ class _Runs:
         box: the joint box (units of the chain).
         tol_rot, tol_pos: the tolerances (rad; units of the chain).
         max_iter, runs: as ``Budget``.
+        free_runs: unbounded runs after the last bounded one (with limits only).
     """
 
     unit: Any
@@ -158,6 +172,7 @@ class _Runs:
     tol_pos: Array
     max_iter: int
     runs: int
+    free_runs: int = 1
 
 
 @jax.tree_util.register_dataclass
@@ -167,9 +182,11 @@ class _Lane:
 
     Attributes:
         q: the iterate ``(..., n)``.
-        run: the run it belongs to (int32; ``runs``: the unbounded run).
+        run: the run it belongs to (int32; from ``runs`` on: the unbounded runs).
         k: updates so far in this run (int32).
         best_q, best: the iterate of least error ``|omega| + |p_bd|`` so far and that error.
+        outside: unbounded runs so far that met the tolerances outside the limits (int32).
+        outside_q: the first such solution.
     """
 
     q: Array
@@ -177,6 +194,8 @@ class _Lane:
     k: Array
     best_q: Array
     best: Array
+    outside: Array
+    outside_q: Array
 
 
 @dataclasses.dataclass(frozen=True)
@@ -302,47 +321,69 @@ def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -
     box, q = runs.box, lane.q
     one = jnp.asarray(1.0, q.dtype)
     bounded = jnp.any(jnp.isfinite(box.lower) | jnp.isfinite(box.upper))
-    last = runs.runs - 1 + bounded.astype(jnp.int32)  # the unbounded run comes last
+    free_runs = jnp.where(bounded, runs.free_runs, 0)
+    last = runs.runs - 1 + free_runs  # the unbounded runs come last
 
     twist, jac, err_rot, err_pos = _residual(runs.unit, q, goal)
     free = lane.run >= runs.runs
     turned = _turned(q, box, box.lower, box.upper)
     within = jnp.all((turned >= box.lower) & (turned <= box.upper), axis=-1)
     hit = (err_rot <= runs.tol_rot) & (err_pos <= runs.tol_pos)
+    solved = hit & within
+    # A run that meets the tolerances outside the limits ends (counted if unbounded).
+    escaped = ~done & hit & ~within
+    counted = escaped & free
+    outside = lane.outside + counted.astype(jnp.int32)
+    outside_q = jnp.where((counted & (lane.outside == 0))[..., None], q, lane.outside_q)
     score = err_rot + err_pos
     improve = ~done & ~free & (score < lane.best)
     best_q = jnp.where(improve[..., None], q, lane.best_q)
     best = jnp.where(improve, score, lane.best)
-    spent = lane.k >= runs.max_iter
-    ended = ~done & (hit | (spent & (lane.run >= last)))
-    code = jnp.where(within, Status.OK, Status.OUT_OF_LIMITS)
-    code = jnp.where(hit, code, Status.NOT_CONVERGED).astype(STATUS_DTYPE)
+    spent = (lane.k >= runs.max_iter) | escaped
+    ended = ~done & (solved | (spent & (lane.run >= last)))
+    # OUT_OF_LIMITS only when every unbounded run met the tolerances, each outside the limits.
+    excluded = (free_runs > 0) & (outside >= free_runs)
+    code = jnp.where(
+        solved, Status.OK, jnp.where(excluded, Status.OUT_OF_LIMITS, Status.NOT_CONVERGED)
+    ).astype(STATUS_DTYPE)
     # Levenberg-Marquardt damping mu = LM_WEIGHT |V|^2 (the floor 16 eps trace keeps it defined).
     error_sq = jnp.sum(twist * twist, axis=-1)
     damping = safe_sqrt(LM_WEIGHT * error_sq)
+    # A joint held at a limit by the descent direction J^T V is left out of the step (its
+    # column zeroed), so the others make up for it (an active set, as projected Newton
+    # methods [Bertsekas 1982]); a step that projection would cut is not taken.
+    descent = jnp.einsum("...ki,...k->...i", jac, twist)
+    held = ((q <= box.lower) & (descent < 0)) | ((q >= box.upper) & (descent > 0))
+    held = held & ~free[..., None]
+    jac = jnp.where(held[..., None, :], 0.0, jac)
     step = _step.damped_step_looped(jac, twist, damping, 16 * eps(q.dtype))
     moved = q + _step.limited(step, box.revolute, one)
-    # The unbounded run projects onto no limits: only its continuous joints wrap.
+    # The unbounded runs project onto no limits: only their continuous joints wrap.
     lo = jnp.where(free[..., None], -jnp.inf, box.lower)
     hi = jnp.where(free[..., None], jnp.inf, box.upper)
     moved = _projected(moved, box, lo, hi)
     following = lane.run + 1
     own = starts.shape[-2]
-    mine = jnp.take_along_axis(starts, jnp.minimum(following, own - 1)[..., None, None], -2)
+    # Bounded runs start from the element's own starts, then the shared seeds; the unbounded
+    # ones from the best iterate, then from the element's own starts again.
+    pick = jnp.where(following < runs.runs, following, following - runs.runs - 1)
+    mine = jnp.take_along_axis(starts, jnp.clip(pick, 0, own - 1)[..., None, None], -2)
     shared = jnp.take(runs.seeds, jnp.minimum(following, runs.runs - 1), axis=0)
-    restart = _project(jnp.where((following < own)[..., None], mine[..., 0, :], shared), box)
-    restart = jnp.where((following < runs.runs)[..., None], restart, best_q)
+    mine_first = (following < own) | (following > runs.runs)
+    restart = _project(jnp.where(mine_first[..., None], mine[..., 0, :], shared), box)
+    restart = jnp.where((following == runs.runs)[..., None], best_q, restart)
     q_next = jnp.where(spent[..., None], restart, moved)
-    q_end = jnp.where(hit[..., None], turned, best_q)
+    q_end = jnp.where(solved[..., None], turned, jnp.where(excluded[..., None], outside_q, best_q))
     run = jnp.where(spent & ~done, following, lane.run)
     k = jnp.where(spent, 0, lane.k + 1)
-    return _Outcome(_Lane(q_next, run, k, best_q, best), ended, q_end, code)
+    lane = _Lane(q_next, run, k, best_q, best, outside, outside_q)
+    return _Outcome(lane, ended, q_end, code)
 
 
 def _fresh(q: Array) -> _Lane:
     """The state of elements about to start their first run at ``q``."""
     zeros = jnp.zeros(q.shape[:-1], jnp.int32)
-    return _Lane(q, zeros, zeros, q, jnp.full(q.shape[:-1], jnp.inf, q.dtype))
+    return _Lane(q, zeros, zeros, q, jnp.full(q.shape[:-1], jnp.inf, q.dtype), zeros, q)
 
 
 def _search(
@@ -356,7 +397,7 @@ def _search(
     ended, or, with more elements than ``slots``, as a work queue of ``slots`` lanes. Returns
     ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``, ``NOT_CONVERGED`` or the preset status.
     """
-    per_element = (runs.runs + 1) * (runs.max_iter + 1) + 2
+    per_element = (runs.runs + runs.free_runs) * (runs.max_iter + 1) + 2
     batch = starts.shape[:-2]
     size = math.prod(batch)
     if slots is not None and size > slots:
@@ -441,7 +482,9 @@ def _prepare(chain: Any, target: Jet, tols: tuple[Array, Array], use_limits, run
 
 
 def _runs(prep: _Prepared, max_iter: int, runs: int) -> _Runs:
-    return _Runs(prep.unit, prep.seeds, prep.box, prep.tol_rot, prep.tol_pos, max_iter, runs)
+    return _Runs(
+        prep.unit, prep.seeds, prep.box, prep.tol_rot, prep.tol_pos, max_iter, runs, FREE_RUNS
+    )
 
 
 def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool) -> IKResult:
@@ -512,7 +555,7 @@ def solve_paths(
     starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
     runs = _runs(prep, budget.max_iter, budget.runs)
     q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
-    warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1])
+    warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1], free_runs=1)
 
     def step(previous, sample):
         goal_t, done_t, status_t = sample
