@@ -679,7 +679,7 @@ def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: t
         # Gathered on the host: a program per batch shape would compile anew for each size.
         rows = _batching.spread_positions(size, block)
         return jax.tree.map(
-            lambda x: jnp.asarray(np.asarray(x)[rows].reshape((*batch, *x.shape[1:]))), result
+            lambda x: jax.device_put(np.asarray(x)[rows].reshape((*batch, *x.shape[1:]))), result
         )
     rows = [
         None if x is None else np.broadcast_to(np.asarray(x), (*batch, *p.shape[len(batch) :]))
@@ -699,7 +699,7 @@ def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: t
     def joined(*leaves: Any) -> Any:
         host = [np.asarray(x) for x in leaves]
         whole = np.concatenate([*host[:-1], host[-1][overlap:]], axis=0)
-        return jnp.asarray(whole.reshape((*batch, *whole.shape[1:])))
+        return jax.device_put(whole.reshape((*batch, *whole.shape[1:])))
 
     return jax.tree.map(joined, *parts)
 

@@ -148,7 +148,7 @@ REAL_CHAINS = {
     "ur5": ("ur_description/urdf/ur5_robot.urdf", None, "tool0"),
     "ur10": ("ur_description/urdf/ur10_robot.urdf", None, "tool0"),
     "panda": ("panda_description/urdf/panda.urdf", None, "panda_hand"),
-    "kinova": ("kinova_description/robots/kinova.urdf", None, "j2s7s300_end_effector"),
+    "kinova": ("kinova_description/robots/kinova.urdf", None, "j2s6s200_end_effector"),
     "xarm7": ("xarm_description/urdf/xarm7.urdf", None, "link_eef"),
     "z1": ("z1_description/urdf/z1.urdf", None, "gripperStator"),
     "tiago": ("tiago_description/robots/tiago.urdf", "base_link", "arm_tool_link"),
@@ -170,11 +170,8 @@ def real_chain_success(name: str, n: int = 300, seed: int = 0) -> dict:
     chain = serial.from_urdf(path, tip, base_link=base)
     model = pin.buildModelFromUrdf(path)
     data = model.createData()
-    frame = model.getFrameId(tip)
-    if base is not None and model.existFrame(base):
-        base_frame = model.getFrameId(base)
-    else:
-        base_frame = None
+    frame = model.getFrameId(tip, pin.FrameType.BODY)  # the link (a joint may share its name)
+    base_frame = None if base is None else model.getFrameId(base, pin.FrameType.BODY)
     joints = [model.joints[model.getJointId(j)] for j in chain.joint_names]
 
     def poses(q):
