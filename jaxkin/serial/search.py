@@ -241,6 +241,8 @@ class _Prepared:
         done: preset elements (invalid or unreachable).
         tol_rot, tol_pos: the tolerances (rad; units of the chain).
         seeds: ``(runs, n)`` seeds.
+        lower, upper: the limits of the coordinates in the chain's own units (``-inf``/``inf``
+            without ``use_limits``).
     """
 
     safe: Jet
@@ -254,6 +256,8 @@ class _Prepared:
     tol_rot: Array
     tol_pos: Array
     seeds: Array
+    lower: Array
+    upper: Array
 
 
 def _body_twists(target: Jet) -> tuple[Array, Array]:
@@ -464,8 +468,10 @@ def _prepare(chain: Any, target: Jet, tols: tuple[Array, Array], use_limits, run
     n = chain.n_joints
     if use_limits:
         lower, upper = unit.lower, unit.upper
+        own = (chain.lower, chain.upper)
     else:
         lower, upper = jnp.full(n, -jnp.inf, dtype), jnp.full(n, jnp.inf, dtype)
+        own = (lower, upper)
     continuous = jnp.asarray([k == "continuous" for k in chain.joint_kinds])
     box = Box(lower, upper, ~prismatic, continuous)
     goal = safe.p.at[..., :3, 3].divide(scale)
@@ -477,7 +483,18 @@ def _prepare(chain: Any, target: Jet, tols: tuple[Array, Array], use_limits, run
     status = jnp.where(unreachable, Status.UNREACHABLE, status).astype(STATUS_DTYPE)
     seeds = _starts.seeds(box, runs, dtype)
     return _Prepared(
-        safe, goal, unit, g, scale, box, status, ~finite | unreachable, tol_rot, tol_pos, seeds
+        safe,
+        goal,
+        unit,
+        g,
+        scale,
+        box,
+        status,
+        ~finite | unreachable,
+        tol_rot,
+        tol_pos,
+        seeds,
+        *own,
     )
 
 
@@ -503,6 +520,7 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
     _, _, jac = _kinematics.fk_and_jacobian(unit, q_unit, "body", looped=True)
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
+    solved_outside = status == Status.OUT_OF_LIMITS
     if rates:
         velocity, acceleration = _body_twists(target)
         zero = jnp.zeros((), dtype)
@@ -515,9 +533,15 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
         q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
         okc = ok[..., None]
-        q_jet = Jet(q_unit / g, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
+    q = q_unit / g
+    # Back in the chain's units a joint at its limit may pass it by an ulp: moved back (values
+    # only), but for OUT_OF_LIMITS.
+    inside = jnp.clip(q, prep.lower, prep.upper)
+    q = q + jax.lax.stop_gradient(jnp.where(solved_outside[..., None], q, inside) - q)
+    if rates:
+        q_jet = Jet(q, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
     else:
-        q_jet = Jet.constant(q_unit / g)
+        q_jet = Jet.constant(q)
     goal_twist, p_bd = _step.body_twist(rot, p, goal)
     error = jnp.minimum(_step.norm3(goal_twist[:3]) + _step.norm3(p_bd), 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
