@@ -6,15 +6,20 @@ In units of the chain's size and in the body frame, per element:
   (Yamashita and Fukushima; quadratic also near singular poses) and every iterate projected
   onto the joint limits (a revolute joint outside them first tries the 2 pi turn that lands
   inside; continuous joints wrap to [-pi, pi)): Kanzow, Yamashita and Fukushima (J. Comput.
-  Appl. Math. 172, 2004) prove local quadratic convergence to a solution inside the box.
-  Joints come back within the limits (but for ``OUT_OF_LIMITS``);
+  Appl. Math. 172, 2004) prove local quadratic convergence to a solution inside the box. A
+  joint at a limit that the descent direction ``J^T V`` pushes outward leaves the step (its
+  column zeroed: the active set of projected Newton methods, [Bertsekas 1982]). Joints come
+  back within the limits (but for ``OUT_OF_LIMITS``); prismatic coordinates are lengths in
+  units of the chain's size like every other length, so a change of unit changes nothing;
 * restarts, one after the other, ``max_iter`` updates each, from the starts of
   ``serial._starts`` (the nearest pose of a fixed table, the middle of the limits,
   the other groups' nearest, then seeds spread over the limits); the first run that meets the
-  tolerances ends the element's search; after the last, one unbounded run from the best
-  iterate tells ``OUT_OF_LIMITS`` (the pose is solved only outside the limits) from
-  ``NOT_CONVERGED``. ``UNREACHABLE``: the target lies beyond ``chain.reach()``. A batch larger
-  than ``QUEUE_SLOTS`` runs as a work queue (``_batching.work_queue``): that many lanes
+  tolerances ends the element's search; after the last, ``FREE_RUNS`` unbounded runs (from
+  the best iterate, then from the element's first starts): one that meets the tolerances
+  within the limits solves the element (``OK``); ``OUT_OF_LIMITS`` only when every one meets
+  them outside the limits (the evidence that none lies within them), else ``NOT_CONVERGED``.
+  ``UNREACHABLE``: the target lies beyond ``chain.reach()``. A batch larger than
+  ``QUEUE_SLOTS`` runs as a work queue (``_batching.work_queue``): that many lanes
   iterate, and a lane whose target has ended takes the next one (the same updates, so the same
   results, as in step);
 * ``OK`` only where ``angle(R^T R_d) <= orientation_tol`` and ``|p_d - p| <= position_tol``,
