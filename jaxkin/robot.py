@@ -255,9 +255,10 @@ class CompilePolicy:
         branch_as_data: the branch reaches the kernel as a traced index
             (``ik_kernel_indexed``), so every branch shares one compilation.
         bucket: for an iterative kernel that ends a NaN input at once (a chain's IK search):
-            a concrete batch of two or more elements runs padded with NaN rows, spread among
-            its own, to the next power of two at least ``bucket`` (``_batching.bucket_size``),
-            at any size: batch sizes share one compilation per size class. None: not so.
+            a concrete batch of two or more elements runs in blocks of exactly ``bucket``
+            rows (a smaller batch padded with NaN rows spread among its own, a larger one as
+            overlapping blocks on the host threads): one compilation for every batch size.
+            None: not so.
     """
 
     pad: bool = True
@@ -656,9 +657,10 @@ def _cast(x: Any, dtype: Any) -> Any:
 
 def _run(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
     """Apply the compile policy: one element straight to the kernel compiled for its shape
-    (the single-query fast path), small batches padded, large ones as the policy says."""
+    (the single-query fast path), small batches padded, large ones as the policy says; with
+    ``bucket``, every concrete batch (one element included) in the blocks of ``_bucketed``."""
     size = math.prod(batch)
-    if program.policy.bucket and size > 1 and not robot.batch_shape():
+    if program.policy.bucket and not robot.batch_shape():
         return _bucketed(program, robot, p, v, a, index, options, batch)
     if size == 1 or not program.policy.pad or robot.batch_shape():
         return program.whole(robot, p, v, a, index, options, batch=batch)
@@ -666,18 +668,45 @@ def _run(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple)
 
 
 def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: tuple) -> Any:
-    """``CompilePolicy.bucket``: the batch's rows spread among NaN rows, to the bucket's size,
-    and gathered back (tracers run as they are)."""
+    """``CompilePolicy.bucket``: the batch in blocks of ``bucket`` rows (a small batch's rows
+    spread among NaN rows, gathered back; a large one as overlapping blocks, joined), each
+    through the one program of that block size (tracers run as they are)."""
     if not all(is_concrete(x) for x in jax.tree.leaves((robot, p, v, a, options))):
         return program.whole(robot, p, v, a, index, options, batch=batch)
-    padded = _batching.bucket_size(math.prod(batch), program.policy.bucket)
+    size, block = math.prod(batch), program.policy.bucket
     core = p.ndim - len(batch)
-    p, v, a = (
-        None if x is None else _batching.spread_rows(x, batch, core, padded, np.nan)
+    if size <= block:
+        p, v, a = (
+            None if x is None else _batching.spread_rows(x, batch, core, block, np.nan)
+            for x in (p, v, a)
+        )
+        result = program.whole(robot, p, v, a, index, options, batch=(block,))
+        # Gathered on the host: a program per batch shape would compile anew for each size.
+        rows = _batching.spread_positions(size, block)
+        return jax.tree.map(
+            lambda x: jax.device_put(np.asarray(x)[rows].reshape((*batch, *x.shape[1:]))), result
+        )
+    rows = [
+        None if x is None else np.broadcast_to(np.asarray(x), (*batch, *p.shape[len(batch) :]))
         for x in (p, v, a)
-    )
-    result = program.whole(robot, p, v, a, index, options, batch=(padded,))
-    return _batching.gather_back(result, batch)
+    ]
+    rows = [None if x is None else x.reshape(size, *x.shape[len(batch) :]) for x in rows]
+    count = -(-size // block)
+    starts = [k * block for k in range(count - 1)] + [size - block]
+
+    def run(start: int) -> Any:
+        p, v, a = (None if x is None else x[start : start + block] for x in rows)
+        return program.whole(robot, p, v, a, index, options, batch=(block,))
+
+    parts = _batching.run_parts(run, starts)
+    overlap = count * block - size
+
+    def joined(*leaves: Any) -> Any:
+        host = [np.asarray(x) for x in leaves]
+        whole = np.concatenate([*host[:-1], host[-1][overlap:]], axis=0)
+        return jax.device_put(whole.reshape((*batch, *whole.shape[1:])))
+
+    return jax.tree.map(joined, *parts)
 
 
 # ------------------------------------------------------------------ hot single queries

@@ -57,7 +57,11 @@ _DESCRIPTIONS = {
     ),
     Status.SINGULAR: "a Jacobian of the mechanism is singular: position valid, rates not",
     Status.NOT_CONVERGED: "an iterative solver stopped before reaching its tolerance",
-    Status.OUT_OF_LIMITS: "solved, but a joint limit is violated",
+    Status.OUT_OF_LIMITS: (
+        "solved, but a joint limit is violated (a chain's IK search: only with evidence that no "
+        "solution lies within the limits, every one of its unbounded runs having met the "
+        "tolerances outside them; otherwise NOT_CONVERGED)"
+    ),
     Status.INVALID_INPUT: "NaN or inf in this element's input",
     Status.UNTIMEABLE: (
         "the path cannot be timed within the velocity and acceleration limits (a joint that "

@@ -345,10 +345,10 @@ def test_work_queue_gives_the_results_of_the_batch_in_step():
 
 @pytest.mark.slow
 def test_host_thread_parts_give_the_results_of_one_thread():
-    """A batch of at least two ``min_part`` targets is split across the host threads,
-    each part its own work queue: the same joints and statuses, bit for bit, as one thread."""
+    """A batch of more than two blocks (``search.BLOCK``) runs its blocks on the host threads,
+    each its own work queue: the same joints and statuses, bit for bit, as one thread."""
     chain = serial.from_urdf(MIMIC_URDF, "camera")
-    n = 2 * serial.Chain.ik_policy.min_part + 7
+    n = 2 * search.BLOCK + 7
     q = np.random.default_rng(5).uniform([-4, -0.1, -1.0], [4, 0.25, 1.2], (n, 3))
     targets = jaxkin.fk(chain, q).x.p
     split = jaxkin.ik(chain, targets)

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -80,9 +81,10 @@ def couple(chain: Any, jac: Array) -> Array:
 # ------------------------------------------------------------------------- the chain
 
 
-def fk_rp(chain: Any, q: Array) -> tuple[Array, Array]:
-    """Tip ``(R (..., 3, 3), p (..., 3))`` at coordinates ``q`` ``(..., n)``."""
-    return screws_fk_rp(chain.screws, chain.home, angles(chain, q))
+def fk_rp(chain: Any, q: Array, looped: bool = False) -> tuple[Array, Array]:
+    """Tip ``(R (..., 3, 3), p (..., 3))`` at coordinates ``q`` ``(..., n)`` (``looped``: a
+    loop over the joints, ``_over_joints``)."""
+    return screws_fk_rp(chain.screws, chain.home, angles(chain, q), looped)
 
 
 def pose(chain: Any, q: Array) -> Array:
@@ -90,10 +92,13 @@ def pose(chain: Any, q: Array) -> Array:
     return lie.from_rotation_translation(*fk_rp(chain, q))
 
 
-def fk_and_jacobian(chain: Any, q: Array, which: str) -> tuple[Array, Array, Array]:
+def fk_and_jacobian(
+    chain: Any, q: Array, which: str, looped: bool = False
+) -> tuple[Array, Array, Array]:
     """``(R, p, J)`` with ``J`` the ``which`` (``"space"``/``"body"``) Jacobian with respect to
-    the coordinates ``q``, ``(..., 6, n)``."""
-    rot, p, jac = screws_fk_and_jacobian(chain.screws, chain.home, angles(chain, q), which)
+    the coordinates ``q``, ``(..., 6, n)`` (``looped``: a loop over the joints,
+    ``_over_joints``)."""
+    rot, p, jac = screws_fk_and_jacobian(chain.screws, chain.home, angles(chain, q), which, looped)
     return rot, p, couple(chain, jac)
 
 
@@ -114,58 +119,69 @@ def _compose(a: tuple[Array, Array], b: tuple[Array, Array]) -> tuple[Array, Arr
     return jnp.einsum("...ij,...jk->...ik", rot_a, rot_b), _mat_vec(rot_a, p_b) + p_a
 
 
-def _joint_exps(screws: Array, theta: Array) -> list[tuple[Array, Array]]:
-    """``exp([S_i] theta_i)`` of every joint as ``(R, p)``, for unit screws (module docstring).
-
-    ``W = hat(omega)``, ``W^2``, ``W v`` and ``W^2 v`` are unbatched; the batched work is one
-    ``sin`` and one ``cos`` per joint and multiply-adds.
-    """
-    w = lie.hat(screws[:, :3])  # (m, 3, 3)
+def _joint_exp(screw: Array, theta: Array) -> tuple[Array, Array]:
+    """``exp([S] theta)`` of one unit screw ``(6,)`` at angles ``theta`` ``(...)`` as
+    ``(R, p)`` (module docstring): ``W``, ``W^2``, ``W v`` and ``W^2 v`` are unbatched; the
+    batched work is one ``sin``, one ``cos`` and multiply-adds."""
+    w = lie.hat(screw[:3])
     w2 = w @ w
-    v = screws[:, 3:]
-    wv = jnp.einsum("nij,nj->ni", w, v)
-    w2v = jnp.einsum("nij,nj->ni", w2, v)
-    s_all, c_all = sincos(theta)
-    eye = jnp.eye(3, dtype=theta.dtype)
-    exps = []
-    for i in range(screws.shape[0]):
-        qi, s, c = theta[..., i, None], s_all[..., i, None], c_all[..., i, None]
-        omc, qs = 1.0 - c, qi - s
-        rot = eye + s[..., None] * w[i] + omc[..., None] * w2[i]
-        exps.append((rot, qi * v[i] + omc * wv[i] + qs * w2v[i]))
-    return exps
+    v = screw[3:]
+    s, c = sincos(theta)
+    q, s, c = theta[..., None], s[..., None], c[..., None]
+    omc = 1.0 - c
+    rot = jnp.eye(3, dtype=theta.dtype) + s[..., None] * w + omc[..., None] * w2
+    return rot, q * v + omc * (w @ v) + (q - s) * (w2 @ v)
 
 
 def _home(home: Array) -> tuple[Array, Array]:
     return home[:3, :3], home[:3, 3]
 
 
-def screws_fk_rp(screws: Array, home: Array, theta: Array) -> tuple[Array, Array]:
+def _identity(theta: Array) -> tuple[Array, Array]:
+    batch = theta.shape[:-1]
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=theta.dtype), (*batch, 3, 3))
+    return eye, jnp.zeros((*batch, 3), theta.dtype)
+
+
+def _over_joints(body, carry, screws: Array, theta: Array, looped: bool):
+    """``body(carry, (S_i, theta_i)) -> (carry, out_i)`` over the joints in order: a
+    ``lax.scan`` (one copy of the body in the compiled program: the chain IK's search, whose
+    program holds several FK and Jacobian evaluations) or unrolled (``looped`` False: faster
+    for one small evaluation, e.g. a single configuration's FK)."""
+    return jax.lax.scan(
+        body, carry, (screws, jnp.moveaxis(theta, -1, 0)), unroll=1 if looped else True
+    )
+
+
+def screws_fk_rp(
+    screws: Array, home: Array, theta: Array, looped: bool = False
+) -> tuple[Array, Array]:
     """Tip ``(R, p)`` of base-frame screws ``(m, 6)`` and ``home`` at joint angles ``theta``
-    ``(..., m)``."""
-    exps = _joint_exps(screws, theta)
-    acc = exps[-1]
-    for e in reversed(exps[:-1]):
-        acc = _compose(e, acc)
+    ``(..., m)``: ``E_1 (E_2 (... (E_m M)))``, one joint at a time (``looped``: as
+    ``_over_joints``)."""
+
+    def body(acc, joint):
+        return _compose(acc, _joint_exp(*joint)), None
+
+    acc, _ = _over_joints(body, _identity(theta), screws, theta, looped)
     return _compose(acc, _home(home))
 
 
 def screws_fk_and_jacobian(
-    screws: Array, home: Array, theta: Array, which: str
+    screws: Array, home: Array, theta: Array, which: str, looped: bool = False
 ) -> tuple[Array, Array, Array]:
     """``(R, p, J)`` of base-frame screws at ``theta`` ``(..., m)``, ``J`` the ``which``
-    (``"space"``/``"body"``) Jacobian with respect to ``theta``, ``(..., 6, m)``."""
-    m = screws.shape[0]
-    exps = _joint_exps(screws, theta)
-    batch = theta.shape[:-1]
+    (``"space"``/``"body"``) Jacobian with respect to ``theta``, ``(..., 6, m)``
+    (``looped``: as ``_over_joints``)."""
+
     # Prefix products P_{i-1} = E_1 ... E_{i-1}; column i = Ad(P_{i-1}) S_i.
-    columns = [jnp.broadcast_to(screws[0], (*batch, 6))]
-    prefix = exps[0]
-    for i in range(1, m):
-        columns.append(apply_adjoint(prefix[0], prefix[1], screws[i][:, None])[..., 0])
-        prefix = _compose(prefix, exps[i])
+    def body(prefix, joint):
+        column = apply_adjoint(prefix[0], prefix[1], joint[0][:, None])[..., 0]
+        return _compose(prefix, _joint_exp(*joint)), column
+
+    prefix, columns = _over_joints(body, _identity(theta), screws, theta, looped)
     rot, p = _compose(prefix, _home(home))
-    jac = jnp.stack(columns, axis=-1)
+    jac = jnp.moveaxis(columns, 0, -1)
     if which == "body":
         jac = apply_adjoint_inv(rot, p, jac)
     return rot, p, jac

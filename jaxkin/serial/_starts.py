@@ -72,7 +72,7 @@ def _near_starts(unit: Any, goal: Array, box: Box) -> Array:
     n = box.lower.shape[-1]
     u = np.random.default_rng(1).uniform(size=(TABLE_SIZE, n))
     table = spread(box, jnp.asarray(u, goal.dtype))
-    rot, p = _kinematics.fk_rp(unit, table)
+    rot, p = _kinematics.fk_rp(unit, table, looped=True)
 
     weight = 0.0 if unit.target_kind == "point" else ROTATION_WEIGHT  # a point: p only
 

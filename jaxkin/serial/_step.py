@@ -33,7 +33,9 @@ __all__ = [
     "limited",
     "norm3",
     "rigid_target",
+    "damped_step_looped",
     "spd_solve",
+    "spd_solve_looped",
 ]
 
 
@@ -103,6 +105,54 @@ def damped_step(jac: Array, twist: Array, damping, floor: float | None = None) -
     damping = jnp.asarray(damping, jac.dtype)
     dq = damped_step_soa(columns, twist_list, damping, floor)
     return jnp.stack([jnp.broadcast_to(x, batch) for x in dq], axis=-1)
+
+
+def spd_solve_looped(a: Array, b: Array) -> Array:
+    """``spd_solve`` for arrays, ``a`` ``(..., k, k)`` symmetric positive definite and ``b``
+    ``(..., k)``: the same Cholesky factorisation and substitutions as loops over the ``k``
+    columns (one copy of each in the compiled program, where ``spd_solve`` unrolls
+    ``O(k^3)`` scalar operations)."""
+    k = b.shape[-1]
+    tiny = float(jnp.finfo(b.dtype).tiny) ** 0.5
+    index = jnp.arange(k)
+
+    def factor(j, chol):
+        row = jnp.where(index < j, chol[..., j, :], 0.0)  # L[j, :j]
+        root = jnp.sqrt(jnp.maximum(a[..., j, j] - jnp.sum(row * row, -1), tiny))
+        below = (a[..., :, j] - jnp.einsum("...ik,...k->...i", chol, row)) / root[..., None]
+        column = jnp.where(index > j, below, jnp.where(index == j, root[..., None], 0.0))
+        return chol.at[..., :, j].set(column)
+
+    chol = jax.lax.fori_loop(0, k, factor, jnp.zeros(a.shape, b.dtype))
+
+    def forward(i, y):
+        done = jnp.sum(chol[..., i, :] * y, -1)  # y is zero from i on
+        return y.at[..., i].set((b[..., i] - done) / chol[..., i, i])
+
+    def backward(t, x):
+        i = k - 1 - t
+        done = jnp.sum(chol[..., :, i] * x, -1)  # x is zero up to i
+        return x.at[..., i].set((y[..., i] - done) / chol[..., i, i])
+
+    y = jax.lax.fori_loop(0, k, forward, jnp.zeros(b.shape, b.dtype))
+    return jax.lax.fori_loop(0, k, backward, jnp.zeros(b.shape, b.dtype))
+
+
+def damped_step_looped(
+    jac: Array, twist: Array, damping: Array, floor: float | None = None
+) -> Array:
+    """The step of ``damped_step`` for ``jac`` ``(..., r, n)`` and ``twist`` ``(..., r)``, as
+    array products and ``spd_solve_looped`` (a small compiled program: the chain IK search)."""
+    r, n = jac.shape[-2:]
+    jac_t = jnp.swapaxes(jac, -1, -2)
+    trace = jnp.sum(jac * jac, axis=(-2, -1))
+    floor = singular_rtol(jac.dtype) if floor is None else floor
+    mu = (damping * damping + floor * trace)[..., None, None]
+    if n <= r:
+        gram = jac_t @ jac + mu * jnp.eye(n, dtype=jac.dtype)
+        return spd_solve_looped(gram, jnp.einsum("...ki,...k->...i", jac, twist))
+    outer = jac @ jac_t + mu * jnp.eye(r, dtype=jac.dtype)
+    return jnp.einsum("...ki,...k->...i", jac, spd_solve_looped(outer, twist))
 
 
 def limited(dq: Array, revolute: Array, max_step: Array) -> Array:

@@ -147,12 +147,10 @@ class Chain(Robot):
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
     IKOptions: ClassVar = ChainIKOptions
-    # The IK search is loop-bound: batch sizes share compilations by padding with NaN targets
-    # (ended at once) to a power of two, at least the work queue's lanes; large batches run one
-    # work queue per host thread. FK is cheap per element: padded, large parts.
-    ik_policy: ClassVar = CompilePolicy(
-        pad=False, bucket=search.QUEUE_SLOTS, threads=True, min_part=4 * search.QUEUE_SLOTS
-    )
+    # The IK search is loop-bound: every batch size shares one compilation, blocks of
+    # ``search.BLOCK`` targets (a smaller batch padded with NaN targets, ended at once; a larger
+    # one as blocks on the host threads). FK is cheap per element: padded, large parts.
+    ik_policy: ClassVar = CompilePolicy(pad=False, bucket=search.BLOCK)
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
     @property

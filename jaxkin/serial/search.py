@@ -6,15 +6,20 @@ In units of the chain's size and in the body frame, per element:
   (Yamashita and Fukushima; quadratic also near singular poses) and every iterate projected
   onto the joint limits (a revolute joint outside them first tries the 2 pi turn that lands
   inside; continuous joints wrap to [-pi, pi)): Kanzow, Yamashita and Fukushima (J. Comput.
-  Appl. Math. 172, 2004) prove local quadratic convergence to a solution inside the box.
-  Joints come back within the limits (but for ``OUT_OF_LIMITS``);
+  Appl. Math. 172, 2004) prove local quadratic convergence to a solution inside the box. A
+  joint at a limit that the descent direction ``J^T V`` pushes outward leaves the step (its
+  column zeroed: the active set of projected Newton methods, [Bertsekas 1982]). Joints come
+  back within the limits (but for ``OUT_OF_LIMITS``); prismatic coordinates are lengths in
+  units of the chain's size like every other length, so a change of unit changes nothing;
 * restarts, one after the other, ``max_iter`` updates each, from the starts of
   ``serial._starts`` (the nearest pose of a fixed table, the middle of the limits,
   the other groups' nearest, then seeds spread over the limits); the first run that meets the
-  tolerances ends the element's search; after the last, one unbounded run from the best
-  iterate tells ``OUT_OF_LIMITS`` (the pose is solved only outside the limits) from
-  ``NOT_CONVERGED``. ``UNREACHABLE``: the target lies beyond ``chain.reach()``. A batch larger
-  than ``QUEUE_SLOTS`` runs as a work queue (``_batching.work_queue``): that many lanes
+  tolerances ends the element's search; after the last, ``FREE_RUNS`` unbounded runs (from
+  the best iterate, then from the element's first starts): one that meets the tolerances
+  within the limits solves the element (``OK``); ``OUT_OF_LIMITS`` only when every one meets
+  them outside the limits (the evidence that none lies within them), else ``NOT_CONVERGED``.
+  ``UNREACHABLE``: the target lies beyond ``chain.reach()``. A batch larger than
+  ``QUEUE_SLOTS`` runs as a work queue (``_batching.work_queue``): that many lanes
   iterate, and a lane whose target has ended takes the next one (the same updates, so the same
   results, as in step);
 * ``OK`` only where ``angle(R^T R_d) <= orientation_tol`` and ``|p_d - p| <= position_tol``,
@@ -60,7 +65,16 @@ from ..status import STATUS_DTYPE, Status
 from . import _kinematics, _starts, _step
 from ._starts import Box
 
-__all__ = ["LM_WEIGHT", "QUEUE_SLOTS", "Budget", "ChainIKOptions", "solve", "solve_paths"]
+__all__ = [
+    "BLOCK",
+    "FREE_RUNS",
+    "LM_WEIGHT",
+    "QUEUE_SLOTS",
+    "Budget",
+    "ChainIKOptions",
+    "solve",
+    "solve_paths",
+]
 
 # Levenberg-Marquardt damping ``mu = LM_WEIGHT |V|^2``: any positive weight keeps
 # Yamashita-Fukushima's quadratic convergence; 1e-3 needed 3-5x fewer updates than 1 from far
@@ -70,6 +84,14 @@ LM_WEIGHT = 1e-3
 # this many iterating and refill them as targets end (1e3-1e4 UR5 / Panda poses: 32-64 lanes
 # fastest, 4-7x the batch in step).
 QUEUE_SLOTS = 32
+# Targets per compiled call of a batch (``Chain.ik_policy``): every batch size of two or more
+# runs as blocks of this size, so one compilation serves them all; each block is a work queue
+# of ``QUEUE_SLOTS`` lanes.
+BLOCK = 8 * QUEUE_SLOTS
+# Unbounded runs after the bounded ones of an element that none solved: the first from the best
+# iterate, the others from its first starts. One that meets the tolerances within the limits
+# solves the element; ``OUT_OF_LIMITS`` needs every one to meet them, each outside the limits.
+FREE_RUNS = 4
 
 _TWO_PI = 2.0 * np.pi
 
@@ -150,6 +172,7 @@ class _Runs:
         box: the joint box (units of the chain).
         tol_rot, tol_pos: the tolerances (rad; units of the chain).
         max_iter, runs: as ``Budget``.
+        free_runs: unbounded runs after the last bounded one (with limits only).
     """
 
     unit: Any
@@ -159,6 +182,7 @@ class _Runs:
     tol_pos: Array
     max_iter: int
     runs: int
+    free_runs: int = 1
 
 
 @jax.tree_util.register_dataclass
@@ -168,9 +192,11 @@ class _Lane:
 
     Attributes:
         q: the iterate ``(..., n)``.
-        run: the run it belongs to (int32; ``runs``: the unbounded run).
+        run: the run it belongs to (int32; from ``runs`` on: the unbounded runs).
         k: updates so far in this run (int32).
         best_q, best: the iterate of least error ``|omega| + |p_bd|`` so far and that error.
+        outside: unbounded runs so far that met the tolerances outside the limits (int32).
+        outside_q: the first such solution.
     """
 
     q: Array
@@ -178,6 +204,8 @@ class _Lane:
     k: Array
     best_q: Array
     best: Array
+    outside: Array
+    outside_q: Array
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,6 +251,8 @@ class _Prepared:
         done: preset elements (invalid or unreachable).
         tol_rot, tol_pos: the tolerances (rad; units of the chain).
         seeds: ``(runs, n)`` seeds.
+        lower, upper: the limits of the coordinates in the chain's own units (``-inf``/``inf``
+            without ``use_limits``).
     """
 
     safe: Jet
@@ -236,6 +266,8 @@ class _Prepared:
     tol_rot: Array
     tol_pos: Array
     seeds: Array
+    lower: Array
+    upper: Array
 
 
 def _body_twists(target: Jet) -> tuple[Array, Array]:
@@ -290,26 +322,24 @@ def _project(q: Array, box: Box) -> Array:
 
 
 def _residual(chain: Any, q: Array, target: Array, fk: tuple | None = None):
-    """The residual the search drives to zero, the Jacobian columns of the same rows, the
-    rotation and the position errors. A pose target: the body twist ``log(T^-1 T_d)`` (6
-    arrays) and the body Jacobian; a point target (``chain.target_kind == "point"``, the target
-    a pose whose translation is the point): ``p_bd = R^T (p_d - p)`` (3 arrays) and the body
-    Jacobian's linear rows (``R^T p_dot``), no rotation error. ``fk``: ``(R, p, J_b)`` at
-    ``q`` when already computed."""
-    rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body") if fk is None else fk
+    """The residual the search drives to zero, the Jacobian rows of the same residual, the
+    rotation and the position errors. A pose target: the body twist ``log(T^-1 T_d)``
+    ``(..., 6)`` and the body Jacobian ``(..., 6, n)``; a point target
+    (``chain.target_kind == "point"``, the target a pose whose translation is the point):
+    ``p_bd = R^T (p_d - p)`` ``(..., 3)`` and the body Jacobian's linear rows (``R^T p_dot``),
+    no rotation error. ``fk``: ``(R, p, J_b)`` at ``q`` when already computed."""
+    rot, p, jac = _kinematics.fk_and_jacobian(chain, q, "body", looped=True) if fk is None else fk
     twist, p_bd = _step.body_twist(rot, p, target)
     err_pos = _step.norm3(p_bd)
     if chain.target_kind == "point":
-        columns = [[jac[..., k, i] for k in range(3, 6)] for i in range(jac.shape[-1])]
-        return p_bd, columns, jnp.zeros_like(err_pos), err_pos
-    columns = [[jac[..., k, i] for k in range(6)] for i in range(jac.shape[-1])]
-    return twist, columns, _step.norm3(twist[:3]), err_pos
+        return jnp.stack(p_bd, axis=-1), jac[..., 3:, :], jnp.zeros_like(err_pos), err_pos
+    return jnp.stack(twist, axis=-1), jac, _step.norm3(twist[:3]), err_pos
 
 
 def _task_jacobian(chain: Any, q: Array) -> Array:
     """The Jacobian the rates are solved with: the body Jacobian ``(..., 6, n)`` (pose
     targets), or the tip origin's ``(..., 3, n)`` in the base frame, ``R J_b[3:]`` (points)."""
-    rot, _, jac = _kinematics.fk_and_jacobian(chain, q, "body")
+    rot, _, jac = _kinematics.fk_and_jacobian(chain, q, "body", looped=True)
     return rot @ jac[..., 3:, :] if chain.target_kind == "point" else jac
 
 
@@ -319,46 +349,69 @@ def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -
     box, q = runs.box, lane.q
     one = jnp.asarray(1.0, q.dtype)
     bounded = jnp.any(jnp.isfinite(box.lower) | jnp.isfinite(box.upper))
-    last = runs.runs - 1 + bounded.astype(jnp.int32)  # the unbounded run comes last
+    free_runs = jnp.where(bounded, runs.free_runs, 0)
+    last = runs.runs - 1 + free_runs  # the unbounded runs come last
 
-    twist, columns, err_rot, err_pos = _residual(runs.unit, q, goal)
+    twist, jac, err_rot, err_pos = _residual(runs.unit, q, goal)
     free = lane.run >= runs.runs
     turned = _turned(q, box, box.lower, box.upper)
     within = jnp.all((turned >= box.lower) & (turned <= box.upper), axis=-1)
     hit = (err_rot <= runs.tol_rot) & (err_pos <= runs.tol_pos)
+    solved = hit & within
+    # A run that meets the tolerances outside the limits ends (counted if unbounded).
+    escaped = ~done & hit & ~within
+    counted = escaped & free
+    outside = lane.outside + counted.astype(jnp.int32)
+    outside_q = jnp.where((counted & (lane.outside == 0))[..., None], q, lane.outside_q)
     score = err_rot + err_pos
     improve = ~done & ~free & (score < lane.best)
     best_q = jnp.where(improve[..., None], q, lane.best_q)
     best = jnp.where(improve, score, lane.best)
-    spent = lane.k >= runs.max_iter
-    ended = ~done & (hit | (spent & (lane.run >= last)))
-    code = jnp.where(within, Status.OK, Status.OUT_OF_LIMITS)
-    code = jnp.where(hit, code, Status.NOT_CONVERGED).astype(STATUS_DTYPE)
+    spent = (lane.k >= runs.max_iter) | escaped
+    ended = ~done & (solved | (spent & (lane.run >= last)))
+    # OUT_OF_LIMITS only when every unbounded run met the tolerances, each outside the limits.
+    excluded = (free_runs > 0) & (outside >= free_runs)
+    code = jnp.where(
+        solved, Status.OK, jnp.where(excluded, Status.OUT_OF_LIMITS, Status.NOT_CONVERGED)
+    ).astype(STATUS_DTYPE)
     # Levenberg-Marquardt damping mu = LM_WEIGHT |V|^2 (the floor 16 eps trace keeps it defined).
-    error_sq = sum(t * t for t in twist)
-    step = _step.damped_step_soa(columns, twist, safe_sqrt(LM_WEIGHT * error_sq), 16 * eps(q.dtype))
-    moved = q + _step.limited(jnp.stack(step, axis=-1), box.revolute, one)
-    # The unbounded run projects onto no limits: only its continuous joints wrap.
+    error_sq = jnp.sum(twist * twist, axis=-1)
+    damping = safe_sqrt(LM_WEIGHT * error_sq)
+    # A joint held at a limit by the descent direction J^T V is left out of the step (its
+    # column zeroed), so the others make up for it (an active set, as projected Newton
+    # methods [Bertsekas 1982]); a step that projection would cut is not taken.
+    descent = jnp.einsum("...ki,...k->...i", jac, twist)
+    held = ((q <= box.lower) & (descent < 0)) | ((q >= box.upper) & (descent > 0))
+    held = held & ~free[..., None]
+    jac = jnp.where(held[..., None, :], 0.0, jac)
+    step = _step.damped_step_looped(jac, twist, damping, 16 * eps(q.dtype))
+    moved = q + _step.limited(step, box.revolute, one)
+    # The unbounded runs project onto no limits: only their continuous joints wrap.
     lo = jnp.where(free[..., None], -jnp.inf, box.lower)
     hi = jnp.where(free[..., None], jnp.inf, box.upper)
     moved = _projected(moved, box, lo, hi)
     following = lane.run + 1
     own = starts.shape[-2]
-    mine = jnp.take_along_axis(starts, jnp.minimum(following, own - 1)[..., None, None], -2)
+    # Bounded runs start from the element's own starts, then the shared seeds; the unbounded
+    # ones from the best iterate, then from the element's own starts again.
+    pick = jnp.where(following < runs.runs, following, following - runs.runs - 1)
+    mine = jnp.take_along_axis(starts, jnp.clip(pick, 0, own - 1)[..., None, None], -2)
     shared = jnp.take(runs.seeds, jnp.minimum(following, runs.runs - 1), axis=0)
-    restart = _project(jnp.where((following < own)[..., None], mine[..., 0, :], shared), box)
-    restart = jnp.where((following < runs.runs)[..., None], restart, best_q)
+    mine_first = (following < own) | (following > runs.runs)
+    restart = _project(jnp.where(mine_first[..., None], mine[..., 0, :], shared), box)
+    restart = jnp.where((following == runs.runs)[..., None], best_q, restart)
     q_next = jnp.where(spent[..., None], restart, moved)
-    q_end = jnp.where(hit[..., None], turned, best_q)
+    q_end = jnp.where(solved[..., None], turned, jnp.where(excluded[..., None], outside_q, best_q))
     run = jnp.where(spent & ~done, following, lane.run)
     k = jnp.where(spent, 0, lane.k + 1)
-    return _Outcome(_Lane(q_next, run, k, best_q, best), ended, q_end, code)
+    lane = _Lane(q_next, run, k, best_q, best, outside, outside_q)
+    return _Outcome(lane, ended, q_end, code)
 
 
 def _fresh(q: Array) -> _Lane:
     """The state of elements about to start their first run at ``q``."""
     zeros = jnp.zeros(q.shape[:-1], jnp.int32)
-    return _Lane(q, zeros, zeros, q, jnp.full(q.shape[:-1], jnp.inf, q.dtype))
+    return _Lane(q, zeros, zeros, q, jnp.full(q.shape[:-1], jnp.inf, q.dtype), zeros, q)
 
 
 def _search(
@@ -372,7 +425,7 @@ def _search(
     ended, or, with more elements than ``slots``, as a work queue of ``slots`` lanes. Returns
     ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``, ``NOT_CONVERGED`` or the preset status.
     """
-    per_element = (runs.runs + 1) * (runs.max_iter + 1) + 2
+    per_element = (runs.runs + runs.free_runs) * (runs.max_iter + 1) + 2
     batch = starts.shape[:-2]
     size = math.prod(batch)
     if slots is not None and size > slots:
@@ -439,8 +492,10 @@ def _prepare(chain: Any, target: Jet, tols: tuple[Array, Array], use_limits, run
     n = chain.n_joints
     if use_limits:
         lower, upper = unit.lower, unit.upper
+        own = (chain.lower, chain.upper)
     else:
         lower, upper = jnp.full(n, -jnp.inf, dtype), jnp.full(n, jnp.inf, dtype)
+        own = (lower, upper)
     continuous = jnp.asarray([k == "continuous" for k in chain.joint_kinds])
     box = Box(lower, upper, ~prismatic, continuous)
     goal = safe.p.at[..., :3, 3].divide(scale)
@@ -452,12 +507,25 @@ def _prepare(chain: Any, target: Jet, tols: tuple[Array, Array], use_limits, run
     status = jnp.where(unreachable, Status.UNREACHABLE, status).astype(STATUS_DTYPE)
     seeds = _starts.seeds(box, runs, dtype)
     return _Prepared(
-        safe, goal, unit, g, scale, box, status, ~finite | unreachable, tol_rot, tol_pos, seeds
+        safe,
+        goal,
+        unit,
+        g,
+        scale,
+        box,
+        status,
+        ~finite | unreachable,
+        tol_rot,
+        tol_pos,
+        seeds,
+        *own,
     )
 
 
 def _runs(prep: _Prepared, max_iter: int, runs: int) -> _Runs:
-    return _Runs(prep.unit, prep.seeds, prep.box, prep.tol_rot, prep.tol_pos, max_iter, runs)
+    return _Runs(
+        prep.unit, prep.seeds, prep.box, prep.tol_rot, prep.tol_pos, max_iter, runs, FREE_RUNS
+    )
 
 
 def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool) -> IKResult:
@@ -466,30 +534,38 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     dtype = q_unit.dtype
     ok = status == Status.OK
     fixed = jax.lax.stop_gradient(q_unit)
-    fk = _kinematics.fk_and_jacobian(unit, fixed, "body")
+    fk = _kinematics.fk_and_jacobian(unit, fixed, "body", looped=True)
     point = unit.target_kind == "point"
     # Implicit derivatives: one Newton step at the solution, whose value is removed; the
     # goal of a failed element is its own pose (finite derivatives of the log at identity).
     reached = lie.from_rotation_translation(fk[0], fk[1])
     toward = jnp.where(ok[..., None, None], goal, reached)
-    residual, columns, _, _ = _residual(unit, fixed, toward, fk)
+    residual, jac_residual, _, _ = _residual(unit, fixed, toward, fk)
     floor = eps(dtype)
-    dq = jnp.stack(_step.damped_step_soa(columns, residual, 0.0, floor), axis=-1)
+    zero = jnp.zeros((), dtype)
+    dq = _step.damped_step_looped(jac_residual, residual, zero, floor)
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
     jac = _task_jacobian(unit, q_unit)
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
+    solved_outside = status == Status.OUT_OF_LIMITS
     if rates:
         # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
         velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
         rows = rows[3:] if point else rows
-        q_dot = _step.damped_step(jac, velocity * rows, 0.0, floor)
+        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
         jac_rate = jax.jvp(lambda x: _task_jacobian(unit, x), (q_unit,), (q_dot,))[1]
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _step.damped_step(jac, acceleration * rows - drift, 0.0, floor)
+        q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
         okc = ok[..., None]
-        q_jet = Jet(q_unit / g, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
+    q = q_unit / g
+    # Back in the chain's units a joint at its limit may pass it by an ulp: moved back (values
+    # only), but for OUT_OF_LIMITS.
+    inside = jnp.clip(q, prep.lower, prep.upper)
+    q = q + jax.lax.stop_gradient(jnp.where(solved_outside[..., None], q, inside) - q)
+    if rates:
+        q_jet = Jet(q, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
     else:
-        q_jet = Jet.constant(q_unit / g)
+        q_jet = Jet.constant(q)
     _, _, err_rot, err_pos = _residual(unit, fixed, goal, fk)
     error = jnp.minimum(err_rot + err_pos, 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
@@ -527,7 +603,7 @@ def solve_paths(
     starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
     runs = _runs(prep, budget.max_iter, budget.runs)
     q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
-    warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1])
+    warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1], free_runs=1)
 
     def step(previous, sample):
         goal_t, done_t, status_t = sample
