@@ -445,29 +445,29 @@ def _target(robot: Robot, x: Any, name: str) -> np.ndarray:
 
 def _ends(robot: Robot, start, goal, space: str, joint: bool, branch: Any, limits) -> list:
     """``start`` and goal as control points: joints (``joint``) or tool positions."""
-    ends = []
-    for name, x in (("start", start), ("goal", goal)):
-        if space == "joint":
-            value = np.asarray(x, dtype=float)
+    names = ("start", "goal")
+    if space == "task":
+        ends = [_target(robot, x, name) for name, x in zip(names, (start, goal), strict=True)]
+    else:
+        ends = [np.asarray(x, dtype=float) for x in (start, goal)]
+        for name, value in zip(names, ends, strict=True):
             if value.shape != (robot.n_joints,):
                 raise ValueError(
                     f"{name}: expected shape ({robot.n_joints},) (joint space), got {value.shape}"
                 )
             if not np.all(np.isfinite(value)):
                 raise ValueError(f"{name} must be finite, got {value}")
-            ends.append(value if joint else np.asarray(fk(robot, value).x.p))
-        else:
-            target = _target(robot, x, name)
-            if not joint:
-                ends.append(target)
-                continue
+    if space == "joint" and not joint:  # tool positions of joint ends
+        return [np.asarray(fk(robot, value).x.p) for value in ends]
+    if space == "task" and joint:  # joints of target ends
+        for i, (name, target) in enumerate(zip(names, ends, strict=True)):
             res = ik(robot, target, branch)
             if int(res.status) != Status.OK:
                 raise ValueError(
                     f"{name}: the target is not solved on branch {branch!r} "
                     f"({Status(int(res.status)).name}); give its joints with space='joint'"
                 )
-            ends.append(np.asarray(res.q.p))
+            ends[i] = np.asarray(res.q.p)
     if joint and space == "task":  # solved goal joints: the turn nearest the start's
         turns = np.round((ends[1] - ends[0]) / (2 * math.pi))
         moved = ends[1] - 2 * math.pi * np.where(_revolute(robot), turns, 0.0)
@@ -493,8 +493,10 @@ def _box(robot: Robot, joint: bool, ends: list, limits: plan.Limits) -> tuple:
         lo, hi = (np.array(b, dtype=float) for b in zip(*bounds, strict=True))
     except ValueError:
         lo, hi = np.minimum(*ends) - size, np.maximum(*ends) + size
-    return np.minimum(lo, np.minimum(*ends)), np.maximum(hi, np.maximum(*ends)), np.full(
-        lo.shape, size
+    return (
+        np.minimum(lo, np.minimum(*ends)),
+        np.maximum(hi, np.maximum(*ends)),
+        np.full(lo.shape, size),
     )
 
 
