@@ -227,6 +227,10 @@ class LoopState:
         stop: why it stopped (``Stop``; ``MAX_STEPS`` while it runs), ``int8`` ``(B,)``.
         fresh: the guess's memory was just cleared after a refused step, ``(B,)``.
         iterations: steps the guess took, ``int32`` ``(B,)``.
+        evaluations: cost-and-gradient evaluations of the guess (line searches included),
+            ``int32`` ``(B,)``.
+        batched: evaluations of the whole batch the loop ran (per step the most any running
+            guess's line search took), an ``int32`` scalar: the loop's cost.
         step: steps the loop ran, an ``int32`` scalar.
         history: ``f`` before every step and after the last, ``(steps + 1, B)``.
     """
@@ -239,6 +243,8 @@ class LoopState:
     stop: Array
     fresh: Array
     iterations: Array
+    evaluations: Array
+    batched: Array
     step: Array
     history: Array
 
@@ -255,7 +261,10 @@ def _start(x: Array, data: dict, static: _Static) -> LoopState:
     stop = jnp.where(done, Stop.DIVERGED, Stop.MAX_STEPS).astype(jnp.int8)
     zeros = jnp.zeros(batch, jnp.int32)
     fresh = jnp.zeros(batch, bool)
-    return LoopState(x, opt_state, f, g, done, stop, fresh, zeros, jnp.int32(0), history)
+    one = jnp.int32(1)
+    return LoopState(
+        x, opt_state, f, g, done, stop, fresh, zeros, zeros + 1, one, jnp.int32(0), history
+    )
 
 
 @functools.partial(jax.jit, static_argnames="static")
@@ -276,16 +285,20 @@ def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopSt
             # the line search evaluated the accepted point already: reuse, not re-trace
             f_new = optax.tree_utils.tree_get(state, "value")
             g_new = optax.tree_utils.tree_get(state, "grad")
+            info = optax.tree_utils.tree_get(state, "info")
+            count = jnp.asarray(info.num_linesearch_steps, jnp.int32)
         else:
             f_new, g_new = value_and_grad(x, data, static)
-        return x, state, f_new, g_new
+            count = jnp.int32(1)
+        return x, state, f_new, g_new, count
 
     def cond(loop: LoopState) -> Array:
         return (loop.step < jnp.minimum(stop, static.steps)) & ~jnp.all(loop.done)
 
     def body(loop: LoopState) -> LoopState:
         x, state, f, g = loop.x, loop.opt_state, loop.f, loop.g
-        x_new, state_new, f_new, g_new = jax.vmap(one_step)(x, state, f, g)
+        x_new, state_new, f_new, g_new, count = jax.vmap(one_step)(x, state, f, g)
+        count = jnp.where(loop.done, 0, count)
         good = jnp.isfinite(f_new) & jnp.all(jnp.isfinite(g_new), axis=(-2, -1))
         refused = good & (f_new > f) if descent else jnp.zeros_like(good)
         take = ~loop.done & good & ~refused
@@ -319,6 +332,8 @@ def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopSt
             stop=jnp.where(ended, code, loop.stop),
             fresh=jnp.where(loop.done, loop.fresh, retry),
             iterations=loop.iterations + take.astype(jnp.int32),
+            evaluations=loop.evaluations + count,
+            batched=loop.batched + jnp.max(count),
             step=loop.step + 1,
             history=loop.history.at[loop.step + 1].set(f_next),
         )
