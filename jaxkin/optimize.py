@@ -84,18 +84,23 @@ class Stop(enum.IntEnum):
 # ------------------------------------------------------------------ methods
 @dataclasses.dataclass(frozen=True)
 class LBFGS:
-    """L-BFGS per guess (``optax.lbfgs``: ``memory`` pairs, a zoom line search of at most
-    ``linesearch_steps`` evaluations). The default method."""
+    """L-BFGS per guess (the default method), one cost-and-gradient evaluation per loop
+    iteration.
+
+    Each guess keeps its own ``memory`` pairs ``(s, y)`` (a pair with ``s.y <= eps |s| |y|``
+    is skipped, so the inverse Hessian estimate stays positive definite; the two-loop
+    recursion with ``H0 = (s.y / y.y) I`` [Nocedal & Wright 2006, alg. 7.4]) and its own
+    backtracking line search: the trial point ``x + alpha d`` is accepted when it meets the
+    Armijo condition ``f(x + alpha d) <= f(x) + 1e-4 alpha g.d`` (a non-finite trial is
+    refused); else ``alpha`` shrinks by the minimiser of the quadratic through ``f(x)``,
+    ``g.d`` and the trial (clipped to [0.1, 0.5] of ``alpha``), at most ``linesearch_steps``
+    times. ``alpha`` starts at 1 (the first step at ``0.1 / |g|``: a tenth of the robot's
+    size). The guesses advance independently, one evaluation each per iteration, so a batch
+    costs its slowest guess's evaluations, not the sum over steps of every step's longest
+    line search."""
 
     memory: int = 10
     linesearch_steps: int = 20
-
-    def transformation(self) -> optax.GradientTransformationExtraArgs:
-        # A quasi-Newton step starts its line search at 1 ("one"), not at the last step length.
-        search = optax.scale_by_zoom_linesearch(
-            max_linesearch_steps=self.linesearch_steps, initial_guess_strategy="one"
-        )
-        return optax.lbfgs(memory_size=self.memory, linesearch=search)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -208,7 +213,7 @@ def _objective(x: Array, data: dict, static: _Static) -> Array:
 
 
 def _transformation(method: Any) -> Any:
-    if isinstance(method, LBFGS | Adam):
+    if isinstance(method, Adam):
         return method.transformation()
     return optax.with_extra_args_support(method)
 
@@ -254,11 +259,14 @@ def _start(x: Array, data: dict, static: _Static) -> LoopState:
     """The loop's initial state for guesses ``x`` ``(B, K', d)``."""
     value_and_grad = jax.value_and_grad(_objective)
     f, g = jax.vmap(lambda xb: value_and_grad(xb, data, static))(x)
-    opt_state = jax.vmap(_transformation(static.method).init)(x)
     batch = x.shape[0]
+    if isinstance(static.method, LBFGS):
+        opt_state = _lbfgs_init(static.method.memory, x, g)
+    else:
+        opt_state = jax.vmap(_transformation(static.method).init)(x)
     history = jnp.broadcast_to(f, (static.steps + 1, batch))
-    done = ~jnp.isfinite(f)
-    stop = jnp.where(done, Stop.DIVERGED, Stop.MAX_STEPS).astype(jnp.int8)
+    done = ~jnp.isfinite(f) | (static.steps == 0)
+    stop = jnp.where(jnp.isfinite(f), Stop.MAX_STEPS, Stop.DIVERGED).astype(jnp.int8)
     zeros = jnp.zeros(batch, jnp.int32)
     fresh = jnp.zeros(batch, bool)
     one = jnp.int32(1)
@@ -269,11 +277,14 @@ def _start(x: Array, data: dict, static: _Static) -> LoopState:
 
 @functools.partial(jax.jit, static_argnames="static")
 def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
-    """Steps until every guess has stopped, ``static.steps`` were taken, or step ``stop``."""
+    """Iterations until every guess has stopped or loop iteration ``stop``; a guess stops
+    after ``static.steps`` steps at the latest."""
+    if isinstance(static.method, LBFGS):
+        return _run_lbfgs(initial, data, stop, static)
     tx = _transformation(static.method)
     value_and_grad = jax.value_and_grad(_objective)
     gtol, ftol = data["gtol"], data["ftol"]
-    descent = isinstance(static.method, LBFGS)  # a line search promises a lower cost
+    descent = False  # an optax method promises no lower cost
 
     def one_step(x, state, f, g):
         def value_fn(y):
@@ -293,7 +304,7 @@ def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopSt
         return x, state, f_new, g_new, count
 
     def cond(loop: LoopState) -> Array:
-        return (loop.step < jnp.minimum(stop, static.steps)) & ~jnp.all(loop.done)
+        return (loop.step < stop) & ~jnp.all(loop.done)
 
     def body(loop: LoopState) -> LoopState:
         x, state, f, g = loop.x, loop.opt_state, loop.f, loop.g
@@ -319,10 +330,14 @@ def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopSt
         met = take & ((grad_norm <= gtol * (1.0 + jnp.abs(f_next))) | change)
         gave_up = ~loop.done & refused & loop.fresh
         blew = ~loop.done & ~good
+        iterations = loop.iterations + take.astype(jnp.int32)
+        spent = ~loop.done & (iterations >= static.steps)
         code = jnp.where(
-            met, Stop.CONVERGED, jnp.where(gave_up, Stop.NO_DESCENT, Stop.DIVERGED)
+            met,
+            Stop.CONVERGED,
+            jnp.where(gave_up, Stop.NO_DESCENT, jnp.where(blew, Stop.DIVERGED, Stop.MAX_STEPS)),
         ).astype(jnp.int8)
-        ended = met | gave_up | blew
+        ended = met | gave_up | blew | spent
         return LoopState(
             x=x,
             opt_state=state,
@@ -331,11 +346,157 @@ def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopSt
             done=loop.done | ended,
             stop=jnp.where(ended, code, loop.stop),
             fresh=jnp.where(loop.done, loop.fresh, retry),
-            iterations=loop.iterations + take.astype(jnp.int32),
+            iterations=iterations,
             evaluations=loop.evaluations + count,
             batched=loop.batched + jnp.max(count),
             step=loop.step + 1,
-            history=loop.history.at[loop.step + 1].set(f_next),
+            history=_record(loop.history, iterations, f_next),
+        )
+
+    return jax.lax.while_loop(cond, body, initial)
+
+
+def _record(history: Array, iterations: Array, f: Array) -> Array:
+    """``history`` ``(steps + 1, B)`` with each guess's cost at its own step count."""
+    index = jnp.minimum(iterations, history.shape[0] - 1)
+    return history.at[index, jnp.arange(f.shape[0])].set(f)
+
+
+def _lbfgs_init(memory: int, x: Array, g: Array) -> dict:
+    """The L-BFGS state of guesses ``x`` ``(B, K', d)`` with gradients ``g``: empty memory,
+    a steepest-descent direction and a first step of a tenth of the robot's size."""
+    batch, n = x.shape[0], x[0].size
+    flat_g = g.reshape(batch, n)
+    norm = jnp.sqrt(jnp.sum(flat_g * flat_g, axis=-1))
+    return dict(
+        s=jnp.zeros((batch, memory, n), x.dtype),
+        y=jnp.zeros((batch, memory, n), x.dtype),
+        rho=jnp.zeros((batch, memory), x.dtype),
+        pairs=jnp.zeros(batch, jnp.int32),  # pairs stored so far (the newest at pairs - 1)
+        gamma=jnp.ones(batch, x.dtype),
+        d=-flat_g,
+        alpha=_first_step(norm),
+        tries=jnp.zeros(batch, jnp.int32),  # refused trials of the current line search
+    )
+
+
+def _first_step(grad_norm: Array) -> Array:
+    return jnp.where(grad_norm > 0.1, 0.1 / jnp.where(grad_norm > 0, grad_norm, 1.0), 1.0)
+
+
+def _two_loop(g: Array, state: dict) -> Array:
+    """``-H g`` for one guess by the two-loop recursion over its stored pairs."""
+    memory = state["rho"].shape[-1]
+    pairs = state["pairs"]
+    q, alphas = g, []
+    for j in range(memory):  # newest first
+        i = (pairs - 1 - j) % memory
+        valid = j < jnp.minimum(pairs, memory)
+        a = jnp.where(valid, state["rho"][i] * jnp.dot(state["s"][i], q), 0.0)
+        q = q - a * state["y"][i]
+        alphas.append(a)
+    r = state["gamma"] * q
+    for j in reversed(range(memory)):
+        i = (pairs - 1 - j) % memory
+        valid = j < jnp.minimum(pairs, memory)
+        b = state["rho"][i] * jnp.dot(state["y"][i], r)
+        r = r + jnp.where(valid, alphas[j] - b, 0.0) * state["s"][i]
+    return -r
+
+
+@functools.partial(jax.jit, static_argnames="static")
+def _run_lbfgs(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
+    """``LBFGS``'s loop: every iteration evaluates one trial point per running guess."""
+    value_and_grad = jax.vmap(jax.value_and_grad(_objective), in_axes=(0, None, None))
+    gtol, ftol = data["gtol"], data["ftol"]
+    shape = initial.x.shape
+    batch = shape[0]
+    epsilon = jnp.finfo(initial.x.dtype).eps
+    max_tries = static.method.linesearch_steps
+
+    def cond(loop: LoopState) -> Array:
+        return (loop.step < stop) & ~jnp.all(loop.done)
+
+    def body(loop: LoopState) -> LoopState:
+        st = loop.opt_state
+        x, f, g = loop.x.reshape(batch, -1), loop.f, loop.g.reshape(batch, -1)
+        d, alpha = st["d"], st["alpha"]
+        trial = x + alpha[:, None] * d
+        f_t, g_t = value_and_grad(trial.reshape(shape), data, static)
+        g_t = g_t.reshape(batch, -1)
+        running = ~loop.done
+        slope = jnp.sum(g * d, axis=-1)  # < 0: a descent direction
+        finite = jnp.isfinite(f_t) & jnp.all(jnp.isfinite(g_t), axis=-1)
+        accept = running & finite & (f_t <= f + 1e-4 * alpha * slope)
+        # refused: the minimiser of the quadratic through f, the slope and the trial
+        curvature = f_t - f - slope * alpha
+        ratio = -slope * alpha / (2.0 * jnp.where(curvature > 0, curvature, 1.0))
+        shrink = jnp.where(finite & (curvature > 0), jnp.clip(ratio, 0.1, 0.5), 0.1)
+        tries = st["tries"] + 1
+        exhausted = running & ~accept & (tries >= max_tries)
+        gave_up = exhausted & loop.fresh
+        restart = exhausted & ~loop.fresh  # clear the memory, steepest descent from x
+
+        # accepted: store the pair (skipped without positive curvature), next direction
+        step = trial - x
+        change_g = g_t - g
+        sy = jnp.sum(step * change_g, axis=-1)
+        yy = jnp.sum(change_g * change_g, axis=-1)
+        size = jnp.sqrt(jnp.sum(step * step, axis=-1) * yy)
+        store = accept & (sy > epsilon * size) & (yy > 0)
+        slot = st["pairs"] % static.method.memory
+        one_hot = (jnp.arange(static.method.memory) == slot[:, None]) & store[:, None]
+        new = dict(
+            s=jnp.where(one_hot[..., None], step[:, None, :], st["s"]),
+            y=jnp.where(one_hot[..., None], change_g[:, None, :], st["y"]),
+            rho=jnp.where(one_hot, (1.0 / jnp.where(store, sy, 1.0))[:, None], st["rho"]),
+            pairs=st["pairs"] + store.astype(jnp.int32),
+            gamma=jnp.where(store, sy / jnp.where(store, yy, 1.0), st["gamma"]),
+        )
+        x_next = jnp.where(accept[:, None], trial, x)
+        f_next = jnp.where(accept, f_t, f)
+        g_next = jnp.where(accept[:, None], g_t, g)
+        direction = jax.vmap(_two_loop)(g_next, new)
+        downhill = jnp.sum(direction * g_next, axis=-1) < 0
+        direction = jnp.where(downhill[:, None], direction, -g_next)
+        grad_norm = jnp.sqrt(jnp.sum(g_next * g_next, axis=-1))
+        cleared = _lbfgs_init(static.method.memory, x_next.reshape(shape), g_next.reshape(shape))
+        state = dict(
+            s=new["s"],
+            y=new["y"],
+            rho=new["rho"],
+            pairs=new["pairs"],
+            gamma=new["gamma"],
+            d=jnp.where(accept[:, None], direction, d),
+            alpha=jnp.where(
+                accept, jnp.where(downhill, 1.0, _first_step(grad_norm)), alpha * shrink
+            ),
+            tries=jnp.where(accept, 0, tries),
+        )
+        state = jax.tree.map(
+            lambda c, k: jnp.where(restart.reshape(restart.shape + (1,) * (c.ndim - 1)), c, k),
+            cleared,
+            state,
+        )
+        change = jnp.abs(f - f_t) <= ftol * jnp.maximum(jnp.abs(f), jnp.abs(f_t))
+        met = accept & ((grad_norm <= gtol * (1.0 + jnp.abs(f_t))) | change)
+        iterations = loop.iterations + accept.astype(jnp.int32)
+        spent = running & ~met & (iterations >= static.steps)
+        code = jnp.where(met, Stop.CONVERGED, jnp.where(gave_up, Stop.NO_DESCENT, Stop.MAX_STEPS))
+        ended = met | gave_up | spent
+        return LoopState(
+            x=x_next.reshape(shape),
+            opt_state=state,
+            f=f_next,
+            g=g_next.reshape(shape),
+            done=loop.done | ended,
+            stop=jnp.where(ended, code.astype(jnp.int8), loop.stop),
+            fresh=jnp.where(accept, False, loop.fresh | restart),
+            iterations=iterations,
+            evaluations=loop.evaluations + running.astype(jnp.int32),
+            batched=loop.batched + jnp.any(running).astype(jnp.int32),
+            step=loop.step + 1,
+            history=_record(loop.history, iterations, f_next),
         )
 
     return jax.lax.while_loop(cond, body, initial)
@@ -346,7 +507,8 @@ def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
     """Controls, tool paths, history and stop codes of finished guesses; the divergence
     checks (blown-up cost, control points far outside the box) applied."""
     x, f, g = loop.x, loop.f, loop.g
-    history = jnp.where(jnp.arange(static.steps + 1)[:, None] > loop.step, f, loop.history)
+    after = jnp.arange(static.steps + 1)[:, None] > loop.iterations
+    history = jnp.where(after, f, loop.history)
     controls = _controls(x, data, static)
     sample = _trajectory(x, data, static)
     lo, hi, unit = data["box"]
@@ -664,16 +826,22 @@ def optimize(
         """The guesses ``(b, K', d)`` of one device optimised, per-guess results leading."""
         loop = _start(guesses / scale, data, static)
         f0 = loop.f
-        block = min(steps, PROGRESS_BLOCK) if is_active(progress) else steps
+        # loop iterations: one step each for optax methods, one evaluation each for LBFGS
+        tries = 2 * method.linesearch_steps + 1 if isinstance(method, LBFGS) else 1
+        limit = steps * tries + 1
+        block = PROGRESS_BLOCK if is_active(progress) else limit
         with bar(steps, "optimize", enabled=progress) as meter:
-            done_steps = 0
-            while done_steps < steps:
-                loop = _run(loop, data, jnp.int32(done_steps + block), static)
+            shown = reached = 0
+            while reached < limit:
+                target = min(reached + block, limit)
+                loop = _run(loop, data, jnp.int32(target), static)
                 reached = int(loop.step)
-                meter.update(reached - done_steps)
-                if reached < done_steps + block:  # every guess has stopped
+                if block < limit:  # a bar is shown: the furthest guess's steps
+                    now = int(jnp.max(loop.iterations))
+                    meter.update(now - shown)
+                    shown = now
+                if reached < target:  # every guess has stopped
                     break
-                done_steps = reached
         out = _outcome(loop, f0, data, static)
         return (*out, loop.iterations)
 
