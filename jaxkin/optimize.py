@@ -510,14 +510,19 @@ def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
     after = jnp.arange(static.steps + 1)[:, None] > loop.iterations
     history = jnp.where(after, f, loop.history)
     controls = _controls(x, data, static)
-    sample = _trajectory(x, data, static)
+    if static.joint:
+        sample = _trajectory(x, data, static)
+        path, q, status = sample.path, sample.q, sample.status
+    else:  # the tool paths alone: the planner's evaluation solves their IK
+        path = paths.bezier_path(controls, data["basis"], data["duration"])
+        q, status = None, None
     lo, hi, unit = data["box"]
     outside = (jax.nn.relu(lo - controls) + jax.nn.relu(controls - hi)) / unit
     far = jnp.any(outside > DIVERGED_SIZES, axis=(-2, -1))
     blown = ~(f <= BLOWN_UP * jnp.abs(f0)) & (f > 0)
     stop = jnp.where(far | blown | ~jnp.isfinite(f), jnp.int8(Stop.DIVERGED), loop.stop)
     grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
-    return controls, sample.path, sample.q, sample.status, f, history.T, stop, grad_norm
+    return controls, path, q, status, f, history.T, stop, grad_norm
 
 
 @jax.jit

@@ -385,7 +385,7 @@ def test_pose_target_arms_in_joint_space(name):
     for end, pose in ((0, poses[0]), (-1, poses[1])):
         np.testing.assert_allclose(res.path.p[:, end], np.broadcast_to(pose, (3, 4, 4)), atol=1e-9)
     controls = np.asarray(res.controls)
-    assert controls.shape == (3, 7, 6)
+    assert controls.shape == (3, 6, 6)
     expected = _joint_acceleration_cost(controls, 30, 1.0)
     np.testing.assert_allclose(res.cost, expected, rtol=1e-9, atol=1e-12)
     assert np.all(np.asarray(res.converged)) and np.all(np.asarray(res.evaluation.feasible))
