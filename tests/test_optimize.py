@@ -369,8 +369,9 @@ def test_pose_target_arms_in_joint_space(name):
     as (position, quaternion) give the same problem; the optimised trajectories start and
     end at those poses (forward kinematics of the ends), their cost equals the joint
     acceleration integral of the returned controls written with NumPy (1e-9 relative), the
-    joints are those controls' curve, every guess converged and is feasible, and joint ends
-    give the same result without a new compilation."""
+    joints are those controls' curve, every guess converged and is feasible, the solved goal
+    is the turn of each revolute joint nearest the start, and those joint ends give the same
+    result without a new compilation."""
     arm = ARMS[name]()
     q_start = np.array([0.3, -0.9, 0.8, 0.2, 0.5, 0.1])
     q_goal = np.array([1.1, -0.5, 0.4, -0.4, 0.9, 0.7])
@@ -392,8 +393,14 @@ def test_pose_target_arms_in_joint_space(name):
     assert np.all(np.asarray(res.cost) <= np.asarray(res.history[0]))
     fk_path = jaxkin.fk(arm, res.evaluation.q).x
     np.testing.assert_allclose(fk_path.p, res.path.p, atol=1e-9)
+    # The goal's revolute joints were moved by whole turns to those nearest the start's.
+    ends = controls[0, 0], controls[0, -1]
+    np.testing.assert_allclose(jaxkin.fk(arm, ends[1]).x.p, poses[1], atol=1e-9)
+    turns = (ends[1] - solved[1]) / (2 * np.pi)
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
+    assert np.all(np.abs(ends[1] - ends[0]) <= np.pi + 1e-9)
     with compilations() as count:
-        joint = optimize.optimize(arm, *solved, guesses, space="joint", **kwargs)
+        joint = optimize.optimize(arm, *ends, guesses, space="joint", **kwargs)
     assert count.n == 0
     np.testing.assert_allclose(joint.cost, res.cost, rtol=1e-9, atol=1e-12)
 
