@@ -17,21 +17,23 @@ second-to-last too, so the path starts and ends at rest); the interior points ar
 parameters, in units of the robot's size (task space and prismatic joints) or radians.
 Pose ends of a joint-space problem are solved once by the IK (host side) on ``branch``.
 
-Every guess is optimised on its own (``jax.vmap`` of one guess's update): each has its own
-L-BFGS history and line search (the default, ``LBFGS()``, optax's ``lbfgs`` with a zoom line
-search), or its own Adam moments. The loop runs compiled (``lax.while_loop`` over a
-``LoopState``) until every guess has stopped. Per guess (``Stop``):
+Every guess is optimised on its own (``jax.vmap`` of one guess's update): the default,
+``LBFGS()``, keeps each guess's own L-BFGS memory and backtracking line search and evaluates
+one trial point per running guess per loop iteration, so the guesses advance independently;
+``Adam`` and other optax methods take one step per iteration. The loop runs compiled
+(``lax.while_loop`` over a ``LoopState``) until every guess has stopped. Per guess (``Stop``):
 
 - ``CONVERGED``: its gradient norm is below ``gtol * (1 + |f|)`` or its cost changed by less
   than ``ftol`` relatively in a step;
 - ``MAX_STEPS``: ``steps`` were taken first;
-- ``NO_DESCENT`` (L-BFGS): a step did not lower the cost; the step is refused, the guess's
-  memory is cleared and it goes on from the same point; a second refusal in a row (from a
-  cleared memory) stops it there;
-- ``DIVERGED``: a non-finite cost or gradient (the guess keeps its last finite point), a final
-  cost above ``1000`` times the initial one, or control points more than ``DIVERGED_SIZES``
-  robot sizes outside the robot's workspace box (task space) or more than that many radians
-  (or sizes, for prismatic joints) outside the joint limits or the ends' range (joint space).
+- ``NO_DESCENT`` (L-BFGS): the line search found no point of sufficiently lower cost in
+  ``linesearch_steps`` trials; the guess's memory is cleared and it goes on from the same
+  point by steepest descent; a second failure in a row stops it there;
+- ``DIVERGED``: a non-finite initial cost (or, for optax methods, a non-finite step), a final
+  cost above ``BLOWN_UP`` (1000) times the initial one, or control points more than
+  ``DIVERGED_SIZES`` (10) robot sizes outside the robot's workspace box (task space; the
+  ends' box padded by the robot's size when it has none) or more than that many radians (or
+  sizes, for prismatic joints) outside the joint limits or the ends' range (joint space).
 
 ``converged`` is true only for ``CONVERGED``: the stopping rule held at a finite cost that did
 not blow up, with every control point near the workspace.
