@@ -66,9 +66,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  straight line's clearance from the post: {clearance(line, POST):7.1f} mm")
     best_clearance = clearance(path[best, :, :2], POST)
     print(f"  best path's clearance from the post:     {best_clearance:7.1f} mm")
+    stops = np.bincount(np.asarray(result.stop), minlength=len(optimize.Stop))
+    reasons = ", ".join(f"{stop.name.lower()} {stops[stop]}" for stop in optimize.Stop)
     print(
-        f"  best cost {float(result.cost[best]):.4g}; converged {int(result.converged.sum())} "
-        f"of 16; feasible {int(result.evaluation.feasible.sum())} of 16; "
+        f"  best cost {float(result.cost[best]):.4g}; guesses stopped: {reasons} (of 16); "
+        f"feasible {int(result.evaluation.feasible.sum())} of 16; "
         f"first call {first:.1f} s (with compilation)"
     )
     moved = POST + np.array([-15.0, 10.0, 0.0])

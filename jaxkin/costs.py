@@ -239,6 +239,10 @@ def compose(*weighted_terms: tuple[float, CostTerm]) -> Sum:
 
 
 DEFAULT_COST = compose(
-    (1.0, acceleration), (100.0, SingularityBarrier(0.05)), (1e6, unreachable_penalty)
+    (1.0, acceleration),
+    (100.0, SingularityBarrier(0.05)),
+    (1e6, unreachable_penalty),
+    (1e6, limit_penalty),
 )
-"""Smooth joint motion, kept away from singularities, and (dominant) inside the workspace."""
+"""Smooth joint motion, kept away from singularities, and (dominant) inside the workspace and
+the joint limits (the robot's own, ``robot.joint_limits()``, unless the caller's are tighter)."""

@@ -1,18 +1,42 @@
-"""Trajectory optimisation through the IK kernels: per-guess L-BFGS (or any optax method).
+"""Trajectory optimisation through the kinematics kernels: per-guess L-BFGS (or any optax method).
 
-A trajectory is a Bezier curve in task space (``jaxkin.paths.bezier_path``): ``p(s) = sum_i
-B_i(s) P_i`` with Bernstein polynomials ``B_i`` of degree ``K - 1`` and ``s = t / duration``.
+A trajectory is a Bezier curve ``c(s) = sum_i B_i(s) P_i`` with Bernstein polynomials ``B_i``
+of degree ``K - 1`` and ``s = t / duration`` (``jaxkin.paths.bezier_path``). Its control points
+live in one of two spaces (``controls``):
+
+- ``"task"`` (robots whose targets are points): ``c`` is the tool's path; the joints come from
+  the IK kernels along it (the branch held), with exact rates, so the cost sees an exact joint
+  ``Jet``;
+- ``"joint"`` (every robot; the default for robots whose targets are poses: URDF chains, the
+  PUMA 560, the Stanford arm): ``c`` is the joint trajectory itself and the tool's path comes
+  from the forward kinematics with rates. No IK runs inside the loop, so the path cannot leave
+  the workspace or switch solution, and the joints are continuous by construction.
+
 The end control points are ``start`` and ``goal`` (with ``rest_to_rest`` the second and
 second-to-last too, so the path starts and ends at rest); the interior points are the
-parameters. Rates are exact derivatives of the basis, so the IK kernels receive an exact
-``Jet``.
+parameters, in units of the robot's size (task space and prismatic joints) or radians.
+Pose ends of a joint-space problem are solved once by the IK (host side) on ``branch``.
 
-Every guess is optimised on its own (``jax.vmap`` of one guess's update): each has its own
-L-BFGS history and line search (the default, ``LBFGS()``, optax's ``lbfgs`` with a zoom line
-search), or its own Adam moments. The loop runs compiled (``lax.while_loop`` over a
-``LoopState``) until every guess has stopped: its gradient norm is below ``gtol * (1 + |f|)``
-or its cost changed by less than ``ftol`` relatively in a step (``converged``), or ``steps``
-were taken. The parameters are the interior points in units of the robot's size.
+Every guess is optimised on its own (``jax.vmap`` of one guess's update): the default,
+``LBFGS()``, keeps each guess's own L-BFGS memory and backtracking line search and evaluates
+one trial point per running guess per loop iteration, so the guesses advance independently;
+``Adam`` and other optax methods take one step per iteration. The loop runs compiled
+(``lax.while_loop`` over a ``LoopState``) until every guess has stopped. Per guess (``Stop``):
+
+- ``CONVERGED``: its gradient norm is below ``gtol * (1 + |f|)`` or its cost changed by less
+  than ``ftol`` relatively in a step;
+- ``MAX_STEPS``: ``steps`` were taken first;
+- ``NO_DESCENT`` (L-BFGS): the line search found no point of sufficiently lower cost in
+  ``linesearch_steps`` trials; the guess's memory is cleared and it goes on from the same
+  point by steepest descent; a second failure in a row stops it there;
+- ``DIVERGED``: a non-finite initial cost (or, for optax methods, a non-finite step), a final
+  cost above ``BLOWN_UP`` (1000) times the initial one, or control points more than
+  ``DIVERGED_SIZES`` (10) robot sizes outside the robot's workspace box (task space; the
+  ends' box padded by the robot's size when it has none) or more than that many radians (or
+  sizes, for prismatic joints) outside the joint limits or the ends' range (joint space).
+
+``converged`` is true only for ``CONVERGED``: the stopping rule held at a finite cost that did
+not blow up, with every control point near the workspace.
 
 The cost is ``cost(TrajectorySample) -> (B,)``, built from the terms of ``jaxkin.costs``
 (``compose``; default ``costs.DEFAULT_COST``). Costs and methods are described by value
@@ -24,7 +48,9 @@ new start, goal, guess, weight or obstacle position reuses the compilation; only
 from __future__ import annotations
 
 import dataclasses
+import enum
 import functools
+import math
 from typing import Any
 
 import jax
@@ -39,27 +65,44 @@ from ._progress import bar, is_active
 from .costs import DEFAULT_COST, CostTerm, TrajectorySample
 from .jet import Jet
 from .robot import Robot, as_robot, fk, ik
+from .status import STATUS_DTYPE, Status
 
-__all__ = ["LBFGS", "Adam", "LoopState", "OptimizationResult", "optimize"]
+__all__ = ["DIVERGED_SIZES", "LBFGS", "Adam", "LoopState", "OptimizationResult", "Stop", "optimize"]
 
 PROGRESS_BLOCK = 50  # optimiser steps per compiled call when a progress bar is shown
+DIVERGED_SIZES = 10.0  # control points this many robot sizes (or radians) out have diverged
+BLOWN_UP = 1000.0  # a final cost this many times the initial one has diverged
+
+
+class Stop(enum.IntEnum):
+    """Why a guess stopped (``OptimizationResult.stop``; module docstring)."""
+
+    CONVERGED = 0
+    MAX_STEPS = 1
+    NO_DESCENT = 2
+    DIVERGED = 3
 
 
 # ------------------------------------------------------------------ methods
 @dataclasses.dataclass(frozen=True)
 class LBFGS:
-    """L-BFGS per guess (``optax.lbfgs``: ``memory`` pairs, a zoom line search of at most
-    ``linesearch_steps`` evaluations). The default method."""
+    """L-BFGS per guess (the default method), one cost-and-gradient evaluation per loop
+    iteration.
+
+    Each guess keeps its own ``memory`` pairs ``(s, y)`` (a pair with ``s.y <= eps |s| |y|``
+    is skipped, so the inverse Hessian estimate stays positive definite; the two-loop
+    recursion with ``H0 = (s.y / y.y) I`` [Nocedal & Wright 2006, alg. 7.4]) and its own
+    backtracking line search: the trial point ``x + alpha d`` is accepted when it meets the
+    Armijo condition ``f(x + alpha d) <= f(x) + 1e-4 alpha g.d`` (a non-finite trial is
+    refused); else ``alpha`` shrinks by the minimiser of the quadratic through ``f(x)``,
+    ``g.d`` and the trial (clipped to [0.1, 0.5] of ``alpha``), at most ``linesearch_steps``
+    times. ``alpha`` starts at 1 (the first step at ``0.1 / |g|``: a tenth of the robot's
+    size). The guesses advance independently, one evaluation each per iteration, so a batch
+    costs its slowest guess's evaluations, not the sum over steps of every step's longest
+    line search."""
 
     memory: int = 10
     linesearch_steps: int = 20
-
-    def transformation(self) -> optax.GradientTransformationExtraArgs:
-        # A quasi-Newton step starts its line search at 1 ("one"), not at the last step length.
-        search = optax.scale_by_zoom_linesearch(
-            max_linesearch_steps=self.linesearch_steps, initial_guess_strategy="one"
-        )
-        return optax.lbfgs(memory_size=self.memory, linesearch=search)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,18 +122,23 @@ class OptimizationResult:
     """Result of ``optimize``.
 
     Attributes:
-        controls: all Bezier control points (ends included), shape ``(B, K, d)``.
-        path: Jet of the optimised paths, shape ``(B, T, d)``.
+        controls: all Bezier control points (ends included), shape ``(B, K, d)``: tool
+            positions (``controls="task"``, ``d`` the target's size) or joints (``"joint"``,
+            ``d = n_joints``).
+        path: Jet of the optimised tool paths, shape ``(B, T, *robot.target.shape)``.
         cost: the final cost of each guess, shape ``(B,)``.
         history: the cost of each guess before every step and after the last, ``(steps + 1,
             B)`` (held constant once a guess has stopped).
-        converged: each guess met a stopping rule (gradient norm or cost change), ``(B,)``.
+        converged: each guess met a stopping rule at a finite cost that did not blow up, near
+            the workspace (``stop == Stop.CONVERGED``), ``(B,)``.
+        stop: why each guess stopped, ``int8`` codes of ``Stop``, ``(B,)``.
         iterations: steps taken by each guess, ``(B,)``.
         grad_norm: the final gradient norm (with respect to the interior points in units of the
-            robot's size), ``(B,)``.
+            robot's size, or radians), ``(B,)``.
         best: the index of the best guess: the feasible one of least cost (or of least cost if
             none is feasible), an ``int32`` scalar.
-        evaluation: ``plan.Evaluation`` of the optimised paths.
+        evaluation: ``plan.Evaluation`` of the optimised trajectories; its joint trajectories
+            ``evaluation.q`` are continuous (revolute joints unwrapped).
 
     With several devices (one process or many, ``jax.distributed``) every array is global,
     split along the guess axis (``history`` along its second axis; replicated when B is not a
@@ -102,17 +150,34 @@ class OptimizationResult:
     cost: Array
     history: Array
     converged: Array
+    stop: Array
     iterations: Array
     grad_norm: Array
     best: Array
     evaluation: plan.Evaluation
 
 
+def _revolute(robot: Robot) -> np.ndarray:
+    return np.array([kind == "R" for kind in robot.joint_types])
+
+
 def _sample(robot, controls, basis, duration, dt, limits, branch) -> TrajectorySample:
+    """Task-space controls: the tool's Bezier path and its IK (revolute joints unwrapped)."""
     path = paths.bezier_path(controls, basis, duration)
     res = ik(robot, path, branch)
+    q = Jet(plan.unwrapped(res.q.p, _revolute(robot)), res.q.v, res.q.a)
     dt = jnp.asarray(dt, controls.dtype)
-    return TrajectorySample(res.q, res.status, res.margin, dt, limits, path, robot)
+    return TrajectorySample(q, res.status, res.margin, dt, limits, path, robot)
+
+
+def _joint_sample(robot, controls, basis, duration, dt, limits) -> TrajectorySample:
+    """Joint-space controls: the joints' Bezier curve and its forward kinematics. The margin
+    is ``+inf`` (no IK runs: the singularity and workspace terms see nothing)."""
+    q = paths.bezier_path(controls, basis, duration)
+    res = fk(robot, q)
+    margin = jnp.full(res.status.shape, jnp.inf, controls.dtype)
+    dt = jnp.asarray(dt, controls.dtype)
+    return TrajectorySample(q, res.status, margin, dt, limits, res.x, robot)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,6 +190,20 @@ class _Static:
     branch: Any
     rest_to_rest: bool
     steps: int
+    joint: bool = False  # control points in joint space
+
+
+def _controls(x: Array, data: dict, static: _Static) -> Array:
+    interior = x * data["scale"]
+    return paths.bezier_controls(interior, data["start"], data["goal"], static.rest_to_rest)
+
+
+def _trajectory(x: Array, data: dict, static: _Static) -> TrajectorySample:
+    controls = _controls(x, data, static)
+    args = (data["robot"], controls, data["basis"], data["duration"], data["dt"], data["limits"])
+    if static.joint:
+        return _joint_sample(*args)
+    return _sample(*args, static.branch)
 
 
 def _objective(x: Array, data: dict, static: _Static) -> Array:
@@ -132,22 +211,11 @@ def _objective(x: Array, data: dict, static: _Static) -> Array:
     cost = static.cost
     if cost is None:
         cost = jax.tree.unflatten(static.cost_treedef, data["cost"])
-    interior = (x * data["scale"])[None]
-    controls = paths.bezier_controls(interior, data["start"], data["goal"], static.rest_to_rest)
-    sample = _sample(
-        data["robot"],
-        controls,
-        data["basis"],
-        data["duration"],
-        data["dt"],
-        data["limits"],
-        static.branch,
-    )
-    return cost(sample)[0]
+    return cost(_trajectory(x[None], data, static))[0]
 
 
 def _transformation(method: Any) -> Any:
-    if isinstance(method, LBFGS | Adam):
+    if isinstance(method, Adam):
         return method.transformation()
     return optax.with_extra_args_support(method)
 
@@ -162,9 +230,14 @@ class LoopState:
         opt_state: the optax state of each guess (leaves with a leading ``B`` axis).
         f: each guess's cost at ``x``, ``(B,)``.
         g: the gradient of ``f`` with respect to ``x``, ``(B, K', d)``.
-        done: the guess has stopped (converged, or a non-finite step), ``(B,)``.
-        converged: the guess met a stopping rule, ``(B,)``.
+        done: the guess has stopped, ``(B,)``.
+        stop: why it stopped (``Stop``; ``MAX_STEPS`` while it runs), ``int8`` ``(B,)``.
+        fresh: the guess's memory was just cleared after a refused step, ``(B,)``.
         iterations: steps the guess took, ``int32`` ``(B,)``.
+        evaluations: cost-and-gradient evaluations of the guess (line searches included),
+            ``int32`` ``(B,)``.
+        batched: evaluations of the whole batch the loop ran (per step the most any running
+            guess's line search took), an ``int32`` scalar: the loop's cost.
         step: steps the loop ran, an ``int32`` scalar.
         history: ``f`` before every step and after the last, ``(steps + 1, B)``.
     """
@@ -174,8 +247,11 @@ class LoopState:
     f: Array
     g: Array
     done: Array
-    converged: Array
+    stop: Array
+    fresh: Array
     iterations: Array
+    evaluations: Array
+    batched: Array
     step: Array
     history: Array
 
@@ -185,20 +261,32 @@ def _start(x: Array, data: dict, static: _Static) -> LoopState:
     """The loop's initial state for guesses ``x`` ``(B, K', d)``."""
     value_and_grad = jax.value_and_grad(_objective)
     f, g = jax.vmap(lambda xb: value_and_grad(xb, data, static))(x)
-    opt_state = jax.vmap(_transformation(static.method).init)(x)
     batch = x.shape[0]
+    if isinstance(static.method, LBFGS):
+        opt_state = _lbfgs_init(static.method.memory, x, g)
+    else:
+        opt_state = jax.vmap(_transformation(static.method).init)(x)
     history = jnp.broadcast_to(f, (static.steps + 1, batch))
-    done = ~jnp.isfinite(f)
+    done = ~jnp.isfinite(f) | (static.steps == 0)
+    stop = jnp.where(jnp.isfinite(f), Stop.MAX_STEPS, Stop.DIVERGED).astype(jnp.int8)
     zeros = jnp.zeros(batch, jnp.int32)
-    return LoopState(x, opt_state, f, g, done, jnp.zeros(batch, bool), zeros, jnp.int32(0), history)
+    fresh = jnp.zeros(batch, bool)
+    one = jnp.int32(1)
+    return LoopState(
+        x, opt_state, f, g, done, stop, fresh, zeros, zeros + 1, one, jnp.int32(0), history
+    )
 
 
 @functools.partial(jax.jit, static_argnames="static")
 def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
-    """Steps until every guess has stopped, ``static.steps`` were taken, or step ``stop``."""
+    """Iterations until every guess has stopped or loop iteration ``stop``; a guess stops
+    after ``static.steps`` steps at the latest."""
+    if isinstance(static.method, LBFGS):
+        return _run_lbfgs(initial, data, stop, static)
     tx = _transformation(static.method)
     value_and_grad = jax.value_and_grad(_objective)
     gtol, ftol = data["gtol"], data["ftol"]
+    descent = False  # an optax method promises no lower cost
 
     def one_step(x, state, f, g):
         def value_fn(y):
@@ -206,52 +294,401 @@ def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopSt
 
         updates, state = tx.update(g, state, x, value=f, grad=g, value_fn=value_fn)
         x = optax.apply_updates(x, updates)
-        if isinstance(static.method, LBFGS):
+        if descent:
             # the line search evaluated the accepted point already: reuse, not re-trace
             f_new = optax.tree_utils.tree_get(state, "value")
             g_new = optax.tree_utils.tree_get(state, "grad")
+            info = optax.tree_utils.tree_get(state, "info")
+            count = jnp.asarray(info.num_linesearch_steps, jnp.int32)
         else:
             f_new, g_new = value_and_grad(x, data, static)
-        return x, state, f_new, g_new
+            count = jnp.int32(1)
+        return x, state, f_new, g_new, count
 
     def cond(loop: LoopState) -> Array:
-        return (loop.step < jnp.minimum(stop, static.steps)) & ~jnp.all(loop.done)
+        return (loop.step < stop) & ~jnp.all(loop.done)
 
     def body(loop: LoopState) -> LoopState:
         x, state, f, g = loop.x, loop.opt_state, loop.f, loop.g
-        x_new, state_new, f_new, g_new = jax.vmap(one_step)(x, state, f, g)
+        x_new, state_new, f_new, g_new, count = jax.vmap(one_step)(x, state, f, g)
+        count = jnp.where(loop.done, 0, count)
         good = jnp.isfinite(f_new) & jnp.all(jnp.isfinite(g_new), axis=(-2, -1))
-        take = ~loop.done & good
+        refused = good & (f_new > f) if descent else jnp.zeros_like(good)
+        take = ~loop.done & good & ~refused
+        retry = ~loop.done & refused & ~loop.fresh  # clear the memory, go on from x
 
-        def choose(new, old):
-            mask = take.reshape(take.shape + (1,) * (jnp.ndim(new) - 1))
+        def choose(mask, new, old):
+            mask = mask.reshape(mask.shape + (1,) * (jnp.ndim(new) - 1))
             return jnp.where(mask, new, old)
 
         x, state, f_next, g = jax.tree.map(
-            choose, (x_new, state_new, f_new, g_new), (x, state, f, g)
+            functools.partial(choose, take), (x_new, state_new, f_new, g_new), (x, state, f, g)
         )
+        if descent:
+            cleared = jax.vmap(tx.init)(x)
+            state = jax.tree.map(functools.partial(choose, retry), cleared, state)
         grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
         change = jnp.abs(f - f_next) <= ftol * jnp.maximum(jnp.abs(f), jnp.abs(f_next))
         met = take & ((grad_norm <= gtol * (1.0 + jnp.abs(f_next))) | change)
+        gave_up = ~loop.done & refused & loop.fresh
+        blew = ~loop.done & ~good
+        iterations = loop.iterations + take.astype(jnp.int32)
+        spent = ~loop.done & (iterations >= static.steps)
+        code = jnp.where(
+            met,
+            Stop.CONVERGED,
+            jnp.where(gave_up, Stop.NO_DESCENT, jnp.where(blew, Stop.DIVERGED, Stop.MAX_STEPS)),
+        ).astype(jnp.int8)
+        ended = met | gave_up | blew | spent
         return LoopState(
             x=x,
             opt_state=state,
             f=f_next,
             g=g,
-            done=loop.done | met | ~good,
-            converged=loop.converged | met,
-            iterations=loop.iterations + take.astype(jnp.int32),
+            done=loop.done | ended,
+            stop=jnp.where(ended, code, loop.stop),
+            fresh=jnp.where(loop.done, loop.fresh, retry),
+            iterations=iterations,
+            evaluations=loop.evaluations + count,
+            batched=loop.batched + jnp.max(count),
             step=loop.step + 1,
-            history=loop.history.at[loop.step + 1].set(f_next),
+            history=_record(loop.history, iterations, f_next),
         )
 
     return jax.lax.while_loop(cond, body, initial)
 
 
+def _record(history: Array, iterations: Array, f: Array) -> Array:
+    """``history`` ``(steps + 1, B)`` with each guess's cost at its own step count."""
+    index = jnp.minimum(iterations, history.shape[0] - 1)
+    return history.at[index, jnp.arange(f.shape[0])].set(f)
+
+
+def _lbfgs_init(memory: int, x: Array, g: Array) -> dict:
+    """The L-BFGS state of guesses ``x`` ``(B, K', d)`` with gradients ``g``: empty memory,
+    a steepest-descent direction and a first step of a tenth of the robot's size."""
+    batch, n = x.shape[0], x[0].size
+    flat_g = g.reshape(batch, n)
+    norm = jnp.sqrt(jnp.sum(flat_g * flat_g, axis=-1))
+    return dict(
+        s=jnp.zeros((batch, memory, n), x.dtype),
+        y=jnp.zeros((batch, memory, n), x.dtype),
+        rho=jnp.zeros((batch, memory), x.dtype),
+        pairs=jnp.zeros(batch, jnp.int32),  # pairs stored so far (the newest at pairs - 1)
+        gamma=jnp.ones(batch, x.dtype),
+        d=-flat_g,
+        alpha=_first_step(norm),
+        tries=jnp.zeros(batch, jnp.int32),  # refused trials of the current line search
+    )
+
+
+def _first_step(grad_norm: Array) -> Array:
+    return jnp.where(grad_norm > 0.1, 0.1 / jnp.where(grad_norm > 0, grad_norm, 1.0), 1.0)
+
+
+def _two_loop(g: Array, state: dict) -> Array:
+    """``-H g`` for one guess by the two-loop recursion over its stored pairs."""
+    memory = state["rho"].shape[-1]
+    pairs = state["pairs"]
+    q, alphas = g, []
+    for j in range(memory):  # newest first
+        i = (pairs - 1 - j) % memory
+        valid = j < jnp.minimum(pairs, memory)
+        a = jnp.where(valid, state["rho"][i] * jnp.dot(state["s"][i], q), 0.0)
+        q = q - a * state["y"][i]
+        alphas.append(a)
+    r = state["gamma"] * q
+    for j in reversed(range(memory)):
+        i = (pairs - 1 - j) % memory
+        valid = j < jnp.minimum(pairs, memory)
+        b = state["rho"][i] * jnp.dot(state["y"][i], r)
+        r = r + jnp.where(valid, alphas[j] - b, 0.0) * state["s"][i]
+    return -r
+
+
+@functools.partial(jax.jit, static_argnames="static")
+def _run_lbfgs(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
+    """``LBFGS``'s loop: every iteration evaluates one trial point per running guess."""
+    value_and_grad = jax.vmap(jax.value_and_grad(_objective), in_axes=(0, None, None))
+    gtol, ftol = data["gtol"], data["ftol"]
+    shape = initial.x.shape
+    batch = shape[0]
+    epsilon = jnp.finfo(initial.x.dtype).eps
+    max_tries = static.method.linesearch_steps
+
+    def cond(loop: LoopState) -> Array:
+        return (loop.step < stop) & ~jnp.all(loop.done)
+
+    def body(loop: LoopState) -> LoopState:
+        st = loop.opt_state
+        x, f, g = loop.x.reshape(batch, -1), loop.f, loop.g.reshape(batch, -1)
+        d, alpha = st["d"], st["alpha"]
+        trial = x + alpha[:, None] * d
+        f_t, g_t = value_and_grad(trial.reshape(shape), data, static)
+        g_t = g_t.reshape(batch, -1)
+        running = ~loop.done
+        slope = jnp.sum(g * d, axis=-1)  # < 0: a descent direction
+        finite = jnp.isfinite(f_t) & jnp.all(jnp.isfinite(g_t), axis=-1)
+        accept = running & finite & (f_t <= f + 1e-4 * alpha * slope)
+        # refused: the minimiser of the quadratic through f, the slope and the trial
+        curvature = f_t - f - slope * alpha
+        ratio = -slope * alpha / (2.0 * jnp.where(curvature > 0, curvature, 1.0))
+        shrink = jnp.where(finite & (curvature > 0), jnp.clip(ratio, 0.1, 0.5), 0.1)
+        tries = st["tries"] + 1
+        exhausted = running & ~accept & (tries >= max_tries)
+        gave_up = exhausted & loop.fresh
+        restart = exhausted & ~loop.fresh  # clear the memory, steepest descent from x
+
+        # accepted: store the pair (skipped without positive curvature), next direction
+        step = trial - x
+        change_g = g_t - g
+        sy = jnp.sum(step * change_g, axis=-1)
+        yy = jnp.sum(change_g * change_g, axis=-1)
+        size = jnp.sqrt(jnp.sum(step * step, axis=-1) * yy)
+        store = accept & (sy > epsilon * size) & (yy > 0)
+        slot = st["pairs"] % static.method.memory
+        one_hot = (jnp.arange(static.method.memory) == slot[:, None]) & store[:, None]
+        new = dict(
+            s=jnp.where(one_hot[..., None], step[:, None, :], st["s"]),
+            y=jnp.where(one_hot[..., None], change_g[:, None, :], st["y"]),
+            rho=jnp.where(one_hot, (1.0 / jnp.where(store, sy, 1.0))[:, None], st["rho"]),
+            pairs=st["pairs"] + store.astype(jnp.int32),
+            gamma=jnp.where(store, sy / jnp.where(store, yy, 1.0), st["gamma"]),
+        )
+        x_next = jnp.where(accept[:, None], trial, x)
+        f_next = jnp.where(accept, f_t, f)
+        g_next = jnp.where(accept[:, None], g_t, g)
+        direction = jax.vmap(_two_loop)(g_next, new)
+        downhill = jnp.sum(direction * g_next, axis=-1) < 0
+        direction = jnp.where(downhill[:, None], direction, -g_next)
+        grad_norm = jnp.sqrt(jnp.sum(g_next * g_next, axis=-1))
+        cleared = _lbfgs_init(static.method.memory, x_next.reshape(shape), g_next.reshape(shape))
+        state = dict(
+            s=new["s"],
+            y=new["y"],
+            rho=new["rho"],
+            pairs=new["pairs"],
+            gamma=new["gamma"],
+            d=jnp.where(accept[:, None], direction, d),
+            alpha=jnp.where(
+                accept, jnp.where(downhill, 1.0, _first_step(grad_norm)), alpha * shrink
+            ),
+            tries=jnp.where(accept, 0, tries),
+        )
+        state = jax.tree.map(
+            lambda c, k: jnp.where(restart.reshape(restart.shape + (1,) * (c.ndim - 1)), c, k),
+            cleared,
+            state,
+        )
+        change = jnp.abs(f - f_t) <= ftol * jnp.maximum(jnp.abs(f), jnp.abs(f_t))
+        met = accept & ((grad_norm <= gtol * (1.0 + jnp.abs(f_t))) | change)
+        iterations = loop.iterations + accept.astype(jnp.int32)
+        spent = running & ~met & (iterations >= static.steps)
+        code = jnp.where(met, Stop.CONVERGED, jnp.where(gave_up, Stop.NO_DESCENT, Stop.MAX_STEPS))
+        ended = met | gave_up | spent
+        return LoopState(
+            x=x_next.reshape(shape),
+            opt_state=state,
+            f=f_next,
+            g=g_next.reshape(shape),
+            done=loop.done | ended,
+            stop=jnp.where(ended, code.astype(jnp.int8), loop.stop),
+            fresh=jnp.where(accept, False, loop.fresh | restart),
+            iterations=iterations,
+            evaluations=loop.evaluations + running.astype(jnp.int32),
+            batched=loop.batched + jnp.any(running).astype(jnp.int32),
+            step=loop.step + 1,
+            history=_record(loop.history, iterations, f_next),
+        )
+
+    return jax.lax.while_loop(cond, body, initial)
+
+
+@functools.partial(jax.jit, static_argnames="static")
+def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
+    """Controls, tool paths, history and stop codes of finished guesses; the divergence
+    checks (blown-up cost, control points far outside the box) applied."""
+    x, f, g = loop.x, loop.f, loop.g
+    after = jnp.arange(static.steps + 1)[:, None] > loop.iterations
+    history = jnp.where(after, f, loop.history)
+    controls = _controls(x, data, static)
+    if static.joint:
+        sample = _trajectory(x, data, static)
+        path, q, status = sample.path, sample.q, sample.status
+    else:  # the tool paths alone: the planner's evaluation solves their IK
+        path = paths.bezier_path(controls, data["basis"], data["duration"])
+        q, status = None, None
+    lo, hi, unit = data["box"]
+    outside = (jax.nn.relu(lo - controls) + jax.nn.relu(controls - hi)) / unit
+    far = jnp.any(outside > DIVERGED_SIZES, axis=(-2, -1))
+    blown = ~(f <= BLOWN_UP * jnp.abs(f0)) & (f > 0)
+    stop = jnp.where(far | blown | ~jnp.isfinite(f), jnp.int8(Stop.DIVERGED), loop.stop)
+    grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
+    return controls, path, q, status, f, history.T, stop, grad_norm
+
+
+@jax.jit
+def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array) -> Any:
+    """``plan.Evaluation`` of joint trajectories ``(N, T, n)`` (continuous by construction):
+    a sample is ``OUT_OF_LIMITS`` where a limit is passed, else its FK status."""
+    solved = fk_status == Status.OK
+    violated = plan.limit_excess(q, limits) > 0
+    status = jnp.where(solved & violated, jnp.int8(Status.OUT_OF_LIMITS), fk_status)
+    status = status.astype(STATUS_DTYPE)
+    bad = status != Status.OK
+    feasible = ~jnp.any(bad, axis=-1)
+    first = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
+    margin = jnp.full(feasible.shape, jnp.inf, q.p.dtype)
+    return q, status, feasible, first, margin, plan.trajectory_costs(q, dt, limits, feasible)
+
+
+def _evaluation(robot, joint, path, q, status, limits, branch, dt) -> plan.Evaluation:
+    """The optimised trajectories evaluated: the planner's own evaluation of the tool paths
+    (task-space controls: the one call of ``plan.evaluate``), or the joint trajectories as
+    they are (joint-space controls; no IK, so no margin: ``min_margin`` is ``+inf``)."""
+    if not joint:
+        return plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt)
+    q, status, feasible, first, margin, scores = _joint_evaluation(
+        q, status, limits, jnp.asarray(dt, q.p.dtype)
+    )
+    index = robot.branches.index(branch)
+    return plan.Evaluation(
+        q=q,
+        status=status,
+        feasible=feasible,
+        first_failure=first,
+        min_margin=margin,
+        branch=jnp.full(feasible.shape, index, jnp.int8),
+        costs=scores,
+        branches=robot.branches,
+    )
+
+
+# ------------------------------------------------------------------ the ends
+def _pose(x: Any, name: str) -> np.ndarray:
+    """A pose given as a 4x4 homogeneous matrix or as ``(position (3,), quaternion (4,))``
+    (``w, x, y, z``, any non-zero length), as a checked 4x4 matrix (host side)."""
+    if isinstance(x, tuple | list) and len(x) == 2:
+        position = np.asarray(x[0], dtype=float)
+        quaternion = np.asarray(x[1], dtype=float)
+        if position.shape != (3,) or quaternion.shape != (4,):
+            raise ValueError(
+                f"{name}: a pose as (position, quaternion) needs shapes (3,) and (4,), got "
+                f"{position.shape} and {quaternion.shape}"
+            )
+        unit, _, ok = _validate.unit_quaternions(quaternion)
+        if not (ok and np.all(np.isfinite(position))):
+            raise ValueError(f"{name}: the position must be finite and the quaternion finite "
+                             f"and non-zero, got {position} and {quaternion}")  # fmt: skip
+        w, i, j, k = unit
+        rotation = np.array(
+            [
+                [1 - 2 * (j * j + k * k), 2 * (i * j - k * w), 2 * (i * k + j * w)],
+                [2 * (i * j + k * w), 1 - 2 * (i * i + k * k), 2 * (j * k - i * w)],
+                [2 * (i * k - j * w), 2 * (j * k + i * w), 1 - 2 * (i * i + j * j)],
+            ]
+        )
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = rotation, position
+        return pose
+    pose = np.asarray(x, dtype=float)
+    if pose.shape != (4, 4):
+        raise ValueError(
+            f"{name}: expected a pose, a 4x4 matrix or (position, quaternion), got shape "
+            f"{pose.shape}"
+        )
+    rotation = pose[:3, :3]
+    tol = 1e-6
+    if not (
+        np.all(np.isfinite(pose))
+        and np.allclose(pose[3], [0, 0, 0, 1], atol=tol)
+        and np.allclose(rotation.T @ rotation, np.eye(3), atol=tol)
+        and np.linalg.det(rotation) > 0
+    ):
+        raise ValueError(
+            f"{name}: a pose's rotation must be orthonormal with determinant 1 (to {tol}) and "
+            f"its last row (0, 0, 0, 1), got\n{pose}"
+        )
+    return pose
+
+
+def _target(robot: Robot, x: Any, name: str) -> np.ndarray:
+    """A target of ``robot`` (a point, or a pose as ``_pose`` takes it), checked."""
+    if robot.target.shape == (4, 4):
+        return _pose(x, name)
+    value = np.asarray(x, dtype=float)
+    if value.shape != robot.target.shape:
+        raise ValueError(
+            f"{name}: expected a {robot.target.name} of shape {robot.target.shape} (task "
+            f"space), got {value.shape}"
+        )
+    if not np.all(np.isfinite(value)):
+        raise ValueError(f"{name} must be finite, got {value}")
+    return value
+
+
+def _ends(robot: Robot, start, goal, space: str, joint: bool, branch: Any, limits) -> list:
+    """``start`` and goal as control points: joints (``joint``) or tool positions."""
+    names = ("start", "goal")
+    if space == "task":
+        ends = [_target(robot, x, name) for name, x in zip(names, (start, goal), strict=True)]
+    else:
+        ends = [np.asarray(x, dtype=float) for x in (start, goal)]
+        for name, value in zip(names, ends, strict=True):
+            if value.shape != (robot.n_joints,):
+                raise ValueError(
+                    f"{name}: expected shape ({robot.n_joints},) (joint space), got {value.shape}"
+                )
+            if not np.all(np.isfinite(value)):
+                raise ValueError(f"{name} must be finite, got {value}")
+    if space == "joint" and not joint:  # tool positions of joint ends
+        return [np.asarray(fk(robot, value).x.p) for value in ends]
+    if space == "task" and joint:  # joints of target ends
+        for i, (name, target) in enumerate(zip(names, ends, strict=True)):
+            res = ik(robot, target, branch)
+            if int(res.status) != Status.OK:
+                raise ValueError(
+                    f"{name}: the target is not solved on branch {branch!r} "
+                    f"({Status(int(res.status)).name}); give its joints with space='joint'"
+                )
+            ends[i] = np.asarray(res.q.p)
+    if joint and space == "task":  # solved goal joints: the turn nearest the start's
+        turns = np.round((ends[1] - ends[0]) / (2 * math.pi))
+        moved = ends[1] - 2 * math.pi * np.where(_revolute(robot), turns, 0.0)
+        inside = (moved >= np.asarray(limits.q_min)) & (moved <= np.asarray(limits.q_max))
+        ends[1] = np.where(inside, moved, ends[1])
+    return ends
+
+
+def _box(robot: Robot, joint: bool, ends: list, limits: plan.Limits) -> tuple:
+    """The box ``(lo, hi, unit)`` (each ``(d,)``) control points should stay near: the
+    workspace box (task space; the ends' box padded by the robot's size when the robot has
+    none) or the joint limits, the ends' range where a joint has none (joint space)."""
+    size = float(robot.length_scale())
+    if joint:
+        low, high = np.minimum(*ends), np.maximum(*ends)
+        q_min, q_max = np.asarray(limits.q_min), np.asarray(limits.q_max)
+        lo = np.where(np.isfinite(q_min), np.minimum(q_min, low), low)
+        hi = np.where(np.isfinite(q_max), np.maximum(q_max, high), high)
+        unit = np.where(_revolute(robot), 1.0, size)
+        return lo, hi, unit
+    try:
+        bounds, _ = robot.workspace_box()
+        lo, hi = (np.array(b, dtype=float) for b in zip(*bounds, strict=True))
+    except ValueError:
+        lo, hi = np.minimum(*ends) - size, np.maximum(*ends) + size
+    return (
+        np.minimum(lo, np.minimum(*ends)),
+        np.maximum(hi, np.maximum(*ends)),
+        np.full(lo.shape, size),
+    )
+
+
+# ------------------------------------------------------------------ public API
 def optimize(
     robot: Robot,
-    start: ArrayLike,
-    goal: ArrayLike,
+    start: Any,
+    goal: Any,
     interior: ArrayLike,
     duration: float = 1.0,
     n_samples: int = 100,
@@ -265,71 +702,84 @@ def optimize(
     gtol: float | None = None,
     ftol: float | None = None,
     progress: bool | None = None,
+    controls: str | None = None,
 ) -> OptimizationResult:
     """Optimise B trajectories from ``start`` to ``goal`` at once, each guess on its own.
 
     Args:
-        robot: any robot of the protocol whose targets are points (``robot.target``).
-        start, goal: end points, shape ``robot.target.shape`` (``space="task"``), or joint
-            vectors ``(n_joints,)`` (``space="joint"``: their forward kinematics).
-        interior: initial interior control points, shape ``(B, K', d)`` or ``(K', d)``; every
-            guess must be finite (a ``ValueError`` names the guesses that are not). Host data
-            (the same on every process), or a global ``jax.Array`` split along the guesses:
-            with several devices each runs its own guesses' loop.
-        duration: motion time; ``n_samples`` samples are taken uniformly in [0, duration].
+        robot: any robot of the protocol.
+        start, goal: the ends. ``space="task"``: targets of the robot, a point of shape
+            ``robot.target.shape``, or a pose as a 4x4 matrix or ``(position, quaternion)``
+            (``w, x, y, z``); ``space="joint"``: joint vectors ``(n_joints,)``.
+        interior: initial interior control points, shape ``(B, K', d)`` or ``(K', d)`` with
+            ``d`` the target's size (task-space controls) or ``n_joints`` (joint-space
+            controls); at least one guess, every guess finite (a ``ValueError`` names the
+            guesses that are not). Host data (the same on every process), or a global
+            ``jax.Array`` split along the guesses: with several devices each runs its own
+            guesses' loop.
+        duration: motion time (positive, finite); ``n_samples`` samples are taken uniformly in
+            [0, duration].
         optimizer: ``LBFGS()`` (default) or ``Adam(...)`` (described by value: no new
             compilation), or any optax transformation (a new object compiles anew: keep one).
         steps: the most steps a guess takes.
         cost: ``cost(TrajectorySample) -> (B,)``; default ``DEFAULT_COST``. A ``compose``-d
             cost's weights, thresholds and obstacles are data; a plain function is static.
-        branch: the branch held along the path (None: the default).
-        limits: ``plan.Limits`` for limit penalties and the final evaluation.
+        branch: the branch held along the path (None: the default); with joint-space controls,
+            the branch the IK solves pose or point ends on.
+        limits: ``plan.Limits``, intersected with the robot's own position, velocity and
+            acceleration limits (``robot.joint_limits()``, which always apply), for the limit
+            penalties (``costs.limit_penalty``, part of ``DEFAULT_COST``) and the evaluation.
         rest_to_rest: also fix the second and second-to-last control points.
-        space: ``"task"`` or ``"joint"`` (the meaning of ``start`` and ``goal``).
+        space: ``"task"`` or ``"joint"``: the meaning of ``start`` and ``goal``.
         gtol, ftol: stopping rules per guess: ``|grad| <= gtol (1 + |f|)`` or a relative cost
             change ``<= ftol`` in one step; None for ``max(1e-7, 1000 eps)`` and
             ``max(1e-10, 8 eps)`` (float64: 1e-7 and 1e-10, which reach the optimum of the
             benchmark problems to 1e-8 relative; float32: 1.2e-4 and 9.5e-7).
         progress: show a progress bar (default: only when stderr is a terminal).
+        controls: where the control points live, ``"task"`` or ``"joint"`` (module
+            docstring); None: ``"task"`` for robots whose targets are points, else ``"joint"``.
 
     Returns:
         ``OptimizationResult``.
 
     Raises:
-        ValueError: a robot whose targets are not points, shapes that do not match, non-finite
-            start, goal or guesses, or bad numeric options (each named).
+        ValueError: task-space controls for a robot whose targets are not points, shapes that
+            do not match, non-finite or unsolvable ends, no guesses or non-finite ones, or bad
+            numeric options (each named).
     """
     robot = as_robot(robot)
-    if not robot.target.is_point:
-        raise ValueError(
-            f"optimize needs a robot whose targets are points; {type(robot).__name__}'s are "
-            f"{robot.target.name}s"
-        )
     branch = robot.check_branch(branch)
-    dims = robot.target.shape[0]
-    if space not in ("task", "joint"):
-        raise ValueError(f"space must be 'task' or 'joint', got {space!r}")
-    start = jnp.asarray(start, float)
-    goal = jnp.asarray(goal, float)
-    want = (robot.n_joints,) if space == "joint" else (dims,)
-    for name, x in (("start", start), ("goal", goal)):
-        if x.shape != want:
-            raise ValueError(f"{name}: expected shape {want} ({space} space), got {x.shape}")
-        if not bool(jnp.all(jnp.isfinite(x))):
-            raise ValueError(f"{name} must be finite, got {np.asarray(x)}")
-    if space == "joint":
-        start, goal = (fk(robot, x).x.p for x in (start, goal))
+    space = _validate.choice(space, "space", ("task", "joint"))
+    if controls is None:
+        controls = "task" if robot.target.is_point else "joint"
+    controls = _validate.choice(controls, "controls", ("task", "joint"))
+    if controls == "task" and not robot.target.is_point:
+        raise ValueError(
+            f"controls='task' needs a robot whose targets are points; {type(robot).__name__}'s "
+            f"are {robot.target.name}s: use controls='joint' (the default for it)"
+        )
+    joint = controls == "joint"
+    for name, value, low in (("n_samples", n_samples, 3), ("steps", steps, 0)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+            raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
+    n_samples, steps = int(n_samples), int(steps)
+    duration = _validate.positive_number(duration, "duration")
+    dims = robot.n_joints if joint else robot.target.shape[0]
     interior = jnp.asarray(interior, float)
     if interior.ndim == 2:
         interior = interior[None]
     if interior.ndim != 3 or interior.shape[-1] != dims or interior.shape[1] < 1:
+        what = "n_joints" if joint else "the target's size"
         raise ValueError(
-            f"interior: expected shape (B, K', {dims}) with K' >= 1, got {interior.shape}"
+            f"interior: expected shape (B, K', {dims}) ({what}, {controls}-space controls) with "
+            f"K' >= 1, got {interior.shape}"
         )
+    if interior.shape[0] == 0:
+        raise ValueError(f"interior: no guesses (shape {interior.shape}); give at least one")
     bad = np.concatenate(
         [
-            start + np.flatnonzero(~np.all(np.isfinite(rows), axis=(1, 2)))
-            for start, rows in _processes.local_rows(interior)
+            first + np.flatnonzero(~np.all(np.isfinite(rows), axis=(1, 2)))
+            for first, rows in _processes.local_rows(interior)
         ]
     )
     if not _processes.fetchable(interior):  # split over processes: every process must raise
@@ -339,24 +789,17 @@ def optimize(
             f"interior: initial guess(es) {bad.tolist()} hold NaN or inf (every guess must be "
             "finite: a NaN would come back as NaN controls)"
         )
-    for name, value, low in (("n_samples", n_samples, 3), ("steps", steps, 0)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
-    epsilon = float(jnp.finfo(interior.dtype).eps)
+    dtype = interior.dtype
+    epsilon = float(jnp.finfo(dtype).eps)
     gtol = max(1e-7, 1000 * epsilon) if gtol is None else gtol
     ftol = max(1e-10, 8 * epsilon) if ftol is None else ftol
-    duration, gtol, ftol = (
-        _validate.nonnegative_number(value, name)
-        for name, value in (("duration", duration), ("gtol", gtol), ("ftol", ftol))
-    )
-    if not duration > 0:
-        raise ValueError(f"duration must be positive, got {duration!r}")
+    gtol, ftol = (_validate.nonnegative_number(v, n) for n, v in (("gtol", gtol), ("ftol", ftol)))
+    limits = plan.robot_limits(robot, limits)
+    start, goal = _ends(robot, start, goal, space, joint, branch, limits)
     method = LBFGS() if optimizer is None else optimizer
     n_ctrl = interior.shape[1] + 2 + (2 if rest_to_rest else 0)
-    dtype = interior.dtype
     basis = jnp.asarray(paths.bezier_basis(n_ctrl, n_samples), dtype)
     dt = duration / (n_samples - 1)
-    limits = plan.robot_limits(robot, limits)
     leaves, treedef = jax.tree.flatten(cost)
     is_data = all(isinstance(leaf, jax.Array | np.ndarray | float | int) for leaf in leaves)
     static = _Static(
@@ -366,12 +809,15 @@ def optimize(
         branch,
         bool(rest_to_rest),
         steps,
+        joint,
     )
-    scale = jnp.asarray(robot.length_scale(), dtype)
+    size = robot.length_scale()
+    scale = jnp.where(jnp.asarray(_revolute(robot)), 1.0, size) if joint else size
+    scale = jnp.asarray(scale, dtype)
     data = dict(
         robot=robot,
-        start=start.astype(dtype),
-        goal=goal.astype(dtype),
+        start=jnp.asarray(start, dtype),
+        goal=jnp.asarray(goal, dtype),
         basis=basis,
         duration=jnp.asarray(duration, dtype),
         dt=jnp.asarray(dt, dtype),
@@ -380,43 +826,47 @@ def optimize(
         scale=scale,
         gtol=jnp.asarray(gtol, dtype),
         ftol=jnp.asarray(ftol, dtype),
+        box=tuple(jnp.asarray(b, dtype) for b in _box(robot, joint, [start, goal], limits)),
     )
 
     def run(guesses: Array) -> tuple:
         """The guesses ``(b, K', d)`` of one device optimised, per-guess results leading."""
         loop = _start(guesses / scale, data, static)
-        block = min(steps, PROGRESS_BLOCK) if is_active(progress) else steps
+        f0 = loop.f
+        # loop iterations: one step each for optax methods, one evaluation each for LBFGS
+        tries = 2 * method.linesearch_steps + 1 if isinstance(method, LBFGS) else 1
+        limit = steps * tries + 1
+        block = PROGRESS_BLOCK if is_active(progress) else limit
         with bar(steps, "optimize", enabled=progress) as meter:
-            done_steps = 0
-            while done_steps < steps:
-                loop = _run(loop, data, jnp.int32(done_steps + block), static)
+            shown = reached = 0
+            while reached < limit:
+                target = min(reached + block, limit)
+                loop = _run(loop, data, jnp.int32(target), static)
                 reached = int(loop.step)
-                meter.update(reached - done_steps)
-                if reached < done_steps + block:  # every guess has stopped
+                if block < limit:  # a bar is shown: the furthest guess's steps
+                    now = int(jnp.max(loop.iterations))
+                    meter.update(now - shown)
+                    shown = now
+                if reached < target:  # every guess has stopped
                     break
-                done_steps = reached
-        x, f, g = loop.x, loop.f, loop.g
-        history = jnp.where(jnp.arange(steps + 1)[:, None] > loop.step, f, loop.history)
-        controls = paths.bezier_controls(x * scale, data["start"], data["goal"], rest_to_rest)
-        path = paths.bezier_path(controls, basis, duration)
-        grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
-        return controls, path, f, history.T, loop.converged, loop.iterations, grad_norm
+        out = _outcome(loop, f0, data, static)
+        return (*out, loop.iterations)
 
     # A guess's steps never depend on the others' (a stopped guess is held), so each device
     # runs its own guesses' loop to its own end.
-    controls, path, f, history, converged, iterations, grad_norm = _batching.map_candidates(
-        run, interior, interior.shape[0], name="interior"
-    )
+    out = _batching.map_candidates(run, interior, interior.shape[0], name="interior")
+    ctrl, path, q, fk_status, f, history, stop, grad_norm, iterations = out
     history = history.T
-    evaluation = plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt)
+    evaluation = _evaluation(robot, joint, path, q, fk_status, limits, branch, dt)
     ranked = jnp.where(evaluation.feasible, f, jnp.inf)
     best = jnp.where(jnp.any(evaluation.feasible), jnp.argmin(ranked), jnp.argmin(f))
     return OptimizationResult(
-        controls,
+        ctrl,
         path,
         f,
         history,
-        converged,
+        stop == Stop.CONVERGED,
+        stop,
         iterations,
         grad_norm,
         best.astype(jnp.int32),

@@ -182,8 +182,11 @@ def test_second_call_compiles_nothing(problem):
     guesses, _ = problem
     new = [START + [5.0, 5.0, 0.0], GOAL - [5.0, 0.0, 5.0], guesses + 1.0]
     new = [np.asarray(x) for x in new]
-    with compilations() as count:
-        optimize.optimize(ROBOT, *new, cost=costs.acceleration, **KWARGS)
+    with compilations() as count:  # NumPy scalars are numbers too
+        optimize.optimize(
+            ROBOT, *new, cost=costs.acceleration, duration=np.float32(1.0), steps=np.int64(500),
+            gtol=np.float64(1e-7), rest_to_rest=True, n_samples=np.int32(N_SAMPLES),
+        )  # fmt: skip
     assert count.n == 0
 
     # A composed cost with new weights, a new threshold and moved obstacles: one compilation
@@ -199,6 +202,23 @@ def test_second_call_compiles_nothing(problem):
         for c in moved:
             optimize.optimize(ROBOT, START, GOAL, guesses, cost=c, **KWARGS)
     assert count.n == 0
+
+
+def test_converged_only_where_the_stopping_rule_held_near_the_workspace(problem):
+    """A guess 100 robot sizes away (every sample unreachable: its cost, the acceleration,
+    is flat there) meets the gradient rule where it starts, far outside the workspace box:
+    it is reported diverged, not converged; the fixture's guesses converged. Same shapes as
+    the fixture: no compilation."""
+    guesses, result = problem
+    assert np.all(np.asarray(result.stop) == optimize.Stop.CONVERGED)
+    far = guesses.copy()
+    far[4] += 100 * 130.0
+    res = optimize.optimize(ROBOT, START, GOAL, far, cost=costs.acceleration, **KWARGS)
+    stop = np.asarray(res.stop)
+    assert stop[4] == optimize.Stop.DIVERGED and not bool(res.converged[4])
+    np.testing.assert_array_equal(np.asarray(res.converged), stop == optimize.Stop.CONVERGED)
+    np.testing.assert_array_equal(stop[[0, 1, 2, 3, 5]], optimize.Stop.CONVERGED)
+    assert not bool(res.evaluation.feasible[4])
 
 
 def test_guesses_are_independent(problem):
@@ -283,9 +303,136 @@ def test_bad_arguments():
         optimize.optimize(ROBOT, START[:2], GOAL, guesses)
     with pytest.raises(ValueError, match="interior"):
         optimize.optimize(ROBOT, START, GOAL, np.zeros((2, 2, 2)))
+    with pytest.raises(ValueError, match="interior: no guesses"):
+        optimize.optimize(ROBOT, START, GOAL, np.zeros((0, 2, 3)))
+    for duration in (np.inf, np.nan, 0.0, -1.0, "1"):
+        with pytest.raises(ValueError, match="duration"):
+            optimize.optimize(ROBOT, START, GOAL, guesses, duration=duration)
     with pytest.raises(ValueError, match="branch"):
         optimize.optimize(ROBOT, START, GOAL, guesses, branch="best")
-    with pytest.raises(ValueError, match="points"):
-        optimize.optimize(serial.Puma560(), START, GOAL, guesses)
+    with pytest.raises(ValueError, match="controls"):
+        optimize.optimize(serial.Puma560(), START, GOAL, guesses, controls="task")
+    with pytest.raises(ValueError, match="controls"):
+        optimize.optimize(ROBOT, START, GOAL, guesses, controls="cartesian")
+    # Pose ends: a 4x4 matrix whose rotation is not orthonormal, a zero quaternion.
+    puma, pose = serial.Puma560(), np.eye(4)
+    joints = np.zeros((1, 2, 6))
+    with pytest.raises(ValueError, match="start: a pose"):
+        optimize.optimize(puma, 1.05 * pose, pose, joints)
+    with pytest.raises(ValueError, match="goal"):
+        optimize.optimize(puma, pose, (np.zeros(3), np.zeros(4)), joints)
+    with pytest.raises(ValueError, match="start"):
+        optimize.optimize(puma, START, pose, joints)
     with pytest.raises(ValueError, match="threshold"):
         costs.singularity_barrier(0.0)
+
+
+def _joint_acceleration_cost(controls, n_samples, duration):
+    """``sum_t |q_ddot|^2 dt`` of joint Bezier curves ``(B, K, n)``, with NumPy's own
+    Bernstein second derivatives (independent of ``paths.bezier_basis``)."""
+    from math import comb
+
+    k = controls.shape[1] - 1
+    s = np.linspace(0.0, 1.0, n_samples)
+    second = np.stack(
+        [
+            (comb(k, i) * np.polynomial.Polynomial([0, 1]) ** i
+             * np.polynomial.Polynomial([1, -1]) ** (k - i)).deriv(2)(s)
+            for i in range(k + 1)
+        ],
+        axis=1,
+    )  # fmt: skip
+    acc = np.einsum("tk,bkn->btn", second, controls) / duration**2
+    return np.sum(acc**2, axis=(1, 2)) * duration / (n_samples - 1)
+
+
+def _quaternion(rotation):
+    """``(w, x, y, z)`` of a rotation matrix (w > 0 here), by the trace formula."""
+    w = 0.5 * np.sqrt(1.0 + np.trace(rotation))
+    r = rotation
+    return np.array([w, r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / [
+        1,
+        *[4 * w] * 3,
+    ]
+
+
+ARMS = {
+    "puma560": lambda: serial.Puma560(),
+    "ur5 urdf": lambda: serial.from_urdf("examples/ur5.urdf", "tool0"),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(ARMS))
+def test_pose_target_arms_in_joint_space(name):
+    """A pose-target arm (PUMA 560, the UR5 chain from URDF): pose ends as 4x4 matrices and
+    as (position, quaternion) give the same problem; the optimised trajectories start and
+    end at those poses (forward kinematics of the ends), their cost equals the joint
+    acceleration integral of the returned controls written with NumPy (1e-9 relative), the
+    joints are those controls' curve, every guess converged and is feasible, the solved goal
+    is the turn of each revolute joint nearest the start, and those joint ends give the same
+    result without a new compilation."""
+    arm = ARMS[name]()
+    q_start = np.array([0.3, -0.9, 0.8, 0.2, 0.5, 0.1])
+    q_goal = np.array([1.1, -0.5, 0.4, -0.4, 0.9, 0.7])
+    poses = [np.asarray(jaxkin.fk(arm, q).x.p) for q in (q_start, q_goal)]
+    solved = [np.asarray(jaxkin.ik(arm, pose).q.p) for pose in poses]
+    guesses = paths.straight_line_guess(*solved, 2, n_guesses=3, noise=0.1, seed=0)
+    kwargs = dict(n_samples=30, steps=200, rest_to_rest=True, cost=costs.acceleration)
+    res = optimize.optimize(arm, *poses, guesses, **kwargs)
+    quat = [(pose[:3, 3], _quaternion(pose[:3, :3])) for pose in poses]
+    again = optimize.optimize(arm, *quat, guesses, **kwargs)
+    np.testing.assert_allclose(again.cost, res.cost, rtol=1e-9, atol=1e-12)
+    for end, pose in ((0, poses[0]), (-1, poses[1])):
+        np.testing.assert_allclose(res.path.p[:, end], np.broadcast_to(pose, (3, 4, 4)), atol=1e-9)
+    controls = np.asarray(res.controls)
+    assert controls.shape == (3, 6, 6)
+    expected = _joint_acceleration_cost(controls, 30, 1.0)
+    np.testing.assert_allclose(res.cost, expected, rtol=1e-9, atol=1e-12)
+    assert np.all(np.asarray(res.converged)) and np.all(np.asarray(res.evaluation.feasible))
+    assert np.all(np.asarray(res.cost) <= np.asarray(res.history[0]))
+    fk_path = jaxkin.fk(arm, res.evaluation.q).x
+    np.testing.assert_allclose(fk_path.p, res.path.p, atol=1e-9)
+    # The goal's revolute joints were moved by whole turns to those nearest the start's.
+    ends = controls[0, 0], controls[0, -1]
+    np.testing.assert_allclose(jaxkin.fk(arm, ends[1]).x.p, poses[1], atol=1e-9)
+    turns = (ends[1] - solved[1]) / (2 * np.pi)
+    np.testing.assert_allclose(turns, np.round(turns), atol=1e-9)
+    assert np.all(np.abs(ends[1] - ends[0]) <= np.pi + 1e-9)
+    with compilations() as count:
+        joint = optimize.optimize(arm, *ends, guesses, space="joint", **kwargs)
+    assert count.n == 0
+    np.testing.assert_allclose(joint.cost, res.cost, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("robot", "q_start", "q_goal"),
+    [
+        (scara.Scara.paper(), [0.3, 1.0, 30.0], [2.0, 1.2, 60.0]),
+        (delta.Delta.paper(), [-0.2, 0.1, 0.3], [0.2, 0.3, -0.1]),
+    ],
+)
+def test_point_robots_in_joint_space(robot, q_start, q_goal):
+    """Joint-space controls for point robots (SCARA, Delta): joint ends kept exactly, the
+    tool path their forward kinematics, the cost the NumPy acceleration integral, and a
+    joint limit that the straight joint line passes (the robot's own position limits
+    intersected with ``limits``) respected by the optimum through the default cost."""
+    q_start, q_goal = np.asarray(q_start), np.asarray(q_goal)
+    guesses = paths.straight_line_guess(q_start, q_goal, 2, n_guesses=2, noise=0.05, seed=0)
+    kwargs = dict(n_samples=30, steps=200, rest_to_rest=True, space="joint", controls="joint")
+    res = optimize.optimize(robot, q_start, q_goal, guesses, cost=costs.acceleration, **kwargs)
+    controls = np.asarray(res.controls)
+    np.testing.assert_array_equal(controls[:, 0], np.broadcast_to(q_start, (2, 3)))
+    np.testing.assert_array_equal(controls[:, -1], np.broadcast_to(q_goal, (2, 3)))
+    np.testing.assert_allclose(res.cost, _joint_acceleration_cost(controls, 30, 1.0), rtol=1e-9)
+    np.testing.assert_allclose(res.path.p, jaxkin.fk(robot, res.evaluation.q.p).x.p, atol=1e-9)
+    assert np.all(np.asarray(res.converged))
+    # A bound on joint 0 that the rest-to-rest optimum (which overshoots nothing) keeps, and
+    # the default cost's limit penalty keeping the optimum inside a speed limit it passes.
+    peak = float(np.max(np.abs(np.asarray(res.evaluation.q.v[..., 0]))))
+    limits = plan.Limits.create(3, v_max=[0.9 * peak, np.inf, np.inf])
+    limited = optimize.optimize(robot, q_start, q_goal, guesses, limits=limits, **kwargs)
+    assert not np.all(np.asarray(res.evaluation.q.v[..., 0]) <= 0.9 * peak)
+    speed = np.abs(np.asarray(limited.evaluation.q.v[..., 0]))
+    assert np.max(speed) <= 0.9 * peak * (1 + 1e-3)
