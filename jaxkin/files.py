@@ -60,6 +60,7 @@ __all__ = [
     "Trajectory",
     "atomic_write",
     "check_output_path",
+    "check_times",
     "check_outputs",
     "complete_rates",
     "continuous_quaternions",
@@ -320,7 +321,8 @@ class Trajectory:
         table: the underlying ``Table`` for messages (source name, line numbers; its
             columns, now in the fields below, are not kept).
         names: the position column names, e.g. ``("x", "y", "z")``.
-        t: times, ``(N,)``.
+        t: times, ``(N,)``, or ``None`` when the file has no ``t`` column (rows that are
+            not samples of a trajectory: independent, at rest unless the file gives rates).
         candidate: integer labels ``(N,)``, or ``None`` when the file has no such column.
         p: positions, ``(N, k)``.
         v: velocities ``(N, k)``, or ``None`` when the file gives none.
@@ -329,7 +331,7 @@ class Trajectory:
 
     table: Table
     names: tuple[str, ...]
-    t: np.ndarray
+    t: np.ndarray | None
     candidate: np.ndarray | None
     p: np.ndarray
     v: np.ndarray | None
@@ -338,15 +340,22 @@ class Trajectory:
     @property
     def valid(self) -> np.ndarray:
         """``(N,)`` True where every value of the row that is used is finite."""
-        ok = np.isfinite(self.t) & np.all(np.isfinite(self.p), axis=-1)
+        ok = np.all(np.isfinite(self.p), axis=-1)
+        if self.t is not None:
+            ok &= np.isfinite(self.t)
         for rates in (self.v, self.a):
             if rates is not None:
                 ok &= np.all(np.isfinite(rates), axis=-1)
         return ok
 
 
-def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -> Trajectory:
+def read_trajectory(
+    path: str | os.PathLike, names: Sequence[str] = CARTESIAN, timed: bool = True
+) -> Trajectory:
     """Read ``t``, positions ``names``, optional ``candidate`` and optional rate columns.
+
+    ``t`` is required when ``timed`` (the default); otherwise a file without it gives
+    ``Trajectory.t = None`` (independent rows).
 
     Raises:
         InputError: file problems (``read_table``), missing ``t`` or position columns, a rate
@@ -355,7 +364,7 @@ def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -
     names = tuple(names)
     velocity, acceleration = rate_names(names)
     table = read_table(path, ("t", "candidate", *names, *velocity, *acceleration))
-    require(table, ("t", *names))
+    require(table, ("t", *names) if timed or "t" in table.data else names)
     rates = []
     for group, label in ((velocity, "velocity"), (acceleration, "acceleration")):
         present = [n for n in group if n in table.data]
@@ -376,13 +385,13 @@ def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -
             )
         candidate = raw.astype(np.int64)
     p = np.stack([table.data[n] for n in names], axis=-1)
-    t = table.data["t"]
+    t = table.data.get("t")
     table = dataclasses.replace(table, data={})  # the columns live on in t, p and the rates
     return Trajectory(table, names, t, candidate, p, rates[0], rates[1])
 
 
 def trajectory_columns(
-    t: np.ndarray,
+    t: np.ndarray | None,
     candidate: np.ndarray | None,
     names: Sequence[str],
     p: np.ndarray,
@@ -392,9 +401,10 @@ def trajectory_columns(
     extra: Mapping[str, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """Ordered output columns: ``t``, ``candidate``, positions, velocities, accelerations,
-    ``status`` (names, e.g. ``"OK"``) and any ``extra`` columns (e.g. ``margin``)."""
+    ``status`` (names, e.g. ``"OK"``) and any ``extra`` columns (e.g. ``margin``); no ``t``
+    column when ``t`` is None."""
     velocity, acceleration = rate_names(names)
-    columns: dict[str, np.ndarray] = {"t": np.asarray(t)}
+    columns: dict[str, np.ndarray] = {} if t is None else {"t": np.asarray(t)}
     if candidate is not None:
         columns["candidate"] = np.asarray(candidate)
     for block, labels in ((p, names), (v, velocity), (a, acceleration)):
@@ -653,8 +663,8 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
     """Positions, velocities, accelerations (``(N, k)``) and the valid-row mask ``(N,)``.
 
     Rates missing from the file come from a cubic spline in ``t`` over the valid rows of each
-    candidate (``end``: ``"not-a-knot"`` or ``"natural"``); invalid rows (NaN/inf) get NaN
-    rates, hence status ``INVALID_INPUT``.
+    candidate (``end``: ``"not-a-knot"`` or ``"natural"``; zero for a file without ``t``);
+    invalid rows (NaN/inf) get NaN rates, hence status ``INVALID_INPUT``.
 
     Raises:
         InputError: ``t`` not strictly increasing within a candidate when rates are needed.
@@ -662,6 +672,18 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
     valid = traj.valid
     if traj.v is not None and traj.a is not None:
         return traj.p, traj.v, traj.a, valid
+    if traj.t is None:  # rows, not samples: at rest unless the file gives their rates
+        zero = np.zeros_like(traj.p)
+        return traj.p, zero if traj.v is None else traj.v, zero if traj.a is None else traj.a, valid
+    check_times(traj, valid, "to compute rates", "; or give the rate columns")
+    group = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
+    v, a = _splines.by_group(traj.t, traj.p, group, end=end, valid=valid)
+    return traj.p, traj.v if traj.v is not None else v, traj.a if traj.a is not None else a, valid
+
+
+def check_times(traj: Trajectory, valid: np.ndarray, why: str, hint: str = "") -> None:
+    """Raise ``InputError`` at the first valid row of a candidate whose ``t`` does not
+    increase strictly over the previous valid row of that candidate (``why``: what needs it)."""
     group = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
     for label in np.unique(group[valid]):
         rows = np.flatnonzero(valid & (group == label))
@@ -670,11 +692,9 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
             row = rows[bad[0] + 1]
             name = f"candidate {label}: " if traj.candidate is not None else ""
             raise InputError(
-                f"{traj.table.where(row)}: {name}t must increase strictly to compute rates "
-                f"(t = {traj.t[row]:g} after {traj.t[rows[bad[0]]]:g}); or give the rate columns"
+                f"{traj.table.where(row)}: {name}t must increase strictly {why} "
+                f"(t = {traj.t[row]:g} after {traj.t[rows[bad[0]]]:g}){hint}"
             )
-    v, a = _splines.by_group(traj.t, traj.p, group, end=end, valid=valid)
-    return traj.p, traj.v if traj.v is not None else v, traj.a if traj.a is not None else a, valid
 
 
 def quaternion_signs(
@@ -709,7 +729,8 @@ def continuous_quaternions(traj: Trajectory) -> Trajectory:
     with np.errstate(invalid="ignore"):
         v, a = (None if r is None else r / scale for r in (traj.v, traj.a))
     traj = dataclasses.replace(traj, p=p, v=v, a=a)
-    sign = quaternion_signs(traj.t, traj.candidate, traj.valid, unit)
+    t = np.arange(len(unit), dtype=float) if traj.t is None else traj.t  # else: file order
+    sign = quaternion_signs(t, traj.candidate, traj.valid, unit)
     flip = np.concatenate([np.ones((len(sign), 3)), np.repeat(sign[:, None], 4, axis=1)], 1)
     return dataclasses.replace(
         traj,
