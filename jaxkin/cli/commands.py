@@ -220,9 +220,12 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     if not args.quiet:
         what = f"{args.kind} {'ik' if inverse else 'fk'}"
         if inverse:
-            what += f" (branch {branch}, {'one path per candidate' if as_path else 'each row'})"
+            what += f" (branch {branch})"
+        how = (
+            (", one path per candidate" if as_path else ", each row on its own") if inverse else ""
+        )
         print(
-            f"jaxkin: {what}, {len(status)} rows, {np.dtype(dtype).name}: {_summary(status)}"
+            f"jaxkin: {what}, {len(status)} rows{how}, {np.dtype(dtype).name}: {_summary(status)}"
             f" -> {args.output}" + (f", {args.plot}" if args.plot else ""),
             file=sys.stderr,
         )

@@ -99,8 +99,9 @@ def _add_path_options(parser: argparse.ArgumentParser) -> None:
 
 _FILE_HELP = (
     "Input: CSV with a header row, or .npz; columns t, the positions, optional candidate and "
-    "rates (missing rates are computed by a cubic spline in t per candidate). Output: the "
-    "same layout with the solved columns and a status name per row."
+    "rates (missing rates are computed by a cubic spline in t per candidate; without t the "
+    "rows are independent, at rest). Output: the same layout with the solved columns and a "
+    "status name per row."
 )
 
 
