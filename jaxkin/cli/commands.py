@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import sys
 from pathlib import Path
 from typing import Any
@@ -14,7 +15,7 @@ import numpy as np
 from .. import _batching, _processes, files, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
-from ..status import status_names
+from ..status import Status, status_names
 from . import distributed, planning
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
@@ -116,6 +117,44 @@ def _check_paths(args: argparse.Namespace) -> None:
             )
 
 
+def _counted(counts: np.ndarray) -> str:
+    """``"OK 12, UNREACHABLE 3"`` from counts per status code."""
+    names = status_names(np.flatnonzero(counts))
+    return ", ".join(f"{n} {c}" for n, c in zip(names, counts[counts > 0], strict=True))
+
+
+def _parts(args: argparse.Namespace, names: tuple[str, ...], quaternions: bool, inverse: bool):
+    """``(as_path, parts)``: whether the rows are solved as paths, and the file's rows with
+    their rates, ``(part, p, v, a, valid)``, a part at a time when the file can be streamed
+    (a CSV file, no --plot, one process: memory bounded by a part), else one part."""
+    chunk = args.chunk_size or _batching.HOST_CHUNK
+    streamed = (
+        files.file_format(args.input) == "csv" and not args.plot and _processes.process_count() == 1
+    )
+    parts = files.trajectory_parts(args.input, names, timed=False)
+    first = next(parts)
+    # A trajectory (rows with times) is solved as one path per candidate; rows without
+    # times, or with --each-row, each on its own.
+    as_path = inverse and first.t is not None and not args.each_row
+    if streamed and not (args.output == "-" and first.candidate is not None):
+        why = ("along a path", "; or give --each-row") if as_path else ()
+        streamed_parts = files.completed_parts(
+            itertools.chain([first], parts), args.spline, chunk, quaternions, as_path, *why
+        )
+        return as_path, streamed_parts
+    traj = files.read_trajectory(args.input, names, timed=False)
+    return as_path, _whole(traj, args.spline, quaternions, as_path)
+
+
+def _whole(traj: files.Trajectory, spline: str, quaternions: bool, as_path: bool):
+    if quaternions:
+        traj = files.continuous_quaternions(traj)
+    p, v, a, valid = files.complete_rates(traj, spline)
+    if as_path:
+        files.check_times(traj, valid, "along a path", "; or give --each-row")
+    yield traj, p, v, a, valid
+
+
 def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     _join(args)
     _check_paths(args)
@@ -127,29 +166,31 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     branch = parse_branch(robot, args.branch) if inverse else None
     targets, joints = robot.target.coordinates, robot.joint_names
     in_names, out_names = (targets, joints) if inverse else (joints, targets)
-    traj = files.read_trajectory(args.input, in_names, timed=False)
-    # A trajectory (rows with times) is solved as one path per candidate; rows without times,
-    # or with --each-row, each on its own.
-    as_path = inverse and traj.t is not None and not args.each_row
-    if pose and inverse:
-        traj = files.continuous_quaternions(traj)
-    p, v, a, valid = files.complete_rates(traj, args.spline)
-    if as_path:
-        files.check_times(traj, valid, "along a path", "; or give --each-row")
     limits = None
     if inverse:
         try:
             limits = planning.joint_limits(robot, args.v_max, args.a_max)
         except ValueError as exc:
             raise CliError(str(exc)) from None
-    if distributed.is_writer():
-        quaternions = pose and inverse
-        _warn_invalid(
-            traj, valid, "NaN/inf input or a zero quaternion" if quaternions else "NaN/inf input"
-        )
+    quaternions = pose and inverse
+    try:
+        as_path, parts = _parts(args, in_names, quaternions, inverse)
+        return _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_path, parts)
+    except files.NotContiguous:  # a candidate split by another: read the file whole
+        args.notes.append("jaxkin: note: candidates' rows are interleaved: the file is read whole")
+        traj = files.read_trajectory(args.input, in_names, timed=False)
+        as_path = inverse and traj.t is not None and not args.each_row
+        parts = _whole(traj, args.spline, quaternions, as_path)
+        return _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_path, parts)
+
+
+def _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_path, parts) -> int:
+    """Solve the parts' rows (``_parts``) and write them, part by part."""
+    pose = robot.target == POSE
+    quaternions = pose and inverse
 
     def target(p, v, a):
-        if pose and inverse:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
+        if quaternions:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
             return paths.pose_from_quaternions(p, v, a).astype(dtype)
         return Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
 
@@ -165,47 +206,65 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     chunk = args.chunk_size or _batching.HOST_CHUNK
     writer = distributed.is_writer()
     signs = files.QuaternionSigns() if pose and not inverse else None
-    statuses, kept = [], []  # kept: every chunk's outputs, only for --plot
-    if as_path:  # every process solves every path (they are not split); process 0 writes
-        chunks = planning.solve_paths(
-            robot, target, traj.t, (p, v, a), traj.candidate, valid, branch, limits, chunk
-        )
-    else:
-        chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+    counts = np.zeros(len(Status), np.int64)  # rows per status
+    solved_valid, n_valid, n_invalid, first_invalid = 0, 0, 0, None
+    kept, statuses, times, labels = [], [], [], []  # only for --plot
     with files.table_writer(args.output if writer else None) as write:
-        for start, stop, outputs in chunks:
-            q, qd, qdd, status = outputs[:4]
-            rows, ok = slice(start, stop), valid[start:stop]
-            candidate = None if traj.candidate is None else traj.candidate[rows]
-            if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
-                q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
-                sign = signs(candidate, ok, q[:, 3:])[:, None]
-                for block in (q, qd, qdd):  # continuous along each candidate, as splines need
-                    block[:, 3:] *= sign
-            for block in (q, qd, qdd):
-                block[~ok] = np.nan  # nothing meaningful to report for invalid input
-            statuses.append(np.asarray(status, np.int8))
-            if args.plot and writer:
-                kept.append((q, qd, qdd))
-            extra = {"margin": outputs[4]} if inverse else None
-            write(
-                files.trajectory_columns(
-                    None if traj.t is None else traj.t[rows],
-                    candidate,
-                    out_names,
-                    q,
-                    qd,
-                    qdd,
-                    status_names(status),
-                    extra,
+        for traj, p, v, a, valid in parts:
+            bad = np.flatnonzero(~valid)
+            if bad.size and first_invalid is None:
+                first_invalid = traj.table.where(bad[0])
+            n_invalid, n_valid = n_invalid + bad.size, n_valid + len(valid) - bad.size
+            if as_path:  # every process solves every path (they are not split)
+                chunks = planning.solve_paths(
+                    robot, target, traj.t, (p, v, a), traj.candidate, valid, branch, limits, chunk
                 )
-            )
+            else:
+                chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+            for start, stop, outputs in chunks:
+                q, qd, qdd, status = outputs[:4]
+                rows, ok = slice(start, stop), valid[start:stop]
+                candidate = None if traj.candidate is None else traj.candidate[rows]
+                if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
+                    q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
+                    sign = signs(candidate, ok, q[:, 3:])[:, None]
+                    for block in (q, qd, qdd):  # continuous along each candidate
+                        block[:, 3:] *= sign
+                for block in (q, qd, qdd):
+                    block[~ok] = np.nan  # nothing meaningful to report for invalid input
+                status = np.asarray(status, np.int8)
+                counts += np.bincount(status, minlength=len(counts))
+                solved_valid += int(np.sum(status[ok] == Status.OK))
+                if args.plot and writer:
+                    kept.append((q, qd, qdd))
+                    statuses.append(status)
+                    times.append(np.arange(start, stop) if traj.t is None else traj.t[rows])
+                    labels.append(candidate)
+                extra = {"margin": outputs[4]} if inverse else None
+                write(
+                    files.trajectory_columns(
+                        None if traj.t is None else traj.t[rows],
+                        candidate,
+                        out_names,
+                        q,
+                        qd,
+                        qdd,
+                        status_names(status),
+                        extra,
+                    )
+                )
     if not writer:
         return 0
-    status = np.concatenate(statuses)
-    if valid.any() and not np.any(status[valid] == 0):
+    if n_invalid:
+        what = "NaN/inf input or a zero quaternion" if quaternions else "NaN/inf input"
         print(
-            f"jaxkin: warning: no row has status OK ({_summary(status)}): check the geometry "
+            f"jaxkin: warning: {n_invalid} of {n_invalid + n_valid} rows have {what} (first "
+            f"at {first_invalid}): status INVALID_INPUT, the rest is solved",
+            file=sys.stderr,
+        )
+    if n_valid and not solved_valid:
+        print(
+            f"jaxkin: warning: no row has status OK ({_counted(counts)}): check the geometry "
             "and the units of the input",
             file=sys.stderr,
         )
@@ -213,9 +272,16 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
         from .. import plot
 
         q, qd, qdd = (np.concatenate(block) for block in zip(*kept, strict=True))
-        t = np.arange(len(q), dtype=float) if traj.t is None else traj.t
+        candidate = None if labels[0] is None else np.concatenate(labels)
         plot.joint_trajectories(
-            t, q, qd, qdd, status, names=out_names, candidate=traj.candidate, path=args.plot
+            np.concatenate(times).astype(float),
+            q,
+            qd,
+            qdd,
+            np.concatenate(statuses),
+            names=out_names,
+            candidate=candidate,
+            path=args.plot,
         )
     if not args.quiet:
         what = f"{args.kind} {'ik' if inverse else 'fk'}"
@@ -225,8 +291,8 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
             (", one path per candidate" if as_path else ", each row on its own") if inverse else ""
         )
         print(
-            f"jaxkin: {what}, {len(status)} rows{how}, {np.dtype(dtype).name}: {_summary(status)}"
-            f" -> {args.output}" + (f", {args.plot}" if args.plot else ""),
+            f"jaxkin: {what}, {int(counts.sum())} rows{how}, {np.dtype(dtype).name}: "
+            f"{_counted(counts)} -> {args.output}" + (f", {args.plot}" if args.plot else ""),
             file=sys.stderr,
         )
     return 0
