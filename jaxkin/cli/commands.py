@@ -131,7 +131,9 @@ def _parts(args: argparse.Namespace, names: tuple[str, ...], quaternions: bool, 
     streamed = (
         files.file_format(args.input) == "csv" and not args.plot and _processes.process_count() == 1
     )
-    parts = files.trajectory_parts(args.input, names, timed=False)
+    parts = files.trajectory_parts(
+        args.input, names, timed=False, block=min(chunk, files.READ_BLOCK)
+    )
     first = next(parts)
     # A trajectory (rows with times) is solved as one path per candidate; rows without
     # times, or with --each-row, each on its own.
