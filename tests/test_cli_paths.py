@@ -506,17 +506,17 @@ def test_streamed_times_must_increase_across_parts(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", [["--each-row"], []])
 def test_memory_is_bounded_by_the_chunk(tmp_path, capsys, mode):
-    """``ik scara`` on 8,000 and 32,000 rows (positions only, 8 candidates of 1,000 or
-    4,000 rows, --chunk-size 2048): the Python heap's peak (tracemalloc: NumPy arrays and
-    parsed text; not XLA's buffers, which a chunk bounds) grows by less than 20 bytes per
-    extra row, against about 170 before streaming."""
+    """``ik scara`` on 8,000 and 32,000 rows (positions only, candidates of 500 rows,
+    --chunk-size 2048), rows on their own or as paths: the Python heap's peak (tracemalloc:
+    NumPy arrays and parsed text; not XLA's buffers, which a chunk bounds) grows by less than
+    20 bytes per extra row, against about 170 before streaming."""
     import tracemalloc
 
     peaks = []
     for n in (8_000, 32_000):
         t = np.arange(n) * 0.01
         p, _, _ = spiral(t)
-        src = write(tmp_path / f"{n}.csv", point_columns(t, p, candidate=np.arange(n) * 8 // n))
+        src = write(tmp_path / f"{n}.csv", point_columns(t, p, candidate=np.arange(n) // 500))
         argv = ["ik", "scara", *PAPER, "-i", src, "-o", tmp_path / "q.csv", "-q"]
         argv += ["--chunk-size", 2048, *mode]
         assert run(capsys, *argv)[0] == 0  # compiles

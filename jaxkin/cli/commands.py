@@ -73,21 +73,6 @@ def _join(args: argparse.Namespace) -> None:
         args.quiet = True
 
 
-def _summary(status: np.ndarray) -> str:
-    names, counts = np.unique(status_names(status), return_counts=True)
-    return ", ".join(f"{n} {c}" for n, c in zip(names, counts, strict=True))
-
-
-def _warn_invalid(traj: files.Trajectory, valid: np.ndarray, what: str) -> None:
-    bad = np.flatnonzero(~valid)
-    if bad.size:
-        print(
-            f"jaxkin: warning: {bad.size} of {len(valid)} rows have {what} (first at "
-            f"{traj.table.where(bad[0])}): status INVALID_INPUT, the rest is solved",
-            file=sys.stderr,
-        )
-
-
 def _robot_file(args: argparse.Namespace) -> str | None:
     """The ``--robot`` argument when it names a file (not ``paper``)."""
     spec = getattr(args, "robot", None)

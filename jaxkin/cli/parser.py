@@ -228,7 +228,6 @@ def build_parser() -> argparse.ArgumentParser:
             help=f"joint {what} bound, one for every joint or one per joint (tightens the "
             "robot's own)",
         )
-    distributed.add_option(pl)
     pl.set_defaults(func=commands.cmd_plan)
 
     ws = sub.add_parser(
