@@ -369,9 +369,10 @@ def test_urdf_arm_straight_line_is_continuous(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_plan_urdf_arm_joint_and_task_space(tmp_path, capsys):
-    """A 3-joint URDF arm: two task-space candidates (poses of joint motions along one line
-    in joint space, one at rest for its second half): both feasible, and the k = 2 written
-    trajectories keep the URDF's own speed bounds (2 rad/s, 1e-6) under --a-max."""
+    """A 3-joint URDF arm: two task-space candidates (poses of one line in joint space,
+    timed linearly and by a smoothstep, within the bounds): both feasible, and the k = 2
+    written trajectories keep the speed bound (the URDF's 2 rad/s; --v-max 2 for the
+    continuous joint, which has none) to 1e-6 and reach it."""
     from scipy.spatial.transform import Rotation
 
     from jaxkin import Jet, fk, serial
@@ -381,9 +382,8 @@ def test_plan_urdf_arm_joint_and_task_space(tmp_path, capsys):
     t = np.linspace(0.0, 1.0, 21)
     names = ("x", "y", "z", "qw", "qx", "qy", "qz")
     columns = {}
-    for c, speed in enumerate((1.0, 2.0)):
-        s = np.minimum(speed * t, 1.0)
-        q = np.stack([2.5 + 1.5 * s, 0.3 - 0.5 * s, 1.2 + 0.3 * s], -1)
+    for c, s in enumerate((t, 3 * t**2 - 2 * t**3)):  # one line, timed two ways
+        q = np.stack([2.5 + 1.0 * s, 0.3 - 0.5 * s, 1.2 + 0.3 * s], -1)
         pose = np.asarray(fk(chain, Jet.of(q)).x.p)
         quat = Rotation.from_matrix(pose[:, :3, :3]).as_quat()[:, [3, 0, 1, 2]]
         rows = np.c_[np.full(21, c), t, pose[:, :3, 3], quat]
@@ -392,15 +392,17 @@ def test_plan_urdf_arm_joint_and_task_space(tmp_path, capsys):
     src = write(tmp_path / "c.csv", columns)
     code, _, err = run(
         capsys, "plan", "urdf", "--robot", tmp_path / "arm.urdf", "--tip", "tool", "-i", src,
-        "-o", tmp_path / "b.csv", "-k", 2, "--a-max", 4, "--period", 0.02,
+        "-o", tmp_path / "b.csv", "-k", 2, "--v-max", 2, "--a-max", 10, "--period", 0.02,
         "--ranking", tmp_path / "r.csv",
     )  # fmt: skip
     assert code == 0, err
     ranking = read(tmp_path / "r.csv", ("candidate", "feasible", "duration"))
     assert ranking["feasible"].tolist() == [1, 1]
-    best = read(tmp_path / "b.csv", (*(n + "_dot" for n in chain.joint_names),))
+    best = read(tmp_path / "b.csv", ("rank", *(n + "_dot" for n in chain.joint_names)))
+    assert set(best.pop("rank")) == {1, 2}
     speeds = np.stack(list(best.values()), -1)
     assert np.all(np.abs(speeds) <= 2.0 * (1 + 1e-6))
+    assert np.max(np.abs(speeds)) > 1.9  # the time-optimal motion reaches the bound
 
 
 def test_paths_are_written_batch_by_batch(tmp_path, capsys, monkeypatch):

@@ -452,7 +452,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         else:
             jet = Jet.of(*(x.astype(dtype) for x in flat))
         jet = jet.map(lambda x: x.reshape(*take.shape, *x.shape[1:]))
-        evaluation = planning.evaluate_targets(robot, jet, dt, limits, branch)
+        evaluation = planning.evaluate_targets(robot, jet, dt, limits, branch, args.chunk_size)
     period = args.period if args.period is not None else dt
     try:
         ranked = planning.rank(evaluation, dt, limits, args.best, args.by, period)

@@ -291,11 +291,13 @@ def evaluate_joints(robot: Robot, q: Jet, dt: float, limits: plan.Limits) -> pla
 
 
 def evaluate_targets(
-    robot: Robot, path: Jet, dt: float, limits: plan.Limits, branch: Any
+    robot: Robot, path: Jet, dt: float, limits: plan.Limits, branch: Any, samples: int | None
 ) -> plan.Evaluation:
     """Task-space candidates ``(N, T, *target)`` by ``plan.evaluate`` (the robot's own limits
-    apply there too; ``limits`` can only tighten them)."""
-    return plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt)
+    apply there too; ``limits`` can only tighten them), about ``samples`` samples per call
+    (None: its default)."""
+    chunk = None if samples is None else max(1, samples // path.shape[1])
+    return plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt, chunk_size=chunk)
 
 
 def rank(
@@ -308,8 +310,8 @@ def rank(
 ) -> Ranked:
     """Rank the candidates of ``evaluation`` by ``"cost"`` (``costs.total``) or ``"duration"``
     (the time-optimal timing, ``jaxkin.timing.retime``, of each feasible candidate's joint
-    path under the speed and acceleration limits, from rest to rest) and sample the ``k`` best
-    every ``period``.
+    path under the speed and acceleration limits, from rest to rest, speeds bounded between
+    grid points too: ``speed_bound="interval"``) and sample the ``k`` best every ``period``.
 
     The joint path of a candidate is its samples with their rates in the file's time
     (``s = t``: ``dq/ds = q_dot``), so the retimed trajectory follows the same geometric path.
@@ -340,7 +342,8 @@ def rank(
     if timed and n_cand:
         s = np.arange(n_samples) * dt
         path = timing.JointPath(jnp.asarray(s, q.p.dtype), q.p, q.v, q.a)
-        timing_result = timing.retime(path, v_max, a_max)
+        # "interval": the sampled speeds hold between grid points too, as a controller needs
+        timing_result = timing.retime(path, v_max, a_max, speed_bound="interval")
         ok = np.asarray(timing_result.ok) & feasible
         duration = np.where(ok, np.asarray(timing_result.duration, float), np.nan)
     if by == "duration":
