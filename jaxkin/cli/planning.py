@@ -180,15 +180,18 @@ def solve_paths(
     groups, contiguous = _candidates(candidate, valid)
     index = robot.branches.index(branch)
 
+    dtype = to_target(*(x[:1] for x in rates)).dtype  # of the outputs, as the kernel's
+
     def empty(size: int) -> list[np.ndarray]:
-        q = [np.full((size, n_joints), np.nan) for _ in range(3)]
+        q = [np.full((size, n_joints), np.nan, dtype) for _ in range(3)]
         status = np.full(size, Status.INVALID_INPUT, np.int8)
-        return [*q, status, np.full(size, -1.0)]
+        return [*q, status, np.full(size, -1.0, dtype)]
 
     every = None if contiguous else empty(n_rows)
     done = 0  # rows written so far (contiguous files)
     for batch in _batches(groups, chunk):
         outputs = _solve_batch(robot, to_target, t, rates, batch, index, limits)
+        dtype = outputs[0][0].dtype
         if every is not None:
             for rows, solved in zip(batch.rows, outputs, strict=True):
                 for column, values in zip(every, solved, strict=True):
