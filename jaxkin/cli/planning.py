@@ -37,6 +37,8 @@ from ..status import STATUS_DTYPE, Status
 
 __all__ = [
     "Ranked",
+    "evaluate_joints",
+    "evaluate_targets",
     "joint_limits",
     "rank",
     "solve_paths",
