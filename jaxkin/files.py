@@ -60,6 +60,7 @@ __all__ = [
     "Trajectory",
     "atomic_write",
     "check_output_path",
+    "check_times",
     "check_outputs",
     "complete_rates",
     "continuous_quaternions",
@@ -75,6 +76,9 @@ __all__ = [
     "solved_chunks",
     "table_writer",
     "trajectory_columns",
+    "trajectory_parts",
+    "completed_parts",
+    "NotContiguous",
     "write_csv",
     "write_table",
 ]
@@ -235,6 +239,16 @@ def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
 
 
 def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
+    parts = list(_csv_parts(path, wanted))
+    data = {n: np.concatenate([part.data[n] for part in parts]) for n in parts[0].data}
+    lines = np.concatenate([part.lines for part in parts])
+    return Table(parts[0].source, parts[0].columns, data, lines)
+
+
+def _csv_parts(path: Path, wanted: Sequence[str], block: int | None = None) -> Iterator[Table]:
+    """The columns ``wanted`` of a CSV file, ``block`` rows (default ``READ_BLOCK``) at a
+    time, each part a ``Table`` with its own line numbers; at least one part."""
+    block = READ_BLOCK if block is None else block
     rows = _rows(path)
     header = next(rows, None)
     if header is None:
@@ -257,18 +271,17 @@ def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
         )
     index = {n: i for i, n in enumerate(names)}
     used = [n for n in wanted if n in index]
-    blocks: dict[str, list[np.ndarray]] = {n: [] for n in used}
-    line_blocks: list[np.ndarray] = []
     cells: dict[str, list[str]] = {n: [] for n in used}
     lines: list[int] = []
+    produced = False
 
-    def convert() -> None:  # the block's text cells to floats: memory by the block, not file
+    def convert() -> Table:  # the block's text cells to floats: memory by the block, not file
         numbers = np.asarray(lines, dtype=np.int64)
-        line_blocks.append(numbers)
+        data = {n: _to_float(path, n, cells[n], numbers) for n in used}
         for n in used:
-            blocks[n].append(_to_float(path, n, cells[n], numbers))
             cells[n].clear()
         lines.clear()
+        return Table(str(path), tuple(names), data, numbers)
 
     for line, row in rows:
         if len(row) != len(names):
@@ -278,14 +291,14 @@ def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
         lines.append(line)
         for n in used:
             cells[n].append(row[index[n]].strip() or "nan")
-        if len(lines) == READ_BLOCK:
-            convert()
+        if len(lines) == block:
+            produced = True
+            yield convert()
     if lines:
-        convert()
-    if not line_blocks:
+        produced = True
+        yield convert()
+    if not produced:
         raise InputError(f"{path}: no data rows after the header")
-    data = {n: np.concatenate(blocks.pop(n)) for n in used}
-    return Table(str(path), tuple(names), data, np.concatenate(line_blocks))
 
 
 def _to_float(path: Path, name: str, cells: list[str], lines: np.ndarray) -> np.ndarray:
@@ -320,7 +333,8 @@ class Trajectory:
         table: the underlying ``Table`` for messages (source name, line numbers; its
             columns, now in the fields below, are not kept).
         names: the position column names, e.g. ``("x", "y", "z")``.
-        t: times, ``(N,)``.
+        t: times, ``(N,)``, or ``None`` when the file has no ``t`` column (rows that are
+            not samples of a trajectory: independent, at rest unless the file gives rates).
         candidate: integer labels ``(N,)``, or ``None`` when the file has no such column.
         p: positions, ``(N, k)``.
         v: velocities ``(N, k)``, or ``None`` when the file gives none.
@@ -329,7 +343,7 @@ class Trajectory:
 
     table: Table
     names: tuple[str, ...]
-    t: np.ndarray
+    t: np.ndarray | None
     candidate: np.ndarray | None
     p: np.ndarray
     v: np.ndarray | None
@@ -338,15 +352,22 @@ class Trajectory:
     @property
     def valid(self) -> np.ndarray:
         """``(N,)`` True where every value of the row that is used is finite."""
-        ok = np.isfinite(self.t) & np.all(np.isfinite(self.p), axis=-1)
+        ok = np.all(np.isfinite(self.p), axis=-1)
+        if self.t is not None:
+            ok &= np.isfinite(self.t)
         for rates in (self.v, self.a):
             if rates is not None:
                 ok &= np.all(np.isfinite(rates), axis=-1)
         return ok
 
 
-def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -> Trajectory:
+def read_trajectory(
+    path: str | os.PathLike, names: Sequence[str] = CARTESIAN, timed: bool = True
+) -> Trajectory:
     """Read ``t``, positions ``names``, optional ``candidate`` and optional rate columns.
+
+    ``t`` is required when ``timed`` (the default); otherwise a file without it gives
+    ``Trajectory.t = None`` (independent rows).
 
     Raises:
         InputError: file problems (``read_table``), missing ``t`` or position columns, a rate
@@ -355,7 +376,32 @@ def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -
     names = tuple(names)
     velocity, acceleration = rate_names(names)
     table = read_table(path, ("t", "candidate", *names, *velocity, *acceleration))
-    require(table, ("t", *names))
+    return _trajectory_of(table, names, timed)
+
+
+def trajectory_parts(
+    path: str | os.PathLike,
+    names: Sequence[str] = CARTESIAN,
+    timed: bool = True,
+    block: int | None = None,
+) -> Iterator[Trajectory]:
+    """``read_trajectory`` a block of rows at a time (``block``, default ``READ_BLOCK``): a
+    CSV file is parsed as it is read; an NPZ archive is one part. The same errors, raised
+    when the part that has them is read."""
+    names = tuple(names)
+    velocity, acceleration = rate_names(names)
+    wanted = ("t", "candidate", *names, *velocity, *acceleration)
+    path = given(path)
+    if file_format(path) == "npz" or not path.exists() or path.is_dir():
+        yield read_trajectory(path, names, timed)
+        return
+    for table in _csv_parts(path, wanted, block):
+        yield _trajectory_of(table, names, timed)
+
+
+def _trajectory_of(table: Table, names: tuple[str, ...], timed: bool) -> Trajectory:
+    velocity, acceleration = rate_names(names)
+    require(table, ("t", *names) if timed or "t" in table.data else names)
     rates = []
     for group, label in ((velocity, "velocity"), (acceleration, "acceleration")):
         present = [n for n in group if n in table.data]
@@ -376,13 +422,13 @@ def read_trajectory(path: str | os.PathLike, names: Sequence[str] = CARTESIAN) -
             )
         candidate = raw.astype(np.int64)
     p = np.stack([table.data[n] for n in names], axis=-1)
-    t = table.data["t"]
+    t = table.data.get("t")
     table = dataclasses.replace(table, data={})  # the columns live on in t, p and the rates
     return Trajectory(table, names, t, candidate, p, rates[0], rates[1])
 
 
 def trajectory_columns(
-    t: np.ndarray,
+    t: np.ndarray | None,
     candidate: np.ndarray | None,
     names: Sequence[str],
     p: np.ndarray,
@@ -392,9 +438,10 @@ def trajectory_columns(
     extra: Mapping[str, np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """Ordered output columns: ``t``, ``candidate``, positions, velocities, accelerations,
-    ``status`` (names, e.g. ``"OK"``) and any ``extra`` columns (e.g. ``margin``)."""
+    ``status`` (names, e.g. ``"OK"``) and any ``extra`` columns (e.g. ``margin``); no ``t``
+    column when ``t`` is None."""
     velocity, acceleration = rate_names(names)
-    columns: dict[str, np.ndarray] = {"t": np.asarray(t)}
+    columns: dict[str, np.ndarray] = {} if t is None else {"t": np.asarray(t)}
     if candidate is not None:
         columns["candidate"] = np.asarray(candidate)
     for block, labels in ((p, names), (v, velocity), (a, acceleration)):
@@ -653,8 +700,8 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
     """Positions, velocities, accelerations (``(N, k)``) and the valid-row mask ``(N,)``.
 
     Rates missing from the file come from a cubic spline in ``t`` over the valid rows of each
-    candidate (``end``: ``"not-a-knot"`` or ``"natural"``); invalid rows (NaN/inf) get NaN
-    rates, hence status ``INVALID_INPUT``.
+    candidate (``end``: ``"not-a-knot"`` or ``"natural"``; zero for a file without ``t``);
+    invalid rows (NaN/inf) get NaN rates, hence status ``INVALID_INPUT``.
 
     Raises:
         InputError: ``t`` not strictly increasing within a candidate when rates are needed.
@@ -662,6 +709,18 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
     valid = traj.valid
     if traj.v is not None and traj.a is not None:
         return traj.p, traj.v, traj.a, valid
+    if traj.t is None:  # rows, not samples: at rest unless the file gives their rates
+        zero = np.zeros_like(traj.p)
+        return traj.p, zero if traj.v is None else traj.v, zero if traj.a is None else traj.a, valid
+    check_times(traj, valid, "to compute rates", "; or give the rate columns")
+    group = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
+    v, a = _splines.by_group(traj.t, traj.p, group, end=end, valid=valid)
+    return traj.p, traj.v if traj.v is not None else v, traj.a if traj.a is not None else a, valid
+
+
+def check_times(traj: Trajectory, valid: np.ndarray, why: str, hint: str = "") -> None:
+    """Raise ``InputError`` at the first valid row of a candidate whose ``t`` does not
+    increase strictly over the previous valid row of that candidate (``why``: what needs it)."""
     group = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
     for label in np.unique(group[valid]):
         rows = np.flatnonzero(valid & (group == label))
@@ -670,11 +729,9 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
             row = rows[bad[0] + 1]
             name = f"candidate {label}: " if traj.candidate is not None else ""
             raise InputError(
-                f"{traj.table.where(row)}: {name}t must increase strictly to compute rates "
-                f"(t = {traj.t[row]:g} after {traj.t[rows[bad[0]]]:g}); or give the rate columns"
+                f"{traj.table.where(row)}: {name}t must increase strictly {why} "
+                f"(t = {traj.t[row]:g} after {traj.t[rows[bad[0]]]:g}){hint}"
             )
-    v, a = _splines.by_group(traj.t, traj.p, group, end=end, valid=valid)
-    return traj.p, traj.v if traj.v is not None else v, traj.a if traj.a is not None else a, valid
 
 
 def quaternion_signs(
@@ -709,7 +766,8 @@ def continuous_quaternions(traj: Trajectory) -> Trajectory:
     with np.errstate(invalid="ignore"):
         v, a = (None if r is None else r / scale for r in (traj.v, traj.a))
     traj = dataclasses.replace(traj, p=p, v=v, a=a)
-    sign = quaternion_signs(traj.t, traj.candidate, traj.valid, unit)
+    t = np.arange(len(unit), dtype=float) if traj.t is None else traj.t  # else: file order
+    sign = quaternion_signs(t, traj.candidate, traj.valid, unit)
     flip = np.concatenate([np.ones((len(sign), 3)), np.repeat(sign[:, None], 4, axis=1)], 1)
     return dataclasses.replace(
         traj,
@@ -772,3 +830,190 @@ class QuaternionSigns:
             sign[rows] = signs
             self.last[label] = quat[rows[-1]] * signs[-1]
         return sign
+
+
+# ------------------------------------------------------------------------------- streaming
+SPLINE_CONTEXT = 64  # rows on each side of a streamed part that its splines see
+
+
+class NotContiguous(Exception):
+    """A candidate's rows are not one block of the file: it cannot be streamed."""
+
+
+def _joined(parts: Sequence[Trajectory]) -> Trajectory:
+    """Consecutive parts of one file as one ``Trajectory``."""
+    parts = [part for part in parts if part is not None]
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+
+    def cat(name: str) -> np.ndarray | None:
+        values = [getattr(part, name) for part in parts]
+        return None if values[0] is None else np.concatenate(values)
+
+    lines = None if first.table.lines is None else np.concatenate([x.table.lines for x in parts])
+    table = dataclasses.replace(first.table, lines=lines)
+    fields = {name: cat(name) for name in ("t", "candidate", "p", "v", "a")}
+    return Trajectory(table, first.names, **fields)
+
+
+def _rows_of(traj: Trajectory, rows: slice) -> Trajectory:
+    def cut(x: np.ndarray | None) -> np.ndarray | None:
+        return None if x is None else x[rows]
+
+    lines = cut(traj.table.lines)
+    return Trajectory(
+        dataclasses.replace(traj.table, lines=lines),
+        traj.names,
+        cut(traj.t),
+        cut(traj.candidate),
+        traj.p[rows],
+        cut(traj.v),
+        cut(traj.a),
+    )
+
+
+def _length(traj: Trajectory | None) -> int:
+    return 0 if traj is None else len(traj.p)
+
+
+class _Carried:
+    """What one part passes to the next: each candidate's last valid time and signed
+    quaternion, the candidates already finished (a label coming back is not contiguous)."""
+
+    def __init__(self, why: str, hint: str, quaternions: bool, times: bool) -> None:
+        self.why, self.hint, self.quaternions, self.times = why, hint, quaternions, times
+        self.last_t: dict[int, tuple[float, str]] = {}
+        self.signs = QuaternionSigns()
+        self.finished: set[int] = set()
+        self.current: int | None = None
+
+    def __call__(self, part: Trajectory) -> Trajectory:
+        group = part.candidate if part.candidate is not None else np.zeros(len(part.p), np.int64)
+        runs = np.r_[0, np.flatnonzero(np.diff(group)) + 1]
+        for label in group[runs].tolist():
+            if label != self.current:
+                if label in self.finished:
+                    raise NotContiguous(label)
+                if self.current is not None:
+                    self.finished.add(self.current)
+                self.current = label
+        if self.quaternions:
+            part = continuous_quaternions(part)
+            valid = part.valid
+            sign = self.signs(part.candidate, valid, part.p[:, 3:7])  # carried across parts
+            flip = np.concatenate([np.ones((len(sign), 3)), np.repeat(sign[:, None], 4, 1)], 1)
+            part = dataclasses.replace(
+                part,
+                p=part.p * flip,
+                v=None if part.v is None else part.v * flip,
+                a=None if part.a is None else part.a * flip,
+            )
+        if self.times and part.t is not None:
+            valid = part.valid
+            for label in np.unique(group[valid]).tolist():
+                rows = np.flatnonzero(valid & (group == label))
+                t = part.t[rows]
+                previous = self.last_t.get(label)
+                if previous is not None and t[0] <= previous[0]:
+                    self._refuse(part, rows[0], label, t[0], previous[0])
+                bad = np.flatnonzero(np.diff(t) <= 0)
+                if bad.size:
+                    self._refuse(part, rows[bad[0] + 1], label, t[bad[0] + 1], t[bad[0]])
+                self.last_t[label] = (float(t[-1]), "")
+        return part
+
+    def _refuse(self, part: Trajectory, row: int, label: int, t: float, before: float) -> None:
+        name = f"candidate {label}: " if part.candidate is not None else ""
+        raise InputError(
+            f"{part.table.where(row)}: {name}t must increase strictly {self.why} "
+            f"(t = {t:g} after {before:g}){self.hint}"
+        )
+
+
+def completed_parts(
+    parts: Iterator[Trajectory],
+    end: str,
+    size: int,
+    quaternions: bool = False,
+    whole: bool = False,
+    why: str = "to compute rates",
+    hint: str = "; or give the rate columns",
+) -> Iterator[tuple[Trajectory, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """``complete_rates`` of a file read in parts (``trajectory_parts``), a part of about
+    ``size`` rows at a time, in file order: ``(part, p, v, a, valid)``.
+
+    Memory is bounded by a part, not by the file: a part's splines see ``SPLINE_CONTEXT``
+    rows on each side of it, which gives the rates of the spline through the whole candidate
+    to rounding (a cubic spline's dependence on a sample decays by at least 2 per knot,
+    ``2 - sqrt(3)`` for even spacing, so 64 knots away it is below ``2**-64``). With
+    ``whole`` a part ends at a candidate's end (a candidate longer than ``size`` is one
+    part). ``quaternions``: pose rows (``continuous_quaternions``, signs carried from part to
+    part). Times must increase strictly along each candidate (``why``, ``hint`` for the
+    message) when rates are splined or ``whole``.
+
+    Raises:
+        NotContiguous: a candidate's rows are split by another's (read the file whole).
+        InputError: as ``read_trajectory`` and ``complete_rates``.
+    """
+    carried: _Carried | None = None
+    history: Trajectory | None = None  # rows already given out, the splines' left context
+    pending: Trajectory | None = None
+    spline = None
+
+    def finish(core: Trajectory, ahead: Trajectory | None) -> tuple:
+        nonlocal history
+        before = _length(history)
+        if spline:
+            window = _joined([history, core, ahead])
+            group = window.candidate
+            if group is None:
+                group = np.zeros(len(window.p), np.int64)
+            valid = window.valid
+            v, a = _splines.by_group(window.t, window.p, group, end=end, valid=valid)
+            rows = slice(before, before + len(core.p))
+            v = core.v if core.v is not None else v[rows]
+            a = core.a if core.a is not None else a[rows]
+        else:
+            zero = np.zeros_like(core.p)
+            v = zero if core.v is None else core.v
+            a = zero if core.a is None else core.a
+        joined = _joined([history, core])
+        history = _rows_of(joined, slice(max(0, len(joined.p) - SPLINE_CONTEXT), None))
+        return core, core.p, v, a, core.valid
+
+    def cut(traj: Trajectory, final: bool) -> int | None:
+        """Rows of ``traj`` to give out now (None: wait for more)."""
+        n = len(traj.p)
+        context = SPLINE_CONTEXT if spline else 0
+        if not final and n < size + context:
+            return None
+        if not whole:
+            return n if final else size
+        if traj.candidate is None:
+            return n if final else None
+        starts = np.flatnonzero(np.diff(traj.candidate)) + 1  # a new candidate's first row
+        usable = starts[starts <= n - context] if not final else starts
+        if final:
+            return n
+        within = usable[usable <= size]
+        if within.size:
+            return int(within[-1])
+        return int(usable[0]) if usable.size else None
+
+    for part in parts:
+        if carried is None:
+            spline = part.t is not None and (part.v is None or part.a is None)
+            carried = _Carried(why, hint, quaternions, spline or whole)
+        pending = _joined([pending, carried(part)])
+        while pending is not None and len(pending.p):
+            rows = cut(pending, final=False)
+            if rows is None:
+                break
+            ahead = _rows_of(pending, slice(rows, rows + SPLINE_CONTEXT))
+            yield finish(_rows_of(pending, slice(0, rows)), ahead)
+            pending = _rows_of(pending, slice(rows, None))
+    while pending is not None and len(pending.p):
+        rows = cut(pending, final=True)
+        yield finish(_rows_of(pending, slice(0, rows)), None)
+        pending = _rows_of(pending, slice(rows, None))

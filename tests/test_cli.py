@@ -282,7 +282,8 @@ def test_spherical_and_planar_2r(tmp_path, capsys):
     src = write_points(tmp_path / "in.csv", np.arange(3.0), p)
     r, dz = np.hypot(p[:, 0], p[:, 1]), p[:, 2] - 0.4
     expected = np.stack([np.arctan2(p[:, 1], p[:, 0]), np.arctan2(dz, r), np.hypot(r, dz)], -1)
-    code, _, err = run(capsys, "ik", "spherical", "--h", 0.4, "-i", src, "-o", tmp_path / "s.csv")
+    argv = ["-i", src, "-o", tmp_path / "s.csv", "--each-row"]  # scattered points, not a path
+    code, _, err = run(capsys, "ik", "spherical", "--h", 0.4, *argv)
     assert code == 0, err
     q = load(tmp_path / "s.csv")
     np.testing.assert_allclose(columns(q, ("q1", "q2", "q3")), expected, atol=1e-12)
@@ -290,7 +291,8 @@ def test_spherical_and_planar_2r(tmp_path, capsys):
     xy = p[:, :2] * 2.0  # inside the annulus 0.4 <= r <= 1.6
     src = write_points(tmp_path / "xy.csv", np.arange(3.0), xy, names="xy")
     geometry = ["--l1", 1.0, "--l2", 0.6]
-    code, _, err = run(capsys, "ik", "planar-2r", *geometry, "-i", src, "-o", tmp_path / "q.csv")
+    argv = ["-i", src, "-o", tmp_path / "q.csv", "--each-row"]
+    code, _, err = run(capsys, "ik", "planar-2r", *geometry, *argv)
     assert code == 0, err
     q = load(tmp_path / "q.csv")
     assert np.all(q["q2"] <= 0)  # elbow_up, the default branch
@@ -550,9 +552,8 @@ def test_solver_failing_midway_leaves_output_intact(tmp_path, capsys, good_csv, 
         return original(robot, d, branch)
 
     monkeypatch.setattr(commands, "ik", failing_ik)
-    code, _, err = run(
-        capsys, "ik", "scara", *SCARA_PAPER, "--chunk-size", 4, "-i", good_csv, "-o", out
-    )
+    argv = ["--chunk-size", 4, "-i", good_csv, "-o", out, "--each-row"]
+    code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, *argv)
     assert_one_line_error(code, err, "internal error (RuntimeError)", "simulated crash")
     assert len(calls) == 2 and out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["good.csv", "out.csv"]
@@ -609,7 +610,7 @@ def test_output_is_written_chunk_by_chunk(tmp_path, capsys, good_csv, monkeypatc
     """Each chunk's rows are written as soon as they are solved (memory bounded by a chunk):
     five rows in chunks of 4 are two writes, one header, the same file as one chunk gives."""
     code, _, err = run(
-        capsys, "ik", "scara", *SCARA_PAPER, "-i", good_csv, "-o", tmp_path / "a.csv"
+        capsys, "ik", "scara", *SCARA_PAPER, "-i", good_csv, "-o", tmp_path / "a.csv", "--each-row"
     )
     assert code == 0, err
     parts = []
@@ -620,7 +621,7 @@ def test_output_is_written_chunk_by_chunk(tmp_path, capsys, good_csv, monkeypatc
         original(f, columns, header)
 
     monkeypatch.setattr(kio, "write_csv", counted)
-    argv = ["--chunk-size", 4, "-i", good_csv, "-o", tmp_path / "b.csv"]
+    argv = ["--chunk-size", 4, "-i", good_csv, "-o", tmp_path / "b.csv", "--each-row"]
     code, _, err = run(capsys, "ik", "scara", *SCARA_PAPER, *argv)
     assert code == 0, err
     assert parts == [(4, True), (1, False)]

@@ -5,6 +5,7 @@ Subcommands (``jaxkin SUBCOMMAND --help`` for every option; ``docs/cli.md`` for 
     jaxkin demo [NAME] [--list]             the main demo (a planner) or an example by name
     jaxkin ik ROBOT -i IN -o OUT [...]      joint trajectories from end-point trajectories
     jaxkin fk ROBOT -i IN -o OUT [...]      end-point trajectories from joint trajectories
+    jaxkin plan ROBOT -i IN -o OUT [...]    rank candidate paths, write the best retimed
     jaxkin workspace ROBOT [...]            chunked voxel sweep, prints the reachable volume
 
 ``ROBOT`` is one of ``jaxkin.cli.robots.ROBOTS``; everything else about a robot (its branches,

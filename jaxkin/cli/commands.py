@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import itertools
 import sys
 from pathlib import Path
 from typing import Any
@@ -14,11 +15,11 @@ import numpy as np
 from .. import _batching, _processes, files, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
-from ..status import status_names
-from . import distributed
+from ..status import Status, status_names
+from . import distributed, planning
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
-__all__ = ["cmd_fk", "cmd_ik", "cmd_workspace", "robot_from_args", "set_dtype"]
+__all__ = ["cmd_fk", "cmd_ik", "cmd_plan", "cmd_workspace", "robot_from_args", "set_dtype"]
 
 MAX_VOXELS = 500_000_000  # a bool mask of this size is 0.5 GB
 
@@ -72,21 +73,6 @@ def _join(args: argparse.Namespace) -> None:
         args.quiet = True
 
 
-def _summary(status: np.ndarray) -> str:
-    names, counts = np.unique(status_names(status), return_counts=True)
-    return ", ".join(f"{n} {c}" for n, c in zip(names, counts, strict=True))
-
-
-def _warn_invalid(traj: files.Trajectory, valid: np.ndarray, what: str) -> None:
-    bad = np.flatnonzero(~valid)
-    if bad.size:
-        print(
-            f"jaxkin: warning: {bad.size} of {len(valid)} rows have {what} (first at "
-            f"{traj.table.where(bad[0])}): status INVALID_INPUT, the rest is solved",
-            file=sys.stderr,
-        )
-
-
 def _robot_file(args: argparse.Namespace) -> str | None:
     """The ``--robot`` argument when it names a file (not ``paper``)."""
     spec = getattr(args, "robot", None)
@@ -116,6 +102,46 @@ def _check_paths(args: argparse.Namespace) -> None:
             )
 
 
+def _counted(counts: np.ndarray) -> str:
+    """``"OK 12, UNREACHABLE 3"`` from counts per status code."""
+    names = status_names(np.flatnonzero(counts))
+    return ", ".join(f"{n} {c}" for n, c in zip(names, counts[counts > 0], strict=True))
+
+
+def _parts(args: argparse.Namespace, names: tuple[str, ...], quaternions: bool, inverse: bool):
+    """``(as_path, parts)``: whether the rows are solved as paths, and the file's rows with
+    their rates, ``(part, p, v, a, valid)``, a part at a time when the file can be streamed
+    (a CSV file, no --plot, one process: memory bounded by a part), else one part."""
+    chunk = args.chunk_size or _batching.HOST_CHUNK
+    streamed = (
+        files.file_format(args.input) == "csv" and not args.plot and _processes.process_count() == 1
+    )
+    parts = files.trajectory_parts(
+        args.input, names, timed=False, block=min(chunk, files.READ_BLOCK)
+    )
+    first = next(parts)
+    # A trajectory (rows with times) is solved as one path per candidate; rows without
+    # times, or with --each-row, each on its own.
+    as_path = inverse and first.t is not None and not args.each_row
+    if streamed and not (args.output == "-" and first.candidate is not None):
+        why = ("along a path", "; or give --each-row") if as_path else ()
+        streamed_parts = files.completed_parts(
+            itertools.chain([first], parts), args.spline, chunk, quaternions, as_path, *why
+        )
+        return as_path, streamed_parts
+    traj = files.read_trajectory(args.input, names, timed=False)
+    return as_path, _whole(traj, args.spline, quaternions, as_path)
+
+
+def _whole(traj: files.Trajectory, spline: str, quaternions: bool, as_path: bool):
+    if quaternions:
+        traj = files.continuous_quaternions(traj)
+    p, v, a, valid = files.complete_rates(traj, spline)
+    if as_path:
+        files.check_times(traj, valid, "along a path", "; or give --each-row")
+    yield traj, p, v, a, valid
+
+
 def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     _join(args)
     _check_paths(args)
@@ -127,21 +153,36 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     branch = parse_branch(robot, args.branch) if inverse else None
     targets, joints = robot.target.coordinates, robot.joint_names
     in_names, out_names = (targets, joints) if inverse else (joints, targets)
-    traj = files.read_trajectory(args.input, in_names)
-    if pose and inverse:
-        traj = files.continuous_quaternions(traj)
-    p, v, a, valid = files.complete_rates(traj, args.spline)
-    if distributed.is_writer():
-        quaternions = pose and inverse
-        _warn_invalid(
-            traj, valid, "NaN/inf input or a zero quaternion" if quaternions else "NaN/inf input"
-        )
+    limits = None
+    if inverse:
+        try:
+            limits = planning.joint_limits(robot, args.v_max, args.a_max)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+    quaternions = pose and inverse
+    try:
+        as_path, parts = _parts(args, in_names, quaternions, inverse)
+        return _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_path, parts)
+    except files.NotContiguous:  # a candidate split by another: read the file whole
+        args.notes.append("jaxkin: note: candidates' rows are interleaved: the file is read whole")
+        traj = files.read_trajectory(args.input, in_names, timed=False)
+        as_path = inverse and traj.t is not None and not args.each_row
+        parts = _whole(traj, args.spline, quaternions, as_path)
+        return _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_path, parts)
+
+
+def _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_path, parts) -> int:
+    """Solve the parts' rows (``_parts``) and write them, part by part."""
+    pose = robot.target == POSE
+    quaternions = pose and inverse
+
+    def target(p, v, a):
+        if quaternions:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
+            return paths.pose_from_quaternions(p, v, a).astype(dtype)
+        return Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
 
     def solve(p, v, a):
-        if pose and inverse:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
-            jet = paths.pose_from_quaternions(p, v, a).astype(dtype)
-        else:
-            jet = Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
+        jet = target(p, v, a)
         if inverse:
             res = ik(robot, jet, branch)
             return res.q, res.status, res.margin
@@ -152,35 +193,65 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
     chunk = args.chunk_size or _batching.HOST_CHUNK
     writer = distributed.is_writer()
     signs = files.QuaternionSigns() if pose and not inverse else None
-    statuses, kept = [], []  # kept: every chunk's outputs, only for --plot
-    chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+    counts = np.zeros(len(Status), np.int64)  # rows per status
+    solved_valid, n_valid, n_invalid, first_invalid = 0, 0, 0, None
+    kept, statuses, times, labels = [], [], [], []  # only for --plot
     with files.table_writer(args.output if writer else None) as write:
-        for start, stop, outputs in chunks:
-            q, qd, qdd, status = outputs[:4]
-            rows, ok = slice(start, stop), valid[start:stop]
-            candidate = None if traj.candidate is None else traj.candidate[rows]
-            if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
-                q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
-                sign = signs(candidate, ok, q[:, 3:])[:, None]
-                for block in (q, qd, qdd):  # continuous along each candidate, as splines need
-                    block[:, 3:] *= sign
-            for block in (q, qd, qdd):
-                block[~ok] = np.nan  # nothing meaningful to report for invalid input
-            statuses.append(np.asarray(status, np.int8))
-            if args.plot and writer:
-                kept.append((q, qd, qdd))
-            extra = {"margin": outputs[4]} if inverse else None
-            write(
-                files.trajectory_columns(
-                    traj.t[rows], candidate, out_names, q, qd, qdd, status_names(status), extra
+        for traj, p, v, a, valid in parts:
+            bad = np.flatnonzero(~valid)
+            if bad.size and first_invalid is None:
+                first_invalid = traj.table.where(bad[0])
+            n_invalid, n_valid = n_invalid + bad.size, n_valid + len(valid) - bad.size
+            if as_path:  # every process solves every path (they are not split)
+                chunks = planning.solve_paths(
+                    robot, target, traj.t, (p, v, a), traj.candidate, valid, branch, limits, chunk
                 )
-            )
+            else:
+                chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+            for start, stop, outputs in chunks:
+                q, qd, qdd, status = outputs[:4]
+                rows, ok = slice(start, stop), valid[start:stop]
+                candidate = None if traj.candidate is None else traj.candidate[rows]
+                if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
+                    q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
+                    sign = signs(candidate, ok, q[:, 3:])[:, None]
+                    for block in (q, qd, qdd):  # continuous along each candidate
+                        block[:, 3:] *= sign
+                for block in (q, qd, qdd):
+                    block[~ok] = np.nan  # nothing meaningful to report for invalid input
+                status = np.asarray(status, np.int8)
+                counts += np.bincount(status, minlength=len(counts))
+                solved_valid += int(np.sum(status[ok] == Status.OK))
+                if args.plot and writer:
+                    kept.append((q, qd, qdd))
+                    statuses.append(status)
+                    times.append(np.arange(start, stop) if traj.t is None else traj.t[rows])
+                    labels.append(candidate)
+                extra = {"margin": outputs[4]} if inverse else None
+                write(
+                    files.trajectory_columns(
+                        None if traj.t is None else traj.t[rows],
+                        candidate,
+                        out_names,
+                        q,
+                        qd,
+                        qdd,
+                        status_names(status),
+                        extra,
+                    )
+                )
     if not writer:
         return 0
-    status = np.concatenate(statuses)
-    if valid.any() and not np.any(status[valid] == 0):
+    if n_invalid:
+        what = "NaN/inf input or a zero quaternion" if quaternions else "NaN/inf input"
         print(
-            f"jaxkin: warning: no row has status OK ({_summary(status)}): check the geometry "
+            f"jaxkin: warning: {n_invalid} of {n_invalid + n_valid} rows have {what} (first "
+            f"at {first_invalid}): status INVALID_INPUT, the rest is solved",
+            file=sys.stderr,
+        )
+    if n_valid and not solved_valid:
+        print(
+            f"jaxkin: warning: no row has status OK ({_counted(counts)}): check the geometry "
             "and the units of the input",
             file=sys.stderr,
         )
@@ -188,16 +259,27 @@ def _solve_file(args: argparse.Namespace, inverse: bool) -> int:
         from .. import plot
 
         q, qd, qdd = (np.concatenate(block) for block in zip(*kept, strict=True))
+        candidate = None if labels[0] is None else np.concatenate(labels)
         plot.joint_trajectories(
-            traj.t, q, qd, qdd, status, names=out_names, candidate=traj.candidate, path=args.plot
+            np.concatenate(times).astype(float),
+            q,
+            qd,
+            qdd,
+            np.concatenate(statuses),
+            names=out_names,
+            candidate=candidate,
+            path=args.plot,
         )
     if not args.quiet:
         what = f"{args.kind} {'ik' if inverse else 'fk'}"
         if inverse:
             what += f" (branch {branch})"
+        how = (
+            (", one path per candidate" if as_path else ", each row on its own") if inverse else ""
+        )
         print(
-            f"jaxkin: {what}, {len(status)} rows, {np.dtype(dtype).name}: {_summary(status)}"
-            f" -> {args.output}" + (f", {args.plot}" if args.plot else ""),
+            f"jaxkin: {what}, {int(counts.sum())} rows{how}, {np.dtype(dtype).name}: "
+            f"{_counted(counts)} -> {args.output}" + (f", {args.plot}" if args.plot else ""),
             file=sys.stderr,
         )
     return 0
@@ -293,4 +375,137 @@ def cmd_workspace(args: argparse.Namespace) -> int:
         f"reachable {'volume' if dims == 3 else 'area'}: {result.volume:.6g} (length unit){unit} "
         f"= {result.n_reachable} of {result.n_evaluated} voxels of edge {result.resolution:g}"
     )
+    return 0
+
+
+def _candidate_samples(traj: files.Trajectory, valid: np.ndarray) -> tuple[list[np.ndarray], float]:
+    """The rows of every candidate (first-appearance order) and the common sample period:
+    every candidate must have the same number of samples, uniformly spaced by one period,
+    all valid (``plan.evaluate`` takes ``(N, T)`` samples at one ``dt``)."""
+    if traj.t is None:
+        raise CliError(f"{traj.table.source}: a file of candidate paths needs a t column")
+    labels = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
+    bad = np.flatnonzero(~valid)
+    if bad.size:
+        raise CliError(
+            f"{traj.table.where(bad[0])}: NaN/inf (or a zero quaternion) in a candidate path"
+        )
+    _, first, inverse = np.unique(labels, return_index=True, return_inverse=True)
+    groups = [np.flatnonzero(inverse == k) for k in np.argsort(first)]
+    counts = {len(rows) for rows in groups}
+    if len(counts) != 1 or min(counts) < 2:
+        raise CliError(
+            f"{traj.table.source}: every candidate needs the same number of samples (>= 2), "
+            f"got {sorted(counts)}"
+        )
+    files.check_times(traj, valid, "along a path")
+    steps = np.stack([np.diff(traj.t[rows]) for rows in groups])
+    dt = float(steps[0, 0])
+    off = np.flatnonzero(np.abs(steps - dt).max(axis=1) > 1e-9 * max(dt, abs(traj.t).max()))
+    if off.size:
+        label = labels[groups[off[0]][0]]
+        raise CliError(
+            f"{traj.table.source}: candidate {label}: samples must be spaced by one period "
+            f"(the first candidate's {dt:g}) in every candidate"
+        )
+    return groups, dt
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    """``jaxkin plan``: evaluate a file of candidate paths, rank them, write the best retimed."""
+    _join(args)
+    inputs = {"--input": args.input, "--robot": _robot_file(args)}
+    outputs = {"--output": args.output, "--ranking": args.ranking}
+    try:
+        files.check_outputs(outputs, inputs)
+    except files.InputError as exc:
+        raise CliError(str(exc)) from None
+    if args.period is not None and not (np.isfinite(args.period) and args.period > 0):
+        raise CliError(f"--period must be a positive number, got {args.period:g}")
+    dtype = set_dtype(args.dtype)
+    robot = robot_from_args(args)
+    pose = robot.target == POSE
+    if not (robot.target.is_point or pose):
+        raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
+    targets, joints = robot.target.coordinates, robot.joint_names
+    columns = files.read_table(args.input, ("t", "candidate", *targets, *joints)).columns
+    joint_space = all(n in columns for n in joints) and not all(n in columns for n in targets)
+    names = joints if joint_space else targets
+    traj = files.read_trajectory(args.input, names)
+    if pose and not joint_space:
+        traj = files.continuous_quaternions(traj)
+    p, v, a, valid = files.complete_rates(traj, args.spline)
+    groups, dt = _candidate_samples(traj, valid)
+    take = np.stack(groups)
+    try:
+        limits = planning.joint_limits(robot, args.v_max, args.a_max)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    if joint_space:
+        jet = Jet.of(*(x[take].astype(dtype) for x in (p, v, a)))
+        evaluation = planning.evaluate_joints(robot, jet, dt, limits)
+    else:
+        branch = "best" if args.branch == "best" else parse_branch(robot, args.branch)
+        flat = [x[take].reshape(-1, x.shape[-1]) for x in (p, v, a)]
+        if pose:
+            jet = paths.pose_from_quaternions(*flat).astype(dtype)
+        else:
+            jet = Jet.of(*(x.astype(dtype) for x in flat))
+        jet = jet.map(lambda x: x.reshape(*take.shape, *x.shape[1:]))
+        evaluation = planning.evaluate_targets(robot, jet, dt, limits, branch, args.chunk_size)
+    period = args.period if args.period is not None else dt
+    try:
+        ranked = planning.rank(evaluation, dt, limits, args.best, args.by, period)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    if not distributed.is_writer():
+        return 0
+    labels = traj.candidate[take[:, 0]] if traj.candidate is not None else np.zeros(len(take))
+    labels = labels.astype(np.int64)
+    if args.ranking is not None:
+        place = np.full(len(take), -1)
+        place[ranked.order] = np.arange(1, len(ranked.order) + 1)
+        files.write_table(
+            args.ranking,
+            {
+                "candidate": labels,
+                "rank": place,
+                "feasible": ranked.feasible,
+                "first_failure": ranked.first_failure,
+                "failure": ranked.failure.astype(str),
+                "cost": np.where(np.isfinite(ranked.cost), ranked.cost, np.nan),
+                "duration": ranked.duration,
+            },
+        )
+    with files.table_writer(args.output) as write:
+        for place, index in enumerate(ranked.order.tolist()):
+            if ranked.retimed is not None:
+                count = int(ranked.retimed.count[place])
+                t = np.asarray(ranked.retimed.t)[:count]
+                jet = ranked.retimed.q
+                q = [np.asarray(x)[place, :count] for x in (jet.p, jet.v, jet.a)]
+            else:  # no timing (no finite rate limits): the candidate at the file's samples
+                t = traj.t[take[index]]
+                jet = evaluation.q
+                q = [np.asarray(x)[index] for x in (jet.p, jet.v, jet.a)]
+            columns = {"rank": np.full(len(t), place + 1)}
+            columns |= files.trajectory_columns(t, np.full(len(t), labels[index]), joints, *q)
+            write(columns)
+    if not args.quiet:
+        print(f"{'rank':>4} {'candidate':>9} {'cost':>12} {'duration':>10}")
+        for place, index in enumerate(ranked.order.tolist()):
+            print(
+                f"{place + 1:>4} {labels[index]:>9} {ranked.cost[index]:>12.6g} "
+                f"{ranked.duration[index]:>10.6g}"
+            )
+        feasible = int(np.sum(ranked.feasible))
+        how = "time-optimal duration" if args.by == "duration" else "cost"
+        print(
+            f"jaxkin: {args.kind} plan, {len(take)} candidates of {take.shape[1]} samples "
+            f"({'joint' if joint_space else 'task'} space), {feasible} feasible; the "
+            f"{len(ranked.order)} best by {how} -> {args.output}",
+            file=sys.stderr,
+        )
+    if not len(ranked.order):
+        print("jaxkin: warning: no candidate is feasible (and timed)", file=sys.stderr)
     return 0

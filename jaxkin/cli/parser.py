@@ -71,10 +71,37 @@ def _add_robot_options(parser: argparse.ArgumentParser, with_branch: bool = True
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or notes")
 
 
+def _numbers(text: str) -> list[float]:
+    try:
+        return [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a number or comma-separated numbers (one per joint), got {text!r}"
+        ) from None
+
+
+def _add_path_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--each-row",
+        action="store_true",
+        help="solve every row on its own (default for a file with a t column: each candidate "
+        "is one path, warm-started, continuous, the branch held, within the limits)",
+    )
+    for flag, what in (("--v-max", "speed"), ("--a-max", "acceleration")):
+        parser.add_argument(
+            flag,
+            type=_numbers,
+            metavar="V[,V...]",
+            help=f"joint {what} bound, one for every joint or one per joint (tightens the "
+            "robot's own)",
+        )
+
+
 _FILE_HELP = (
     "Input: CSV with a header row, or .npz; columns t, the positions, optional candidate and "
-    "rates (missing rates are computed by a cubic spline in t per candidate). Output: the "
-    "same layout with the solved columns and a status name per row."
+    "rates (missing rates are computed by a cubic spline in t per candidate; without t the "
+    "rows are independent, at rest). Output: the same layout with the solved columns and a "
+    "status name per row."
 )
 
 
@@ -146,8 +173,62 @@ def build_parser() -> argparse.ArgumentParser:
             help="end condition of the cubic spline for missing rates (default not-a-knot)",
         )
         p.add_argument("--plot", metavar="FILE.png", help="also plot the result (needs matplotlib)")
+        if name == "ik":
+            _add_path_options(p)
         distributed.add_option(p)
         p.set_defaults(func=func, branch=None)
+
+    pl = sub.add_parser(
+        "plan",
+        help="rank candidate paths; write the best, retimed",
+        description="Evaluate a file of N candidate paths (plan.evaluate: joints along each, "
+        "continuous, within the robot's limits, costs), rank the feasible ones by the "
+        "duration of their time-optimal retiming under the speed and acceleration limits (or "
+        "by cost) and write the k best sampled every --period. Input: CSV or .npz with "
+        "columns candidate, t and the robot's target coordinates (task-space candidates) or "
+        "its joint names (joint-space candidates), optional rates (else splined); every "
+        "candidate has the same number of samples, one period apart.",
+        epilog="example: jaxkin plan scara --robot paper -i candidates.csv -o best.csv "
+        "--best 3 --v-max 2 --a-max 10 --period 0.01",
+    )
+    _add_robot_options(pl)
+    pl.add_argument("-i", "--input", required=True, metavar="FILE", help="CSV or .npz")
+    pl.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="FILE",
+        help="the best candidates' trajectories: rank, candidate, t, joints and rates",
+    )
+    pl.add_argument("-k", "--best", type=_positive_int, default=1, metavar="K", help="default 1")
+    pl.add_argument(
+        "--by",
+        choices=("duration", "cost"),
+        default="duration",
+        help="rank by the time-optimal duration (default) or by costs.total",
+    )
+    pl.add_argument(
+        "--period",
+        type=float,
+        metavar="DT",
+        help="control period of the written trajectories (default: the file's sample period)",
+    )
+    pl.add_argument("--ranking", metavar="FILE", help="also write every candidate's scores")
+    pl.add_argument(
+        "--spline",
+        choices=_splines.END_CONDITIONS,
+        default="not-a-knot",
+        help="end condition of the cubic spline for missing rates (default not-a-knot)",
+    )
+    for flag, what in (("--v-max", "speed"), ("--a-max", "acceleration")):
+        pl.add_argument(
+            flag,
+            type=_numbers,
+            metavar="V[,V...]",
+            help=f"joint {what} bound, one for every joint or one per joint (tightens the "
+            "robot's own)",
+        )
+    pl.set_defaults(func=commands.cmd_plan)
 
     ws = sub.add_parser(
         "workspace",
