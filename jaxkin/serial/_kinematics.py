@@ -44,6 +44,7 @@ __all__ = [
     "fk_and_jacobian",
     "fk_rp",
     "follow_matrix",
+    "joint_prefix_poses",
     "pose",
     "screws_fk_and_jacobian",
     "screws_fk_rp",
@@ -134,6 +135,20 @@ def _joint_exps(screws: Array, theta: Array) -> list[tuple[Array, Array]]:
         rot = eye + s[..., None] * w[i] + omc[..., None] * w2[i]
         exps.append((rot, qi * v[i] + omc * wv[i] + qs * w2v[i]))
     return exps
+
+
+def joint_prefix_poses(chain: Any, q: Array) -> Array:
+    """``exp([S_1] theta_1) ... exp([S_k] theta_k)`` for ``k = 0 ... m`` (the identity first):
+    the motion of every link that the first ``k`` path joints carry, ``(..., m + 1, 4, 4)``
+    (a link's pose is this times its pose at ``theta = 0``, in the base frame)."""
+    theta = angles(chain, q)
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=theta.dtype), (*theta.shape[:-1], 3, 3))
+    acc = (eye, jnp.zeros((*theta.shape[:-1], 3), theta.dtype))
+    poses = [lie.from_rotation_translation(*acc)]
+    for e in _joint_exps(chain.screws, theta):
+        acc = _compose(acc, e)
+        poses.append(lie.from_rotation_translation(*acc))
+    return jnp.stack(poses, axis=-3)
 
 
 def _home(home: Array) -> tuple[Array, Array]:
