@@ -54,7 +54,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _processes, _validate
+from . import _batching, _processes, _validate, collision
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
 from .result import SolverResult
@@ -169,6 +169,8 @@ class Evaluation(SolverResult):
         branch: index into ``branches`` of the assembly mode/branch used, shape ``(N,)``.
         costs: ``Costs``, each ``(N,)``.
         branches: the robot's branch labels (static), e.g. ``(1, -1)`` for a SCARA.
+        min_clearance: with a ``world``, the smallest clearance along the candidate
+            (``collision.check``: signed distance, robot-world and self), ``(N,)``; else None.
     """
 
     q: Jet
@@ -179,6 +181,7 @@ class Evaluation(SolverResult):
     branch: Array
     costs: Costs
     branches: tuple = dataclasses.field(metadata=dict(static=True), default=())
+    min_clearance: Array | None = None
 
 
 def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
@@ -312,7 +315,9 @@ def trajectory_costs(q: Jet, dt: float, limits: Limits, feasible: Array) -> Cost
 
 
 # ------------------------------------------------------------------ the kernel
-def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) -> Evaluation:
+def _evaluate_branch(
+    robot, path: Jet, limits: Limits, dt, branch_index: Any, collide: Any = None
+) -> Evaluation:
     """Every candidate on one branch; ``branch_index`` an int, or a traced one (``"best"``)."""
     branches = robot.branches
     # Along each candidate: an iterative IK warm-starts every sample from the previous one.
@@ -338,6 +343,12 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) ->
     status = jnp.where(
         (status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status
     ).astype(STATUS_DTYPE)
+    min_clearance = None
+    if collide is not None:  # (body, pairs, world): collision.check of every sample
+        checked = collision.check_kernel(robot, *collide[:2], q.p, collide[2])
+        hit = (status == Status.OK) & checked.collides
+        status = jnp.where(hit, jnp.int8(Status.COLLISION), status).astype(STATUS_DTYPE)
+        min_clearance = jnp.min(checked.clearance, axis=-1)
     bad = status != Status.OK
     feasible = ~jnp.any(bad, axis=-1)
     first_failure = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
@@ -350,16 +361,17 @@ def _evaluate_branch(robot, path: Jet, limits: Limits, dt, branch_index: Any) ->
         branch=jnp.full(feasible.shape, branch_index, jnp.int8),
         costs=trajectory_costs(q, dt, limits, feasible),
         branches=branches,
+        min_clearance=min_clearance,
     )
 
 
-def _evaluate_impl(robot, path: Jet, limits: Limits, dt, branch: Any) -> Evaluation:
+def _evaluate_impl(robot, path: Jet, limits: Limits, dt, branch: Any, collide=None) -> Evaluation:
     branches = robot.branches
     if branch != "best" or len(branches) == 1:
         index = 0 if branch == "best" else branches.index(branch)
-        return _evaluate_branch(robot, path, limits, dt, index)
+        return _evaluate_branch(robot, path, limits, dt, index, collide)
     indices = jnp.arange(len(branches), dtype=jnp.int32)
-    every = jax.vmap(lambda i: _evaluate_branch(robot, path, limits, dt, i))(indices)
+    every = jax.vmap(lambda i: _evaluate_branch(robot, path, limits, dt, i, collide))(indices)
     # Per candidate: the feasible branch of least total (the first on ties); when none is
     # feasible, the one that fails latest along the path (it got furthest).
     total = jnp.where(every.feasible, every.costs.total, jnp.inf)
@@ -388,6 +400,7 @@ def evaluate(
     branch: Any = None,
     dt: float = 1.0,
     chunk_size: int | None = None,
+    world: Any = None,
 ) -> Evaluation:
     """Evaluate N candidate end-effector trajectories (see the module docstring).
 
@@ -407,6 +420,9 @@ def evaluate(
         chunk_size: candidates per call on one device (default
             ``_batching.plan_chunk_samples() // T``, divided by the number of branches for
             ``"best"``).
+        world: a ``collision.World``: every solved sample is checked (``collision.check``,
+            the robot's body against the world and itself) and one that collides gets the
+            status ``COLLISION``; ``min_clearance`` is then each candidate's smallest clearance.
 
     Returns:
         An ``Evaluation``; ``branch`` tells which branch each candidate used. Zero candidates
@@ -430,6 +446,11 @@ def evaluate(
         )
     dt = _validate.positive_number(dt, "dt")
     limits = robot_limits(robot, limits)
+    collide = None
+    if world is not None:
+        if not isinstance(world, collision.World):
+            raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
+        collide = (*collision.prepare(robot), world)
     n, t = path.shape[:2]
     # "best" holds every branch of a chunk at once
     held = len(robot.branches) if branch == "best" else 1
@@ -442,7 +463,9 @@ def evaluate(
         candidates = chunk.shape[0]
         samples = _batching.padded_size(candidates) * t * held
         pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
-        return _evaluate_jit(robot, chunk, limits, float(dt), branch, batch=(candidates,), pad=pad)
+        return _evaluate_jit(
+            robot, chunk, limits, float(dt), branch, collide, batch=(candidates,), pad=pad
+        )
 
     if n == 0:  # the kernel's shapes from one placeholder candidate, then none of it
         placeholder = jax.tree.map(lambda x: jnp.zeros((1, *x.shape[1:]), x.dtype), path)
