@@ -19,6 +19,8 @@
 
 from . import distance as distance
 from .body import Body as Body
+from .check import ROBOT_WORLD as ROBOT_WORLD
+from .check import SELF as SELF
 from .check import CheckResult as CheckResult
 from .check import check as check
 from .check import check_kernel as check_kernel
@@ -54,6 +56,8 @@ __all__ = [
     "BOX",
     "CAPSULE",
     "HALFSPACE",
+    "ROBOT_WORLD",
+    "SELF",
     "SPHERE",
     "Body",
     "Boxes",
