@@ -184,20 +184,21 @@ class Scara(Robot):
         return jnp.stack([jnp.stack([a, b], -2), jnp.stack([b, c], -2), jnp.stack([c, d], -2)], -3)
 
     def collision_body(self) -> Body:
-        """Four capsules of radius ``link_radius`` (an unbatched geometry only): ``column``
-        O -> A, ``arm`` A -> B, ``forearm`` B -> C and ``quill``, a rod of length ``l_oa``
-        standing on the end point D (it slides through the wrist C)."""
+        """Four capsules of radius ``link_radius`` (an unbatched geometry; traceable):
+        ``column`` O -> A, ``arm`` A -> B, ``forearm`` B -> C and ``quill``, a rod of length
+        ``l_oa`` standing on the end point D (it slides through the wrist C)."""
         if self.batch_shape():
             raise ValueError("Scara.collision_body: needs an unbatched geometry")
-        lengths = {
-            "column": (0.0, 0.0, float(self.l_oa)),
-            "arm": (float(self.l_ab), 0.0, 0.0),
-            "forearm": (float(self.l_bc), 0.0, 0.0),
-            "quill": (0.0, 0.0, float(self.l_oa)),
-        }
-        radius = jnp.asarray(self.link_radius, float)[None]
-        capsules = {k: ([[0.0, 0.0, 0.0]], [b], radius) for k, b in lengths.items()}
-        return Body.create(tuple(lengths), capsules=capsules)
+        zero = 0.0 * jnp.asarray(self.l_oa)
+        ends = [
+            (zero, zero, self.l_oa),
+            (self.l_ab, zero, zero),
+            (self.l_bc, zero, zero),
+            (zero, zero, self.l_oa),
+        ]
+        b = jnp.stack([jnp.stack([jnp.asarray(x) for x in e]) for e in ends])
+        names = ("column", "arm", "forearm", "quill")
+        return Body.of_capsules(names, (0, 1, 2, 3), jnp.zeros_like(b), b, self.link_radius)
 
     def link_poses(self, q: Array) -> Array:
         """Poses ``(..., 4, 4, 4)`` of ``column`` (the base frame), ``arm`` (at A, turned by

@@ -129,21 +129,15 @@ class Delta(Robot):
     def collision_body(self) -> Body:
         """Capsules of radius ``link_radius``: ``arm_i`` A_i -> E_i, ``rod_i`` E_i -> D_i (the
         parallelogram's centre line, length ``l_rod``) and the ``platform``'s triangle of rod
-        joints D_1 D_2 D_3; the ``base`` link carries none."""
+        joints D_1 D_2 D_3; the ``base`` link carries none (traceable)."""
         names = ("base", "arm_1", "arm_2", "arm_3", "rod_1", "rod_2", "rod_3", "platform")
-        radius = float(self.link_radius)
-        origin = [[0.0, 0.0, 0.0]]
-        capsules = {
-            f"arm_{i + 1}": (origin, [[float(self.l_arm), 0.0, 0.0]], [radius]) for i in range(3)
-        }
-        capsules |= {
-            f"rod_{i + 1}": (origin, [[float(self.l_rod), 0.0, 0.0]], [radius]) for i in range(3)
-        }
-        corners = [
-            [float(self.r_platform) * UX[i], float(self.r_platform) * UY[i], 0.0] for i in range(3)
-        ]
-        capsules["platform"] = (corners, corners[1:] + corners[:1], [radius] * 3)
-        return Body.create(names, capsules=capsules)
+        zero = 0.0 * jnp.asarray(self.l_arm)
+        ux, uy = jnp.asarray(UX), jnp.asarray(UY)
+        corners = self.r_platform * jnp.stack([ux, uy, 0.0 * ux], -1)
+        tips = [jnp.stack([jnp.asarray(length), zero, zero]) for length in (self.l_arm, self.l_rod)]
+        a = jnp.concatenate([jnp.zeros((6, 3)) + zero, corners])
+        b = jnp.concatenate([jnp.stack([tips[0]] * 3 + [tips[1]] * 3), jnp.roll(corners, -1, 0)])
+        return Body.of_capsules(names, (1, 2, 3, 4, 5, 6, 7, 7, 7), a, b, self.link_radius)
 
     def link_poses(self, q: Array) -> Array:
         """Poses ``(..., 8, 4, 4)``: ``base`` (identity); ``arm_i`` at A_i with x along the arm

@@ -14,9 +14,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, ClassVar
 
-import jax
 import jax.numpy as jnp
-import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
@@ -101,23 +99,21 @@ class Arm(Robot, abstract=True):
         revolute joint ``k`` the segment from frame ``k - 1``'s origin to frame ``k``'s, fixed
         in frame ``k`` at ``(-a_k, -d_k sin alpha_k, -d_k cos alpha_k)`` -> 0; for a prismatic
         joint ``k`` a rod from frame ``k``'s origin back along ``z_{k-1}`` as long as the arm
-        (``length_scale``), through which the joint slides. An unbatched geometry only."""
+        (``length_scale``), through which the joint slides. An unbatched geometry only
+        (traceable)."""
         if self.batch_shape():
             raise ValueError(f"{type(self).__name__}.collision_body: needs an unbatched geometry")
-        table = self.dh_table(jnp.float64 if jax.config.jax_enable_x64 else jnp.float32)
-        a, alpha, d = (np.asarray(getattr(table, k), float) for k in ("a", "alpha", "d"))
-        reach = float(self.length_scale())
-        names = ("base", *(f"link{k + 1}" for k in range(len(a))))
-        radius = [float(self.link_radius)]
-        capsules = {}
-        for k, kind in enumerate(self.joint_types):
-            sa, ca = np.sin(alpha[k]), np.cos(alpha[k])
-            if kind == "R":
-                start = [-a[k], -d[k] * sa, -d[k] * ca]
-            else:
-                start = [0.0, -reach * sa, -reach * ca]
-            capsules[names[k + 1]] = ([start], [[0.0, 0.0, 0.0]], radius)
-        return Body.create(names, capsules=capsules)
+        table = self.dh_table()
+        sa, ca = jnp.sin(table.alpha), jnp.cos(table.alpha)
+        reach = self.length_scale()
+        revolute = jnp.asarray([kind == "R" for kind in self.joint_types])
+        depth = jnp.where(revolute, table.d, reach)
+        a = jnp.stack([jnp.where(revolute, -table.a, 0.0), -depth * sa, -depth * ca], -1)
+        n = len(self.joint_types)
+        names = ("base", *(f"link{k + 1}" for k in range(n)))
+        return Body.of_capsules(
+            names, tuple(range(1, n + 1)), a, jnp.zeros_like(a), self.link_radius
+        )
 
     def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
         """Links at least two apart along the arm whose capsules have length and are not in
