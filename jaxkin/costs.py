@@ -224,8 +224,8 @@ class Obstacles:
         q = sample.q.p
         dtype = q.dtype
         body, pairs = self.body, self.pairs
-        if body is None:
-            body, pairs = collision.prepare(robot, False)
+        if body is None:  # the robot's own, from its (traced) geometry
+            body = robot.collision_body()
         body, world = body.astype(dtype), self.world.astype(dtype)
         spheres, capsules = body.place(robot.link_poses(q).astype(dtype))
         safety = jnp.asarray(self.safety, dtype)

@@ -112,8 +112,9 @@ def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
         )
     link_pairs = robot.self_collision_pairs() if self_collision else ()
     prepared = (body, SelfPairs.create(body, link_pairs))
-    # kept on the (frozen) robot: a URDF body's mesh covers are computed once
-    object.__setattr__(robot, "_collision_prepared", {**cached, self_collision: prepared})
+    if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves(body)):
+        # kept on the (frozen) robot: a URDF body's mesh covers are computed once
+        object.__setattr__(robot, "_collision_prepared", {**cached, self_collision: prepared})
     return prepared
 
 
