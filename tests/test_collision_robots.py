@@ -334,3 +334,51 @@ def test_urdf_chain_link_poses_against_pinocchio():
         for k, name in enumerate(names):
             expected = (base_inv * data.oMf[model.getFrameId(name)]).homogeneous
             np.testing.assert_allclose(poses[i, k], expected, atol=1e-12, err_msg=name)
+
+
+# ------------------------------------------------------------------ optimiser cost
+def segment_point_distance(a, b, p):
+    t = np.clip(np.sum((p - a) * (b - a), -1) / np.sum((b - a) ** 2, -1), 0.0, 1.0)
+    return np.linalg.norm(a + t[..., None] * (b - a) - p, axis=-1)
+
+
+def test_obstacles_cost_on_the_body_with_planar_obstacles():
+    from jaxkin import costs
+    from jaxkin.jet import Jet
+
+    arm = serial.Planar2R(1.0, 0.5, link_radius=0.05)
+    safety = 0.3
+    cost = costs.Obstacles.create(
+        spheres=([[1.2, 0.3]], [0.2]), boxes=([[0.0, -1.7]], [[0.2, 0.1]]), safety=safety, dims=2
+    )
+    q = np.random.default_rng(9).uniform(-2.5, 2.5, (2, 5, 2))
+    zeros = np.zeros_like(q)
+    sample = costs.TrajectorySample(
+        Jet(q, zeros, zeros), None, np.zeros((2, 5)), 0.1, None, None, arm
+    )
+    value = np.asarray(cost(sample))
+    # NumPy: the two links as segments in the plane, the sphere exactly, the box (out of reach
+    # 1.5: never penetrated) by sampling
+    c1 = np.stack([np.cos(q[..., 0]), np.sin(q[..., 0])], -1)
+    c2 = c1 + 0.5 * np.stack([np.cos(q.sum(-1)), np.sin(q.sum(-1))], -1)
+    ends = [(np.zeros_like(c1), c1), (c1, c2)]
+    total = np.zeros(2)
+    for a, b in ends:
+        to_sphere = segment_point_distance(a, b, np.array([1.2, 0.3])) - 0.2
+        pts = a[..., None, :] + np.linspace(0, 1, 20001)[:, None] * (b - a)[..., None, :]
+        u = np.abs(pts - np.array([0.0, -1.7])) - np.array([0.2, 0.1])
+        to_box = np.min(np.linalg.norm(np.maximum(u, 0.0), axis=-1), axis=-1)
+        d = np.minimum(to_sphere, to_box) - 0.05
+        total += np.sum((np.maximum(safety - d, 0.0) / safety) ** 2, axis=-1)
+    np.testing.assert_allclose(value, total, atol=1e-3)
+    assert np.any(value > 0)
+    grad = jax.grad(lambda x: cost(dataclasses_replace(sample, x)).sum())(jnp.asarray(q))
+    assert np.all(np.isfinite(grad))
+
+
+def dataclasses_replace(sample, q):
+    import dataclasses
+
+    from jaxkin.jet import Jet
+
+    return dataclasses.replace(sample, q=Jet(q, jnp.zeros_like(q), jnp.zeros_like(q)))
