@@ -9,7 +9,9 @@ A cost is ``cost(TrajectorySample) -> (B,)``: it sees the IK of B candidate path
     limit_penalty        sum_t excess^2  (how far q, |q_dot|, |q_ddot| pass their limits)
     unreachable_penalty  sum_t max(0, -margin)^2
     SingularityBarrier   sum_t (max(0, threshold - margin) / threshold)^2
-    Obstacles            sum_t sum_links sum_obstacles (max(0, safety - distance) / safety)^2
+    Obstacles            sum_t sum_primitives (max(0, safety - nearest distance) / safety)^2
+                         (the robot's collision body, exact signed distances; optionally
+                         its self-collision pairs)
 
 ``compose`` weighs them into a ``Sum``. Costs are described by value (frozen dataclasses; a
 cost's weights, thresholds and obstacle positions are array data), so a new weight or
@@ -28,7 +30,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate, lie, plan
+from . import _validate, collision, plan
 from .jet import Jet
 
 __all__ = [
@@ -119,28 +121,32 @@ def singularity_barrier(threshold: float) -> SingularityBarrier:
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Obstacles:
-    """Spheres and axis-aligned boxes to keep the robot's links clear of, as a cost term.
+    """Obstacles to keep the robot's body clear of, and optionally the body clear of itself,
+    as a cost term.
 
-    Per candidate: ``sum_t sum_links sum_obstacles (max(0, safety - distance) / safety)^2``,
-    where ``distance`` is the signed distance from a link segment (``robot.link_segments``:
-    capsules along the links, the end point included) to an obstacle's surface: exact for
-    spheres, and over ``box_samples`` points along each segment for boxes. Every field is
-    array data, so obstacles can move between calls without a new compilation.
+    Per candidate: ``sum_t sum_p (max(0, safety - min_o d(p, o)) / safety)^2`` over the
+    robot's primitives ``p`` (its collision body, ``robot.collision_body()`` placed by
+    ``robot.link_poses``) and their nearest obstacle ``o`` of the world
+    (``collision.nearest_obstacles``), with ``d`` the exact signed distance of
+    ``collision.distance`` (spheres, capsules, oriented boxes, half-spaces), plus,
+    with ``self_collision``, the same barrier on each of the robot's self-collision link pairs
+    (``robot.self_collision_pairs()``, the smallest distance of the pair). Every field but the
+    structure is array data, so obstacles can move between calls without a new compilation.
 
     Attributes:
-        sphere_centres: ``(S, d)`` (``d`` the target's position dimension); ``(0, d)`` for none.
-        sphere_radii: ``(S,)``.
-        box_centres: ``(Bx, d)``.
-        box_half_extents: ``(Bx, d)`` (half the box's side lengths).
+        world: a ``collision.World`` (3-D; a planar robot's obstacles are placed in its plane,
+            z = 0, with boxes as tall as needed).
         safety: the clearance sought, in length units (> 0).
+        body, pairs: the robot's body and self-collision pairs when bound with ``robot=``;
+            None to read them from the robot the cost is given (that robot's body must then
+            be computable from its traced geometry: the SCARA, the Delta and the arms).
     """
 
-    sphere_centres: Any
-    sphere_radii: Any
-    box_centres: Any
-    box_half_extents: Any
+    world: collision.World
     safety: Any
-    box_samples: int = dataclasses.field(default=8, metadata=dict(static=True))
+    body: Any = None
+    pairs: Any = None
+    self_collision: bool = dataclasses.field(default=False, metadata=dict(static=True))
 
     @classmethod
     def create(
@@ -149,15 +155,24 @@ class Obstacles:
         boxes: tuple[ArrayLike, ArrayLike] | None = None,
         safety: float = 1.0,
         dims: int = 3,
+        world: collision.World | None = None,
+        robot: Any = None,
+        self_collision: bool = False,
     ) -> Obstacles:
         """``spheres=(centres (S, d), radii (S,))``, ``boxes=(centres (Bx, d), half_extents
-        (Bx, d))``, ``safety`` in length units.
+        (Bx, d))`` (axis-aligned) with ``d = dims`` (2 for a planar robot: in the plane z =
+        0), and/or a ``collision.World`` of any obstacles; ``safety`` in length units;
+        ``robot`` binds the cost to that robot's body (needed for a chain, and for
+        ``self_collision``, which adds the robot's self-collision pairs).
 
         Raises:
             ValueError: shapes that do not match, non-finite values, radii or half extents
-                that are negative, or a safety distance that is not positive.
+                that are negative, a safety distance that is not positive, or
+                ``self_collision`` without a ``robot``.
         """
         safety = _validate.positive_number(safety, "safety")
+        if dims not in (2, 3):
+            raise ValueError(f"dims must be 2 or 3, got {dims!r}")
         arrays = []
         for name, pair, size_shape in (("spheres", spheres, ()), ("boxes", boxes, (dims,))):
             if pair is None:
@@ -176,30 +191,51 @@ class Obstacles:
             if np.any(sizes < 0):
                 raise ValueError(f"{name}: sizes must be >= 0, got {sizes}")
             arrays += [centres, sizes]
-        return cls(*(jnp.asarray(x) for x in arrays), jnp.asarray(float(safety)))
-
-    def distances(self, segments: Array) -> Array:
-        """Signed distances ``(..., S + Bx)`` from segments ``(..., 2, d)`` to every obstacle."""
-        a, b = segments[..., 0, :], segments[..., 1, :]
-        dtype = segments.dtype
-        spheres = lie.segment_point_distance(
-            a, b, self.sphere_centres.astype(dtype)
-        ) - self.sphere_radii.astype(dtype)
-        t = jnp.linspace(0.0, 1.0, self.box_samples, dtype=dtype)[:, None]
-        points = a[..., None, :] + t * (b - a)[..., None, :]
-        boxes = jnp.min(
-            lie.point_box_distance(
-                points, self.box_centres.astype(dtype), self.box_half_extents.astype(dtype)
-            ),
-            axis=-2,
+        sphere_c, sphere_r, box_c, box_h = arrays
+        if dims == 2:  # the plane z = 0; a box reaches past any in-plane depth along z
+            sphere_c = np.concatenate([sphere_c, np.zeros((len(sphere_c), 1))], axis=1)
+            tall = np.full((len(box_h), 1), 1e3 * (1.0 + float(np.max(box_h, initial=0.0))))
+            box_c = np.concatenate([box_c, np.zeros((len(box_c), 1))], axis=1)
+            box_h = np.concatenate([box_h, tall], axis=1)
+        if world is not None and not isinstance(world, collision.World):
+            raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
+        extra = collision.World.create(
+            spheres=collision.Spheres.create(sphere_c, sphere_r),
+            boxes=collision.Boxes.create(box_c, half_extents=box_h),
         )
-        return jnp.concatenate([spheres, boxes], axis=-1)
+        merged = extra
+        if world is not None:
+            merged = jax.tree.map(
+                lambda a, b: jnp.concatenate([a, b.astype(a.dtype)]), world, extra
+            )
+        if self_collision and robot is None:
+            raise ValueError("self_collision: needs the robot (robot=...)")
+        body = pairs = None
+        if robot is not None:
+            body, pairs = collision.prepare(robot, self_collision)
+        return cls(merged, jnp.asarray(float(safety)), body, pairs, bool(self_collision))
+
+    def _barrier(self, distance: Array, safety: Array) -> Array:
+        gap = jax.nn.relu(safety - distance) / safety
+        return gap * gap
 
     def __call__(self, sample: TrajectorySample) -> Array:
-        segments = sample.robot.link_segments(sample.q.p, sample.path.p)
-        safety = jnp.asarray(self.safety, segments.dtype)
-        gap = jax.nn.relu(safety - self.distances(segments)) / safety
-        return jnp.sum(gap * gap, axis=(-3, -2, -1))
+        robot = sample.robot
+        q = sample.q.p
+        dtype = q.dtype
+        body, pairs = self.body, self.pairs
+        if body is None:  # the robot's own, from its (traced) geometry
+            body = robot.collision_body()
+        body, world = body.astype(dtype), self.world.astype(dtype)
+        spheres, capsules = body.place(robot.link_poses(q).astype(dtype))
+        safety = jnp.asarray(self.safety, dtype)
+        total = jnp.zeros(q.shape[:-2], dtype)
+        for nearest in collision.nearest_obstacles(spheres, capsules, world):
+            total = total + jnp.sum(self._barrier(nearest.distance, safety), axis=(-2, -1))
+        if self.self_collision and pairs is not None and pairs.link_pairs:
+            d = collision.self_distances(spheres, capsules, pairs)
+            total = total + jnp.sum(self._barrier(d, safety), axis=(-2, -1))
+        return total
 
 
 @jax.tree_util.register_dataclass

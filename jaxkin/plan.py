@@ -82,7 +82,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _processes, _validate
+from . import _batching, _processes, _validate, collision
 from . import timing as _timing
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
@@ -209,6 +209,8 @@ class Evaluation(SolverResult):
         space: ``"task"`` or ``"joint"``, the kind of candidates (static).
         limits: the limits applied, ``(q_min, q_max, v_max, a_max)`` as tuples of floats
             (static; ``applied_limits()`` gives them as ``Limits``).
+        min_clearance: with a ``world``, the smallest clearance along the candidate
+            (``collision.check``: signed distance, robot-world and self), ``(N,)``; else None.
     """
 
     q: Jet
@@ -223,6 +225,7 @@ class Evaluation(SolverResult):
     dt: float | None = dataclasses.field(metadata=dict(static=True), default=None)
     space: str = dataclasses.field(metadata=dict(static=True), default="task")
     limits: tuple = dataclasses.field(metadata=dict(static=True), default=())
+    min_clearance: Array | None = None
 
     def applied_limits(self) -> Limits:
         """The joint limits this evaluation applied (the robot's and the user's)."""
@@ -398,14 +401,23 @@ def _joint_unit(robot, dtype) -> Array:
 
 
 def _checked(
-    robot, q: Jet, status: Array, margin: Array, moving: Array, limits: Limits, dt, weights
+    robot,
+    q: Jet,
+    status: Array,
+    margin: Array,
+    moving: Array,
+    limits: Limits,
+    dt,
+    weights,
+    collide: Any = None,
 ) -> Evaluation:
     """The per-sample checks every candidate goes through, then the summaries and costs.
 
     ``q``: joints ``(N, T, n)`` as solved or given; ``status`` ``(N, T)`` of the solve (OK
     where there are joints to check); ``margin`` ``(N, T)``; ``moving`` ``(N,)``: False for a
     path at rest, whose steps no rates explain. Checks run in order, each only on the samples
-    still OK, so the first failing check names a sample: continuity, then limits.
+    still OK, so the first failing check names a sample: continuity, then limits, then
+    collision (``collide``: ``(body, pairs, world)`` of ``collision.prepare``, or None).
     """
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     solved = status == Status.OK
@@ -418,10 +430,15 @@ def _checked(
     unit = _joint_unit(robot, dtype)
     jumped = unexplained_steps(q, dt, unit) & solved[..., :-1] & moving[:, None]
     jumped = jnp.concatenate([jnp.zeros_like(jumped[..., :1]), jumped], axis=-1)
-    checks = (
+    checks = [
         (jumped, Status.DISCONTINUOUS),
         (limit_excess(q, limits) > 0, Status.OUT_OF_LIMITS),
-    )
+    ]
+    min_clearance = None
+    if collide is not None:  # collision.check of every sample: the body against world and self
+        checked = collision.check_kernel(robot, *collide[:2], q.p, collide[2])
+        checks.append((checked.collides, Status.COLLISION))
+        min_clearance = jnp.min(checked.clearance, axis=-1)
     for failed, code in checks:
         status = jnp.where((status == Status.OK) & failed, jnp.int8(code), status)
     status = status.astype(STATUS_DTYPE)
@@ -437,6 +454,7 @@ def _checked(
         branch=jnp.zeros(feasible.shape, jnp.int8),
         costs=trajectory_costs(q, dt, limits, feasible, unit, weights),
         branches=robot.branches,
+        min_clearance=min_clearance,
     )
 
 
@@ -445,12 +463,15 @@ def _moving(path: Jet) -> Array:
     return jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))
 
 
-def _evaluate_branch(robot, path: Jet, limits: Limits, dt, weights, branch_index) -> Evaluation:
+def _evaluate_branch(
+    robot, path: Jet, limits: Limits, dt, weights, branch_index, collide=None
+) -> Evaluation:
     """Every task-space candidate on one branch; ``branch_index`` an int, or a traced one."""
     # Along each candidate: an iterative IK warm-starts every sample from the previous one.
     path = path.astype(robot.work_dtype(path.dtype))
     res = robot.ik_path_kernel(path, branch_index, robot.IKOptions())
-    ev = _checked(robot, res.q, res.status, res.margin, _moving(path), limits, dt, weights)
+    moving = _moving(path)
+    ev = _checked(robot, res.q, res.status, res.margin, moving, limits, dt, weights, collide)
     return dataclasses.replace(ev, branch=jnp.full(ev.feasible.shape, branch_index, jnp.int8))
 
 
@@ -464,7 +485,7 @@ def _wrapped_distance(q: Array, reference: Array, revolute: Any, unit: Array) ->
     return jnp.mean(jnp.max(d, axis=-1), axis=-1)
 
 
-def _evaluate_joint(robot, path: Jet, limits: Limits, dt, weights) -> Evaluation:
+def _evaluate_joint(robot, path: Jet, limits: Limits, dt, weights, collide=None) -> Evaluation:
     """Joint-space candidates ``(N, T, n)``: the tool path by forward kinematics with rates,
     then the checks of ``_checked``; the margin and branch from the IK of the tool path on
     the branch whose joints are nearest the given ones."""
@@ -478,21 +499,23 @@ def _evaluate_joint(robot, path: Jet, limits: Limits, dt, weights) -> Evaluation
     distance = jax.vmap(lambda other: _wrapped_distance(other, q.p, revolute, unit))(every.q.p)
     branch = jnp.argmin(distance, axis=0)
     margin = jnp.take_along_axis(every.margin, branch[None, :, None], axis=0)[0]
-    ev = _checked(robot, q, fk.status, margin, _moving(q), limits, dt, weights)
+    ev = _checked(robot, q, fk.status, margin, _moving(q), limits, dt, weights, collide)
     return dataclasses.replace(ev, branch=branch.astype(jnp.int8), tool=fk.x)
 
 
 def _evaluate_impl(
-    robot, path: Jet, limits: Limits, dt, weights, branch: Any, space: str
+    robot, path: Jet, limits: Limits, dt, weights, branch: Any, space: str, collide=None
 ) -> Evaluation:
     if space == "joint":
-        return _evaluate_joint(robot, path, limits, dt, weights)
+        return _evaluate_joint(robot, path, limits, dt, weights, collide)
     branches = robot.branches
     if branch != "best" or len(branches) == 1:
         index = 0 if branch == "best" else branches.index(branch)
-        return _evaluate_branch(robot, path, limits, dt, weights, index)
+        return _evaluate_branch(robot, path, limits, dt, weights, index, collide)
     indices = jnp.arange(len(branches), dtype=jnp.int32)
-    every = jax.vmap(lambda i: _evaluate_branch(robot, path, limits, dt, weights, i))(indices)
+    every = jax.vmap(lambda i: _evaluate_branch(robot, path, limits, dt, weights, i, collide))(
+        indices
+    )
     # Per candidate: the feasible branch of least total (the first on ties); when none is
     # feasible, the one that fails latest along the path (it got furthest).
     total = jnp.where(every.feasible, every.costs.total, jnp.inf)
@@ -525,6 +548,7 @@ def evaluate(
     chunk_size: int | None = None,
     *,
     weights: ArrayLike | None = None,
+    world: Any = None,
 ) -> Evaluation:
     """Evaluate N candidate trajectories, in task or joint space (see the module docstring).
 
@@ -551,6 +575,9 @@ def evaluate(
             ``"best"``).
         weights: per-joint weights ``(n,)`` of the costs (default 1): each joint's terms are
             multiplied by its weight (``joint_scales``).
+        world: a ``collision.World``: every solved sample is checked (``collision.check``,
+            the robot's body against the world and itself) and one that collides gets the
+            status ``COLLISION``; ``min_clearance`` is then each candidate's smallest clearance.
 
     Returns:
         An ``Evaluation``; ``branch`` tells which branch each candidate used. Zero candidates
@@ -579,6 +606,11 @@ def evaluate(
         )
     limits = robot_limits(robot, limits)
     weights = _weights(weights, robot.n_joints)
+    collide = None
+    if world is not None:
+        if not isinstance(world, collision.World):
+            raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
+        collide = (*collision.prepare(robot), world)
     n, t = path.shape[:2]
     # "best" holds every branch of a chunk at once; a joint path solves every branch once
     held = len(robot.branches) if (branch == "best" or space == "joint") else 1
@@ -592,7 +624,16 @@ def evaluate(
         samples = _batching.padded_size(candidates) * t * held
         pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
         return _evaluate_jit(
-            robot, chunk, limits, dt, weights, branch, space, batch=(candidates,), pad=pad
+            robot,
+            chunk,
+            limits,
+            dt,
+            weights,
+            branch,
+            space,
+            collide,
+            batch=(candidates,),
+            pad=pad,
         )
 
     if n == 0:  # the kernel's shapes from one placeholder candidate, then none of it

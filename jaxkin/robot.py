@@ -15,7 +15,10 @@ command line are written against this interface alone and never ask which robot 
 * ``robot.reachable``: the statuses that count as reachable in a workspace sweep;
 * ``robot.length_scale()``: a characteristic length (the robot's size),
   ``robot.workspace_box()``: the default box and voxel edge of a sweep, and
-  ``robot.link_segments(q, x)``: the links as segments, for collision costs.
+  ``robot.link_segments(q, x)``: the links as segments;
+* ``robot.collision_body()`` (a ``collision.Body``), ``robot.link_poses(q)`` (every link's
+  pose, a pure kernel) and ``robot.self_collision_pairs()``: the body that
+  ``collision.check`` places and checks.
 
 ``ik(robot, target, branch=None, options=None)`` returns an ``IKResult`` (``q``: a ``Jet`` of
 joint coordinates ``(..., n_joints)``, ``status``, ``margin``) for the default branch when
@@ -405,6 +408,22 @@ class Robot(Geometry, metaclass=abc.ABCMeta):
         if self.target.name == "planar pose":
             point = x[..., :2]
         return jnp.stack([point, point], axis=-2)[..., None, :, :]
+
+    def collision_body(self) -> Any:
+        """The robot's body for collision checks: a ``collision.Body`` (spheres and capsules
+        attached to the links that ``link_poses`` places; host side). A robot without one
+        raises a ``ValueError``."""
+        raise ValueError(f"{type(self).__name__} has no collision body (collision_body)")
+
+    def link_poses(self, q: Array) -> Array:
+        """Every link's pose ``(..., L, 4, 4)`` (world <- link, in the order of
+        ``collision_body().links``) at joints ``q`` ``(..., n)``: a pure, traceable kernel."""
+        raise ValueError(f"{type(self).__name__} has no link poses (link_poses)")
+
+    def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
+        """The link index pairs ``(i, j)``, ``i < j``, checked for self-collision (host side;
+        by default none)."""
+        return ()
 
     def check_branch(self, branch: Any) -> Any:
         """``branch``, or the default branch for None; ``ValueError`` naming the choices."""

@@ -38,10 +38,11 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate, dyad, planar
-from ._geometry import LENGTH, geometry, number
+from . import _validate, dyad, lie, planar
+from ._geometry import LENGTH, NONNEGATIVE, geometry, number
 from ._numerics import all_finite, computed_once
 from ._trig import cos_alone, sin_alone, sincos
+from .collision.body import Body
 from .jet import Jet, lift
 from .result import FKResult, IKResult
 from .robot import POINT, JointLimits, Robot, options, solve_fk, solve_ik
@@ -90,12 +91,15 @@ class Scara(Robot):
         l_bc: forearm length, elbow B to wrist C; positive.
         limits: ``JointLimits`` on ``(theta1, theta2, l3)`` (unwrapped theta1, eq. 15
             theta2), a mapping ``{"theta1": (low, high), ...}``, or None.
+        link_radius: radius of the capsules of the collision body (``collision_body``),
+            >= 0; default 0 (the links as their centre lines).
     """
 
     l_oa: Array = number(LENGTH, None)
     l_ab: Array = number(LENGTH, None)
     l_bc: Array = number(LENGTH, None)
     limits: JointLimits | None = None
+    link_radius: Array = number(NONNEGATIVE, default=0.0)
 
     target: ClassVar = POINT
     branches: ClassVar = BRANCHES
@@ -178,6 +182,55 @@ class Scara(Robot):
         )
         d = c - jnp.stack([zero, zero, l3], -1)
         return jnp.stack([jnp.stack([a, b], -2), jnp.stack([b, c], -2), jnp.stack([c, d], -2)], -3)
+
+    def collision_body(self) -> Body:
+        """Four capsules of radius ``link_radius`` (an unbatched geometry; traceable):
+        ``column`` O -> A, ``arm`` A -> B, ``forearm`` B -> C and ``quill``, a rod of length
+        ``l_oa`` standing on the end point D (it slides through the wrist C)."""
+        if self.batch_shape():
+            raise ValueError("Scara.collision_body: needs an unbatched geometry")
+        zero = 0.0 * jnp.asarray(self.l_oa)
+        ends = [
+            (zero, zero, self.l_oa),
+            (self.l_ab, zero, zero),
+            (self.l_bc, zero, zero),
+            (zero, zero, self.l_oa),
+        ]
+        b = jnp.stack([jnp.stack([jnp.asarray(x) for x in e]) for e in ends])
+        names = ("column", "arm", "forearm", "quill")
+        return Body.of_capsules(names, (0, 1, 2, 3), jnp.zeros_like(b), b, self.link_radius)
+
+    def link_poses(self, q: Array) -> Array:
+        """Poses ``(..., 4, 4, 4)`` of ``column`` (the base frame), ``arm`` (at A, turned by
+        ``theta1``), ``forearm`` (at B, turned by ``theta1 - theta2``) and ``quill`` (at D,
+        turned as the forearm)."""
+        theta1, theta2, l3 = q[..., 0], q[..., 1], q[..., 2]
+        zero, one = jnp.zeros_like(theta1), jnp.ones_like(theta1)
+        l_oa = jnp.asarray(self.l_oa, q.dtype) * one
+
+        def turn(angle):
+            c, s = jnp.cos(angle), jnp.sin(angle)
+            rows = [[c, -s, zero], [s, c, zero], [zero, zero, one]]
+            return jnp.stack([jnp.stack(r, -1) for r in rows], -2)
+
+        a = jnp.stack([zero, zero, l_oa], -1)
+        b = a + self.l_ab * jnp.stack([jnp.cos(theta1), jnp.sin(theta1), zero], -1)
+        c = b + self.l_bc * jnp.stack(
+            [jnp.cos(theta1 - theta2), jnp.sin(theta1 - theta2), zero], -1
+        )
+        d = c - jnp.stack([zero, zero, l3], -1)
+        eye = jnp.broadcast_to(jnp.eye(3, dtype=q.dtype), (*theta1.shape, 3, 3))
+        rotations = [eye, turn(theta1), turn(theta1 - theta2), turn(theta1 - theta2)]
+        origins = [jnp.zeros_like(a), a, b, d]
+        return jnp.stack(
+            [lie.from_rotation_translation(r, p) for r, p in zip(rotations, origins, strict=True)],
+            -3,
+        )
+
+    def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
+        """The quill against the column and the arm (the other pairs are adjacent, or stacked
+        at different heights on a real SCARA)."""
+        return ((0, 3), (1, 3))
 
     def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> IKResult:
         return _ik_impl(self, target, branch, options.method)

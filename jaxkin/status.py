@@ -41,6 +41,7 @@ class Status(enum.IntEnum):
     INVALID_INPUT = 8
     UNTIMEABLE = 9
     DISCONTINUOUS = 10
+    COLLISION = 11
 
 
 _DESCRIPTIONS = {
@@ -70,6 +71,10 @@ _DESCRIPTIONS = {
     Status.DISCONTINUOUS: (
         "solved, but the joints jump from the previous sample by a step their rates do not "
         "explain (the solution switched): the path cannot be followed continuously"
+    ),
+    Status.COLLISION: (
+        "solved, but the robot's body touches an obstacle of the world or itself "
+        "(collision.check: clearance <= 0)"
     ),
 }
 

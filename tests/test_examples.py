@@ -136,3 +136,24 @@ def test_urdf_arm(tmp_path, capsys):
     assert number_after(out, "tool pose from its joints within") < 1e-8
     table = np.loadtxt(tmp_path / "urdf_arm_best.csv", delimiter=",", skiprows=1)
     assert table.shape == (50, 19)
+
+
+@pytest.mark.slow
+def test_ompl_ur5(tmp_path, capsys):
+    pytest.importorskip("ompl")
+    out = run("ompl_ur5", tmp_path, capsys)
+    assert "straight joint-space line valid: False" in out
+    edges = re.search(r"every edge re-checked in one call: (\d+) of (\d+) valid", out)
+    assert edges and edges.group(1) == edges.group(2)
+    path = np.loadtxt(tmp_path / "ompl_ur5_path.csv", delimiter=",", skiprows=1)
+    assert path.shape[1] == 6 and len(path) >= 3  # the straight line is blocked
+
+
+@pytest.mark.slow
+def test_roadmap_ur5(tmp_path, capsys):
+    out = run("roadmap_ur5", tmp_path, capsys)
+    edges = re.search(r"path re-checked: (\d+) of (\d+) edges valid", out)
+    assert edges and edges.group(1) == edges.group(2)
+    path = np.loadtxt(tmp_path / "roadmap_ur5_path.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(path[0], [-1.2, -1.2, 1.6, -1.9, -1.57, 0.0])
+    np.testing.assert_allclose(path[-1], [1.2, -1.2, 1.6, -1.9, -1.57, 0.0])

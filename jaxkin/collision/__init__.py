@@ -11,13 +11,26 @@
 - ``cover``: conservative sphere covers of meshes, capsule covers of boxes.
 - ``pairs``: self-collision link pairs (adjacency, SRDF ``disable_collisions``),
   ``self_distances``, ``propose_disabled``.
+- ``check``: ``check(robot, q, world)``, a robot's configurations against the world and
+  itself (clearance, collision flag, which pair), batched.
+- ``motions``: ``validate_motions(robot, q_from, q_to, world, resolution)``, M joint-space
+  edges in one compiled call.
 """
 
 from . import distance as distance
 from .body import Body as Body
+from .check import ROBOT_WORLD as ROBOT_WORLD
+from .check import SELF as SELF
+from .check import CheckResult as CheckResult
+from .check import check as check
+from .check import check_kernel as check_kernel
+from .check import prepare as prepare
 from .cover import SphereCover as SphereCover
 from .cover import box_capsules as box_capsules
 from .cover import mesh_sphere_cover as mesh_sphere_cover
+from .motions import MotionResult as MotionResult
+from .motions import validate_motions as validate_motions
+from .motions import validate_motions_kernel as validate_motions_kernel
 from .pairs import SelfPairs as SelfPairs
 from .pairs import adjacent_links as adjacent_links
 from .pairs import propose_disabled as propose_disabled
@@ -43,11 +56,15 @@ __all__ = [
     "BOX",
     "CAPSULE",
     "HALFSPACE",
+    "ROBOT_WORLD",
+    "SELF",
     "SPHERE",
     "Body",
     "Boxes",
     "Capsules",
+    "CheckResult",
     "HalfSpaces",
+    "MotionResult",
     "Nearest",
     "SelfPairs",
     "SphereCover",
@@ -57,12 +74,17 @@ __all__ = [
     "adjacent_links",
     "body_from_urdf",
     "box_capsules",
+    "check",
+    "check_kernel",
     "distance",
     "mesh_sphere_cover",
     "nearest_obstacles",
     "point_cloud_spheres",
+    "prepare",
     "propose_disabled",
     "read_srdf_disabled",
     "self_collision_link_pairs",
     "self_distances",
+    "validate_motions",
+    "validate_motions_kernel",
 ]

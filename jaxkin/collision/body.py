@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -98,6 +99,28 @@ class Body:
             tuple(s_link),
             tuple(c_link),
             links,
+        )
+
+    @classmethod
+    def of_capsules(
+        cls, links: tuple[str, ...], capsule_link: tuple[int, ...], a: Any, b: Any, radius: Any
+    ) -> Body:
+        """A body of capsules only, from arrays ``a, b (nc, 3)``, ``radius (nc,)`` (link index
+        per capsule static): no host-side checks, so that it can be built from traced
+        geometry (a robot's lengths under ``jit``)."""
+        a, b = jnp.asarray(a), jnp.asarray(b)
+        dtype = jnp.result_type(a, b, radius, float)
+        radius = jnp.broadcast_to(jnp.asarray(radius, dtype), (len(capsule_link),))
+        empty = jnp.zeros((0, 3), dtype)
+        return cls(
+            empty,
+            jnp.zeros((0,), dtype),
+            a.astype(dtype),
+            b.astype(dtype),
+            radius,
+            (),
+            tuple(capsule_link),
+            tuple(links),
         )
 
     @property

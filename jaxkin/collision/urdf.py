@@ -19,6 +19,7 @@ Parsing uses yourdfpy and meshes trimesh (the ``urdf`` extra).
 from __future__ import annotations
 
 import dataclasses
+import io
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -49,12 +50,17 @@ def _load_model(source: str | os.PathLike):
         raise ImportError(
             "reading a URDF needs the 'urdf' extra: pip install 'jaxkin[urdf]'"
         ) from exc
-    path = Path(source)
-    if not path.is_file():
-        raise ValueError(f"source: no such URDF file {str(path)!r}")
+    text = os.fsdecode(source) if isinstance(source, bytes | os.PathLike) else source
+    if isinstance(text, str) and text.lstrip("\ufeff \t\r\n").startswith("<"):
+        path, data = Path("URDF text"), io.BytesIO(text.encode("utf-8"))
+    else:
+        path = Path(source)
+        if not path.is_file():
+            raise ValueError(f"source: no such URDF file {str(path)!r}")
+        data = str(path)
     try:
         return yourdfpy.URDF.load(
-            str(path),
+            data,
             build_scene_graph=False,
             build_collision_scene_graph=False,
             load_meshes=False,
@@ -104,7 +110,8 @@ def body_from_urdf(
     """Read a URDF's collision geometry as a ``Body`` (spheres and capsules per link).
 
     Args:
-        source: path of the URDF file.
+        source: path of the URDF file, or its XML text (meshes then relative to the current
+            folder).
         max_spheres_per_mesh: sphere budget of each mesh cover.
         max_overshoot: stop refining a mesh cover once its overshoot bound is at most this
             (metres); ``None`` uses the whole budget.
@@ -117,8 +124,9 @@ def body_from_urdf(
     """
     import trimesh
 
-    path = Path(source)
-    model = _load_model(path)
+    model = _load_model(source)
+    is_text = isinstance(source, str) and source.lstrip("\ufeff \t\r\n").startswith("<")
+    path = Path.cwd() / "urdf" if is_text else Path(source)
     links = tuple(link.name for link in model.links)
     spheres: dict[str, list] = {}
     capsules: dict[str, list] = {}

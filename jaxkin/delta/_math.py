@@ -166,6 +166,7 @@ def in_own_units(robot: Robot) -> tuple[Robot, Any]:
     scale = robot.l_arm + robot.l_rod
     lengths = [robot.r_base, robot.r_platform, robot.l_arm, robot.l_rod]
     fields = [x / scale for x in lengths] + [robot.theta_min, robot.theta_max]
+    fields.append(robot.link_radius / scale)
     return jax.tree.unflatten(jax.tree.structure(robot), fields), scale
 
 
@@ -187,7 +188,7 @@ def rates_ok(status: Array) -> Array:
 
 def frozen(robot: Robot) -> Robot | None:
     """The robot with Python-float fields when every field is a concrete scalar, else None."""
-    values = concrete_scalars(robot, FIELDS)
+    values = concrete_scalars(robot, (*FIELDS, "link_radius"))
     if values is None:
         return None
     return jax.tree.unflatten(jax.tree.structure(robot), list(values))

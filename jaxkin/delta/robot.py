@@ -23,8 +23,9 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
-from .._geometry import BOUND, LENGTH, geometry, number
+from .. import _batching, _validate, lie
+from .._geometry import BOUND, LENGTH, NONNEGATIVE, geometry, number
+from ..collision.body import Body
 from ..jet import Jet
 from ..result import IKResult
 from ..robot import POINT, CompilePolicy, JointLimits, Robot, solve_fk, solve_ik
@@ -47,6 +48,8 @@ class Delta(Robot):
         l_rod: length of the parallelogram rods, elbow to platform joint (positive, length).
         theta_min: lower actuator limit (rad), ``-inf`` for none.
         theta_max: upper actuator limit (rad), ``+inf`` for none; ``theta_min < theta_max``.
+        link_radius: radius of the collision body's capsules (``collision_body``), >= 0;
+            default 0 (arms, rods and platform edges as their centre lines).
 
     Every field is a scalar pytree leaf (differentiable, e.g. for calibration; vmappable over
     a batch of robots). A ``Delta`` of Python numbers is compiled into the kernels as
@@ -59,6 +62,7 @@ class Delta(Robot):
     l_rod: Any = number(LENGTH)
     theta_min: Any = number(BOUND, default=-math.inf)
     theta_max: Any = number(BOUND, default=math.inf)
+    link_radius: Any = number(NONNEGATIVE, default=0.0)
 
     target: ClassVar = POINT
     branches: ClassVar = BRANCHES
@@ -121,6 +125,54 @@ class Delta(Robot):
             axis = jnp.broadcast_to(axis, elbow.shape)
             segments += [jnp.stack([axis, elbow], -2), jnp.stack([elbow, joint], -2)]
         return jnp.stack(segments, -3)
+
+    def collision_body(self) -> Body:
+        """Capsules of radius ``link_radius``: ``arm_i`` A_i -> E_i, ``rod_i`` E_i -> D_i (the
+        parallelogram's centre line, length ``l_rod``) and the ``platform``'s triangle of rod
+        joints D_1 D_2 D_3; the ``base`` link carries none (traceable)."""
+        names = ("base", "arm_1", "arm_2", "arm_3", "rod_1", "rod_2", "rod_3", "platform")
+        zero = 0.0 * jnp.asarray(self.l_arm)
+        ux, uy = jnp.asarray(UX), jnp.asarray(UY)
+        corners = self.r_platform * jnp.stack([ux, uy, 0.0 * ux], -1)
+        tips = [jnp.stack([jnp.asarray(length), zero, zero]) for length in (self.l_arm, self.l_rod)]
+        a = jnp.concatenate([jnp.zeros((6, 3)) + zero, corners])
+        b = jnp.concatenate([jnp.stack([tips[0]] * 3 + [tips[1]] * 3), jnp.roll(corners, -1, 0)])
+        return Body.of_capsules(names, (1, 2, 3, 4, 5, 6, 7, 7, 7), a, b, self.link_radius)
+
+    def link_poses(self, q: Array) -> Array:
+        """Poses ``(..., 8, 4, 4)``: ``base`` (identity); ``arm_i`` at A_i with x along the arm
+        (``cos theta_i u_i - sin theta_i e_z``) and y along the actuator axis ``w_i = e_z x
+        u_i``; ``rod_i`` at E_i with x towards D_i; the ``platform`` translated to the closed
+        form FK's lower solution (``fk_closed_form``)."""
+        dtype = q.dtype
+        x = forward._fk_closed_form_impl(self, q).x
+        ez = jnp.asarray([0.0, 0.0, 1.0], dtype)
+        eye = jnp.broadcast_to(jnp.eye(3, dtype=dtype), (*q.shape[:-1], 3, 3))
+        poses = [lie.from_rotation_translation(eye, jnp.zeros_like(x))]
+        arms, rods = [], []
+        for i in range(3):
+            u = jnp.asarray([UX[i], UY[i], 0.0], dtype)
+            w = jnp.asarray([-UY[i], UX[i], 0.0], dtype)
+            cos_t, sin_t = jnp.cos(q[..., i, None]), jnp.sin(q[..., i, None])
+            along = cos_t * u - sin_t * ez
+            axis = jnp.broadcast_to(self.r_base * u, along.shape)
+            elbow = axis + self.l_arm * along
+            arms.append(_frame(axis, along, w))
+            rod = x + self.r_platform * u - elbow
+            length = jnp.sqrt(jnp.maximum(jnp.sum(rod * rod, -1, keepdims=True), 1e-30))
+            rods.append(_frame(elbow, rod / length, w))
+        poses += arms + rods + [lie.from_rotation_translation(eye, x)]
+        return jnp.stack(poses, -3)
+
+    def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Arms against arms, rods against rods and other chains' arms, and the platform
+        against the arms (a rod is adjacent to its arm and to the platform)."""
+        arm, rod, platform = (1, 2, 3), (4, 5, 6), 7
+        pairs = [(a, b) for a in arm for b in arm if a < b]
+        pairs += [(a, b) for a in rod for b in rod if a < b]
+        pairs += [(a, r) for a in arm for r in rod if r - a != 3]
+        pairs += [(a, platform) for a in arm]
+        return tuple(sorted(pairs))
 
     def ik_kernel(self, target: Jet, branch: Any, options: DeltaIKOptions, rates: bool) -> IKResult:
         return inverse.ik_kernel(self, target, branch, options, rates)
@@ -254,3 +306,13 @@ def singularity(
     p = jnp.broadcast_to(p, (*shape, 3)).astype(dtype)
     theta = jnp.broadcast_to(theta, (*shape, 3)).astype(dtype)
     return jacobians.singularity_jit(robot, p, theta)
+
+
+def _frame(origin: Array, x_axis: Array, towards: Array) -> Array:
+    """The pose at ``origin`` whose x axis is the unit ``x_axis`` and whose y axis is the part
+    of ``towards`` orthogonal to it (never parallel to it here: ``towards`` is an actuator
+    axis, normal to the arm and, within the workspace, far from the rod)."""
+    y = towards - jnp.sum(towards * x_axis, -1, keepdims=True) * x_axis
+    y = y / jnp.sqrt(jnp.maximum(jnp.sum(y * y, -1, keepdims=True), 1e-30))
+    rot = jnp.stack([x_axis, y, jnp.cross(x_axis, y)], -1)
+    return lie.from_rotation_translation(rot, origin)

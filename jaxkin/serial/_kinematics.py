@@ -45,6 +45,7 @@ __all__ = [
     "fk_and_jacobian",
     "fk_rp",
     "follow_matrix",
+    "joint_prefix_poses",
     "pose",
     "screws_fk_and_jacobian",
     "screws_fk_rp",
@@ -131,6 +132,21 @@ def _joint_exp(screw: Array, theta: Array) -> tuple[Array, Array]:
     omc = 1.0 - c
     rot = jnp.eye(3, dtype=theta.dtype) + s[..., None] * w + omc[..., None] * w2
     return rot, q * v + omc * (w @ v) + (q - s) * (w2 @ v)
+
+
+def joint_prefix_poses(chain: Any, q: Array) -> Array:
+    """``exp([S_1] theta_1) ... exp([S_k] theta_k)`` for ``k = 0 ... m`` (the identity first):
+    the motion of every link that the first ``k`` path joints carry, ``(..., m + 1, 4, 4)``
+    (a link's pose is this times its pose at ``theta = 0``, in the base frame)."""
+    theta = angles(chain, q)
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=theta.dtype), (*theta.shape[:-1], 3, 3))
+    acc = (eye, jnp.zeros((*theta.shape[:-1], 3), theta.dtype))
+    poses = [lie.from_rotation_translation(*acc)]
+    for i in range(theta.shape[-1]):
+        e = _joint_exp(chain.screws[i], theta[..., i])
+        acc = _compose(acc, e)
+        poses.append(lie.from_rotation_translation(*acc))
+    return jnp.stack(poses, axis=-3)
 
 
 def _home(home: Array) -> tuple[Array, Array]:

@@ -47,8 +47,12 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _batching, _validate
-from .._geometry import BOUND, REAL, geometry, label, number, static
+from .._geometry import BOUND, REAL, Geometry, geometry, label, number, static
 from .._numerics import eps
+from ..collision.body import Body
+from ..collision.check import chain_self_pairs
+from ..collision.pairs import read_srdf_disabled, self_collision_link_pairs
+from ..collision.urdf import body_from_urdf
 from ..jet import Jet
 from ..result import FKResult, IKResult, forward_result
 from ..robot import POINT, POSE, CompilePolicy, JointLimits, Robot, Target, promoted
@@ -56,7 +60,7 @@ from ..status import Status
 from . import _kinematics, search
 from .search import ChainIKOptions
 
-__all__ = ["JOINT_KINDS", "TARGETS", "Chain", "body_jacobian", "space_jacobian"]
+__all__ = ["JOINT_KINDS", "TARGETS", "Chain", "ChainLinks", "body_jacobian", "space_jacobian"]
 
 JOINT_KINDS = ("revolute", "continuous", "prismatic")
 TARGETS = ("pose", "point")  # ``Chain.target_kind``: the tip's 4x4 pose, or its origin (3,)
@@ -128,6 +132,10 @@ class Chain(Robot):
         base_link, tip_link: labels, the link names (for messages; may be empty).
         target_kind: static, ``"pose"`` (targets are 4x4 poses, ``target`` is ``POSE``) or
             ``"point"`` (the tip's origin ``(3,)``, ``target`` is ``POINT``).
+        links: ``ChainLinks`` (every link's pose at ``theta = 0`` and the path joints that
+            move it: ``link_poses``, ``collision_body``), set by ``from_urdf``; None for the
+            default links ``base, link1, ..., linkm`` (the base frame carried by the first
+            ``k`` joints).
     """
 
     screws: Array = number(REAL, (-1, 6))
@@ -143,6 +151,7 @@ class Chain(Robot):
     base_link: str = label(default="")
     tip_link: str = label(default="")
     target_kind: str = static(default="pose")
+    links: Any = None
 
     branches: ClassVar = ("newton",)
     reachable: ClassVar = (Status.OK,)
@@ -403,6 +412,139 @@ class Chain(Robot):
 
     def work_dtype(self, dtype: Any) -> Any:
         return promoted(dtype, self.screws.dtype)
+
+    # -------------------------------------------------------------------- collision
+    def link_poses(self, q: Array) -> Array:
+        """Every link's pose in the base frame at coordinates ``q`` ``(..., n)``:
+        ``exp([S_1] theta_1) ... exp([S_k] theta_k) M_l`` for a link at home pose ``M_l``
+        carried by the first ``k`` path joints, ``(..., L, 4, 4)`` (``links``)."""
+        chain = _validate.cast_leaves(self, q.dtype)
+        prefix = _kinematics.joint_prefix_poses(chain, q)
+        if chain.links is None:
+            return prefix
+        carried = prefix[..., np.asarray(chain.links.moved_by, dtype=np.int32), :, :]
+        return jnp.einsum("...lij,ljk->...lik", carried, chain.links.homes)
+
+    def collision_body(self) -> Body:
+        """The body: from the URDF's ``<collision>`` elements for a chain read from a URDF
+        (``collision.body_from_urdf``), else a skeleton of capsules of radius 0: link ``k``
+        from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the projection of
+        the previous point on the next axis, as ``reach()``), the last link to the tip; a
+        prismatic joint's travel is not covered. Links given spheres by
+        ``with_link_spheres`` have those instead."""
+        links = self.links
+        spheres = dict(links.spheres) if links is not None else {}
+        if links is not None and links.source:
+            read = body_from_urdf(links.source, link_spheres=spheres or None)
+            if read.body.links != tuple(links.names):
+                raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
+            if read.body.num_spheres + read.body.num_capsules:
+                return read.body
+            return _urdf_skeleton(links).with_link_spheres(spheres)
+        screws = np.asarray(self.screws, float)
+        current, points = np.zeros(3), [np.zeros(3)]
+        for omega, v in zip(screws[:, :3], screws[:, 3:], strict=True):
+            if np.linalg.norm(omega) > 0.5:
+                foot = np.cross(omega, v)
+                current = foot + omega * np.dot(omega, current - foot)
+            points.append(current)
+        points.append(np.asarray(self.home, float)[:3, 3])
+        names = _default_link_names(len(screws))
+        capsules = {name: ([points[k]], [points[k + 1]], [0.0]) for k, name in enumerate(names)}
+        return Body.create(names, capsules=capsules).with_link_spheres(spheres)
+
+    def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
+        """A URDF chain: every pair of links with geometry but adjacent ones (parent and child,
+        looking through links without geometry) and those an SRDF disables (``with_srdf``);
+        for a skeleton body, those not in contact at ``q = 0`` either. Otherwise links at
+        least two apart, not in contact at ``q = 0``."""
+        links = self.links
+        if links is None or not links.source:
+            return chain_self_pairs(self)
+        body = self.collision_body()
+        pairs = self_collision_link_pairs(body, links.tree, links.disabled)
+        if links.spheres or body.num_spheres or body.capsule_radius.size == 0:
+            return pairs
+        # a skeleton (no <collision> elements): its short links touch at q = 0
+        return chain_self_pairs(self, candidates=pairs)
+
+    def with_link_spheres(self, spheres: Any) -> Chain:
+        """This chain with the named links' collision geometry replaced by the user's own
+        spheres: ``{link: (centers (k, 3), radii (k,))}`` in that link's frame."""
+        links = self.links
+        if links is None:
+            m = self.n_path_joints
+            homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
+            links = ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
+        for name in spheres:
+            if name not in links.names:
+                raise ValueError(f"spheres: unknown link {name!r} (links: {links.names})")
+        merged = tuple({**dict(links.spheres), **dict(spheres)}.items())
+        return self.replace(links=links.replace(spheres=merged))
+
+    def with_link_radius(self, radius: float) -> Chain:
+        """This chain (read from a URDF without ``<collision>`` elements) with the capsules of
+        its skeleton body (link origin to each child joint's origin) of ``radius``."""
+        if self.links is None or not self.links.source:
+            raise ValueError("with_link_radius: the chain was not read from a URDF")
+        if not np.isfinite(radius) or radius < 0:
+            raise ValueError(f"radius must be finite and >= 0, got {radius}")
+        return self.replace(links=self.links.replace(radius=float(radius)))
+
+    def with_srdf(self, source: Any) -> Chain:
+        """This chain (read from a URDF) with the link pairs an SRDF's
+        ``<disable_collisions>`` names (path or XML text) left out of self-collision."""
+        if self.links is None or not self.links.source:
+            raise ValueError("with_srdf: the chain was not read from a URDF")
+        disabled = tuple((a, b) for a, b, _ in read_srdf_disabled(source))
+        return self.replace(links=self.links.replace(disabled=self.links.disabled + disabled))
+
+
+def _urdf_skeleton(links: ChainLinks) -> Body:
+    """A URDF without ``<collision>`` elements: on every link a capsule of radius
+    ``links.radius`` from its origin to each child joint's origin."""
+    homes = np.asarray(links.homes, float)
+    index = {name: i for i, name in enumerate(links.names)}
+    ends: dict[str, list] = {}
+    for parent, child, _ in links.tree:
+        offset = np.linalg.solve(homes[index[parent]], homes[index[child]])[:3, 3]
+        if np.linalg.norm(offset) > 0:
+            ends.setdefault(parent, []).append(offset)
+    radius = float(links.radius)
+    capsules = {
+        name: (np.zeros((len(e), 3)), np.stack(e), np.full(len(e), radius))
+        for name, e in ends.items()
+    }
+    return Body.create(tuple(links.names), capsules=capsules)
+
+
+def _default_link_names(m: int) -> tuple[str, ...]:
+    return ("base", *(f"link{k + 1}" for k in range(m)))
+
+
+@geometry
+class ChainLinks(Geometry):
+    """Every link of a URDF for a chain's collision body.
+
+    Attributes:
+        homes: each link's pose in the chain's base frame at ``theta = 0``, ``(L, 4, 4)``.
+        moved_by: static, per link the number ``k`` of path joints that carry it (0 ... m).
+        names: label, the link names (the order of ``collision_body().links``).
+        source: label, the URDF (path or text) whose ``<collision>`` elements make the body.
+        tree: label, the URDF's joints ``(parent, child, type)`` (adjacency).
+        spheres: label, the user's own spheres per link, ``((name, (centers, radii)), ...)``.
+        disabled: label, link name pairs left out of self-collision (an SRDF's).
+        radius: label, the skeleton's capsule radius for a URDF without ``<collision>``.
+    """
+
+    homes: Array = number(REAL, (-1, 4, 4))
+    moved_by: tuple[int, ...] = static()
+    names: tuple[str, ...] = label()
+    source: str = label(default="")
+    tree: tuple = label(default=())
+    spheres: tuple = label(default=())
+    disabled: tuple = label(default=())
+    radius: float = label(default=0.0)
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .chain import TARGETS, Chain
+from .chain import TARGETS, Chain, ChainLinks
 
 __all__ = ["from_urdf"]
 
@@ -321,6 +321,7 @@ def from_urdf(
                 f"joint {moving[i].name!r}: its limits leave no position for its leader "
                 f"{moving[leader].name!r}"
             )
+    links = _chain_links(robot, base_link, [joint.name for joint in moving], source)
     return Chain(
         np.stack(rows),
         frame,
@@ -335,4 +336,35 @@ def from_urdf(
         base_link=base_link,
         tip_link=tip_link,
         target_kind=target,
+        links=links,
     )
+
+
+def _chain_links(robot, base_link: str, moving: list[str], source) -> ChainLinks:
+    """Every link's pose in the base frame with every joint at 0, and how many of the path's
+    moving joints (in ``moving`` order) carry it, for ``Chain.link_poses``."""
+    by_child = {joint.child: joint for joint in robot.joints}
+    row = {name: i for i, name in enumerate(moving)}
+    world: dict[str, np.ndarray] = {}
+    carried: dict[str, int] = {}
+
+    def place(link: str) -> tuple[np.ndarray, int]:
+        if link not in world:
+            joint = by_child.get(link)
+            if joint is None:
+                world[link], carried[link] = np.eye(4), 0
+            else:
+                parent, k = place(joint.parent)
+                origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, float)
+                world[link] = parent @ origin
+                carried[link] = max(k, row[joint.name] + 1 if joint.name in row else 0)
+        return world[link], carried[link]
+
+    names = tuple(link.name for link in robot.links)
+    base = np.linalg.inv(place(base_link)[0])
+    homes = np.stack([base @ place(name)[0] for name in names])
+    tree = tuple((j.parent, j.child, j.type) for j in robot.joints)
+    text = source if isinstance(source, str) else os.fsdecode(source)
+    if not text.lstrip("\ufeff \t\r\n").startswith("<"):
+        text = str(Path(text).resolve())  # a path: the body is read from it later
+    return ChainLinks(homes, tuple(carried[name] for name in names), names, text, tree)

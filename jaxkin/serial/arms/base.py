@@ -19,6 +19,8 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from ... import _batching, _validate
+from ...collision.body import Body
+from ...collision.check import chain_self_pairs
 from ...jet import Jet
 from ...result import FKResult, IKResult
 from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
@@ -34,7 +36,8 @@ class Arm(Robot, abstract=True):
 
     Subclasses set ``target``, ``branches`` and ``joint_types`` (class attributes) and
     implement ``dh_table`` and ``ik_branches`` (module docstring). Joints are named
-    ``q1, q2, ...``.
+    ``q1, q2, ...``. Every arm has a ``link_radius`` field (>= 0, default 0: the links as
+    their centre lines), the radius of its collision body's capsules (``collision_body``).
     """
 
     joint_types: ClassVar[str]
@@ -47,10 +50,11 @@ class Arm(Robot, abstract=True):
         return tuple(f"q{i + 1}" for i in range(len(self.joint_types)))
 
     def lengths(self, dtype) -> tuple[Array, ...]:
-        """Every field cast to ``dtype`` (in field order)."""
+        """Every length field cast to ``dtype`` (in field order; ``link_radius`` is not one)."""
         return tuple(
             jnp.asarray(getattr(self, f.name)).astype(dtype)
             for f in dataclasses.fields(self)  # type: ignore[arg-type]
+            if f.name != "link_radius"
         )
 
     def length_scale(self) -> Any:
@@ -82,6 +86,39 @@ class Arm(Robot, abstract=True):
             ..., : 2 if self.target.shape == (2,) or self.target.name == "planar pose" else 3
         ]
         return jnp.stack([points[..., :-1, :], points[..., 1:, :]], axis=-2)
+
+    def link_poses(self, q: Array) -> Array:
+        """The base frame and every DH frame ``1 ... n`` at joints ``q``, ``(..., n + 1, 4,
+        4)`` (links ``base, link1, ..., linkn``)."""
+        frames = transforms(self.dh_table(q.dtype), q, all_frames=True)
+        base = jnp.broadcast_to(jnp.eye(4, dtype=frames.dtype), frames[..., :1, :, :].shape)
+        return jnp.concatenate([base, frames], axis=-3)
+
+    def collision_body(self) -> Body:
+        """One capsule of radius ``link_radius`` per link ``k`` (DH frame ``k``): for a
+        revolute joint ``k`` the segment from frame ``k - 1``'s origin to frame ``k``'s, fixed
+        in frame ``k`` at ``(-a_k, -d_k sin alpha_k, -d_k cos alpha_k)`` -> 0; for a prismatic
+        joint ``k`` a rod from frame ``k``'s origin back along ``z_{k-1}`` as long as the arm
+        (``length_scale``), through which the joint slides. An unbatched geometry only
+        (traceable)."""
+        if self.batch_shape():
+            raise ValueError(f"{type(self).__name__}.collision_body: needs an unbatched geometry")
+        table = self.dh_table()
+        sa, ca = jnp.sin(table.alpha), jnp.cos(table.alpha)
+        reach = self.length_scale()
+        revolute = jnp.asarray([kind == "R" for kind in self.joint_types])
+        depth = jnp.where(revolute, table.d, reach)
+        a = jnp.stack([jnp.where(revolute, -table.a, 0.0), -depth * sa, -depth * ca], -1)
+        n = len(self.joint_types)
+        names = ("base", *(f"link{k + 1}" for k in range(n)))
+        return Body.of_capsules(
+            names, tuple(range(1, n + 1)), a, jnp.zeros_like(a), self.link_radius
+        )
+
+    def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
+        """Links at least two apart along the arm whose capsules have length and are not in
+        contact at ``q = 0`` (a spherical wrist's links meet at its centre: left out)."""
+        return chain_self_pairs(self)
 
     def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> IKResult:
         index = jnp.asarray(self.branches.index(branch), jnp.int32)

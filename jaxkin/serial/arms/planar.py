@@ -35,7 +35,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from ..._geometry import LENGTH, geometry, number
+from ..._geometry import LENGTH, NONNEGATIVE, geometry, number
 from ...robot import PLANAR_POINT, PLANAR_POSE
 from ..dh import DHTable
 from ._kit import dh, status_from, two_link, wrap_angle
@@ -57,6 +57,7 @@ class Planar2R(Arm):
 
     l1: Array = number(LENGTH)
     l2: Array = number(LENGTH)
+    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RR"
     branches: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
@@ -88,6 +89,7 @@ class Planar3R(Arm):
     l1: Array = number(LENGTH)
     l2: Array = number(LENGTH)
     l3: Array = number(LENGTH)
+    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRR"
     branches: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")

@@ -89,6 +89,7 @@ class Puma560(Arm):
     d3: Array = number(REAL, default=0.15005)
     d4: Array = number(REAL, default=0.4318)
     d6: Array = number(REAL, default=0.0)
+    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRRRRR"
     branches: ClassVar[tuple[str, ...]] = _branch_names(
@@ -168,6 +169,7 @@ class Stanford(Arm):
     d1: Array = number(REAL)
     a2: Array = number(NONNEGATIVE)
     d6: Array = number(REAL, default=0.0)
+    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRPRRR"
     branches: ClassVar[tuple[str, ...]] = _branch_names(("front", "back"), ("noflip", "flip"))

@@ -53,6 +53,7 @@ class Anthropomorphic(Arm):
     l1: Array = number(LENGTH)
     l2: Array = number(LENGTH)
     l3: Array = number(LENGTH)
+    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRR"
     branches: ClassVar[tuple[str, ...]] = ("front_up", "front_down", "back_up", "back_down")
@@ -91,6 +92,7 @@ class Cylindrical(Arm):
     """
 
     h: Array = number(NONNEGATIVE)
+    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RPP"
     branches: ClassVar[tuple[str, ...]] = ("front",)
@@ -125,6 +127,7 @@ class Spherical(Arm):
     """
 
     h: Array = number(NONNEGATIVE)
+    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRP"
     branches: ClassVar[tuple[str, ...]] = ("front", "back")

@@ -1,0 +1,241 @@
+"""Batched collision checks of a robot's configurations against a world and itself.
+
+``check(robot, q, world)`` places the robot's body (``robot.collision_body()``, spheres and
+capsules attached to links) at every configuration with the robot's own kernel
+``robot.link_poses(q)`` and reduces, per configuration::
+
+    clearance = min( min_{robot primitive p, obstacle o} d(p, o),
+                     min_{(i, j) in robot.self_collision_pairs()} min_{p on i, p' on j} d(p, p') )
+
+with ``d`` the exact signed distance (``collision.distance``: negative in penetration). A
+configuration collides where ``clearance <= margin``. The pair that attains the clearance is
+reported: a robot link and an obstacle (``kind``, ``index``), or two robot links.
+
+Everything after the host-side set-up (the body and the pairs, read once per robot) is one
+pure function of arrays, compiled once per shapes: moving, resizing or turning an obstacle, or
+giving the body other radii, reuses the compilation. A configuration with NaN or inf gets
+``status = INVALID_INPUT``, ``collides = True`` and a clearance of 0 (a finite placeholder)
+without touching the other elements of the batch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
+
+from .body import Body
+from .pairs import SelfPairs, self_distances
+from .world import World, nearest_obstacles
+
+__all__ = [
+    "ROBOT_WORLD",
+    "SELF",
+    "CheckResult",
+    "chain_self_pairs",
+    "check",
+    "check_kernel",
+    "prepare",
+]
+
+# ``CheckResult.pair_kind``: what attains the clearance (-1: nothing to hit).
+ROBOT_WORLD, SELF = 0, 1
+
+# int8 codes of ``jaxkin.Status`` (collision sits below the status module in the layers).
+_OK, _INVALID_INPUT, _COLLISION = 0, 8, 11
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class CheckResult:
+    """Per configuration (shapes ``(...)``, the batch of ``q``).
+
+    Attributes:
+        clearance: smallest signed distance, robot-world and self (the dtype's largest finite
+            value when there is nothing to hit; 0 for invalid input).
+        collides: ``clearance <= margin``, or invalid input.
+        status: ``int8`` ``jaxkin.Status``: ``OK``, ``COLLISION`` or ``INVALID_INPUT``.
+        pair_kind: ``int8``: ``ROBOT_WORLD`` (0), ``SELF`` (1), or -1 (nothing to hit).
+        link: the robot link (index into ``body.links``) of the closest pair.
+        other: for ``ROBOT_WORLD`` the obstacle's index within its kind, for ``SELF`` the
+            other link; -1 otherwise.
+        obstacle_kind: ``int8`` ``collision.SPHERE/CAPSULE/BOX/HALFSPACE`` for
+            ``ROBOT_WORLD``, -1 otherwise.
+    """
+
+    clearance: Array
+    collides: Array
+    status: Array
+    pair_kind: Array
+    link: Array
+    other: Array
+    obstacle_kind: Array
+
+
+def chain_self_pairs(
+    robot: Any, apart: int = 2, candidates: Any = None
+) -> tuple[tuple[int, int], ...]:
+    """Self-collision pairs of a robot whose links form a chain in ``body.links`` order: links
+    at least ``apart`` positions apart (or the given ``candidates``), both with geometry, not
+    in contact at ``q = 0`` (links that share a joint's centre, as a spherical wrist's do,
+    would always collide)."""
+    body = robot.collision_body()
+    geometric = sorted(set(body.sphere_link) | set(body.capsule_link))
+    if candidates is None:
+        candidates = [(i, j) for i in geometric for j in geometric if j - i >= apart]
+    candidates = list(candidates)
+    if not candidates:
+        return ()
+    pairs = SelfPairs.create(body, candidates)
+    home = robot.link_poses(jnp.zeros(robot.n_joints, body.sphere_radius.dtype))
+    spheres, capsules = body.place(home)
+    distance = np.asarray(self_distances(spheres, capsules, pairs))
+    return tuple(p for p, d in zip(candidates, distance, strict=True) if d > 0)
+
+
+def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
+    """Host side, once per robot: its body and the primitive pairs of its self-collision
+    link pairs (none when ``self_collision`` is False)."""
+    cached = robot.__dict__.get("_collision_prepared", {})
+    if self_collision in cached:
+        return cached[self_collision]
+    body = robot.collision_body()
+    if not isinstance(body, Body):
+        raise ValueError(
+            f"robot: {type(robot).__name__}.collision_body() must return a collision.Body, "
+            f"got {type(body).__name__}"
+        )
+    link_pairs = robot.self_collision_pairs() if self_collision else ()
+    prepared = (body, SelfPairs.create(body, link_pairs))
+    if not any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves(body)):
+        # kept on the (frozen) robot: a URDF body's mesh covers are computed once
+        object.__setattr__(robot, "_collision_prepared", {**cached, self_collision: prepared})
+    return prepared
+
+
+def check_kernel(
+    robot: Any,
+    body: Body,
+    pairs: SelfPairs,
+    q: Array,
+    world: World,
+    margin: ArrayLike = 0.0,
+) -> CheckResult:
+    """The pure kernel of ``check`` (traceable, any leading batch axes of ``q``)."""
+    dtype = q.dtype
+    valid = jnp.all(jnp.isfinite(q), axis=-1)
+    q_safe = jnp.where(valid[..., None], q, 0.0)
+    body, world = body.astype(dtype), world.astype(dtype)
+    spheres, capsules = body.place(robot.link_poses(q_safe).astype(dtype))
+    near_s, near_c = nearest_obstacles(spheres, capsules, world)
+    big = jnp.finfo(dtype).max
+    batch = q.shape[:-1]
+
+    # robot-world: the closest robot primitive and its obstacle
+    prim_link = np.asarray(body.sphere_link + body.capsule_link, dtype=np.int32)
+    if len(prim_link):
+        d_world = jnp.concatenate([near_s.distance, near_c.distance], axis=-1)
+        kinds = jnp.concatenate([near_s.kind, near_c.kind], axis=-1)
+        index = jnp.concatenate([near_s.index, near_c.index], axis=-1)
+        p = jnp.argmin(d_world, axis=-1)
+        world_clear = jnp.take_along_axis(d_world, p[..., None], -1)[..., 0]
+        world_kind = jnp.take_along_axis(kinds, p[..., None], -1)[..., 0]
+        world_index = jnp.take_along_axis(index, p[..., None], -1)[..., 0]
+        world_link = jnp.asarray(prim_link)[p]
+    else:
+        world_clear = jnp.full(batch, big, dtype)
+        world_kind = jnp.full(batch, -1, jnp.int8)
+        world_index = world_link = jnp.full(batch, -1, jnp.int32)
+
+    # self: the closest checked link pair
+    if pairs.link_pairs:
+        d_self = self_distances(spheres, capsules, pairs)
+        k = jnp.argmin(d_self, axis=-1)
+        self_clear = jnp.take_along_axis(d_self, k[..., None], -1)[..., 0]
+        link_pairs = np.asarray(pairs.link_pairs, dtype=np.int32)
+        self_a, self_b = jnp.asarray(link_pairs[:, 0])[k], jnp.asarray(link_pairs[:, 1])[k]
+    else:
+        self_clear = jnp.full(batch, big, dtype)
+        self_a = self_b = jnp.full(batch, -1, jnp.int32)
+
+    is_self = self_clear < world_clear
+    clearance = jnp.minimum(world_clear, self_clear)
+    nothing = clearance >= big
+    pair_kind = jnp.where(nothing, -1, jnp.where(is_self, SELF, ROBOT_WORLD)).astype(jnp.int8)
+    link = jnp.where(nothing, -1, jnp.where(is_self, self_a, world_link)).astype(jnp.int32)
+    other = jnp.where(nothing, -1, jnp.where(is_self, self_b, world_index)).astype(jnp.int32)
+    obstacle_kind = jnp.where(is_self | nothing, -1, world_kind).astype(jnp.int8)
+
+    clearance = jnp.where(valid, clearance, 0.0)
+    collides = ~valid | (clearance <= jnp.asarray(margin, dtype))
+    status = jnp.where(~valid, _INVALID_INPUT, jnp.where(collides, _COLLISION, _OK))
+    return CheckResult(
+        clearance,
+        collides,
+        status.astype(jnp.int8),
+        jnp.where(valid, pair_kind, -1).astype(jnp.int8),
+        jnp.where(valid, link, -1),
+        jnp.where(valid, other, -1),
+        jnp.where(valid, obstacle_kind, -1).astype(jnp.int8),
+    )
+
+
+_check_jit = jax.jit(check_kernel)
+
+
+def _as_q(robot: Any, q: ArrayLike, name: str = "q") -> Array:
+    if not isinstance(q, jax.Array):
+        q = np.asarray(q)
+        if not np.issubdtype(q.dtype, np.floating):
+            q = q.astype(jnp.result_type(float))
+    q = jnp.asarray(q)
+    if not jnp.issubdtype(q.dtype, jnp.floating):
+        q = q.astype(jnp.result_type(float))
+    if q.ndim < 1 or q.shape[-1] != robot.n_joints:
+        raise ValueError(
+            f"{name}: expected shape (..., {robot.n_joints}) for {type(robot).__name__}, "
+            f"got {q.shape}"
+        )
+    return q
+
+
+def _check_world(world: Any) -> World:
+    if not isinstance(world, World):
+        raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
+    return world
+
+
+def check(
+    robot: Any,
+    q: ArrayLike,
+    world: World,
+    margin: float = 0.0,
+    self_collision: bool = True,
+) -> CheckResult:
+    """Check configurations ``q`` ``(..., n_joints)`` of ``robot`` against ``world`` and
+    itself (module docstring).
+
+    Args:
+        robot: any robot of the protocol with ``collision_body`` and ``link_poses``.
+        q: joint coordinates, any leading batch axes (may be traced: ``check`` works under
+            ``jit`` and ``vmap``).
+        world: a ``collision.World`` (array data: moving obstacles does not recompile).
+        margin: a configuration collides where its clearance is ``<= margin`` (length units).
+        self_collision: check the robot's ``self_collision_pairs()`` too.
+
+    Returns:
+        ``CheckResult`` with shapes ``(...)``.
+
+    Raises:
+        ValueError: ``q`` of the wrong trailing shape, a world that is not a ``World``, a
+            robot without a collision body.
+    """
+    q = _as_q(robot, q)
+    world = _check_world(world)
+    body, pairs = prepare(robot, self_collision)
+    return _check_jit(robot, body, pairs, q, world, margin)
