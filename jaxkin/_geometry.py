@@ -162,6 +162,23 @@ class Geometry:
                 field.metadata["shape"],
             )
             object.__setattr__(self, field.name, value)
+        # Scalar fields share one batch shape (a default radius beside batched lengths), so
+        # that ``jax.vmap`` over a batch of robots maps every leaf.
+        scalars = [
+            f.name
+            for f in dataclasses.fields(self)  # type: ignore[arg-type]
+            if "kind" in f.metadata and f.metadata["shape"] in ((), None)
+        ]
+        shapes = [np.shape(getattr(self, name)) for name in scalars]
+        if any(shapes):
+            try:
+                batch = np.broadcast_shapes(*shapes)
+            except ValueError:  # the robot's own batch check names the fields
+                return
+            for name, shape in zip(scalars, shapes, strict=True):
+                if shape != batch:
+                    value = jnp.broadcast_to(getattr(self, name), batch)
+                    object.__setattr__(self, name, value)
 
     def replace(self, **changes: Any) -> Any:
         """A copy with some fields changed (validated like a new geometry)."""

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import jaxkin
-from jaxkin import Status, collision, delta, plan, scara, serial
+from jaxkin import Status, collision, delta, paths, plan, scara, serial
 
 from .helpers import compilations
 
@@ -294,6 +294,7 @@ def test_plan_evaluate_with_a_world():
     path = np.stack(
         [np.stack([100 - 20 * t, -40 + 80 * t + s, 100 + 0 * t], -1) for s in (0.0, 30.0)]
     )
+    path = paths.path_from_samples(path, 1.0 / 11)
     world = scara_world([[90.0, -20.0, 150.0]], [8.0], -1000.0)
     ev = plan.evaluate(SCARA, path, world=world)
     checked = collision.check(SCARA, ev.q.p, world)
