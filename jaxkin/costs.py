@@ -28,7 +28,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _validate, lie, plan
+from . import _validate, plan
+from .collision import distance as sd
 from .jet import Jet
 
 __all__ = [
@@ -182,14 +183,17 @@ class Obstacles:
         """Signed distances ``(..., S + Bx)`` from segments ``(..., 2, d)`` to every obstacle."""
         a, b = segments[..., 0, :], segments[..., 1, :]
         dtype = segments.dtype
-        spheres = lie.segment_point_distance(
-            a, b, self.sphere_centres.astype(dtype)
+        spheres = sd.point_segment(
+            self.sphere_centres.astype(dtype), a[..., None, :], b[..., None, :]
         ) - self.sphere_radii.astype(dtype)
         t = jnp.linspace(0.0, 1.0, self.box_samples, dtype=dtype)[:, None]
         points = a[..., None, :] + t * (b - a)[..., None, :]
         boxes = jnp.min(
-            lie.point_box_distance(
-                points, self.box_centres.astype(dtype), self.box_half_extents.astype(dtype)
+            sd.point_box(
+                points[..., None, :],
+                self.box_centres.astype(dtype),
+                None,
+                self.box_half_extents.astype(dtype),
             ),
             axis=-2,
         )
