@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from jaxkin import collision as col
-from jaxkin.collision import clearance as cl
+from jaxkin.collision import fused as cl
 from jaxkin.collision import distance as sd
 
 coal = pytest.importorskip("coal")

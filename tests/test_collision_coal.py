@@ -275,7 +275,7 @@ def test_no_missed_collision_among_obstacles(robots, urdf, srdf):
     for jaxkin (no false negative). The false-positive rates (the covers' overshoot), overall,
     robot-world and self, are printed (docs/performance.md lists them)."""
     pin = pytest.importorskip("pinocchio")
-    from jaxkin.collision import clearance as cl
+    from jaxkin.collision import fused as cl
 
     path, package = robots / urdf, str(robots.parent.parent)
     read = col.body_from_urdf(path)

@@ -11,10 +11,15 @@
 - ``cover``: conservative sphere covers of meshes, capsule covers of boxes.
 - ``pairs``: self-collision link pairs (adjacency, SRDF ``disable_collisions``),
   ``self_distances``, ``propose_disabled``.
+- ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
+  (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
 """
 
 from . import distance as distance
 from .body import Body as Body
+from .fused import Clearance as Clearance
+from .fused import clearance as clearance
+from .fused import min_clearance as min_clearance
 from .cover import SphereCover as SphereCover
 from .cover import box_capsules as box_capsules
 from .cover import mesh_sphere_cover as mesh_sphere_cover
@@ -47,6 +52,7 @@ __all__ = [
     "Body",
     "Boxes",
     "Capsules",
+    "Clearance",
     "HalfSpaces",
     "Nearest",
     "SelfPairs",
@@ -57,8 +63,10 @@ __all__ = [
     "adjacent_links",
     "body_from_urdf",
     "box_capsules",
+    "clearance",
     "distance",
     "mesh_sphere_cover",
+    "min_clearance",
     "nearest_obstacles",
     "point_cloud_spheres",
     "propose_disabled",
