@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 from jaxkin import collision as col
-from jaxkin.collision import fused as cl
 from jaxkin.collision import distance as sd
+from jaxkin.collision import fused as cl
 
 coal = pytest.importorskip("coal")
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from jaxkin import collision as col
-from jaxkin.collision import fused as cl
 from jaxkin.collision import distance as sd
+from jaxkin.collision import fused as cl
 from jaxkin.collision.pairs import _primitive_pair_distances
 
 from .helpers import compilations

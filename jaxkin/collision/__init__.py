@@ -17,12 +17,12 @@
 
 from . import distance as distance
 from .body import Body as Body
-from .fused import Clearance as Clearance
-from .fused import clearance as clearance
-from .fused import min_clearance as min_clearance
 from .cover import SphereCover as SphereCover
 from .cover import box_capsules as box_capsules
 from .cover import mesh_sphere_cover as mesh_sphere_cover
+from .fused import Clearance as Clearance
+from .fused import clearance as clearance
+from .fused import min_clearance as min_clearance
 from .pairs import SelfPairs as SelfPairs
 from .pairs import adjacent_links as adjacent_links
 from .pairs import propose_disabled as propose_disabled
