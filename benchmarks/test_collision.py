@@ -20,6 +20,7 @@ import pytest
 
 from jaxkin import collision as col
 from jaxkin.collision import distance as sd
+from jaxkin.collision import fused as cl
 
 coal = pytest.importorskip("coal")
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
@@ -135,3 +136,218 @@ def test_world_query_panda_sized(measure, dtype):
         return jnp.min(near.distance, axis=-1)
 
     measure(lambda: clearance(robot, world), n, kernel="60 spheres x 18 obstacles", dtype=dtype)
+
+
+# ---------------------------------------------------------------------------------------
+# The Panda's configuration check: forward kinematics, placement and the fused clearance.
+
+
+def _robots_folder():
+    import sys
+    from pathlib import Path
+
+    for base in map(Path, sys.path):
+        root = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
+        if root.is_dir():
+            return root
+    pytest.skip("example-robot-data's robots folder not found")
+
+
+@pytest.fixture(scope="module")
+def panda():
+    """The Panda as spheres: mesh covers of 5 spheres per mesh (``body_from_urdf``), each
+    finger box capsule replaced by its bounding sphere; the SRDF's self pairs; the URDF's
+    joints for the forward kinematics; a world of 12 spheres and 6 boxes (VAMP's scene
+    size) around the arm."""
+    yourdfpy = pytest.importorskip("yourdfpy")
+    root = _robots_folder()
+    urdf = root / "panda_description/urdf/panda.urdf"
+    _, capsules = col.body_from_urdf(urdf, max_spheres_per_mesh=5).body.per_link()
+    fingers = {
+        name: (0.5 * (a + b), r + 0.5 * np.linalg.norm(b - a, axis=-1))
+        for name, (a, b, r) in capsules.items()
+    }
+    read = col.body_from_urdf(urdf, max_spheres_per_mesh=5, link_spheres=fingers)
+    body = read.body
+    disabled = col.read_srdf_disabled(root / "panda_description/srdf/panda.srdf")
+    pairs = col.SelfPairs.create(body, col.self_collision_link_pairs(body, read.joints, disabled))
+    model = yourdfpy.URDF.load(str(urdf), build_scene_graph=False, load_meshes=False).robot
+    joints = [
+        (
+            body.links.index(j.parent),
+            body.links.index(j.child),
+            j.type,
+            np.eye(4) if j.origin is None else np.asarray(j.origin),
+        )
+        for j in model.joints
+    ]
+    assert all(np.allclose(j.axis, [0, 0, 1]) for j in model.joints if j.type == "revolute")
+    rng = np.random.default_rng(3)
+    low, high = [-0.7, -0.7, 0.0], [0.7, 0.7, 1.1]
+    world = col.World.create(
+        spheres=col.Spheres.create(rng.uniform(low, high, (12, 3)), rng.uniform(0.04, 0.12, 12)),
+        boxes=col.Boxes.create(
+            rng.uniform(low, high, (6, 3)),
+            rng.uniform(0.03, 0.12, (6, 3)),
+            Rotation.random(6, random_state=3).as_matrix(),
+        ),
+    )
+    limits = np.array(
+        [(j.limit.lower, j.limit.upper) for j in model.joints if j.type == "revolute"]
+    )
+    return {"body": body, "pairs": pairs, "joints": joints, "world": world, "limits": limits}
+
+
+def _panda_rows(panda, q):
+    """Forward kinematics of every link written elementwise (rotation entries and positions
+    as ``(B,)`` arrays; revolute joints about z, fingers closed), and the spheres placed in
+    the rows layout: centres ``(3, ns, B)``, radii ``(ns, B)``."""
+    body = panda["body"]
+    one, zero = jnp.ones(q.shape[:-1], q.dtype), jnp.zeros(q.shape[:-1], q.dtype)
+    poses = [None] * len(body.links)
+    poses[0] = ([[one, zero, zero], [zero, one, zero], [zero, zero, one]], [zero, zero, zero])
+    k = 0
+    for parent, child, kind, origin in panda["joints"]:
+        rot, pos = poses[parent]
+
+        def affine(i, j, base=None, rot=rot, origin=origin):
+            terms = [rot[i][m] * float(origin[m, j]) for m in range(3) if origin[m, j] != 0.0]
+            terms += [] if base is None else [base]
+            return sum(terms[1:], terms[0]) if terms else zero
+
+        rot2 = [[affine(i, j) for j in range(3)] for i in range(3)]
+        pos2 = [affine(i, 3, pos[i]) for i in range(3)]
+        if kind == "revolute":
+            c, s = jnp.cos(q[..., k]), jnp.sin(q[..., k])
+            k += 1
+            rot2 = [[r[0] * c + r[1] * s, r[1] * c - r[0] * s, r[2]] for r in rot2]
+        poses[child] = (rot2, pos2)
+    center = np.asarray(body.sphere_center, dtype=q.dtype)
+    link = np.asarray(body.sphere_link)
+    rows = [[], [], []]
+    cuts = np.flatnonzero(np.diff(link)) + 1  # runs of one link's spheres
+    for start, stop in zip([0, *cuts], [*cuts, len(link)], strict=True):
+        rot, pos = poses[link[start]]
+        c = center[start:stop]
+        for i in range(3):
+            rows[i].append(
+                sum(rot[i][m][None, :] * c[:, m, None] for m in range(3)) + pos[i][None, :]
+            )
+    radius = jnp.broadcast_to(
+        jnp.asarray(body.sphere_radius, q.dtype)[:, None], (len(link), q.shape[0])
+    )
+    return col.Spheres(jnp.stack([jnp.concatenate(r) for r in rows]), radius)
+
+
+CHUNK = 2000  # configurations per step of the check (divides 1e3..1e6): its rows stay in L2
+
+
+def _panda_check(panda, dtype, fk: bool):
+    """The jitted check: ``q (n, 7)`` (or placed rows, chunked) -> clearance ``(n,)``."""
+    world = panda["world"].astype(dtype)
+    pairs = panda["pairs"]
+
+    def from_rows(rows):
+        return cl.min_clearance_rows(rows, col.Capsules.empty(dtype), world, pairs)
+
+    def from_q(q):
+        return from_rows(_panda_rows(panda, q))
+
+    one = from_q if fk else from_rows
+
+    @jax.jit
+    def check(chunks):
+        return jax.lax.map(one, chunks).reshape(-1)
+
+    return check
+
+
+def _configurations(panda, n, dtype, seed=0):
+    low, high = panda["limits"].T
+    return np.random.default_rng(seed).uniform(low, high, (n, 7)).astype(dtype)
+
+
+@pytest.mark.parametrize("n", [1_000, 10_000, 100_000, 1_000_000])
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize("fk", [True, False], ids=["with-fk", "placed"])
+def test_panda_configurations(measure, benchmark, panda, dtype, n, fk):
+    """Panda configurations checked per second (robot-world and SRDF self pairs), with the
+    forward kinematics and placement inside the timed call or spheres placed beforehand."""
+    if not fk and n > 100_000:
+        pytest.skip("1e6 placed configurations hold 0.8-1.6 GB of sphere rows")
+    q = _configurations(panda, n, dtype)
+    chunk = min(n, CHUNK)
+    chunks = jnp.asarray(q.reshape(n // chunk, chunk, 7))
+    check = _panda_check(panda, dtype, fk)
+    if not fk:
+        chunks = jax.block_until_ready(jax.jit(jax.vmap(lambda c: _panda_rows(panda, c)))(chunks))
+    out = measure(lambda: check(chunks), n, kernel="Panda check", dtype=dtype, batch=n, fk=fk)
+    body, pairs = panda["body"], panda["pairs"]
+    benchmark.extra_info["spheres"] = body.num_spheres
+    benchmark.extra_info["self_pairs"] = pairs.num_primitive_pairs
+    benchmark.extra_info["colliding_fraction"] = float(np.mean(np.asarray(out) <= 0))
+    benchmark.extra_info["goal_ratio"] = n / benchmark.stats.stats.min / 1e6
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_panda_edges(measure, benchmark, panda, dtype):
+    """Edges validated per second: 10,000 edges of joint length 0.3 rad, each at 10 states
+    (about 32 states per unit of joint distance, VAMP's resolution), every state checked."""
+    m, states = 10_000, 10
+    start = _configurations(panda, m, dtype, seed=1)
+    step = np.random.default_rng(2).normal(size=(m, 7))
+    end = start + 0.3 * step / np.linalg.norm(step, axis=-1, keepdims=True)
+    t = np.linspace(0.0, 1.0, states, dtype=dtype)
+    q = (start[:, None] + t[:, None] * (end - start)[:, None]).reshape(-1, 7).astype(dtype)
+    chunks = jnp.asarray(q.reshape(-1, CHUNK, 7))
+    check = _panda_check(panda, dtype, fk=True)
+
+    def edges():
+        return jnp.min(check(chunks).reshape(m, states), axis=-1) > 0
+
+    valid = measure(edges, m, kernel="Panda edges", dtype=dtype, states_per_edge=states)
+    benchmark.extra_info["valid_fraction"] = float(np.mean(np.asarray(valid)))
+
+
+def test_coal_panda_configurations(measure, panda):
+    """Pinocchio + coal on the same scene with the Panda's original meshes: computeCollisions
+    (stop at the first collision) per configuration from a Python loop, 300 configurations."""
+    pin = pytest.importorskip("pinocchio")
+    root = _robots_folder()
+    model, cmodel, _ = pin.buildModelsFromUrdf(
+        str(root / "panda_description/urdf/panda.urdf"), str(root.parent.parent)
+    )
+    world = panda["world"]
+    links = [cmodel.geometryObjects[g].name for g in range(len(cmodel.geometryObjects))]
+    obstacles = []
+    for k in range(len(world.spheres)):
+        shape = coal.Sphere(float(world.spheres.radius[k]))
+        place = pin.SE3(np.eye(3), np.asarray(world.spheres.center[k]))
+        obstacles.append(pin.GeometryObject(f"sphere{k}", 0, 0, place, shape))
+    for k in range(len(world.boxes)):
+        shape = coal.Box(*(2.0 * np.asarray(world.boxes.half_extents[k])))
+        place = pin.SE3(np.asarray(world.boxes.rotation[k]), np.asarray(world.boxes.center[k]))
+        obstacles.append(pin.GeometryObject(f"box{k}", 0, 0, place, shape))
+    ids = [cmodel.addGeometryObject(o) for o in obstacles]
+    for g in range(len(links)):
+        for o in ids:
+            cmodel.addCollisionPair(pin.CollisionPair(g, o))
+    srdf = str(root / "panda_description/srdf/panda.srdf")
+    self_model = pin.buildGeomFromUrdf(
+        model,
+        str(root / "panda_description/urdf/panda.urdf"),
+        pin.COLLISION,
+        str(root.parent.parent),
+    )
+    self_model.addAllCollisionPairs()
+    pin.removeCollisionPairs(model, self_model, srdf)
+    for pair in self_model.collisionPairs:
+        cmodel.addCollisionPair(pin.CollisionPair(pair.first, pair.second))
+    data, cdata = model.createData(), pin.GeometryData(cmodel)
+    q7 = _configurations(panda, 300, "float64")
+    qs = np.concatenate([q7, np.zeros((300, model.nq - 7))], axis=1)
+
+    def run():
+        return [pin.computeCollisions(model, data, cmodel, cdata, q, True) for q in qs]
+
+    measure(run, len(qs), rounds=3, peer="pinocchio + coal, meshes (Python loop)")

@@ -23,10 +23,10 @@ Quaternions are ``(w, x, y, z)`` (Hamilton). ``quaternion_to_matrix`` is the qua
 ``matrix_to_quaternion`` is Shepperd's method (of ``4 w^2 = 1 + tr R``, ``4 x^2 = 1 + 2 R_00
 - tr R``, ... the largest is taken, the others read from off-diagonal sums and differences;
 ``w >= 0``); ``hemisphere_signs`` flips the signs of a sequence so that consecutive
-quaternions lie in one hemisphere (``q`` and ``-q`` are one rotation). Segment and box
-distances (``segment_point_distance``, ``point_box_distance``) serve the obstacle costs.
+quaternions lie in one hemisphere (``q`` and ``-q`` are one rotation). (Distances between
+points, segments and boxes live in ``jaxkin.collision.distance``.)
 
-The quaternion, sign and distance functions, and ``vee``, take ``xp``: ``jax.numpy`` (the
+The quaternion and sign functions, and ``vee``, take ``xp``: ``jax.numpy`` (the
 default; traced by the caller's ``jit``) or ``numpy``, for path building on the host, which
 stays in float64 whatever JAX's x64 setting. The formula is written once for both.
 """
@@ -41,7 +41,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from ._numerics import computed_once, eps, safe_norm, safe_sqrt
+from ._numerics import computed_once, eps, safe_sqrt
 from ._validate import as_float
 
 __all__ = [
@@ -51,7 +51,6 @@ __all__ = [
     "hat",
     "hemisphere_signs",
     "matrix_to_quaternion",
-    "point_box_distance",
     "quaternion_bilinear",
     "quaternion_product",
     "quaternion_rates_of_rotation",
@@ -62,7 +61,6 @@ __all__ = [
     "se3_inverse",
     "se3_log",
     "se3_vee",
-    "segment_point_distance",
     "so3_exp",
     "so3_log",
     "vee",
@@ -494,31 +492,3 @@ def hemisphere_signs(quaternions: ArrayLike, *, xp: Any = jnp) -> Array:
     q = quaternions
     flips = xp.where(xp.sum(q[..., 1:, :] * q[..., :-1, :], -1) < 0.0, -1.0, 1.0)
     return xp.concatenate([xp.ones_like(q[..., :1, 0]), xp.cumprod(flips, axis=-1)], -1)
-
-
-# ----------------------------------------------------------------------------------------------
-# Distances between points, segments and boxes (obstacle costs).
-
-
-def segment_point_distance(a: Array, b: Array, points: Array) -> Array:
-    """Distance from segments ``a -> b`` ``(..., d)`` to points ``(m, d)``: ``(..., m)``.
-
-    The nearest point is ``a + t (b - a)`` with ``t = clip((p - a).(b - a) / |b - a|^2, 0,
-    1)`` (``t = 0`` for a zero-length segment); the norm is ``safe_norm`` (finite gradients at
-    zero distance).
-    """
-    ab = (b - a)[..., None, :]
-    ap = points - a[..., None, :]
-    length_sq = jnp.sum(ab * ab, axis=-1)
-    t = jnp.clip(jnp.sum(ap * ab, -1) / jnp.where(length_sq > 0, length_sq, 1.0), 0.0, 1.0)
-    nearest = a[..., None, :] + t[..., None] * ab
-    return safe_norm(nearest - points)
-
-
-def point_box_distance(points: Array, centres: Array, half: Array) -> Array:
-    """Signed distance from points ``(..., d)`` to axis-aligned boxes (centres ``(m, d)``, half
-    side lengths ``(m, d)``): ``(..., m)``, negative inside (the depth to the nearest face)."""
-    offset = jnp.abs(points[..., None, :] - centres) - half
-    outside = safe_norm(jnp.maximum(offset, 0.0))
-    inside = jnp.minimum(jnp.max(offset, axis=-1), 0.0)
-    return outside + inside

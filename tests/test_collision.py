@@ -619,3 +619,24 @@ def test_panda_srdf_pairs_and_moveit_adjacency():
     names = {frozenset((read.body.links[i], read.body.links[j])) for i, j in pairs}
     assert frozenset(("panda_link2", "panda_hand")) in names
     assert not names & {frozenset(d[:2]) for d in disabled}
+
+
+@pytest.mark.parametrize("d", [3, 2])
+def test_segment_and_box_distances_against_dense_sampling(d):
+    """In 3-D and 2-D (the planar robots' obstacle costs): the nearest point of a segment
+    against 20,001 points along it; axis-aligned boxes against the closed form of a point
+    outside (distance to the clamped point) and inside (face depth)."""
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(size=(2, 4, d))
+    points = rng.normal(size=(5, d))
+    t = np.linspace(0.0, 1.0, 20001)[:, None, None]
+    dense = np.min(np.linalg.norm(a + t * (b - a) - points[:, None, None], axis=-1), axis=1).T
+    distance = jax.jit(lambda a, b, p: sd.point_segment(p, a[..., None, :], b[..., None, :]))
+    np.testing.assert_allclose(distance(a, b, points), dense, atol=1e-7)
+    same = distance(a, a, points)
+    np.testing.assert_allclose(same, np.linalg.norm(a[:, None] - points, axis=-1), rtol=1e-15)
+    half = np.array([1.0, 2.0, 3.0])[:d]
+    probe = np.array([[2.0, 0.5, 0.0], [2.0, 3.0, 4.0], [0.5, 0.0, 0.0], [0.0, 0.0, -2.5]])
+    want = [1.0, np.sqrt(3.0), -0.5, -0.5] if d == 3 else [1.0, np.sqrt(2.0), -0.5, -1.0]
+    got = jax.jit(lambda p: sd.point_box(p, np.zeros(d), None, half))(probe[:, :d])
+    np.testing.assert_allclose(got, want, rtol=1e-15)

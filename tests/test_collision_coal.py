@@ -257,3 +257,88 @@ def test_panda_self_distances_bound_coal_with_meshes(robots):
     assert colliding.sum() >= 5  # the samples do reach self-collisions
     assert np.all(mine[colliding] <= 0.0)  # no missed collision
     assert np.all(mine <= np.maximum(reference, 0.0) + 1e-9)  # the covers' distance is a bound
+
+
+@pytest.mark.parametrize(
+    "urdf, srdf",
+    [
+        ("panda_description/urdf/panda.urdf", "panda_description/srdf/panda.srdf"),
+        ("ur_description/urdf/ur5_robot.urdf", "ur_description/srdf/ur5.srdf"),
+    ],
+    ids=["panda", "ur5"],
+)
+def test_no_missed_collision_among_obstacles(robots, urdf, srdf):
+    """Random configurations among random spheres and boxes: Pinocchio places the original
+    meshes and coal decides every robot-obstacle pair and the SRDF's self pairs
+    (``computeCollisions``); jaxkin's covers, placed with Pinocchio's link poses, checked by
+    the fused ``clearance``: every configuration coal finds in collision is in collision
+    for jaxkin (no false negative). The false-positive rates (the covers' overshoot), overall,
+    robot-world and self, are printed (docs/performance.md lists them)."""
+    pin = pytest.importorskip("pinocchio")
+    from jaxkin.collision import fused as cl
+
+    path, package = robots / urdf, str(robots.parent.parent)
+    read = col.body_from_urdf(path)
+    body = read.body
+    disabled = col.read_srdf_disabled(robots / srdf) if (robots / srdf).is_file() else ()
+    pairs = col.SelfPairs.create(body, col.self_collision_link_pairs(body, read.joints, disabled))
+    model, cmodel, _ = pin.buildModelsFromUrdf(str(path), package)
+    rng = np.random.default_rng(28)
+    n, n_spheres, n_boxes = 400, 6, 4
+    reach = 0.9
+    s_center = rng.uniform([-reach, -reach, -0.2], [reach, reach, reach], (n_spheres, 3))
+    s_radius = rng.uniform(0.03, 0.12, n_spheres)
+    b_center = rng.uniform([-reach, -reach, -0.2], [reach, reach, reach], (n_boxes, 3))
+    b_half = rng.uniform(0.02, 0.1, (n_boxes, 3))
+    b_rot = _random_rotations(rng, n_boxes)
+    world = col.World.create(
+        spheres=col.Spheres.create(s_center, s_radius),
+        boxes=col.Boxes.create(b_center, b_half, b_rot),
+    )
+    robot_geoms = list(range(len(cmodel.geometryObjects)))
+    obstacle_ids = []
+    for k in range(n_spheres):
+        place = pin.SE3(np.eye(3), s_center[k])
+        obj = pin.GeometryObject(f"s{k}", 0, 0, place, coal.Sphere(s_radius[k]))
+        obstacle_ids.append(cmodel.addGeometryObject(obj))
+    for k in range(n_boxes):
+        place = pin.SE3(b_rot[k], b_center[k])
+        obj = pin.GeometryObject(f"b{k}", 0, 0, place, coal.Box(*(2.0 * b_half[k])))
+        obstacle_ids.append(cmodel.addGeometryObject(obj))
+    for g in robot_geoms:
+        for o in obstacle_ids:
+            cmodel.addCollisionPair(pin.CollisionPair(g, o))
+    link_of = {g: model.frames[cmodel.geometryObjects[g].parentFrame].name for g in robot_geoms}
+    checked = {frozenset((body.links[i], body.links[j])) for i, j in pairs.link_pairs}
+    for a in robot_geoms:
+        for b in robot_geoms[a + 1 :]:
+            if frozenset((link_of[a], link_of[b])) in checked:
+                cmodel.addCollisionPair(pin.CollisionPair(a, b))
+    data, cdata = model.createData(), pin.GeometryData(cmodel)
+    frames = [model.getFrameId(name) for name in body.links]
+    qs = rng.uniform(model.lowerPositionLimit, model.upperPositionLimit, (n, model.nq))
+    reference = np.zeros(n, bool)
+    self_hit = np.zeros(n, bool)
+    n_world_pairs = len(robot_geoms) * len(obstacle_ids)
+    poses = np.zeros((n, len(frames), 4, 4))
+    for k, q in enumerate(qs):
+        reference[k] = pin.computeCollisions(model, data, cmodel, cdata, q, False)
+        self_hit[k] = any(r.isCollision() for r in cdata.collisionResults[n_world_pairs:])
+        pin.framesForwardKinematics(model, data, q)
+        poses[k] = [data.oMf[f].homogeneous for f in frames]
+    check = jax.jit(lambda x: cl.clearance(*body.place(x), world, pairs))
+    mine = check(poses)
+    hit = np.asarray(mine.distance) <= 0.0
+    assert reference.sum() >= 20 and (~reference).sum() >= 20  # both verdicts occur
+    assert self_hit.sum() >= 1 or "ur5" in urdf  # the Panda reaches self-collisions
+    missed = np.flatnonzero(reference & ~hit)
+    assert missed.size == 0, f"collisions coal finds and jaxkin misses: {missed}"
+    mine_self = np.asarray(cl.min_clearance(*body.place(poses), col.World.create(), pairs)) <= 0
+    assert np.all(mine_self[self_hit])  # every self-collision coal finds, on the SRDF pairs
+    mine_world = np.asarray(cl.min_clearance(*body.place(poses), world)) <= 0
+    world_hit = reference & ~self_hit
+    print(
+        f"{urdf}: {reference.mean():.2f} colliding; false-positive rate "
+        f"{np.mean(hit[~reference]):.3f} overall, {np.mean(mine_world[~reference]):.3f} "
+        f"robot-world, {np.mean(mine_self[~self_hit]):.3f} self ({world_hit.sum()} world hits)"
+    )

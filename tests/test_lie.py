@@ -201,21 +201,3 @@ def test_hemisphere_signs_make_neighbours_agree():
         flipped = quat * signs[..., None]
         assert np.all(signs[:, 0] == 1.0) and np.all(np.abs(signs) == 1.0)
         assert np.all(np.sum(flipped[:, 1:] * flipped[:, :-1], -1) >= 0.0)
-
-
-def test_segment_and_box_distances_against_dense_sampling():
-    """The nearest point of a segment against 20,001 points along it; boxes against the
-    closed form of a point outside (distance to the clamped point) and inside (face depth)."""
-    a, b = RNG.normal(size=(2, 4, 3))
-    points = RNG.normal(size=(5, 3))
-    t = np.linspace(0.0, 1.0, 20001)[:, None, None]
-    dense = np.min(np.linalg.norm(a + t * (b - a) - points[:, None, None], axis=-1), axis=1).T
-    distance = jax.jit(lie.segment_point_distance)
-    np.testing.assert_allclose(distance(a, b, points), dense, atol=1e-7)
-    same = distance(a, a, points)
-    np.testing.assert_allclose(same, np.linalg.norm(a[:, None] - points, axis=-1), rtol=1e-15)
-    centres, half = np.zeros((1, 3)), np.array([[1.0, 2.0, 3.0]])
-    probe = np.array([[2.0, 0.5, 0.0], [2.0, 3.0, 4.0], [0.5, 0.0, 0.0], [0.0, 0.0, -2.5]])
-    want = [1.0, np.sqrt(3.0), -0.5, -0.5]
-    got = jax.jit(lie.point_box_distance)(probe, centres, half)
-    np.testing.assert_allclose(got[:, 0], want, rtol=1e-15)

@@ -15,6 +15,8 @@
   itself (clearance, collision flag, which pair), batched.
 - ``motions``: ``validate_motions(robot, q_from, q_to, world, resolution)``, M joint-space
   edges in one compiled call.
+- ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
+  (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
 """
 
 from . import distance as distance
@@ -28,6 +30,9 @@ from .check import prepare as prepare
 from .cover import SphereCover as SphereCover
 from .cover import box_capsules as box_capsules
 from .cover import mesh_sphere_cover as mesh_sphere_cover
+from .fused import Clearance as Clearance
+from .fused import clearance as clearance
+from .fused import min_clearance as min_clearance
 from .motions import MotionResult as MotionResult
 from .motions import validate_motions as validate_motions
 from .motions import validate_motions_kernel as validate_motions_kernel
@@ -63,6 +68,7 @@ __all__ = [
     "Boxes",
     "Capsules",
     "CheckResult",
+    "Clearance",
     "HalfSpaces",
     "MotionResult",
     "Nearest",
@@ -76,8 +82,10 @@ __all__ = [
     "box_capsules",
     "check",
     "check_kernel",
+    "clearance",
     "distance",
     "mesh_sphere_cover",
+    "min_clearance",
     "nearest_obstacles",
     "point_cloud_spheres",
     "prepare",

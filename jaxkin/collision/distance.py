@@ -63,8 +63,12 @@ __all__ = [
 
 
 def _dot(x: jax.Array, y: jax.Array) -> jax.Array:
-    # three products, not a reduction: XLA on CPU vectorises elementwise code, not size-3 sums
-    return x[..., 0] * y[..., 0] + x[..., 1] * y[..., 1] + x[..., 2] * y[..., 2]
+    # products written out, not a reduction: XLA on CPU vectorises elementwise code, not
+    # size-3 sums (any dimension: the planar robots' obstacle costs use d = 2)
+    out = x[..., 0] * y[..., 0]
+    for i in range(1, x.shape[-1]):
+        out = out + x[..., i] * y[..., i]
+    return out
 
 
 def _norm(x: jax.Array) -> jax.Array:
@@ -87,7 +91,9 @@ def _segment_parameter(p: jax.Array, a: jax.Array, d: jax.Array) -> jax.Array:
 
 
 def point_segment(p: jax.Array, a: jax.Array, b: jax.Array) -> jax.Array:
-    """Distance from points ``p`` to segments ``a``-``b``; shapes ``(..., 3)`` -> ``(...)``."""
+    """Distance from points ``p`` to segments ``a``-``b``; shapes ``(..., d)`` -> ``(...)``
+    (``d = 3``, or any other dimension). The nearest point is ``a + t (b - a)`` with ``t =
+    clip((p - a).(b - a) / |b - a|^2, 0, 1)`` (``t = 0`` for a zero-length segment)."""
     d = b - a
     t = jax.lax.stop_gradient(_segment_parameter(p, a, d))
     return _norm(p - (a + t[..., None] * d))
@@ -135,31 +141,41 @@ def segment_segment(a0: jax.Array, a1: jax.Array, b0: jax.Array, b1: jax.Array) 
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, best, 1.0)), 0.0)
 
 
-def _to_box(p: jax.Array, center: jax.Array, rotation: jax.Array) -> list[jax.Array]:
-    """Coordinates of world points ``p`` in a box's frame, ``R^T (p - c)``, as three arrays.
+def _to_box(p: jax.Array, center: jax.Array, rotation: jax.Array | None) -> list[jax.Array]:
+    """Coordinates of world points ``p`` in a box's frame, ``R^T (p - c)``, as three arrays
+    (``p - c`` per coordinate when ``rotation`` is None: an axis-aligned box).
 
     Written out per coordinate: a batched 3x3 product is an unfused dot on CPU, and the
     kernels below run fastest on separate coordinate arrays (elementwise code vectorises).
     """
-    x = [p[..., j] - center[..., j] for j in range(3)]  # split first: no (..., 3) temporary
+    x = [p[..., j] - center[..., j] for j in range(p.shape[-1])]  # split: no (..., 3) temporary
+    if rotation is None:  # axis-aligned, any dimension
+        return x
     return [sum(rotation[..., j, i] * x[j] for j in range(3)) for i in range(3)]
 
 
 def _coords(x: jax.Array) -> list[jax.Array]:
-    return [x[..., i] for i in range(3)]
+    return [x[..., i] for i in range(x.shape[-1])]
 
 
-def point_box(p: jax.Array, center: jax.Array, rotation: jax.Array, half: jax.Array) -> jax.Array:
-    """Signed distance from points ``p`` to oriented boxes; negative inside.
+def point_box(
+    p: jax.Array, center: jax.Array, rotation: jax.Array | None, half: jax.Array
+) -> jax.Array:
+    """Signed distance from points ``p`` to oriented boxes; negative inside (minus the depth
+    to the nearest face).
 
-    ``p, center, half``: ``(..., 3)``; ``rotation``: ``(..., 3, 3)``; returns ``(...)``.
+    ``p, center, half``: ``(..., 3)``; ``rotation``: ``(..., 3, 3)``, or None for boxes
+    aligned with the axes (then any dimension ``d``: ``p, center, half`` ``(..., d)``);
+    returns ``(...)``.
     """
     u, h = _to_box(p, center, rotation), _coords(half)
-    q = [jnp.abs(u[i]) - h[i] for i in range(3)]
+    q = [jnp.abs(u[i]) - h[i] for i in range(len(h))]
     out_sq = sum(jnp.maximum(qi, 0.0) ** 2 for qi in q)
     positive = out_sq > 0.0
     outside = jnp.where(positive, jnp.sqrt(jnp.where(positive, out_sq, 1.0)), 0.0)
-    inside = jnp.maximum(jnp.maximum(q[0], q[1]), q[2])
+    inside = q[0]
+    for qi in q[1:]:
+        inside = jnp.maximum(inside, qi)
     return jnp.where(positive, outside, inside)
 
 
