@@ -1,7 +1,7 @@
 """URDF import: ``from_urdf(source, tip_link, base_link=None)`` -> a ``serial.Chain``.
 
-The file is parsed by yourdfpy (the optional ``urdf`` extra: ``pip install 'jaxkin[urdf]'``),
-without meshes or scene graph; this module only walks the joint tree. From the tip link up to
+The file is read by the standard library's XML parser (links and joints only: no meshes,
+no scene graph, no optional dependency); this module only walks the joint tree. From the tip link up to
 the base link (the root link by default) every joint on the path is kept, side branches
 (fingers, sensors) are ignored. With ``T_j`` the composed joint origins from the base to joint
 ``j`` at ``theta = 0`` (fixed joints fold into it) and ``a_j`` the unit joint axis in joint
@@ -33,10 +33,11 @@ one whose targets are the tip's 4x4 pose.
 
 from __future__ import annotations
 
-import io
+import dataclasses
 import os
 import re
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -58,15 +59,97 @@ def _text_as_utf8(text: str) -> bytes:
     return text.encode("utf-8")
 
 
-def _load(source: str | os.PathLike) -> object:
-    """The yourdfpy model of a path or XML text (strict XML: no silent recovery)."""
-    try:
-        import yourdfpy
-        from lxml import etree
-    except ImportError as exc:  # pragma: no cover - the extra is part of the test install
-        raise ImportError(
-            "serial.from_urdf needs the 'urdf' extra (yourdfpy): pip install 'jaxkin[urdf]'"
-        ) from exc
+@dataclasses.dataclass
+class _Limit:
+    lower: float | None
+    upper: float | None
+    velocity: float | None
+    effort: float | None
+
+
+@dataclasses.dataclass
+class _Mimic:
+    joint: str | None
+    multiplier: float
+    offset: float
+
+
+@dataclasses.dataclass
+class _Joint:
+    name: str
+    type: str | None
+    parent: str
+    child: str
+    origin: np.ndarray | None
+    axis: np.ndarray
+    limit: _Limit | None
+    mimic: _Mimic | None
+
+
+@dataclasses.dataclass
+class _Link:
+    name: str
+
+
+@dataclasses.dataclass
+class _Robot:
+    name: str
+    links: list[_Link]
+    joints: list[_Joint]
+
+
+def _float(text: str | None) -> float | None:
+    return None if text is None else float(text)
+
+
+def _origin(element) -> np.ndarray | None:
+    """``<origin xyz rpy>`` as a 4x4 transform ``Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)`` (fixed
+    axes x, y, z), each entry computed as trimesh's ``compose_matrix`` computes it."""
+    if element is None:
+        return None
+    xyz = [float(v) for v in element.get("xyz", "0 0 0").split()]
+    rpy = [float(v) for v in element.get("rpy", "0 0 0").split()]
+    if len(xyz) < 3 or len(rpy) < 3:
+        raise ValueError(f"<origin> needs three numbers in xyz and rpy, got {xyz} and {rpy}")
+    (si, sj, sk), (ci, cj, ck) = np.sin(rpy[:3]), np.cos(rpy[:3])
+    cc, cs, sc, ss = ci * ck, ci * sk, si * ck, si * sk
+    frame = np.eye(4)
+    frame[:3, :3] = [
+        [cj * ck, sj * sc - cs, sj * cc + ss],
+        [cj * sk, sj * ss + cc, sj * cs - sc],
+        [-sj, cj * si, cj * ci],
+    ]
+    frame[:3, 3] = xyz[:3]
+    return frame
+
+
+def _joint(element) -> _Joint:
+    axis, limit, mimic = element.find("axis"), element.find("limit"), element.find("mimic")
+    return _Joint(
+        name=element.attrib["name"],
+        type=element.get("type"),
+        parent=element.find("parent").attrib["link"],
+        child=element.find("child").attrib["link"],
+        origin=_origin(element.find("origin")),
+        axis=np.array(
+            [float(v) for v in ("1 0 0" if axis is None else axis.get("xyz", "1 0 0")).split()]
+        ),
+        limit=None
+        if limit is None
+        else _Limit(*(_float(limit.get(k)) for k in ("lower", "upper", "velocity", "effort"))),
+        mimic=None
+        if mimic is None
+        else _Mimic(
+            mimic.get("joint"),
+            float(mimic.get("multiplier", 1.0)),
+            float(mimic.get("offset", 0.0)),
+        ),
+    )
+
+
+def _load(source: str | os.PathLike) -> _Robot:
+    """The links and joints of a path or XML text (strict XML: no silent recovery), read by the
+    standard library's XML parser: the kinematics need no mesh or scene-graph library."""
     if isinstance(source, bytes) and source.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         data, where = source, "source (URDF text)"  # bytes: the parser reads BOM and encoding
     elif isinstance(source, str) and source.lstrip("\ufeff \t\r\n").startswith("<"):
@@ -81,21 +164,18 @@ def _load(source: str | os.PathLike) -> object:
             raise ValueError(f"source: no such URDF file {str(path)!r}")
         data, where = path.read_bytes(), f"source {str(path)!r}"
     try:
-        etree.fromstring(data, etree.XMLParser(remove_blank_text=True))
-    except etree.XMLSyntaxError as exc:
+        root = ElementTree.fromstring(data)
+    except ElementTree.ParseError as exc:
         raise ValueError(f"{where}: not well-formed XML ({exc})") from None
     try:  # NaN or inf in an origin is named per joint after loading (_check_numbers)
         with np.errstate(invalid="ignore", over="ignore"):
-            model = yourdfpy.URDF.load(
-                io.BytesIO(data),
-                build_scene_graph=False,
-                build_collision_scene_graph=False,
-                load_meshes=False,
-                load_collision_meshes=False,
+            return _Robot(
+                name=root.attrib["name"],
+                links=[_Link(link.attrib["name"]) for link in root.findall("link")],
+                joints=[_joint(joint) for joint in root.findall("joint")],
             )
-    except Exception as exc:  # a malformed element: yourdfpy raises what its parser meets
+    except Exception as exc:  # a malformed element: a missing attribute or a bad number
         raise ValueError(f"{where}: not a readable URDF ({type(exc).__name__}: {exc})") from None
-    return model.robot
 
 
 def _check_tree(robot) -> None:
@@ -242,7 +322,6 @@ def from_urdf(
             the tip, no moving joint on it, a ``floating`` or ``planar`` joint on it, a zero
             axis, bad limits, a mimic joint whose leader is not a moving joint on the path or
             whose value can never lie within its own limits, or an unknown ``target``.
-        ImportError: yourdfpy is not installed (the ``urdf`` extra).
     """
     if target not in TARGETS:
         raise ValueError(f"target: expected one of {TARGETS}, got {target!r}")
