@@ -98,6 +98,7 @@ __all__ = [
     "STEP_RTOL",
     "RANKINGS",
     "best",
+    "checked_samples",
     "evaluate",
     "jerk",
     "joint_path",
@@ -400,24 +401,27 @@ def _joint_unit(robot, dtype) -> Array:
     return jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(dtype)
 
 
-def _checked(
+def checked_samples(
     robot,
     q: Jet,
     status: Array,
-    margin: Array,
     moving: Array,
     limits: Limits,
     dt,
-    weights,
     collide: Any = None,
-) -> Evaluation:
-    """The per-sample checks every candidate goes through, then the summaries and costs.
+) -> tuple[Jet, Array, Array | None]:
+    """The per-sample checks every candidate goes through (``plan.evaluate``'s and the
+    command line's trajectories).
 
     ``q``: joints ``(N, T, n)`` as solved or given; ``status`` ``(N, T)`` of the solve (OK
-    where there are joints to check); ``margin`` ``(N, T)``; ``moving`` ``(N,)``: False for a
-    path at rest, whose steps no rates explain. Checks run in order, each only on the samples
-    still OK, so the first failing check names a sample: continuity, then limits, then
-    collision (``collide``: ``(body, pairs, world)`` of ``collision.prepare``, or None).
+    where there are joints to check; anything else on samples to leave alone, such as
+    padding); ``moving`` ``(N,)``: False for a path at rest, whose steps no rates explain;
+    ``dt`` the sampling period, a scalar or one time step per step ``(N, T - 1)``. Revolute
+    joints are unwrapped and brought within their limits, then the checks run in order, each
+    only on the samples still OK, so the first failing check names a sample: continuity, then
+    limits, then collision (``collide``: ``(body, pairs, world)`` of ``collision.prepare``, or
+    None). Returns the joints, the statuses ``(N, T)`` and the least clearance per sample
+    (None without ``collide``).
     """
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     solved = status == Status.OK
@@ -428,7 +432,9 @@ def _checked(
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
     unit = _joint_unit(robot, dtype)
-    jumped = unexplained_steps(q, dt, unit) & solved[..., :-1] & moving[:, None]
+    step = jnp.asarray(dt, dtype)
+    step = step[..., None] if step.ndim else step  # per-step dt (N, T - 1) over the joints
+    jumped = unexplained_steps(q, step, unit) & solved[..., :-1] & moving[:, None]
     jumped = jnp.concatenate([jnp.zeros_like(jumped[..., :1]), jumped], axis=-1)
     checks = [
         (jumped, Status.DISCONTINUOUS),
@@ -441,10 +447,27 @@ def _checked(
         min_clearance = jnp.min(checked.clearance, axis=-1)
     for failed, code in checks:
         status = jnp.where((status == Status.OK) & failed, jnp.int8(code), status)
-    status = status.astype(STATUS_DTYPE)
+    return q, status.astype(STATUS_DTYPE), min_clearance
+
+
+def _checked(
+    robot,
+    q: Jet,
+    status: Array,
+    margin: Array,
+    moving: Array,
+    limits: Limits,
+    dt,
+    weights,
+    collide: Any = None,
+) -> Evaluation:
+    """The per-sample checks (``checked_samples``), then the summaries and costs; ``dt`` the
+    sampling period, a scalar."""
+    q, status, min_clearance = checked_samples(robot, q, status, moving, limits, dt, collide)
     bad = status != Status.OK
     feasible = ~jnp.any(bad, axis=-1)
     first_failure = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
+    unit = _joint_unit(robot, q.p.dtype)
     return Evaluation(
         q=q,
         status=status,

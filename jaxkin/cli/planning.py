@@ -82,27 +82,13 @@ def _follow(robot: Robot, path: Jet, dt: Any, real: Any, limits: plan.Limits, in
     ``dt`` ``(N, T - 1)``, ``real`` ``(N, T)`` False on padding. Returns the joints (Jet
     ``(N, T, n)``), the per-sample statuses and margins."""
     res = robot.ik_path_kernel(path, index, robot.IKOptions())
-    q, status, margin = res.q, res.status, res.margin
-    revolute = np.array([kind == "R" for kind in robot.joint_types])
-    solved = (status == Status.OK) & real
-    dtype = q.p.dtype
-    lower, upper = limits.q_min.astype(dtype), limits.q_max.astype(dtype)
-    q = Jet(
-        plan.within_turns(plan.unwrapped(q.p, revolute), revolute, solved, lower, upper),
-        q.v,
-        q.a,
-    )
+    # Padding samples are left alone by the checks (any status but OK) and cut by the caller.
+    status = jnp.where(real, res.status, jnp.int8(Status.INVALID_INPUT))
     axes = tuple(range(2, path.p.ndim))
     nonzero = (path.v != 0) | (path.a != 0)
     moving = jnp.any(nonzero & real.reshape(real.shape + (1,) * len(axes)), axis=(1, *axes))
-    unit = jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(dtype)
-    jumped = plan.unexplained_steps(q, dt.astype(dtype)[..., None], unit)
-    jumped = jumped & solved[:, :-1] & moving[:, None]
-    jumped = jnp.concatenate([jnp.zeros_like(jumped[:, :1]), jumped], axis=-1)
-    status = jnp.where(solved & jumped, jnp.int8(Status.DISCONTINUOUS), status)
-    violated = plan.limit_excess(q, limits) > 0
-    status = jnp.where((status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status)
-    return q, status.astype(STATUS_DTYPE), margin
+    q, status, _ = plan.checked_samples(robot, res.q, status, moving, limits, dt)
+    return q, status, res.margin
 
 
 _follow_jit = jax.jit(_follow, static_argnames=("index",))
