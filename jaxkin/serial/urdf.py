@@ -1,11 +1,11 @@
 """URDF import: ``from_urdf(source, tip_link, base_link=None)`` -> a ``serial.Chain``.
 
 The file is read by the standard library's XML parser (links and joints only: no meshes,
-no scene graph, no optional dependency); this module only walks the joint tree. From the tip link up to
-the base link (the root link by default) every joint on the path is kept, side branches
-(fingers, sensors) are ignored. With ``T_j`` the composed joint origins from the base to joint
-``j`` at ``theta = 0`` (fixed joints fold into it) and ``a_j`` the unit joint axis in joint
-``j``'s frame::
+no scene graph, no optional dependency); this module only walks the joint tree. From the tip
+link up to the base link (the root link by default) every joint on the path is kept, side
+branches (fingers, sensors) are ignored. With ``T_j`` the composed joint origins from the base
+to joint ``j`` at ``theta = 0`` (fixed joints fold into it) and ``a_j`` the unit joint axis in
+joint ``j``'s frame::
 
     omega_j = R(T_j) a_j,   revolute/continuous: S_j = (omega_j, -omega_j x p(T_j)),
                             prismatic: S_j = (0, omega_j);      home M = T_tip
