@@ -540,7 +540,11 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     # goal of a failed element is its own pose (finite derivatives of the log at identity).
     reached = lie.from_rotation_translation(fk[0], fk[1])
     toward = jnp.where(ok[..., None, None], goal, reached)
-    residual, jac_residual, _, _ = _residual(unit, fixed, toward, fk)
+    # One residual (one SE(3) log in the program) of both targets: ``toward`` for the step,
+    # ``goal`` for the margin's error.
+    both = jnp.stack([toward, jnp.broadcast_to(goal, toward.shape)])
+    residuals, jac_residual, err_rots, err_poss = _residual(unit, fixed, both, fk)
+    residual, err_rot, err_pos = residuals[0], err_rots[1], err_poss[1]
     floor = eps(dtype)
     zero = jnp.zeros((), dtype)
     dq = _step.damped_step_looped(jac_residual, residual, zero, floor)
@@ -566,10 +570,9 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         q_jet = Jet(q, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
     else:
         q_jet = Jet.constant(q)
-    _, _, err_rot, err_pos = _residual(unit, fixed, goal, fk)
     error = jnp.minimum(err_rot + err_pos, 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
-    margin = jnp.where(solved, isotropy(jac), -error)
+    margin = jnp.where(solved, isotropy(jac, looped=True), -error)
     margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)
     return IKResult(q_jet, status, margin.astype(dtype))
 
