@@ -343,6 +343,40 @@ def _task_jacobian(chain: Any, q: Array) -> Array:
     return rot @ jac[..., 3:, :] if chain.target_kind == "point" else jac
 
 
+def _task_jacobian_rate(chain: Any, rot: Array, jac_theta: Array, q_dot: Array) -> Array:
+    """The time derivative of ``_task_jacobian`` along ``q_dot`` ``(..., n)``, from the body
+    Jacobian of the path joints ``jac_theta`` ``(..., 6, m)`` and the tip rotation ``rot``.
+
+    With ``T = E_1 ... E_m M`` the body Jacobian's column ``i``, ``J_i = Ad(G_i^-1) S_i`` with
+    ``G_i = E_i ... E_m M``, moves with the later joints only (``dG_i / dtheta_j = G_i [J_j]``
+    for ``j > i``): ``dJ_i / dtheta_j = ad(J_i) J_j`` for ``j > i``, 0 for ``j <= i``, with
+    ``ad((w, v)) (w', v') = (w x w', w x v' + v x w')``. So ``J_i_dot = ad(J_i) sum_{j > i}
+    J_j theta_dot_j``, ``theta_dot = c q_dot[k]``; a point target's ``R J_v`` has the rate
+    ``R (omega_b x J_v + J_v_dot)``, ``omega_b = J_w q_dot``. No loop over the joints: the
+    search's program keeps one forward kinematics less."""
+    follows = np.asarray(chain.follows)
+    theta_dot = q_dot[..., follows] * chain.multiplier
+    weighted = jac_theta * theta_dot[..., None, :]
+    suffix = jnp.flip(jnp.cumsum(jnp.flip(weighted, -1), axis=-1), -1)  # sum_{j >= i}
+    later = jnp.concatenate([suffix[..., 1:], jnp.zeros_like(suffix[..., :1])], -1)
+    w, v = jac_theta[..., :3, :], jac_theta[..., 3:, :]
+    w_later, v_later = later[..., :3, :], later[..., 3:, :]
+    rate = jnp.concatenate(
+        [
+            jnp.cross(w, w_later, axis=-2),
+            jnp.cross(w, v_later, axis=-2) + jnp.cross(v, w_later, axis=-2),
+        ],
+        axis=-2,
+    )
+    rate = _kinematics.couple(chain, rate)
+    if chain.target_kind != "point":
+        return rate
+    jac = _kinematics.couple(chain, jac_theta)
+    omega = jnp.einsum("...ij,...j->...i", jac[..., :3, :], q_dot)
+    turning = jnp.cross(omega[..., :, None], jac[..., 3:, :], axis=-2)
+    return rot @ (turning + rate[..., 3:, :])
+
+
 def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
     """One projected Levenberg-Marquardt update of every lane. ``starts`` ``(..., S, n)``: the
     lane's first ``S`` runs' starts; ``done``: lanes that take no part."""
@@ -540,12 +574,20 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     # goal of a failed element is its own pose (finite derivatives of the log at identity).
     reached = lie.from_rotation_translation(fk[0], fk[1])
     toward = jnp.where(ok[..., None, None], goal, reached)
-    residual, jac_residual, _, _ = _residual(unit, fixed, toward, fk)
+    # One residual (one SE(3) log in the program) of both targets: ``toward`` for the step,
+    # ``goal`` for the margin's error.
+    both = jnp.stack([toward, jnp.broadcast_to(goal, toward.shape)])
+    residuals, jac_residual, err_rots, err_poss = _residual(unit, fixed, both, fk)
+    residual, err_rot, err_pos = residuals[0], err_rots[1], err_poss[1]
     floor = eps(dtype)
     zero = jnp.zeros((), dtype)
     dq = _step.damped_step_looped(jac_residual, residual, zero, floor)
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
-    jac = _task_jacobian(unit, q_unit)
+    rot, _, jac_theta = _kinematics.screws_fk_and_jacobian(
+        unit.screws, unit.home, _kinematics.angles(unit, q_unit), "body", looped=True
+    )
+    jac = _kinematics.couple(unit, jac_theta)
+    jac = rot @ jac[..., 3:, :] if point else jac
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
     solved_outside = status == Status.OUT_OF_LIMITS
     if rates:
@@ -553,7 +595,7 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
         rows = rows[3:] if point else rows
         q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
-        jac_rate = jax.jvp(lambda x: _task_jacobian(unit, x), (q_unit,), (q_dot,))[1]
+        jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
         q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
         okc = ok[..., None]
@@ -566,10 +608,9 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         q_jet = Jet(q, jnp.where(okc, q_dot / g, 0.0), jnp.where(okc, q_ddot / g, 0.0))
     else:
         q_jet = Jet.constant(q)
-    _, _, err_rot, err_pos = _residual(unit, fixed, goal, fk)
     error = jnp.minimum(err_rot + err_pos, 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
-    margin = jnp.where(solved, isotropy(jac), -error)
+    margin = jnp.where(solved, isotropy(jac, looped=True), -error)
     margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)
     return IKResult(q_jet, status, margin.astype(dtype))
 
