@@ -390,11 +390,10 @@ def _fields(result) -> dict[str, np.ndarray]:
 
 
 def test_check_fused_pass_equals_the_per_primitive_queries():
-    """``check_kernel``'s fused pass (chunked beyond ``_batching.CHUNK`` configurations)
+    """``check_kernel``'s fused pass (chunked beyond ``CHECK_CHUNK`` configurations)
     against the per-primitive queries (``nearest_obstacles`` and ``self_distances``): the
     same clearance to 1e-12 and the same pair, every obstacle kind, a NaN element."""
-    from jaxkin import _batching
-    from jaxkin.collision.check import _check_per_primitive
+    from jaxkin.collision.check import CHECK_CHUNK, _check_per_primitive
 
     arm = serial.Puma560(link_radius=0.05)
     rng = np.random.default_rng(11)
@@ -412,7 +411,7 @@ def test_check_fused_pass_equals_the_per_primitive_queries():
     )
     body, pairs = collision.prepare(arm)
     assert pairs.link_pairs  # the self pairs take part
-    n = _batching.CHUNK + 1000  # two chunks of the fused pass
+    n = 2 * CHECK_CHUNK + 500  # three chunks of the fused pass
     q = rng.uniform(-3.0, 3.0, (n, arm.n_joints))
     q[5, 2] = np.nan
     fused = _fields(collision.check(arm, q, world))
