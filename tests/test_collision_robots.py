@@ -228,6 +228,7 @@ def test_check_compiles_once_per_shapes_and_under_jit_vmap():
     np.testing.assert_allclose(traced, second.clearance, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_clearance_gradient_is_finite_in_contact_and_penetration():
     # the forearm's end C = (130, 0, 150) at q = 0: touching and inside a sphere
     body, pairs = collision.prepare(SCARA)
@@ -249,6 +250,7 @@ def test_clearance_gradient_is_finite_in_contact_and_penetration():
 
 
 # ------------------------------------------------------------------ motions
+@pytest.mark.slow
 def test_validate_motions_against_check_of_every_state():
     rng = np.random.default_rng(6)
     world = scara_world(
@@ -343,6 +345,7 @@ def segment_point_distance(a, b, p):
     return np.linalg.norm(a + t[..., None] * (b - a) - p, axis=-1)
 
 
+@pytest.mark.slow
 def test_obstacles_cost_on_the_body_with_planar_obstacles():
     from jaxkin import costs
     from jaxkin.jet import Jet
