@@ -392,6 +392,7 @@ def _fields(result) -> dict[str, np.ndarray]:
     return {f: np.array(getattr(result, f)) for f in result.__dataclass_fields__}
 
 
+@pytest.mark.slow
 def test_check_fused_pass_equals_the_per_primitive_queries():
     """``check_kernel``'s fused pass (chunked beyond ``CHECK_CHUNK`` configurations)
     against the per-primitive queries (``nearest_obstacles`` and ``self_distances``): the
