@@ -309,6 +309,45 @@ def test_panda_edges(measure, benchmark, panda, dtype):
     benchmark.extra_info["valid_fraction"] = float(np.mean(np.asarray(valid)))
 
 
+@pytest.fixture(scope="module")
+def panda_chain(panda):
+    """The Panda as a public robot: ``serial.from_urdf`` to the hand, the SRDF, and the
+    benchmark body's spheres on every link (``with_link_spheres``): the same 65 spheres and
+    20 link pairs as ``panda``."""
+    from jaxkin import serial
+
+    root = _robots_folder()
+    spheres, _ = panda["body"].per_link()
+    robot = (
+        serial.from_urdf(root / "panda_description/urdf/panda.urdf", "panda_hand")
+        .with_srdf(root / "panda_description/srdf/panda.srdf")
+        .with_link_spheres(spheres)
+    )
+    body, pairs = col.prepare(robot)
+    assert body.num_spheres == panda["body"].num_spheres and body.num_capsules == 0
+    assert pairs.link_pairs == panda["pairs"].link_pairs
+    return robot
+
+
+@pytest.mark.parametrize("n", [1_000, 10_000, 100_000])
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_panda_public_check(measure, benchmark, panda, panda_chain, dtype, n):
+    """Panda configurations per second through the public ``collision.check(robot, q, world)``
+    (the chain's own forward kinematics, placement, the fused clearance and the pair, chunk
+    by chunk): what a user calls."""
+    q = jnp.asarray(_configurations(panda, n, dtype))
+    world = panda["world"].astype(dtype)
+    out = measure(
+        lambda: col.check(panda_chain, q, world).clearance,
+        n,
+        kernel="collision.check",
+        dtype=dtype,
+        batch=n,
+    )
+    benchmark.extra_info["colliding_fraction"] = float(np.mean(np.asarray(out) <= 0))
+    benchmark.extra_info["goal_ratio"] = n / benchmark.stats.stats.min / 1e6
+
+
 def test_coal_panda_configurations(measure, panda):
     """Pinocchio + coal on the same scene with the Panda's original meshes: computeCollisions
     (stop at the first collision) per configuration from a Python loop, 300 configurations."""

@@ -254,21 +254,25 @@ def zero_rates_outside(rates: bool, batch: tuple[int, ...]) -> bool:
     return not rates and math.prod(batch) >= SHARED_ZEROS_MIN
 
 
-def _chunk_layout(size: int) -> tuple[int, int]:
-    """``(n_chunks, chunk)`` for a flat batch of ``size > CHUNK`` elements.
+def _chunk_layout(size: int, limit: int | None = None) -> tuple[int, int]:
+    """``(n_chunks, chunk)`` for a flat batch of ``size > limit`` elements (``limit``: CHUNK
+    by default).
 
-    Prefers a chunk that divides ``size`` (between CHUNK/2 and CHUNK, e.g. 8000 for 10^6): then
-    neither the input nor the output is copied to add or drop padding, and the stacked loop
-    output is the result itself.
+    Prefers a chunk that divides ``size`` (between limit/2 and limit, e.g. 8000 for 10^6):
+    then neither the input nor the output is copied to add or drop padding, and the stacked
+    loop output is the result itself.
     """
-    for chunk in range(CHUNK, CHUNK // 2, -1):
+    limit = CHUNK if limit is None else limit
+    for chunk in range(limit, limit // 2, -1):
         if size % chunk == 0:
             return size // chunk, chunk
-    n_chunks = math.ceil(size / CHUNK)
+    n_chunks = math.ceil(size / limit)
     return n_chunks, math.ceil(size / n_chunks)
 
 
-def map_chunks(fn: Callable[[Any], Any], tree: Any, batch: tuple[int, ...]) -> Any:
+def map_chunks(
+    fn: Callable[[Any], Any], tree: Any, batch: tuple[int, ...], limit: int | None = None
+) -> Any:
     """``fn(tree)`` computed chunk by chunk over the flattened batch.
 
     Args:
@@ -276,6 +280,7 @@ def map_chunks(fn: Callable[[Any], Any], tree: Any, batch: tuple[int, ...]) -> A
             ``i`` of the input); takes and returns pytrees of arrays of shape ``(chunk, ...)``.
         tree: pytree whose leaves have shape ``(*batch, ...)``.
         batch: the batch shape (static).
+        limit: the largest chunk (static; ``CHUNK`` by default).
 
     Returns:
         ``fn``'s output with leaves reshaped to ``(*batch, ...)``. Batches of at most ``CHUNK``
@@ -285,9 +290,9 @@ def map_chunks(fn: Callable[[Any], Any], tree: Any, batch: tuple[int, ...]) -> A
         padding computed and dropped), so the loop body compiles once.
     """
     size = math.prod(batch)
-    if size <= CHUNK:
+    if size <= (CHUNK if limit is None else limit):
         return fn(tree)
-    n_chunks, chunk = _chunk_layout(size)
+    n_chunks, chunk = _chunk_layout(size, limit)
     padded = n_chunks * chunk
 
     def split(x):

@@ -576,6 +576,12 @@ def test_srdf_adjacency_and_self_pairs():
     assert names == [("l0", "l2"), ("l1", "l3")]
     with pytest.raises(ValueError, match="disabled"):
         col.self_collision_link_pairs(body, joints, [("l0", "nope")])
+    # l3 fixed to l2 instead: one rigid body, adjacent to l1 (and to l2) as l2 is
+    rigid = [*joints[:3], ("l2", "l3", "fixed")]
+    assert col.adjacent_links(body, rigid) == adjacent | {frozenset(("l1", "l3"))}
+    assert col.adjacent_links(body, rigid, through_fixed=False) == adjacent
+    names = [(body.links[i], body.links[j]) for i, j in col.self_collision_link_pairs(body, rigid)]
+    assert names == [("l0", "l2"), ("l0", "l3")]
     # folded back on itself: l2 (turned by pi) runs over l1, l3 ends near the base
     sp = col.SelfPairs.create(body, pairs)
 
@@ -612,8 +618,20 @@ def test_panda_srdf_pairs_and_moveit_adjacency():
     read = col.body_from_urdf(root / "panda_description/urdf/panda_collision.urdf")
     disabled = col.read_srdf_disabled(root / "panda_description/srdf/panda.srdf")
     assert len(disabled) == 35
-    adjacent = col.adjacent_links(read.body, read.joints)
-    assert adjacent == {frozenset(d[:2]) for d in disabled if d[2] == "Adjacent"}
+    marked = {frozenset(d[:2]) for d in disabled if d[2] == "Adjacent"}
+    assert col.adjacent_links(read.body, read.joints, through_fixed=False) == marked
+    # link 7, the flange link 8 and the hand are one rigid body: the hand is adjacent to
+    # link 6 as well, and the fingers to link 7, pairs the SRDF disables from samples
+    extra = col.adjacent_links(read.body, read.joints) - marked
+    assert extra == {
+        frozenset(p)
+        for p in [
+            ("panda_link6", "panda_hand"),
+            ("panda_link7", "panda_leftfinger"),
+            ("panda_link7", "panda_rightfinger"),
+        ]
+    }
+    assert extra <= {frozenset(d[:2]) for d in disabled}
     pairs = col.self_collision_link_pairs(read.body, read.joints, disabled)
     assert len(pairs) == 20
     names = {frozenset((read.body.links[i], read.body.links[j])) for i, j in pairs}

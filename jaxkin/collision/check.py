@@ -11,6 +11,11 @@ with ``d`` the exact signed distance (``collision.distance``: negative in penetr
 configuration collides where ``clearance <= margin``. The pair that attains the clearance is
 reported: a robot link and an obstacle (``kind``, ``index``), or two robot links.
 
+The reduction is one fused pass over the placed primitives (``fused.clearance``: robot-world
+and self pairs together, configurations minor), run chunk by chunk over large batches so that
+memory stays bounded; a world with leading batch axes goes through the per-primitive queries
+(``world.nearest_obstacles``, ``pairs.self_distances``), which give the same values.
+
 Everything after the host-side set-up (the body and the pairs, read once per robot) is one
 pure function of arrays, compiled once per shapes: moving, resizing or turning an obstacle, or
 giving the body other radii, reuses the compilation. A configuration with NaN or inf gets
@@ -21,6 +26,7 @@ without touching the other elements of the batch.
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Any
 
 import jax
@@ -29,9 +35,11 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from .._batching import map_chunks
+from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
-from .world import World, nearest_obstacles
+from .world import SPHERE, World, nearest_obstacles
 
 __all__ = [
     "ROBOT_WORLD",
@@ -45,6 +53,10 @@ __all__ = [
 
 # ``CheckResult.pair_kind``: what attains the clearance (-1: nothing to hit).
 ROBOT_WORLD, SELF = 0, 1
+
+# Configurations per step of the chunked check: the rows of ~65 spheres of 1024
+# configurations stay in L2 (benchmarks/README.md: 2-4x the rate of 8192-configuration chunks)
+CHECK_CHUNK = 1024
 
 # int8 codes of ``jaxkin.Status`` (collision sits below the status module in the layers).
 _OK, _INVALID_INPUT, _COLLISION = 0, 8, 11
@@ -118,6 +130,16 @@ def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
     return prepared
 
 
+def _world_batched(world: World) -> bool:
+    """True when the obstacles carry leading batch axes (the fused pass takes one world)."""
+    return (
+        world.spheres.radius.ndim > 1
+        or world.capsules.radius.ndim > 1
+        or world.boxes.half_extents.ndim > 2
+        or world.halfspaces.offset.ndim > 1
+    )
+
+
 def check_kernel(
     robot: Any,
     body: Body,
@@ -126,7 +148,64 @@ def check_kernel(
     world: World,
     margin: ArrayLike = 0.0,
 ) -> CheckResult:
-    """The pure kernel of ``check`` (traceable, any leading batch axes of ``q``)."""
+    """The pure kernel of ``check`` (traceable, any leading batch axes of ``q``).
+
+    One pass per chunk of configurations (``_batching.map_chunks``: at most ``CHECK_CHUNK``
+    configurations at a time, so memory stays bounded for any batch): forward kinematics,
+    placement, then the fused robot-world and self clearance (``fused.clearance``). A world
+    with leading batch axes goes through the per-primitive queries instead.
+    """
+    dtype = q.dtype
+    batch = q.shape[:-1]
+    body, world = body.astype(dtype), world.astype(dtype)
+    if _world_batched(world) or math.prod(batch) == 0 or not (body.num_spheres + body.num_capsules):
+        return _check_per_primitive(robot, body, pairs, q, world, margin)
+    prim_link = jnp.asarray(np.asarray(body.sphere_link + body.capsule_link, dtype=np.int32))
+    ns = body.num_spheres
+    margin = jnp.asarray(margin, dtype)
+
+    def one(q: Array) -> CheckResult:
+        valid = jnp.all(jnp.isfinite(q), axis=-1)
+        q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
+        spheres, capsules = body.place(robot.link_poses(q_safe).astype(dtype))
+        near = fused.clearance(spheres, capsules, world, pairs if pairs.link_pairs else None)
+        nothing = near.distance >= jnp.finfo(dtype).max
+        link = prim_link[near.robot_index + jnp.where(near.robot_kind == SPHERE, 0, ns)]
+        second = prim_link[near.other_index + jnp.where(near.other_kind == SPHERE, 0, ns)]
+        is_self = ~near.world
+        pair_kind = jnp.where(nothing, -1, jnp.where(is_self, SELF, ROBOT_WORLD))
+        # a self pair is reported as (smaller link, larger link), as its link pair is listed
+        first = jnp.where(is_self, jnp.minimum(link, second), link)
+        other = jnp.where(is_self, jnp.maximum(link, second), near.other_index)
+        obstacle_kind = jnp.where(is_self | nothing, -1, near.other_kind)
+        keep = valid & ~nothing
+        clearance = jnp.where(valid, near.distance, jnp.zeros((), dtype))
+        collides = ~valid | (clearance <= margin)
+        status = jnp.where(~valid, _INVALID_INPUT, jnp.where(collides, _COLLISION, _OK))
+        return CheckResult(
+            clearance,
+            collides,
+            status.astype(jnp.int8),
+            jnp.where(valid, pair_kind, -1).astype(jnp.int8),
+            jnp.where(keep, first, -1).astype(jnp.int32),
+            jnp.where(keep, other, -1).astype(jnp.int32),
+            jnp.where(valid, obstacle_kind, -1).astype(jnp.int8),
+        )
+
+    return map_chunks(one, q, batch, CHECK_CHUNK)
+
+
+def _check_per_primitive(
+    robot: Any,
+    body: Body,
+    pairs: SelfPairs,
+    q: Array,
+    world: World,
+    margin: ArrayLike = 0.0,
+) -> CheckResult:
+    """``check_kernel`` through the per-primitive queries (``nearest_obstacles`` and
+    ``self_distances``): for a world with leading batch axes, and the reference of the
+    fused pass in the tests."""
     dtype = q.dtype
     valid = jnp.all(jnp.isfinite(q), axis=-1)
     q_safe = jnp.where(valid[..., None], q, 0.0)

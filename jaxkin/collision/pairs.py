@@ -4,7 +4,8 @@ The pairs checked are all pairs of links that carry geometry, minus adjacent lin
 pairs an SRDF disables (MoveIt's format: ``<disable_collisions link1=".." link2=".."
 reason=".."/>``). Two links are adjacent when one is the other's parent in the kinematic tree,
 looking through links without geometry (MoveIt's rule: the Panda's hand is adjacent to link 7
-across the geometry-less flange link 8).
+across the geometry-less flange link 8), where links joined by fixed joints count as one rigid
+body (``adjacent_links``): a link fixed to another is adjacent to that link's neighbours.
 
 ``SelfPairs`` turns link pairs into the primitive pairs (sphere-sphere, sphere-capsule,
 capsule-capsule) between them; ``self_distances`` evaluates them for placed primitives and
@@ -64,23 +65,48 @@ def _links_with_geometry(body: Body) -> set[int]:
     return set(body.sphere_link) | set(body.capsule_link)
 
 
-def adjacent_links(body: Body, joints: Iterable[tuple[str, str, str]]) -> set[frozenset[str]]:
-    """Adjacent pairs among the links with geometry: parent and child in the tree of
-    ``joints`` (``(parent, child, type)``), looking through links without geometry."""
+def adjacent_links(
+    body: Body, joints: Iterable[tuple[str, str, str]], through_fixed: bool = True
+) -> set[frozenset[str]]:
+    """Adjacent pairs among the links with geometry, in the tree of ``joints`` (``(parent,
+    child, type)``).
+
+    Links joined by ``fixed`` joints move as one rigid body (with ``through_fixed``): every
+    two links with geometry within one rigid body are adjacent, and so are those of a body
+    and of its parent body across a moving joint, looking through bodies without geometry.
+    A link fixed to the last link of an arm (the UR5's ``ee_link`` on ``wrist_3_link``) is
+    then adjacent to the link before it (``wrist_2_link``), as its own link is: their covers
+    touch at the joint in every configuration, so checking them would report every
+    configuration in collision. With ``through_fixed=False``, only parent and child links
+    (looking through links without geometry): the pairs MoveIt's setup assistant marks
+    "Adjacent" in an SRDF (it finds the others, e.g. the Panda's hand and link 6, from
+    samples and marks them "Never" or "Default").
+    """
     index = {name: i for i, name in enumerate(body.links)}
     parent: dict[str, str] = {}
-    for p, c, _ in joints:
+    kind: dict[str, str] = {}
+    for p, c, t in joints:
         if p not in index or c not in index:
             raise ValueError(f"joints: link {p!r} or {c!r} is not in the body's links")
-        parent[c] = p
-    geometric = {body.links[i] for i in _links_with_geometry(body)}
+        parent[c], kind[c] = p, t
+
+    def rigid_root(link: str) -> str:
+        """The first link of ``link``'s rigid body (up through fixed joints)."""
+        while through_fixed and kind.get(link) == "fixed" and link in parent:
+            link = parent[link]
+        return link
+
+    members: dict[str, set[str]] = {}  # rigid body (its root) -> its links with geometry
+    for i in _links_with_geometry(body):
+        members.setdefault(rigid_root(body.links[i]), set()).add(body.links[i])
     pairs = set()
-    for link in geometric:
-        up = parent.get(link)
-        while up is not None and up not in geometric:
-            up = parent.get(up)
+    for root, own in members.items():
+        pairs |= {frozenset((a, b)) for a in own for b in own if a != b}
+        up = parent.get(root)
+        while up is not None and rigid_root(up) not in members:
+            up = parent.get(rigid_root(up))
         if up is not None:
-            pairs.add(frozenset((link, up)))
+            pairs |= {frozenset((a, b)) for a in own for b in members[rigid_root(up)]}
     return pairs
 
 
@@ -90,7 +116,8 @@ def self_collision_link_pairs(
     disabled: Iterable[tuple[str, ...]] = (),
 ) -> tuple[tuple[int, int], ...]:
     """Link index pairs ``(i, j)``, ``i < j``, to check: links with geometry, minus adjacent
-    pairs, minus ``disabled`` (e.g. ``read_srdf_disabled(...)``; names not in the body raise)."""
+    pairs (``adjacent_links``: fixed joints join rigid bodies), minus ``disabled`` (e.g.
+    ``read_srdf_disabled(...)``; names not in the body raise)."""
     off = adjacent_links(body, joints)
     for entry in disabled:
         a, b = entry[0], entry[1]
