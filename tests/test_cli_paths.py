@@ -275,6 +275,7 @@ def scara_xy(q):
     )
 
 
+@pytest.mark.slow
 def test_plan_by_cost_joint_space_and_errors(tmp_path, capsys):
     """``--by cost`` without rate bounds writes the cheapest at the file's samples; a file of
     joint columns is a joint-space candidate set (forward kinematics, limits); unequal
@@ -405,6 +406,7 @@ def test_plan_urdf_arm_joint_and_task_space(tmp_path, capsys):
     assert np.max(np.abs(speeds)) > 1.9  # the time-optimal motion reaches the bound
 
 
+@pytest.mark.slow
 def test_paths_are_written_batch_by_batch(tmp_path, capsys, monkeypatch):
     """Three candidates of 5 rows with ``--chunk-size 16`` (a candidate holds 8 padded
     samples): two batches, each written as soon as it is solved, one header; the same rows

@@ -9,6 +9,7 @@ from tests.references.dyad import dyad_numpy, dyad_rows, make_numba_dyad, random
 
 
 @pytest.mark.parametrize("mode", [1, -1])
+@pytest.mark.slow
 def test_numpy_and_numba_references_equal_jaxkin(mode):
     arrays, l_ac, l_bc = random_dyads(2000, seed=7)
     res = dyad.solve(Jet.of(*arrays[:3]), Jet.of(*arrays[3:]), l_ac, l_bc, mode)

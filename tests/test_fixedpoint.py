@@ -96,6 +96,7 @@ def test_quantised_outputs_lie_on_the_grid_and_converge():
     assert errors[-1] < 1e-9
 
 
+@pytest.mark.slow
 def test_sweep_over_bits_equals_separate_calls():
     target = _reachable_targets(6, seed=3)
     bits = np.array([3, 9, 17, 40])
@@ -113,6 +114,7 @@ def test_low_widths_stay_finite():
     assert np.all(np.isfinite(q))
 
 
+@pytest.mark.slow
 def test_accuracy_study_and_smallest_width():
     path = _reachable_targets(30, seed=5)
     bits = np.arange(1, 41)

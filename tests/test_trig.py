@@ -162,6 +162,7 @@ def test_atan2_special_values_follow_c():
     np.testing.assert_array_equal(np.signbit(got[finite]), np.signbit(expected[finite]))
 
 
+@pytest.mark.slow
 def test_atan2_broadcasts_and_has_arctan2_derivatives():
     y = jnp.asarray(RNG.normal(size=(4, 1)))
     x = jnp.asarray(RNG.normal(size=(5,)))
