@@ -36,6 +36,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
+from ..status import Status
 from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
@@ -58,8 +59,7 @@ ROBOT_WORLD, SELF = 0, 1
 # configurations stay in L2 (benchmarks/README.md: 2-4x the rate of 8192-configuration chunks)
 CHECK_CHUNK = 1024
 
-# int8 codes of ``jaxkin.Status`` (collision sits below the status module in the layers).
-_OK, _INVALID_INPUT, _COLLISION = 0, 8, 11
+_OK, _INVALID_INPUT, _COLLISION = Status.OK, Status.INVALID_INPUT, Status.COLLISION
 
 
 @jax.tree_util.register_dataclass
@@ -178,19 +178,8 @@ def check_kernel(
         first = jnp.where(is_self, jnp.minimum(link, second), link)
         other = jnp.where(is_self, jnp.maximum(link, second), near.other_index)
         obstacle_kind = jnp.where(is_self | nothing, -1, near.other_kind)
-        keep = valid & ~nothing
-        clearance = jnp.where(valid, near.distance, jnp.zeros((), dtype))
-        collides = ~valid | (clearance <= margin)
-        status = jnp.where(~valid, _INVALID_INPUT, jnp.where(collides, _COLLISION, _OK))
-        return CheckResult(
-            clearance,
-            collides,
-            status.astype(jnp.int8),
-            jnp.where(valid, pair_kind, -1).astype(jnp.int8),
-            jnp.where(keep, first, -1).astype(jnp.int32),
-            jnp.where(keep, other, -1).astype(jnp.int32),
-            jnp.where(valid, obstacle_kind, -1).astype(jnp.int8),
-        )
+        first, other = (jnp.where(nothing, -1, x) for x in (first, other))
+        return _verdict(valid, near.distance, pair_kind, first, other, obstacle_kind, margin)
 
     return map_chunks(one, q, batch, CHECK_CHUNK)
 
@@ -250,16 +239,32 @@ def _check_per_primitive(
     other = jnp.where(nothing, -1, jnp.where(is_self, self_b, world_index)).astype(jnp.int32)
     obstacle_kind = jnp.where(is_self | nothing, -1, world_kind).astype(jnp.int8)
 
-    clearance = jnp.where(valid, clearance, 0.0)
-    collides = ~valid | (clearance <= jnp.asarray(margin, dtype))
+    margin = jnp.asarray(margin, dtype)
+    return _verdict(valid, clearance, pair_kind, link, other, obstacle_kind, margin)
+
+
+def _verdict(
+    valid: Array,
+    distance: Array,
+    pair_kind: Array,
+    link: Array,
+    other: Array,
+    obstacle_kind: Array,
+    margin: Array,
+) -> CheckResult:
+    """The ``CheckResult`` of the closest pair (``-1`` fields where there is none): a
+    configuration that is not finite gets clearance 0, collides, ``INVALID_INPUT`` and no
+    pair; the others collide at a clearance ``<= margin``."""
+    clearance = jnp.where(valid, distance, jnp.zeros((), distance.dtype))
+    collides = ~valid | (clearance <= margin)
     status = jnp.where(~valid, _INVALID_INPUT, jnp.where(collides, _COLLISION, _OK))
     return CheckResult(
         clearance,
         collides,
         status.astype(jnp.int8),
         jnp.where(valid, pair_kind, -1).astype(jnp.int8),
-        jnp.where(valid, link, -1),
-        jnp.where(valid, other, -1),
+        jnp.where(valid, link, -1).astype(jnp.int32),
+        jnp.where(valid, other, -1).astype(jnp.int32),
         jnp.where(valid, obstacle_kind, -1).astype(jnp.int8),
     )
 
