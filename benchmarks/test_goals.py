@@ -3,15 +3,17 @@
 jaxkin's dyad (analytic and autodiff paths), SCARA IK and Delta FK (Newton and closed form)
 run beside fused Numba loops and NumPy code written independently from the papers
 (``tests/references/``), on the same float64 inputs; the Numba loops read contiguous input rows
-prepared outside the timer. Each round calls every contender once, in turn, and each keeps its
-best round, so machine load and the allocator's state hit every contender alike.
+prepared outside the timer. Each round calls every contender of one kernel once, in turn, and
+each keeps its best round, so machine load and the allocator's state hit every contender
+alike.
 
 The test FAILS when a ratio falls below its floor in ``FLOORS``: the floors were measured on
 the project's 2-core machine (date, commit and runs beside them) and sit below the lowest of
 repeated runs by a margin for run-to-run noise, so a regression shows in the commit that
 makes it. A goal (``GOALS``) is where a ratio should be;
 missing one prints ``MISSED`` without failing. Skipped without numba (``pip install -e
-'.[bench]'``). ``make bench-goals`` runs this file alone (about a minute).
+'.[bench]'``). ``make bench-goals`` runs this file alone (about a minute); one test per
+kernel, so ``-k dyad`` (``scara``, ``delta``) runs one kernel's ratios.
 """
 
 from __future__ import annotations
@@ -67,12 +69,20 @@ FLOORS = {
 }
 
 
-def _contenders() -> dict:
+def _dyad_contenders() -> dict:
     arrays, l_ac, l_bc = random_dyads(N)
     a, b = Jet.of(*arrays[:3]), Jet.of(*arrays[3:])
     rows = dyad_rows(*arrays)
     dyad_numba = make_numba_dyad(rows=True)
+    return {
+        "dyad analytic": lambda: dyad.solve(a, b, l_ac, l_bc),
+        "dyad autodiff": lambda: dyad.solve(a, b, l_ac, l_bc, 1, "autodiff"),
+        "dyad numba": lambda: dyad_numba(rows, l_ac, l_bc),
+        "dyad numpy": lambda: dyad_numpy(*arrays, l_ac, l_bc),
+    }
 
+
+def _scara_contenders() -> dict:
     p, v, acc = (x.reshape(-1, 3) for x in trajectories(*SCARA_SHAPE))
     robot = scara.Scara.create(L_OA, L_AB, L_BC)
     targets = jax.device_put(Jet.of(p, v, acc))
@@ -83,17 +93,18 @@ def _contenders() -> dict:
         scara_loop(p, v, acc, L_OA, L_AB, L_BC, 1, out)
         return out
 
+    return {
+        "scara.ik": lambda: scara.ik(robot, targets, branch=1),
+        "scara numba": scara_numba,
+        "scara numpy": lambda: scara_numpy(p, v, acc, L_OA, L_AB, L_BC, 1),
+    }
+
+
+def _delta_contenders() -> dict:
     _, theta = data(N)
     theta_dev = jnp.asarray(theta)
     fk_numba = ref_delta.make_numba_fk_newton()
     return {
-        "dyad analytic": lambda: dyad.solve(a, b, l_ac, l_bc),
-        "dyad autodiff": lambda: dyad.solve(a, b, l_ac, l_bc, 1, "autodiff"),
-        "dyad numba": lambda: dyad_numba(rows, l_ac, l_bc),
-        "dyad numpy": lambda: dyad_numpy(*arrays, l_ac, l_bc),
-        "scara.ik": lambda: scara.ik(robot, targets, branch=1),
-        "scara numba": scara_numba,
-        "scara numpy": lambda: scara_numpy(p, v, acc, L_OA, L_AB, L_BC, 1),
         "delta.fk": lambda: delta.fk(ROBOT, theta_dev),
         "delta fk numba": lambda: fk_numba(theta),
         "delta.fk_closed_form": lambda: delta.fk_closed_form(ROBOT, theta_dev),
@@ -101,9 +112,16 @@ def _contenders() -> dict:
     }
 
 
-def test_goal_ratios(benchmark):
+# One test per kernel (``-k dyad`` runs the dyad's ratios alone); every ratio compares
+# contenders of the same test, so each ratio is still measured within one process and one
+# sequence of interleaved rounds.
+CONTENDERS = {"dyad": _dyad_contenders, "scara": _scara_contenders, "delta": _delta_contenders}
+
+
+@pytest.mark.parametrize("kernel", list(CONTENDERS))
+def test_goal_ratios(benchmark, kernel):
     pytest.importorskip("numba")
-    contenders = _contenders()
+    contenders = CONTENDERS[kernel]()
     cases = dict.fromkeys(contenders, N)
     cases.update(dict.fromkeys(("scara.ik", "scara numba", "scara numpy"), np.prod(SCARA_SHAPE)))
     best = dict.fromkeys(contenders, float("inf"))
@@ -115,8 +133,10 @@ def test_goal_ratios(benchmark):
             jax.block_until_ready(fn())
             best[name] = min(best[name], time.perf_counter() - start)
     rate = {name: cases[name] / seconds for name, seconds in best.items()}
-    ratios = {name: rate[num] / rate[den] for name, (num, den) in RATIOS.items()}
-    benchmark.extra_info.update(kernel="goal ratios, interleaved", dtype="float64")
+    ratios = {
+        name: rate[num] / rate[den] for name, (num, den) in RATIOS.items() if num in contenders
+    }
+    benchmark.extra_info.update(kernel=f"goal ratios ({kernel}), interleaved", dtype="float64")
     benchmark.extra_info["n_cases"] = N
     benchmark.extra_info.update({f"{name} (cases/s)": round(r) for name, r in rate.items()})
     benchmark.extra_info.update({name: round(r, 2) for name, r in ratios.items()})

@@ -28,6 +28,7 @@ accuracy: ``docs/performance.md``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import NamedTuple
 
 import jax
@@ -37,7 +38,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _batching, _validate
-from ._numerics import computed_once, rsqrt, safe_sqrt, singular_rtol
+from ._numerics import computed_once, rsqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
 from .planar import angle_rates, length_rates, link_end_rates
@@ -109,21 +110,79 @@ class _Position(NamedTuple):
 
 
 @jax.custom_jvp
-def _unit_atan2(sin_phi: Array, cos_phi: Array) -> Array:
-    """``atan2(sin_phi, cos_phi)`` for a unit vector (as built by ``_position``).
+def _reciprocal(x: Array) -> Array:
+    """``1 / x`` whose derivative rule, ``-(1/x)^2 dx``, reuses the reciprocal (no division)."""
+    return 1.0 / x
 
-    Its derivative rule uses ``cos^2 + sin^2 = 1``: ``phi' = cos sin' - sin cos'``, which has no
-    division (atan2's generic rule divides by ``cos^2 + sin^2``); nested jvp differentiates the
-    rule again, giving ``phi'' = cos sin'' - sin cos''``. This keeps the autodiff path cheap.
+
+@_reciprocal.defjvp
+def _reciprocal_jvp(primals, tangents):
+    (x,), (x_dot,) = primals, tangents
+    inv = _reciprocal(x)
+    return inv, -(inv * inv) * x_dot
+
+
+@jax.custom_jvp
+def _sqrt(x: Array) -> Array:
+    return jnp.sqrt(x)
+
+
+@_sqrt.defjvp
+def _sqrt_jvp(primals, tangents):
+    (x,), (x_dot,) = primals, tangents
+    # d sqrt(x) = dx / (2 sqrt(x)): one division after the square root, where ``rsqrt`` (as
+    # in _numerics.safe_sqrt's rule) costs a second square root on CPU.
+    root = _sqrt(x)
+    return root, 0.5 * _reciprocal(root) * x_dot
+
+
+def _safe_sqrt(x: Array) -> Array:
+    """``sqrt(max(x, 0))`` with a zero derivative at and below 0 (double-where)."""
+    positive = x > 0
+    return jnp.where(positive, _sqrt(jnp.where(positive, x, 1.0)), 0.0)
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(0,))
+def _rotated_atan2(mode: int, sin_phi, cos_phi, cos_theta, sin_theta, u, sin_beta) -> Array:
+    """``atan2(sin_phi, cos_phi)`` for the unit vector ``(cos_phi, sin_phi)`` that is
+    ``(cos_theta, sin_theta)`` turned by ``mode * beta``, ``(u, sin_beta) = (cos, sin)(beta)``.
+
+    Its derivative rule is that of ``phi = theta + mode * beta`` with each angle given by a
+    unit vector: ``theta' = cos_theta sin_theta' - sin_theta cos_theta'`` (``cos^2 + sin^2 =
+    1``, no division, unlike atan2's generic rule), likewise ``beta'``; the tangents of
+    ``cos_phi`` and ``sin_phi`` (products of the others) are not read. Nested jvp
+    differentiates the rule again. This keeps the autodiff path's loops short.
     """
     return atan2(sin_phi, cos_phi)
 
 
-@_unit_atan2.defjvp
-def _unit_atan2_jvp(primals, tangents):
-    sin_phi, cos_phi = primals
-    sin_dot, cos_dot = tangents
-    return _unit_atan2(sin_phi, cos_phi), cos_phi * sin_dot - sin_phi * cos_dot
+@_rotated_atan2.defjvp
+def _rotated_atan2_jvp(mode, primals, tangents):
+    sin_phi, cos_phi, cos_theta, sin_theta, u, sin_beta = primals
+    _, _, cos_theta_dot, sin_theta_dot, u_dot, sin_beta_dot = tangents
+    theta_dot = cos_theta * sin_theta_dot - sin_theta * cos_theta_dot
+    beta_dot = u * sin_beta_dot - sin_beta * u_dot
+    phi = _rotated_atan2(mode, *primals)
+    return phi, theta_dot + mode * beta_dot
+
+
+@jax.custom_jvp
+def _turning_unit(phi: Array, cos_phi: Array, sin_phi: Array) -> tuple[Array, Array]:
+    """``(cos_phi, sin_phi)``, given as ``cos phi`` and ``sin phi``, differentiated along phi.
+
+    The derivative rule of the unit vector of angle ``phi``, ``d (cos, sin) = (-sin, cos)
+    d phi``, reads phi's tangent only (those of ``cos_phi`` and ``sin_phi``, functions of phi,
+    are not needed); nested jvp gives ``-(cos, sin) phi'^2 + (-sin, cos) phi''``.
+    """
+    return cos_phi, sin_phi
+
+
+@_turning_unit.defjvp
+def _turning_unit_jvp(primals, tangents):
+    phi, cos_phi, sin_phi = primals
+    phi_dot = tangents[0]
+    cos_out, sin_out = _turning_unit(phi, cos_phi, sin_phi)
+    return (cos_out, sin_out), (-sin_out * phi_dot, cos_out * phi_dot)
 
 
 def _position(dx, dy, l_ac, l_bc, valid, mode: int, store_cos_sin: bool = False) -> _Position:
@@ -154,8 +213,12 @@ def _position(dx, dy, l_ac, l_bc, valid, mode: int, store_cos_sin: bool = False)
     # Eqs. 1, 4, 5: u = cos(beta) = A / B.
     # l = 0 cannot assemble unless coincident: u_raw = 2 there makes the margin negative.
     u_raw = jnp.where(l > 0, (l_ac * l_ac + r2 - l_bc * l_bc) * inv_l * (0.5 / l_ac), 2.0)
-    u = jnp.where(extended, 1.0, jnp.where(folded, -1.0, jnp.clip(u_raw, -1.0, 1.0)))
-    sin_beta = safe_sqrt(1.0 - u * u)
+    # lax.clamp, not jnp.clip: clip's derivative rule (max/min) divides twice per element at
+    # every order of a nested jvp; clamp's is a select. Same values.
+    one = jnp.ones((), u_raw.dtype)
+    u_in = jax.lax.clamp(-one, u_raw, one)
+    u = jnp.where(extended, 1.0, jnp.where(folded, -1.0, u_in))
+    sin_beta = _safe_sqrt(1.0 - u * u)
 
     # cos/sin of phi = theta + mode * beta, without evaluating theta or beta.
     cos_phi = cos_theta * u - mode * sin_theta * sin_beta
@@ -164,7 +227,7 @@ def _position(dx, dy, l_ac, l_bc, valid, mode: int, store_cos_sin: bool = False)
         cos_phi, sin_phi = computed_once(jnp.stack([cos_phi, sin_phi]))
 
     # atan2 wraps to (-pi, pi]; restore the paper's unwrapped theta + mode * beta.
-    phi_wrapped = _unit_atan2(sin_phi, cos_phi)
+    phi_wrapped = _rotated_atan2(mode, sin_phi, cos_phi, cos_theta, sin_theta, u, sin_beta)
     if mode == 1:
         theta_on_side = (dy > 0) | ((dy == 0) & (dx < 0))  # theta > 0 (theta = pi for y = 0)
     else:
@@ -337,27 +400,34 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
         status = _far_status(pos.status, far)
         return DyadResult(c, Jet(pos.phi, phi_dot, phi_ddot), status, pos.margin)
 
-    def autodiff_part(a_comps, rel, l_ac, l_bc, valid, scale):
-        def position(dx, dy):
-            pos = _position(dx, dy, l_ac, l_bc, valid, mode)
-            return pos.c_x, pos.c_y, pos.phi, pos.status, pos.margin
+    # Forward-mode autodiff (two lifts, composed): phi's rates through the position kernel,
+    # then C = A + l_ac (cos phi, sin phi) along phi's Jet. Routed through phi so that C's
+    # four rate loops read phi's stored rates (as the analytic path does) instead of each
+    # re-deriving the kernel's second-order tangents (docs/performance.md).
+    def position(dx, dy):
+        pos = _position(dx, dy, l_ac, l_bc, valid, mode)
+        return pos.phi, pos.cos_phi, pos.sin_phi, pos.status, pos.margin
 
-        c_x, c_y, phi, status, margin = lift(position)(Jet(*rel[0::2]), Jet(*rel[1::2]))
-        ok = status == Status.OK
-        c_x, c_y = (
+    phi, cos_phi, sin_phi, status, margin = lift(position)(Jet(*rel[0::2]), Jet(*rel[1::2]))
+    ok = status == Status.OK
+    phi = Jet(
+        phi.p,
+        computed_once(jnp.where(ok, phi.v, 0.0)),
+        computed_once(jnp.where(ok, phi.a, 0.0)),
+    )
+    cos_phi, sin_phi = computed_once(jnp.stack([cos_phi.p, sin_phi.p]))
+    unit_x, unit_y = lift(lambda angle: _turning_unit(angle, cos_phi, sin_phi))(phi)
+    c = Jet.stack(
+        [
             Jet(
-                a_comps[k] + j.p * scale,
-                a_comps[k + 2] + jnp.where(ok, j.v, 0.0) * scale,
-                a_comps[k + 4] + jnp.where(ok, j.a, 0.0) * scale,
+                a_comps[k] + l_ac * unit.p * scale,
+                a_comps[k + 2] + l_ac * unit.v * scale,
+                a_comps[k + 4] + l_ac * unit.a * scale,
             )
-            for k, j in ((0, c_x), (1, c_y))
-        )
-        phi = Jet(phi.p, jnp.where(ok, phi.v, 0.0), jnp.where(ok, phi.a, 0.0))
-        return DyadResult(Jet.stack([c_x, c_y]), phi, status, margin.p)
-
-    # Large batches as two halves: faster for this path (not the analytic one), measured.
-    result = _batching.in_two_halves(autodiff_part, tuple(parts), valid.shape)
-    return dataclasses.replace(result, status=_far_status(result.status, far))
+            for k, unit in ((0, unit_x), (1, unit_y))
+        ]
+    )
+    return DyadResult(c, phi, _far_status(status, far), margin.p)
 
 
 _solve_jit = _batching.PaddedJit(
@@ -424,7 +494,8 @@ def solve(
             phi = theta - beta (eq. 10).
         method: ``"analytic"`` (the paper's closed forms, eqs. 2-10, errata corrected) or
             ``"autodiff"`` (forward-mode differentiation of the position solution through
-            ``jaxkin.lift``). Both give the same values.
+            ``jaxkin.lift``: phi's rates through the position kernel, then C's through
+            ``C = A + l_ac (cos phi, sin phi)``). Both give the same values.
 
     Returns:
         A ``DyadResult`` with ``c``, ``phi``, ``status`` and ``margin``; batch shape is the
