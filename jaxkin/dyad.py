@@ -190,8 +190,9 @@ def _position(dx, dy, l_ac, l_bc, valid, mode: int, store_cos_sin: bool = False)
     (``l_ac + l_bc = 1``, see ``_sanitized``); ``valid`` marks elements whose raw input was
     finite.
 
-    ``store_cos_sin``: compute cos/sin of phi once for all readers (``computed_once``): faster
-    for the analytic path, slower for the autodiff path (measured), so only the first asks.
+    ``store_cos_sin``: compute cos/sin of phi once for all readers (``computed_once``), for
+    ``solve``'s paths (under the autodiff path's jvp only their values are stored: the rule of
+    ``_rotated_atan2`` reads no tangent of them).
     """
     r2 = dx * dx + dy * dy
     # One rsqrt for both |AB| and its reciprocal (double-where at A = B); fewer divisions
@@ -405,7 +406,7 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     # four rate loops read phi's stored rates (as the analytic path does) instead of each
     # re-deriving the kernel's second-order tangents (docs/performance.md).
     def position(dx, dy):
-        pos = _position(dx, dy, l_ac, l_bc, valid, mode)
+        pos = _position(dx, dy, l_ac, l_bc, valid, mode, store_cos_sin=True)
         return pos.phi, pos.cos_phi, pos.sin_phi, pos.status, pos.margin
 
     phi, cos_phi, sin_phi, status, margin = lift(position)(Jet(*rel[0::2]), Jet(*rel[1::2]))
@@ -415,8 +416,7 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
         computed_once(jnp.where(ok, phi.v, 0.0)),
         computed_once(jnp.where(ok, phi.a, 0.0)),
     )
-    cos_phi, sin_phi = computed_once(jnp.stack([cos_phi.p, sin_phi.p]))
-    unit_x, unit_y = lift(lambda angle: _turning_unit(angle, cos_phi, sin_phi))(phi)
+    unit_x, unit_y = lift(lambda angle: _turning_unit(angle, cos_phi.p, sin_phi.p))(phi)
     c = Jet.stack(
         [
             Jet(
