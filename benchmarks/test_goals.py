@@ -57,11 +57,12 @@ GOALS = {
 }
 # The guard: floors from three runs of this file on 2026-11-26 at commit d01ca2e on the 2-core
 # machine (the runs: benchmarks/README.md), each about 0.65x the lowest run. Raise a floor when
-# a kernel gets faster; lower one only with a measurement that explains why.
+# a kernel gets faster; lower one only with a measurement that explains why. The dyad's
+# autodiff floor was raised after its rework (0.86-0.94 over three runs at load 6-12).
 FLOORS = {
     "dyad analytic / numba": 0.5,
     "dyad analytic / numpy": 1.1,
-    "dyad autodiff / analytic": 0.45,
+    "dyad autodiff / analytic": 0.55,
     "scara.ik / numba": 0.3,
     "scara.ik / numpy": 0.6,
     "delta.fk / numba newton x8": 0.75,
