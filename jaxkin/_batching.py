@@ -116,6 +116,7 @@ class HotQueries:
             bounded_put(self.counts, key, count, 4 * self.size)
             return None
         program = build()
+        self.counts.pop(key, None)  # the build may have called the query once more
         if program is None:  # kept apart, so that batches never push programs out
             bounded_put(self.none, key, owner, 4 * self.size)
         else:
@@ -140,8 +141,9 @@ def bounded_put(table: dict, key: Any, value: Any, size: int) -> None:
 
 def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], Any]:
     """``fn`` (one array in, a pytree out) compiled for ``example``'s shape and dtype, its
-    output leaves that do not depend on the input (the zero rates of a query at rest) computed
-    once and returned as they are: every output of a compiled call costs about 1-2 us."""
+    output leaves that do not depend on the input (the zero rates of a query at rest) taken
+    once from ``fn(example)`` and returned as they are: every output of a compiled call costs
+    about 1-2 us. One trace of ``fn`` (which outputs move) and one compilation (of those)."""
     traced = jax.jit(fn).trace(example)
     tree = jax.tree.structure(traced.out_info)
     moving = _input_dependent(traced.jaxpr.jaxpr)
@@ -152,18 +154,27 @@ def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], A
         return lambda x: [jax.tree.leaves(fn(x))[i] for i in indices]
 
     leaves = [None] * tree.num_leaves
-    if fixed:
-        for i, value in zip(fixed, jax.jit(pick(fixed))(example), strict=True):
-            leaves[i] = value
-    compiled = jax.jit(pick(moving))
+    if fixed:  # from one call of ``fn`` as it is (its usual program): no compilation of them
+        computed = jax.tree.leaves(fn(example))
+        for i in fixed:
+            leaves[i] = computed[i]
+    jitted = jax.jit(pick(moving))
+    # Called as the compiled executable: a jitted closure over concrete arrays passes them as
+    # arguments on every call (tens of microseconds); the executable holds them as constants.
+    compiled = jitted.lower(example).compile()
     unflatten = _builder(traced.out_info) or tree.unflatten
 
     def call(x: Array) -> Any:
         out = leaves.copy()  # one list per call: calls from several threads
-        for i, value in zip(moving, compiled(x), strict=True):
+        try:
+            values = compiled(x)
+        except TypeError:  # an input the executable does not take as it is (a weak type)
+            values = jitted(x)
+        for i, value in zip(moving, values, strict=True):
             out[i] = value
         return unflatten(out)
 
+    call.compiled = compiled  # for inspection (its cost analysis, its HLO)
     return call
 
 
@@ -198,15 +209,19 @@ def _builder(example: Any) -> Callable[[list], Any] | None:
                 return None
             children.append((name, child))
         cls = type(obj)
+        held = set(groups)
+        others = {name: value for name, value in template.items() if name not in held}
+        new = object.__new__
 
         def build(values: list) -> Any:
-            out = object.__new__(cls)
-            fields = template.copy()
+            out = new(cls)
+            fields = out.__dict__  # filled in place: no intermediate dictionary
+            if others:
+                fields.update(others)
             for name, index in leaves:
                 fields[name] = values[index]
             for name, child in children:
                 fields[name] = child(values)
-            out.__dict__.update(fields)
             return out
 
         return build
