@@ -173,7 +173,7 @@ def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], A
     def call(x: Array) -> Any:
         try:
             values = compiled(x)
-        except TypeError:  # an input the executable does not take as it is (a weak type)
+        except (TypeError, ValueError):  # an input it does not take as it is (another device)
             values = jitted(x)
         return build(values)
 
