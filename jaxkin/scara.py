@@ -304,7 +304,7 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True)
         l_oa, l_ab, l_bc = (jnp.where(valid, x, 1.0) for x in (l_oa, l_ab, l_bc))
     shoulder = jnp.zeros((*batch, 2), d.dtype)  # A projected on its plane: the origin, at rest
 
-    if not rates:  # at rest: positions only (the rates are zero), as the analytic path's
+    if not rates:  # at rest, either method: positions only (zero rates), the analytic path's forms
         wrist_p = d.p[..., :2]
         sol = dyad.position(shoulder, wrist_p, l_ab, l_bc, mode=branch)
         inv_bc = jnp.asarray(1.0 / l_bc)[..., None]
