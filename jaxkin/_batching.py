@@ -116,6 +116,7 @@ class HotQueries:
             bounded_put(self.counts, key, count, 4 * self.size)
             return None
         program = build()
+        self.counts.pop(key, None)  # the build may have called the query once more
         if program is None:  # kept apart, so that batches never push programs out
             bounded_put(self.none, key, owner, 4 * self.size)
         else:
@@ -140,8 +141,9 @@ def bounded_put(table: dict, key: Any, value: Any, size: int) -> None:
 
 def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], Any]:
     """``fn`` (one array in, a pytree out) compiled for ``example``'s shape and dtype, its
-    output leaves that do not depend on the input (the zero rates of a query at rest) computed
-    once and returned as they are: every output of a compiled call costs about 1-2 us."""
+    output leaves that do not depend on the input (the zero rates of a query at rest) taken
+    once from ``fn(example)`` and returned as they are: every output of a compiled call costs
+    about 1-2 us. One trace of ``fn`` (which outputs move) and one compilation (of those)."""
     traced = jax.jit(fn).trace(example)
     tree = jax.tree.structure(traced.out_info)
     moving = _input_dependent(traced.jaxpr.jaxpr)
@@ -151,67 +153,92 @@ def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], A
     def pick(indices: list[int]) -> Callable[[Array], list]:
         return lambda x: [jax.tree.leaves(fn(x))[i] for i in indices]
 
-    leaves = [None] * tree.num_leaves
-    if fixed:
-        for i, value in zip(fixed, jax.jit(pick(fixed))(example), strict=True):
-            leaves[i] = value
-    compiled = jax.jit(pick(moving))
-    unflatten = _builder(traced.out_info) or tree.unflatten
+    constants = {}
+    if fixed:  # from one call of ``fn`` as it is (its usual program): no compilation of them
+        computed = jax.tree.leaves(fn(example))
+        constants = {i: computed[i] for i in fixed}
+    jitted = jax.jit(pick(moving))
+    # Called as the compiled executable: a jitted closure over concrete arrays passes them as
+    # arguments on every call (tens of microseconds); the executable holds them as constants.
+    compiled = jitted.lower(example).compile()
+    build = _builder(traced.out_info, moving, constants)
+    if build is None:
+        position = {i: k for k, i in enumerate(moving)}
+        n = tree.num_leaves
+
+        def build(values: Any) -> Any:
+            leaves = [constants[i] if i in constants else values[position[i]] for i in range(n)]
+            return tree.unflatten(leaves)
 
     def call(x: Array) -> Any:
-        out = leaves.copy()  # one list per call: calls from several threads
-        for i, value in zip(moving, compiled(x), strict=True):
-            out[i] = value
-        return unflatten(out)
+        try:
+            values = compiled(x)
+        except (TypeError, ValueError):  # an input it does not take as it is (another device)
+            values = jitted(x)
+        return build(values)
 
+    call.compiled = compiled  # for inspection (its cost analysis, its HLO)
     return call
 
 
-def _builder(example: Any) -> Callable[[list], Any] | None:
-    """A faster ``unflatten`` of ``example``'s tree for nested frozen dataclasses (the
-    results: their ``__init__`` and JAX's unflatten cost several microseconds per call): the
-    objects made with ``object.__new__`` and their fields set in ``__dict__``, the fields that
-    hold no leaf copied from ``example``. None for any other tree."""
+def _builder(
+    example: Any, moving: list[int], constants: dict[int, Any]
+) -> Callable[[Any], Any] | None:
+    """A function of the compiled outputs (leaves ``moving`` of ``example``'s tree, in order)
+    that builds the tree with the leaves ``constants`` (by leaf index) in place, for nested
+    frozen dataclasses (the results), written out as straight-line code: the objects made
+    with ``object.__new__`` and their fields set in their ``__dict__`` (their ``__init__``
+    and JAX's unflatten cost several microseconds per call), fields that hold no leaf copied
+    from ``example``. None for any other tree."""
     paths = [path for path, _ in jax.tree_util.tree_flatten_with_path(example)[0]]
     if not paths or not all(
         path and all(isinstance(k, jax.tree_util.GetAttrKey) for k in path) for path in paths
     ):
         return None
+    source = {i: f"v[{k}]" for k, i in enumerate(moving)}
+    namespace: dict[str, Any] = {"new": object.__new__}
+    for i, value in constants.items():
+        source[i] = f"k{i}"
+        namespace[f"k{i}"] = value
+    lines: list[str] = []
 
-    def node(obj: Any, entries: list[tuple[tuple, int]]) -> Callable[[list], Any] | None:
+    def node(obj: Any, entries: list[tuple[tuple, int]]) -> str | None:
+        """Appends the lines that build ``obj``'s node; returns the name that holds it."""
         if not dataclasses.is_dataclass(obj) or not hasattr(obj, "__dict__"):
             return None
-        template = dict(obj.__dict__)
-        leaves, children, groups = [], [], {}
+        groups: dict[str, list] = {}
         for path, index in entries:
             groups.setdefault(path[0].name, []).append((path[1:], index))
+        if any(name not in obj.__dict__ for name in groups):
+            return None
+        fields = {}
         for name, group in groups.items():
-            if name not in template:
-                return None
             if len(group) == 1 and not group[0][0]:
-                leaves.append((name, group[0][1]))
-                continue
-            if any(not rest for rest, _ in group):
+                fields[name] = source[group[0][1]]
+            elif any(not rest for rest, _ in group):
                 return None
-            child = node(template[name], group)
-            if child is None:
-                return None
-            children.append((name, child))
-        cls = type(obj)
+            else:
+                child = node(obj.__dict__[name], group)
+                if child is None:
+                    return None
+                fields[name] = child
+        var = f"o{len(namespace)}"
+        namespace[f"{var}_cls"] = type(obj)
+        lines.append(f"{var} = new({var}_cls)")
+        lines.append(f"d = {var}.__dict__")
+        others = {k: v for k, v in obj.__dict__.items() if k not in groups}
+        if others:
+            namespace[f"{var}_others"] = others
+            lines.append(f"d.update({var}_others)")
+        lines.extend(f"d[{name!r}] = {value}" for name, value in fields.items())
+        return var
 
-        def build(values: list) -> Any:
-            out = object.__new__(cls)
-            fields = template.copy()
-            for name, index in leaves:
-                fields[name] = values[index]
-            for name, child in children:
-                fields[name] = child(values)
-            out.__dict__.update(fields)
-            return out
-
-        return build
-
-    return node(example, [(tuple(path), i) for i, path in enumerate(paths)])
+    root = node(example, [(tuple(path), i) for i, path in enumerate(paths)])
+    if root is None:
+        return None
+    body = "\n".join(f"    {line}" for line in (*lines, f"return {root}"))
+    exec(f"def build(v):\n{body}\n", namespace)  # straight-line code from the field names
+    return namespace["build"]
 
 
 def _input_dependent(jaxpr: Any, inputs: list[bool] | None = None) -> list[bool]:

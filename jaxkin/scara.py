@@ -233,7 +233,7 @@ class Scara(Robot):
         return ((0, 3), (1, 3))
 
     def ik_kernel(self, target: Jet, branch: Any, options: Any, rates: bool) -> IKResult:
-        return _ik_impl(self, target, branch, options.method)
+        return _ik_impl(self, target, branch, options.method, rates)
 
     def fk_kernel(self, q: Jet, options: Any, rates: bool) -> FKResult:
         return _fk_impl(self, q, rates)
@@ -274,7 +274,7 @@ def _broadcast_geometry(robot: Scara, batch: tuple[int, ...]) -> tuple[Array, Ar
     return tuple(jnp.broadcast_to(x, batch) for x in (robot.l_oa, robot.l_ab, robot.l_bc))
 
 
-def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
+def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True) -> ScaraIKResult:
     robot = robot.astype(d.dtype)  # inside jit: no per-call dispatch on the host
     lengths = (robot.l_oa, robot.l_ab, robot.l_bc)
     batch = jnp.broadcast_shapes(d.shape[:-1], *(jnp.shape(x) for x in lengths))
@@ -304,7 +304,15 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
         l_oa, l_ab, l_bc = (jnp.where(valid, x, 1.0) for x in (l_oa, l_ab, l_bc))
     shoulder = jnp.zeros((*batch, 2), d.dtype)  # A projected on its plane: the origin, at rest
 
-    if method == "analytic":
+    if not rates:  # at rest, either method: positions only (zero rates), the analytic path's forms
+        wrist_p = d.p[..., :2]
+        sol = dyad.position(shoulder, wrist_p, l_ab, l_bc, mode=branch)
+        inv_bc = jnp.asarray(1.0 / l_bc)[..., None]
+        theta_bc, _ = planar.angle(Jet.constant((wrist_p - sol.c) * inv_bc))
+        q = Jet.constant(jnp.stack([sol.phi, sol.phi - theta_bc.p, l_oa - d.p[..., 2]], -1))
+        elbow, dyad_status, margin = Jet.constant(sol.c), sol.status, sol.margin
+        ok = dyad_status == Status.OK
+    elif method == "analytic":
         wrist = d[..., :2]  # eq. 13: C = (x_D, y_D) with the same rates
         sol = dyad.solve(Jet.constant(shoulder), wrist, l_ab, l_bc, mode=branch)
         ok = sol.status == Status.OK
@@ -342,9 +350,10 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str) -> ScaraIKResult:
         margin = margin.p
         ok = dyad_status == Status.OK
 
-    okc = ok[..., None]
-    q = Jet(q.p, jnp.where(okc, q.v, 0.0), jnp.where(okc, q.a, 0.0))
-    elbow = Jet(elbow.p, jnp.where(okc, elbow.v, 0.0), jnp.where(okc, elbow.a, 0.0))
+    if rates:
+        okc = ok[..., None]
+        q = Jet(q.p, jnp.where(okc, q.v, 0.0), jnp.where(okc, q.a, 0.0))
+        elbow = Jet(elbow.p, jnp.where(okc, elbow.v, 0.0), jnp.where(okc, elbow.a, 0.0))
 
     has_solution = valid & (
         ok | (dyad_status == Status.SINGULAR_EXTENDED) | (dyad_status == Status.SINGULAR_FOLDED)

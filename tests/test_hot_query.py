@@ -1,6 +1,8 @@
 """Hot single queries: a robot asked one element at a time gets its own program, the geometry
 compiled in as constants, with the results and statuses of the batched path."""
 
+import importlib.metadata
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -81,6 +83,95 @@ def test_hot_chain_fk_equals_the_batched_path_and_compiles_once(hot_after_two):
         for i in range(3):
             jax.block_until_ready(jaxkin.fk(chain, qs[i]).x.p)
     assert count.n == 0
+
+
+def _panda():
+    robots = importlib.metadata.distribution("example-robot-data").locate_file(
+        "cmeel.prefix/share/example-robot-data/robots"
+    )
+    return serial.from_urdf(str(robots / "panda_description/urdf/panda.urdf"), "panda_hand")
+
+
+def test_hot_panda_fk_equals_the_batched_path_runs_inline_and_compiles_once(hot_after_two):
+    """The 7-joint chain of a URDF (with its link bodies): one configuration, through the
+    single-query program and then the hot one, equals the batch's element (4 ulp of the
+    robot's size; the joints in a loop there, unrolled in the batch: the same operations),
+    statuses included (a NaN joint: INVALID_INPUT, the pose at q = 0); batch () and (1,).
+    The hot program stays below the 1000 flops under which XLA's CPU client runs a program
+    on the calling thread (above it, every call waits for a worker thread), and its later
+    calls compile nothing."""
+    panda = _panda()
+    qs = np.array(
+        [[0.1, -0.3, 0.2, -1.8, 0.1, 1.6, 0.4], [2.5, 1.2, -2.0, -0.2, 2.8, 3.5, -2.6], [0.0] * 7]
+    )
+    qs[2, 3] = np.nan
+    batched = jaxkin.fk(panda, jnp.asarray(qs))
+    at_zero = jaxkin.fk(panda, jnp.zeros((2, 7))).x.p[0]
+    tol = 4 * np.finfo(np.float64).eps * float(panda.length_scale())
+    for i in range(3):
+        for shape in ((7,), (1, 7)):
+            q = jnp.asarray(qs[i]).reshape(shape)
+            for _ in range(2):  # the single-query program, then the hot one
+                got = jaxkin.fk(panda, q)
+                assert got.x.p.shape == (*shape[:-1], 4, 4)
+                np.testing.assert_allclose(
+                    np.asarray(got.x.p).reshape(4, 4), batched.x.p[i], rtol=0, atol=tol
+                )
+                np.testing.assert_array_equal(got.x.v, np.zeros((*shape[:-1], 4, 4)))
+                assert int(got.status.reshape(())) == int(batched.status[i])
+    assert int(batched.status[2]) == Status.INVALID_INPUT
+    np.testing.assert_allclose(batched.x.p[2], at_zero, rtol=0, atol=tol)
+    programs = [p for key, (_, p) in robot_module._HOT.programs.items() if key[1] == "fk"]
+    assert len(programs) == 2  # one per input shape
+    for program in programs:
+        cost = program.compiled.cost_analysis()
+        assert (cost[0] if isinstance(cost, list) else cost)["flops"] < 1000
+    with compilations() as count:
+        for i in range(3):
+            jax.block_until_ready(jaxkin.fk(panda, jnp.asarray(qs[i])).x.p)
+            jax.block_until_ready(jaxkin.fk(panda, qs[i]).x.p)  # a NumPy array: its own key
+            jax.block_until_ready(jaxkin.fk(panda, qs[i]).x.p)
+    assert count.n == 0
+
+
+def test_scara_ik_at_rest_equals_the_rates_path():
+    """At rest the SCARA IK solves positions only (no rate formulas): joints, elbow,
+    statuses, margin and limits equal the analytic path given the same targets with explicit
+    zero rates (4 ulp of the robot's size): reachable, unreachable, on the outer boundary,
+    NaN, and out of a joint's limits."""
+    robot = scara.Scara.paper()
+    reach = float(robot.l_ab + robot.l_bc)
+    targets = jnp.asarray(
+        [[60.0, 70.0, 40.0], [500.0, 0.0, 40.0], [reach, 0.0, 10.0], [np.nan, 1.0, 2.0]]
+    )
+    limited = scara.Scara.create(
+        l_oa=robot.l_oa,
+        l_ab=robot.l_ab,
+        l_bc=robot.l_bc,
+        limits={"theta1": (-0.1, 0.1)},
+    )
+    tol = 4 * np.finfo(np.float64).eps * float(robot.length_scale())
+    for r in (robot, limited):
+        at_rest = jaxkin.ik(r, targets)
+        moving = jaxkin.ik(r, Jet(targets, jnp.zeros_like(targets), jnp.zeros_like(targets)))
+        np.testing.assert_array_equal(at_rest.status, moving.status)
+        np.testing.assert_array_equal(at_rest.within_limits, moving.within_limits)
+        for got, want in (
+            (at_rest.q.p, moving.q.p),
+            (at_rest.elbow.p, moving.elbow.p),
+            (at_rest.margin, moving.margin),
+        ):
+            np.testing.assert_allclose(got, want, rtol=0, atol=tol)
+        np.testing.assert_array_equal(at_rest.q.v, np.zeros((4, 3)))
+        np.testing.assert_array_equal(at_rest.elbow.a, np.zeros((4, 2)))
+    statuses = [int(s) for s in jaxkin.ik(robot, targets).status]
+    assert statuses == [
+        Status.OK,
+        Status.UNREACHABLE,
+        Status.SINGULAR_EXTENDED,
+        Status.INVALID_INPUT,
+    ]
+    assert int(jaxkin.ik(limited, targets).status[0]) == Status.OUT_OF_LIMITS
 
 
 def test_hot_programs_belong_to_one_robot_object(hot_after_two):

@@ -88,9 +88,9 @@ def fk_rp(chain: Any, q: Array, looped: bool = False) -> tuple[Array, Array]:
     return screws_fk_rp(chain.screws, chain.home, angles(chain, q), looped)
 
 
-def pose(chain: Any, q: Array) -> Array:
-    """Tip pose ``(..., 4, 4)`` at coordinates ``q`` ``(..., n)``."""
-    return lie.from_rotation_translation(*fk_rp(chain, q))
+def pose(chain: Any, q: Array, looped: bool = False) -> Array:
+    """Tip pose ``(..., 4, 4)`` at coordinates ``q`` ``(..., n)`` (``looped``: as ``fk_rp``)."""
+    return lie.from_rotation_translation(*fk_rp(chain, q, looped))
 
 
 def fk_and_jacobian(
@@ -162,8 +162,9 @@ def _identity(theta: Array) -> tuple[Array, Array]:
 def _over_joints(body, carry, screws: Array, theta: Array, looped: bool):
     """``body(carry, (S_i, theta_i)) -> (carry, out_i)`` over the joints in order: a
     ``lax.scan`` (one copy of the body in the compiled program: the chain IK's search, whose
-    program holds several FK and Jacobian evaluations) or unrolled (``looped`` False: faster
-    for one small evaluation, e.g. a single configuration's FK)."""
+    program holds several FK and Jacobian evaluations; and a single configuration's FK, whose
+    program XLA then counts as cheap and runs on the calling thread) or unrolled (``looped``
+    False: a batch's FK). The same operations in the same order either way."""
     return jax.lax.scan(
         body, carry, (screws, jnp.moveaxis(theta, -1, 0)), unroll=1 if looped else True
     )

@@ -38,6 +38,7 @@ names (a renamed joint, the same arm loaded with another tip link name) compiles
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -404,11 +405,15 @@ class Chain(Robot):
         origin ``p(q)`` ``(..., 3)`` for point targets; ``INVALID_INPUT`` for NaN/inf in
         ``q``, where ``x`` is the pose (point) at ``q = 0``."""
         chain = _validate.cast_leaves(self, q.dtype)
+        # One configuration: the joints in a loop (_kinematics._over_joints), the same values.
+        looped = math.prod(q.p.shape[:-1]) == 1
+
+        def pose(joints: Array) -> Array:
+            return _kinematics.pose(chain, joints, looped)
+
         if self.target_kind == "point":
-            return forward_result(
-                lambda joints: _kinematics.pose(chain, joints)[..., :3, 3], q, rates, 1
-            )
-        return forward_result(lambda joints: _kinematics.pose(chain, joints), q, rates, 2)
+            return forward_result(lambda joints: pose(joints)[..., :3, 3], q, rates, 1)
+        return forward_result(pose, q, rates, 2)
 
     def work_dtype(self, dtype: Any) -> Any:
         return promoted(dtype, self.screws.dtype)
