@@ -159,7 +159,9 @@ class Chain(Robot):
     # The IK search is loop-bound: every batch size shares one compilation, blocks of
     # ``search.BLOCK`` targets (a smaller batch padded with NaN targets, ended at once; a larger
     # one as blocks on the host threads). FK is cheap per element: padded, large parts.
-    ik_policy: ClassVar = CompilePolicy(pad=False, bucket=search.BLOCK)
+    ik_policy: ClassVar = CompilePolicy(
+        pad=False, bucket=search.BLOCK, compiler_options=search.COMPILER_OPTIONS
+    )
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
     @property
@@ -357,9 +359,15 @@ class Chain(Robot):
         # joint moves it to its projection on the joint's axis (fixed in both links).
         centre = jnp.where(rotating[0], foot[0], jnp.zeros(3, screws.dtype))
         current, radius = centre, jnp.zeros((), screws.dtype)
+        # Sums of three products rather than dot and norm: one fused loop per chain, where
+        # every dot of an unrolled joint is a kernel of its own in the compiled program.
         for i in range(self.n_path_joints):
-            on_axis = foot[i] + omega[i] * jnp.dot(omega[i], current - foot[i])
-            step = jnp.linalg.norm(on_axis - current)
+            d = current - foot[i]
+            on_axis = foot[i] + omega[i] * (
+                omega[i, 0] * d[0] + omega[i, 1] * d[1] + omega[i, 2] * d[2]
+            )
+            e = on_axis - current
+            step = jnp.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
             radius = radius + jnp.where(rotating[i], step, stroke[i])
             current = jnp.where(rotating[i], on_axis, current)
         radius = radius + jnp.linalg.norm(self.home[:3, 3] - current)
