@@ -359,15 +359,9 @@ class Chain(Robot):
         # joint moves it to its projection on the joint's axis (fixed in both links).
         centre = jnp.where(rotating[0], foot[0], jnp.zeros(3, screws.dtype))
         current, radius = centre, jnp.zeros((), screws.dtype)
-        # Sums of three products rather than dot and norm: one fused loop per chain, where
-        # every dot of an unrolled joint is a kernel of its own in the compiled program.
         for i in range(self.n_path_joints):
-            d = current - foot[i]
-            on_axis = foot[i] + omega[i] * (
-                omega[i, 0] * d[0] + omega[i, 1] * d[1] + omega[i, 2] * d[2]
-            )
-            e = on_axis - current
-            step = jnp.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+            on_axis = foot[i] + omega[i] * jnp.dot(omega[i], current - foot[i])
+            step = jnp.linalg.norm(on_axis - current)
             radius = radius + jnp.where(rotating[i], step, stroke[i])
             current = jnp.where(rotating[i], on_axis, current)
         radius = radius + jnp.linalg.norm(self.home[:3, 3] - current)
