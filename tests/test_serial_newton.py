@@ -375,3 +375,12 @@ def test_damped_step_lapack_matches_looped():
             gram = np.swapaxes(jac, -1, -2) @ jac + mu[:, None, None] * np.eye(n)
             ref = np.linalg.solve(gram, np.einsum("bki,bk->bi", jac, twist)[..., None])[..., 0]
         np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-12 * scale)
+    # A singular Jacobian (two equal rows) with the finish's floor of eps: a finite step.
+    jac = rng.normal(size=(16, 6, 7))
+    jac[:, 5] = jac[:, 4]
+    zero = jnp.asarray(0.0)
+    eps = float(np.finfo(np.float64).eps)
+    step = _step.damped_step_looped(
+        jnp.asarray(jac), jnp.asarray(rng.normal(size=(16, 6))), zero, eps, _step.spd_solve_lapack
+    )
+    assert np.all(np.isfinite(step))

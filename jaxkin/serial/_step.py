@@ -142,7 +142,15 @@ def spd_solve_looped(a: Array, b: Array) -> Array:
 def spd_solve_lapack(a: Array, b: Array) -> Array:
     """``spd_solve_looped`` by LAPACK (``potrf``, then two ``trsm``): calls into the library,
     so no code of its own to compile, for a solve that runs once per batch (the chain IK's
-    rates and implicit derivatives); slower per element than the loops on small matrices."""
+    rates and implicit derivatives); slower per element than the loops on small matrices.
+    Where rounding makes a damped, nearly singular ``a`` indefinite (its factorisation fails),
+    ``k eps trace(a)`` is added to the diagonal: a finite solution, as the loops' clamped
+    pivots give."""
+    k = a.shape[-1]
+    trial = jnp.linalg.cholesky(jax.lax.stop_gradient(a))
+    failed = ~all_finite(trial.reshape(*trial.shape[:-2], k * k))
+    lift = k * float(jnp.finfo(a.dtype).eps) * jnp.trace(a, axis1=-2, axis2=-1)
+    a = jnp.where(failed[..., None, None], a + lift[..., None, None] * jnp.eye(k, dtype=a.dtype), a)
     chol = jnp.linalg.cholesky(a)
     return jax.scipy.linalg.cho_solve((chol, True), b[..., None])[..., 0]
 
