@@ -2,11 +2,16 @@
 
 Run each mode in a fresh process with ``JAXKIN_COMPILATION_CACHE=0``:
 
-* ``python benchmarks/chain_ik_compile.py time``: the first ``jaxkin.ik`` of one Panda target
-  (wall and process CPU time), then the block program of ``serial.search.solve`` lowered and
-  compiled alone (seconds, and the count of operations of its optimised HLO);
+* ``python benchmarks/chain_ik_compile.py time [ROBOT]``: the first ``jaxkin.ik`` of one
+  target of ``ROBOT`` (``panda`` or ``ur5``; wall and process CPU time), then the block program
+  of ``serial.search.solve`` lowered and compiled alone with ``search.COMPILER_OPTIONS`` (as
+  the library does; seconds, and the counts of operations, fusions and loops of its optimised
+  HLO);
 * ``... dump FILE``: statuses and joints of fixed Panda and UR5 poses (``.npz``);
-* ``... compare OLD NEW``: statuses equal and joints within ``1e-12`` of each joint's range.
+* ``... compare OLD NEW``: statuses equal and joints within ``1e-12`` of each joint's range;
+* ``... throughput N``: ``jaxkin.ik`` of ``N`` Panda poses per second, three calls after a
+  warm one, the chain IK compiled with ``search.COMPILER_OPTIONS`` and with XLA's defaults
+  interleaved in one process.
 """
 
 from __future__ import annotations
@@ -58,13 +63,14 @@ def time_first() -> None:
     from jaxkin.jet import Jet
     from jaxkin.serial import search
 
-    chain = load("panda")
+    name = sys.argv[2] if len(sys.argv) > 2 else "panda"
+    chain = load(name)
     target = poses(chain, 1)[0]
     start, cpu = time.perf_counter(), time.process_time()
     res = jaxkin.ik(chain, target)
     res.status.block_until_ready()
     first = time.perf_counter() - start, time.process_time() - cpu
-    print(f"first jaxkin.ik (1 Panda target): {first[0]:.2f} s wall, {first[1]:.2f} s CPU")
+    print(f"first jaxkin.ik (1 {name} target): {first[0]:.2f} s wall, {first[1]:.2f} s CPU")
 
     options = chain.IKOptions()
     tols = (np.float64(1e-10), np.float64(1e-10 * float(chain.length_scale())))
@@ -79,18 +85,55 @@ def time_first() -> None:
     lowered = jax.jit(kernel).lower(chain, jet, tols)
     traced = time.perf_counter() - start
     start, cpu = time.perf_counter(), time.process_time()
-    compiled = lowered.compile()
+    compiled = lowered.compile(compiler_options=dict(getattr(search, "COMPILER_OPTIONS", ())))
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     text = compiled.as_text()
-    if len(sys.argv) > 2:  # keep the optimised HLO for inspection
-        with open(sys.argv[2], "w") as file:
+    if len(sys.argv) > 3:  # keep the optimised HLO for inspection
+        with open(sys.argv[3], "w") as file:
             file.write(text)
     ops = sum(1 for line in text.splitlines() if " = " in line)
+    fusions = sum(1 for line in text.splitlines() if " fusion(" in line)
+    loops = sum(1 for line in text.splitlines() if " while(" in line)
     print(
         f"block program ({search.BLOCK} targets): trace+lower {traced:.2f} s, "
         f"compile {seconds:.2f} s ({cpu:.2f} s CPU), "
-        f"optimised HLO {len(text.splitlines())} lines, {ops} ops"
+        f"optimised HLO {len(text.splitlines())} lines, {ops} ops, {fusions} fusions, "
+        f"{loops} while loops"
     )
+    print(f"load average: {os.getloadavg()}")
+
+
+def throughput(n: int) -> None:
+    import dataclasses
+
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jaxkin
+    from jaxkin import robot
+    from jaxkin.serial import Chain
+
+    chain = load("panda")
+    targets = poses(chain, n + 2, seed=1)[:n]  # within reach
+    tuned = Chain.ik_policy
+    policies = {"library": tuned}
+    if getattr(tuned, "compiler_options", ()):
+        policies["XLA defaults"] = dataclasses.replace(tuned, compiler_options=())
+    programs = {}
+    for name, policy in policies.items():  # compile each once
+        Chain.ik_policy, robot._PROGRAMS = policy, {}
+        jaxkin.ik(chain, targets).status.block_until_ready()
+        programs[name] = robot._PROGRAMS
+    rates: dict[str, list[float]] = {name: [] for name in policies}
+    for _ in range(3):
+        for name, policy in policies.items():
+            Chain.ik_policy, robot._PROGRAMS = policy, programs[name]
+            start = time.perf_counter()
+            jaxkin.ik(chain, targets).status.block_until_ready()
+            rates[name].append(n / (time.perf_counter() - start))
+    Chain.ik_policy = tuned
+    for name, values in rates.items():
+        print(f"{name}: {', '.join(f'{v:.0f}' for v in values)} poses/s")
     print(f"load average: {os.getloadavg()}")
 
 
@@ -133,6 +176,8 @@ if __name__ == "__main__":
     mode = sys.argv[1]
     if mode == "time":
         time_first()
+    elif mode == "throughput":
+        throughput(int(sys.argv[2]))
     elif mode == "dump":
         dump(sys.argv[2])
     else:

@@ -262,6 +262,9 @@ class CompilePolicy:
             rows (a smaller batch padded with NaN rows spread among its own, a larger one as
             overlapping blocks on the host threads): one compilation for every batch size.
             None: not so.
+        compiler_options: XLA options of this kernel's compilation alone, ``(name, value)``
+            pairs (``jax.jit``'s ``compiler_options``), e.g. a cheaper code generation for a
+            large loop-bound kernel.
     """
 
     pad: bool = True
@@ -270,6 +273,7 @@ class CompilePolicy:
     constant_geometry: bool = False
     branch_as_data: bool = False
     bucket: int | None = None
+    compiler_options: tuple[tuple[str, Any], ...] = ()
 
 
 KERNELS = ("ik_kernel", "fk_kernel")
@@ -537,9 +541,12 @@ class _Program:
                 else None
             )
         else:
-            self.dynamic = jax.jit(impl)
+            xla = dict(policy.compiler_options) or None
+            self.dynamic = jax.jit(impl, compiler_options=xla)
             self.static = (
-                jax.jit(impl, static_argnames="robot") if policy.constant_geometry else None
+                jax.jit(impl, static_argnames="robot", compiler_options=xla)
+                if policy.constant_geometry
+                else None
             )
         self.padded = _batching.PaddedJit(self.whole, {"p": core, "v": core, "a": core})
 

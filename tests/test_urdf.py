@@ -334,7 +334,11 @@ def test_work_queue_gives_the_results_of_the_batch_in_step():
     assert targets.shape[0] > search.QUEUE_SLOTS
     tols = (jnp.asarray(1e-10), jnp.asarray(1e-10 * chain.length_scale()))
     budget = search.Budget(12, 64, 12, slots=1000)
-    solve = jax.jit(search.solve, static_argnames=("budget", "use_limits", "rates"))
+    solve = jax.jit(  # compiled as the library compiles it (the same code generation)
+        search.solve,
+        static_argnames=("budget", "use_limits", "rates"),
+        compiler_options=dict(search.COMPILER_OPTIONS),
+    )
     in_step = solve(chain, Jet.constant(targets), tols, budget, True, False)
     np.testing.assert_array_equal(queued.status, in_step.status)
     np.testing.assert_array_equal(queued.q.p, in_step.q.p)

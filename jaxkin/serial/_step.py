@@ -35,6 +35,7 @@ __all__ = [
     "rigid_target",
     "damped_step_looped",
     "spd_solve",
+    "spd_solve_lapack",
     "spd_solve_looped",
 ]
 
@@ -138,11 +139,29 @@ def spd_solve_looped(a: Array, b: Array) -> Array:
     return jax.lax.fori_loop(0, k, backward, jnp.zeros(b.shape, b.dtype))
 
 
+def spd_solve_lapack(a: Array, b: Array) -> Array:
+    """``spd_solve_looped`` by LAPACK (``potrf``, then two ``trsm``): calls into the library,
+    so no code of its own to compile, for a solve that runs once per batch (the chain IK's
+    rates and implicit derivatives); slower per element than the loops on small matrices.
+    Where rounding makes a damped, nearly singular ``a`` indefinite (its factorisation fails),
+    ``k eps trace(a)`` is added to the diagonal: a finite solution, as the loops' clamped
+    pivots give."""
+    k = a.shape[-1]
+    trial = jnp.linalg.cholesky(jax.lax.stop_gradient(a))
+    failed = ~all_finite(trial.reshape(*trial.shape[:-2], k * k))
+    lift = k * float(jnp.finfo(a.dtype).eps) * jnp.trace(a, axis1=-2, axis2=-1)
+    a = jnp.where(failed[..., None, None], a + lift[..., None, None] * jnp.eye(k, dtype=a.dtype), a)
+    chol = jnp.linalg.cholesky(a)
+    return jax.scipy.linalg.cho_solve((chol, True), b[..., None])[..., 0]
+
+
 def damped_step_looped(
-    jac: Array, twist: Array, damping: Array, floor: float | None = None
+    jac: Array, twist: Array, damping: Array, floor: float | None = None, solve=spd_solve_looped
 ) -> Array:
     """The step of ``damped_step`` for ``jac`` ``(..., r, n)`` and ``twist`` ``(..., r)``, as
-    array products and ``spd_solve_looped`` (a small compiled program: the chain IK search)."""
+    array products and ``solve`` of the symmetric positive definite system
+    (``spd_solve_looped``: a small compiled program, the chain IK search; or
+    ``spd_solve_lapack``)."""
     r, n = jac.shape[-2:]
     jac_t = jnp.swapaxes(jac, -1, -2)
     trace = jnp.sum(jac * jac, axis=(-2, -1))
@@ -150,9 +169,9 @@ def damped_step_looped(
     mu = (damping * damping + floor * trace)[..., None, None]
     if n <= r:
         gram = jac_t @ jac + mu * jnp.eye(n, dtype=jac.dtype)
-        return spd_solve_looped(gram, jnp.einsum("...ki,...k->...i", jac, twist))
+        return solve(gram, jnp.einsum("...ki,...k->...i", jac, twist))
     outer = jac @ jac_t + mu * jnp.eye(r, dtype=jac.dtype)
-    return jnp.einsum("...ki,...k->...i", jac, spd_solve_looped(outer, twist))
+    return jnp.einsum("...ki,...k->...i", jac, solve(outer, twist))
 
 
 def limited(dq: Array, revolute: Array, max_step: Array) -> Array:

@@ -160,7 +160,9 @@ class Chain(Robot):
     # The IK search is loop-bound: every batch size shares one compilation, blocks of
     # ``search.BLOCK`` targets (a smaller batch padded with NaN targets, ended at once; a larger
     # one as blocks on the host threads). FK is cheap per element: padded, large parts.
-    ik_policy: ClassVar = CompilePolicy(pad=False, bucket=search.BLOCK)
+    ik_policy: ClassVar = CompilePolicy(
+        pad=False, bucket=search.BLOCK, compiler_options=search.COMPILER_OPTIONS
+    )
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
     @property

@@ -67,6 +67,7 @@ from ._starts import Box
 
 __all__ = [
     "BLOCK",
+    "COMPILER_OPTIONS",
     "FREE_RUNS",
     "LM_WEIGHT",
     "QUEUE_SLOTS",
@@ -92,6 +93,13 @@ BLOCK = 8 * QUEUE_SLOTS
 # iterate, the others from its first starts. One that meets the tolerances within the limits
 # solves the element; ``OUT_OF_LIMITS`` needs every one to meet them, each outside the limits.
 FREE_RUNS = 4
+# XLA options of the compiled search (``CompilePolicy.compiler_options``): the CPU's older
+# per-kernel code generation and LLVM at -O1 compile its few hundred small kernels in about a
+# third of the time of the defaults, at the same speed of the search (docs/performance.md).
+COMPILER_OPTIONS = (
+    ("xla_cpu_use_fusion_emitters", False),
+    ("xla_backend_optimization_level", 1),
+)
 
 _TWO_PI = 2.0 * np.pi
 
@@ -581,7 +589,7 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
     residual, err_rot, err_pos = residuals[0], err_rots[1], err_poss[1]
     floor = eps(dtype)
     zero = jnp.zeros((), dtype)
-    dq = _step.damped_step_looped(jac_residual, residual, zero, floor)
+    dq = _step.damped_step_looped(jac_residual, residual, zero, floor, _step.spd_solve_lapack)
     q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
     rot, _, jac_theta = _kinematics.screws_fk_and_jacobian(
         unit.screws, unit.home, _kinematics.angles(unit, q_unit), "body", looped=True
@@ -594,10 +602,12 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
         velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
         rows = rows[3:] if point else rows
-        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
+        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor, _step.spd_solve_lapack)
         jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
+        q_ddot = _step.damped_step_looped(
+            jac, acceleration * rows - drift, zero, floor, _step.spd_solve_lapack
+        )
         okc = ok[..., None]
     q = q_unit / g
     # Back in the chain's units a joint at its limit may pass it by an ulp: moved back (values
@@ -610,7 +620,7 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         q_jet = Jet.constant(q)
     error = jnp.minimum(err_rot + err_pos, 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
-    margin = jnp.where(solved, isotropy(jac, looped=True), -error)
+    margin = jnp.where(solved, isotropy(jac, lapack=True), -error)
     margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)
     return IKResult(q_jet, status, margin.astype(dtype))
 
