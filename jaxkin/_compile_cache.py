@@ -11,10 +11,20 @@ library never calls it on its own: an application opts in, and the ``jaxkin`` co
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import hashlib
 import os
+import pickle
+import platform
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import jax
+import numpy as np
+from jax.experimental import serialize_executable as _serialize
 from jax.experimental.compilation_cache import compilation_cache as _jax_cache
 
 __all__ = ["default_cache_dir", "enable_compilation_cache"]
@@ -79,15 +89,233 @@ def enable_for_command() -> Path | None:
     for JAX (``JAX_COMPILATION_CACHE_DIR``) is left as it is. Returns the directory in use, or
     None when off. A directory that cannot be used leaves the cache off (the command runs
     anyway, compiling as usual). The command keeps every program it compiles (no minimum
-    compile time): its second run on the same kind of input then compiles nothing.
+    compile time): its second run on the same kind of input then compiles nothing. The
+    executables of ``stored_jit`` programs go to the subdirectory ``executables``
+    (``enable_store``): a second run loads them without tracing.
     """
     setting = os.environ.get(ENV_VAR, "").strip()
+    directory = None
     if setting.lower() in _OFF:
+        pass
+    elif jax.config.jax_compilation_cache_dir:
+        directory = Path(jax.config.jax_compilation_cache_dir)
+    else:
+        with contextlib.suppress(ValueError):
+            # Every program, however quick to compile: a second run then compiles nothing.
+            directory = enable_compilation_cache(setting or None, min_compile_time_secs=0.0)
+    enable_store(None if directory is None else directory / STORE_SUBDIR)
+    return directory
+
+
+# ---------------------------------------------------------------- stored executables
+#
+# JAX's persistent cache saves XLA's compilation, but a later process still traces the
+# function and lowers it to find the cache key (for a chain's IK search, seconds per run).
+# The ``jaxkin`` command also keeps each compiled program's executable, keyed on everything
+# that decides it (the function, the arguments' tree and static fields, shapes and dtypes,
+# the versions, jaxkin's source files, the backend, the machine), so that a second run loads
+# and calls it without tracing. Anything that cannot be read back compiles as usual.
+
+STORE_SUBDIR = "executables"
+_MAGIC = b"jaxkin-executable-1\n"
+_store: Path | None = None  # the directory of stored executables; None: off
+
+
+def store_directory() -> Path | None:
+    """The directory of stored executables (``enable_for_command``), or None when off."""
+    return _store
+
+
+def enable_store(directory: str | os.PathLike | None) -> Path | None:
+    """Keep executables of ``stored_jit`` programs in ``directory`` (None: off). Returns it."""
+    global _store
+    if directory is None:
+        _store = None
         return None
-    if jax.config.jax_compilation_cache_dir:
-        return Path(jax.config.jax_compilation_cache_dir)
+    path = Path(directory)
     try:
-        # Every program, however quick to compile: a second run then compiles nothing.
-        return enable_compilation_cache(setting or None, min_compile_time_secs=0.0)
-    except ValueError:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        _store = None
         return None
+    _store = path
+    return path
+
+
+def stored_jit(fun: Any) -> Any:
+    """``jax.jit(fun)``, whose calls on concrete arguments go through the executable store
+    when it is on (``enable_store``); tracers, and every call while it is off, go to the
+    plain ``jax.jit(fun)``."""
+    return _StoredJit(fun)
+
+
+class _StoredJit:
+    """``jax.jit(fun)`` with the executable store in front of its concrete calls."""
+
+    def __init__(self, fun: Any) -> None:
+        self._fun = fun
+        self.jitted = jax.jit(fun)
+        self._loaded: dict[str, Any] = {}  # this process's executables by key
+        functools.update_wrapper(self, _unwrapped(fun))
+
+    def __getattr__(self, name: str) -> Any:  # lower, trace, eval_shape ...
+        return getattr(self.jitted, name)
+
+    def __call__(self, *args: Any) -> Any:
+        if _store is None:
+            return self.jitted(*args)
+        leaves, tree = jax.tree.flatten(args)
+        key = _key(self._fun, tree, leaves)
+        if key is None:
+            return self.jitted(*args)
+        compiled = self._loaded.get(key)
+        if compiled is not None:
+            return compiled(*args)
+        path = _store / f"{key}.exe"
+        compiled = _load(path)
+        if compiled is not None:
+            try:
+                result = compiled(*args)
+            except Exception:  # an executable that loads but does not run: compiled again
+                compiled = None
+            else:
+                self._loaded[key] = compiled
+                return result
+        with _without_persistent_cache():
+            # An executable that JAX's cache gave back cannot be written again (XLA's CPU
+            # client keeps its code apart): compiled here from the traced program.
+            compiled = self.jitted.lower(*args).compile()
+        _save(path, compiled)
+        self._loaded[key] = compiled
+        return compiled(*args)
+
+
+@contextlib.contextmanager
+def _without_persistent_cache() -> Iterator[None]:
+    """JAX's persistent cache off while compiling (on again after, as it was)."""
+    saved = jax.config.jax_enable_compilation_cache
+    jax.config.update("jax_enable_compilation_cache", False)
+    _jax_cache.reset_cache()
+    try:
+        yield
+    finally:
+        jax.config.update("jax_enable_compilation_cache", saved)
+        _jax_cache.reset_cache()
+
+
+def _unwrapped(fun: Any) -> Any:
+    while isinstance(fun, functools.partial):
+        fun = fun.func
+    return fun
+
+
+def _describe(fun: Any) -> str:
+    """The function's module, qualified name and bound arguments (``functools.partial``)."""
+    bound = []
+    while isinstance(fun, functools.partial):
+        bound.append(repr((fun.args, sorted(fun.keywords.items()))))
+        fun = fun.func
+    return f"{fun.__module__}.{fun.__qualname__}{''.join(reversed(bound))}"
+
+
+def _key(fun: Any, tree: Any, leaves: list) -> str | None:
+    """The store's key of a call, or None when the call must not be stored (a tracer, an
+    argument that is not an array or a number, several devices)."""
+    parts = [_describe(fun), str(tree), _environment()]
+    for leaf in leaves:
+        if isinstance(leaf, jax.core.Tracer):
+            return None
+        if isinstance(leaf, jax.Array):
+            if len(leaf.devices()) != 1:
+                return None
+            parts.append(f"{leaf.shape}{leaf.dtype}{leaf.weak_type}{leaf.sharding}")
+        elif isinstance(leaf, np.ndarray | np.generic):
+            parts.append(f"{np.shape(leaf)}{leaf.dtype}np")
+        elif isinstance(leaf, bool | int | float | complex):
+            parts.append(type(leaf).__name__)
+        else:
+            return None
+    if " at 0x" in parts[0] or " at 0x" in parts[1]:
+        return None  # an object's address in a static field: a key that changes every run
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()
+
+
+@functools.cache
+def _environment_fixed() -> str:
+    """What decides an executable besides the call: versions, backend, machine, the sources
+    of jaxkin (edited code, same version number) and the flags read by XLA."""
+    import jaxlib
+
+    from . import __version__
+
+    root = Path(__file__).parent
+    sources = sorted(
+        f"{p.relative_to(root)}:{s.st_size}:{s.st_mtime_ns}"
+        for p in root.rglob("*.py")
+        for s in (p.stat(),)
+    )
+    device = jax.devices()[0]
+    return "\n".join(
+        [
+            f"jax {jax.__version__} jaxlib {jaxlib.__version__} jaxkin {__version__}",
+            f"{device.platform} {device.device_kind} {device.client.platform_version}",
+            f"{platform.machine()} {_cpu_flags()}",
+            os.environ.get("XLA_FLAGS", ""),
+            hashlib.sha256("\n".join(sources).encode()).hexdigest(),
+        ]
+    )
+
+
+def _environment() -> str:
+    config = jax.config
+    flags = (
+        config.jax_enable_x64,
+        config.jax_default_matmul_precision,
+        config.jax_numpy_rank_promotion,
+    )
+    return f"{_environment_fixed()}\n{flags}"
+
+
+def _cpu_flags() -> str:
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
+            for line in f:
+                if line.startswith(("flags", "Features")):
+                    return hashlib.sha256(line.encode()).hexdigest()[:16]
+    except OSError:
+        pass
+    return platform.processor()
+
+
+def _load(path: Path) -> Any:
+    """The executable stored at ``path``, or None when missing, corrupt or unloadable."""
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return None
+    head = len(_MAGIC) + 32
+    body = data[head:]
+    if data[: len(_MAGIC)] != _MAGIC or hashlib.sha256(body).digest() != data[len(_MAGIC) : head]:
+        return None  # truncated, overwritten or not ours: compiled again
+    try:
+        payload, in_tree, out_tree = pickle.loads(body)
+        return _serialize.deserialize_and_load(payload, in_tree, out_tree)
+    except Exception:  # written by another version of a library: compiled again
+        return None
+
+
+def _save(path: Path, compiled: Any) -> None:
+    """Write ``compiled`` at ``path`` atomically; an executable that cannot be serialised or
+    a directory that cannot be written is skipped (the run goes on)."""
+    try:
+        body = pickle.dumps(_serialize.serialize(compiled))
+    except Exception:
+        return
+    data = _MAGIC + hashlib.sha256(body).digest() + body
+    try:
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".tmp-", delete=False) as f:
+            f.write(data)
+        os.replace(f.name, path)
+    except OSError:
+        with contextlib.suppress(OSError, NameError):
+            os.unlink(f.name)

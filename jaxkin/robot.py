@@ -65,7 +65,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _validate
+from . import _batching, _compile_cache, _validate
 from ._geometry import BOUND, LENGTH, REAL, Geometry, geometry, number
 from ._validate import is_concrete
 from .jet import Jet
@@ -537,7 +537,7 @@ class _Program:
                 else None
             )
         else:
-            self.dynamic = jax.jit(impl)
+            self.dynamic = _compile_cache.stored_jit(impl)
             self.static = (
                 jax.jit(impl, static_argnames="robot") if policy.constant_geometry else None
             )

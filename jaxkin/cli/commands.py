@@ -185,9 +185,12 @@ def _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_pat
         jet = target(p, v, a)
         if inverse:
             res = ik(robot, jet, branch)
-            return res.q, res.status, res.margin
-        res = fk(robot, jet)
-        return res.x, res.status
+            out = res.q, res.status, res.margin
+        else:
+            res = fk(robot, jet)
+            out = res.x, res.status
+        # On the host at once: cutting a device array compiles a program in every run.
+        return jax.tree.map(np.asarray, out)
 
     desc = f"{args.kind} {'ik' if inverse else 'fk'}"
     chunk = args.chunk_size or _batching.HOST_CHUNK
