@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import inspect
 import os
 import pickle
 import platform
@@ -142,40 +143,54 @@ def enable_store(directory: str | os.PathLike | None) -> Path | None:
     return path
 
 
-def stored_jit(fun: Any) -> Any:
-    """``jax.jit(fun)``, whose calls on concrete arguments go through the executable store
-    when it is on (``enable_store``); tracers, and every call while it is off, go to the
-    plain ``jax.jit(fun)``."""
-    return _StoredJit(fun)
+def stored_jit(fun: Any, static_argnames: tuple[str, ...] = ()) -> Any:
+    """``jax.jit(fun, static_argnames=...)``, whose calls on concrete arguments go through
+    the executable store when it is on (``enable_store``); tracers, and every call while it
+    is off, go to the plain ``jax.jit``."""
+    return _StoredJit(fun, tuple(static_argnames))
 
 
 class _StoredJit:
     """``jax.jit(fun)`` with the executable store in front of its concrete calls."""
 
-    def __init__(self, fun: Any) -> None:
+    def __init__(self, fun: Any, static_argnames: tuple[str, ...]) -> None:
         self._fun = fun
-        self.jitted = jax.jit(fun)
+        self._static = static_argnames
+        self.jitted = jax.jit(fun, static_argnames=static_argnames or None)
+        self._signature = inspect.signature(fun)
+        self._dynamic = tuple(n for n in self._signature.parameters if n not in static_argnames)
+        self._by_static: dict[tuple, Any] = {}  # a jitted function per static values
         self._loaded: dict[str, Any] = {}  # this process's executables by key
         functools.update_wrapper(self, _unwrapped(fun))
 
     def __getattr__(self, name: str) -> Any:  # lower, trace, eval_shape ...
         return getattr(self.jitted, name)
 
-    def __call__(self, *args: Any) -> Any:
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
         if _store is None:
-            return self.jitted(*args)
-        leaves, tree = jax.tree.flatten(args)
-        key = _key(self._fun, tree, leaves)
+            return self.jitted(*args, **kwargs)
+        jitted, dynamic, static = self.jitted, args, ""
+        if self._static or kwargs:
+            try:
+                bound = self._signature.bind(*args, **kwargs)
+                bound.apply_defaults()
+                values = tuple((n, bound.arguments[n]) for n in self._static)
+                jitted = self._by_static.get(values) or self._bind(values)
+            except TypeError:  # bad arguments or unhashable static values: jit says so
+                return self.jitted(*args, **kwargs)
+            dynamic, static = tuple(bound.arguments[n] for n in self._dynamic), repr(values)
+        leaves, tree = jax.tree.flatten(dynamic)
+        key = _key(self._fun, static, tree, leaves)
         if key is None:
-            return self.jitted(*args)
+            return self.jitted(*args, **kwargs)
         compiled = self._loaded.get(key)
         if compiled is not None:
-            return compiled(*args)
+            return compiled(*dynamic)
         path = _store / f"{key}.exe"
         compiled = _load(path)
         if compiled is not None:
             try:
-                result = compiled(*args)
+                result = compiled(*dynamic)
             except Exception:  # an executable that loads but does not run: compiled again
                 compiled = None
             else:
@@ -184,10 +199,22 @@ class _StoredJit:
         with _without_persistent_cache():
             # An executable that JAX's cache gave back cannot be written again (XLA's CPU
             # client keeps its code apart): compiled here from the traced program.
-            compiled = self.jitted.lower(*args).compile()
+            compiled = jitted.lower(*dynamic).compile()
         _save(path, compiled)
         self._loaded[key] = compiled
-        return compiled(*args)
+        return compiled(*dynamic)
+
+    def _bind(self, values: tuple) -> Any:
+        """``fun`` with the static arguments ``values`` bound, jitted, taking the others in
+        signature order."""
+        fun, names, static = self._fun, self._dynamic, dict(values)
+        hash(values)  # TypeError when unhashable
+
+        def call(*dynamic: Any) -> Any:
+            return fun(**dict(zip(names, dynamic, strict=True)), **static)
+
+        jitted = self._by_static[values] = jax.jit(call)
+        return jitted
 
 
 @contextlib.contextmanager
@@ -218,10 +245,10 @@ def _describe(fun: Any) -> str:
     return f"{fun.__module__}.{fun.__qualname__}{''.join(reversed(bound))}"
 
 
-def _key(fun: Any, tree: Any, leaves: list) -> str | None:
+def _key(fun: Any, static: str, tree: Any, leaves: list) -> str | None:
     """The store's key of a call, or None when the call must not be stored (a tracer, an
     argument that is not an array or a number, several devices)."""
-    parts = [_describe(fun), str(tree), _environment()]
+    parts = [_describe(fun) + static, str(tree), _environment()]
     for leaf in leaves:
         if isinstance(leaf, jax.core.Tracer):
             return None

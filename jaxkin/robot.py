@@ -165,7 +165,7 @@ class JointLimits(Geometry):
                 ) from None
             if np.any(bound < 0):
                 raise ValueError(f"JointLimits.{name} must be >= 0, got {bound}")
-            object.__setattr__(self, name, jnp.asarray(bound))
+            object.__setattr__(self, name, jax.device_put(bound))  # no program to compile
         bad = np.flatnonzero(lower > upper)
         if bad.size:
             raise ValueError(

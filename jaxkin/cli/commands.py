@@ -179,7 +179,8 @@ def _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_pat
     def target(p, v, a):
         if quaternions:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
             return paths.pose_from_quaternions(p, v, a).astype(dtype)
-        return Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
+        # Host arrays (jnp.asarray would compile a program per shape in every run).
+        return Jet(p.astype(dtype), v.astype(dtype), a.astype(dtype))
 
     def solve(p, v, a):
         jet = target(p, v, a)
