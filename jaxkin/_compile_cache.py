@@ -90,21 +90,23 @@ def enable_for_command() -> Path | None:
     for JAX (``JAX_COMPILATION_CACHE_DIR``) is left as it is. Returns the directory in use, or
     None when off. A directory that cannot be used leaves the cache off (the command runs
     anyway, compiling as usual). The command keeps every program it compiles (no minimum
-    compile time): its second run on the same kind of input then compiles nothing. The
-    executables of ``stored_jit`` programs go to the subdirectory ``executables``
-    (``enable_store``): a second run loads them without tracing.
+    compile time): its second run on the same kind of input then compiles nothing. In a
+    directory of its own choice (not one set for JAX) the executables of ``stored_jit``
+    programs go to the subdirectory ``executables`` (``enable_store``): a second run loads
+    them without tracing. The caller turns the store off again (``enable_store(None)``).
     """
     setting = os.environ.get(ENV_VAR, "").strip()
-    directory = None
+    enable_store(None)
     if setting.lower() in _OFF:
-        pass
-    elif jax.config.jax_compilation_cache_dir:
-        directory = Path(jax.config.jax_compilation_cache_dir)
-    else:
-        with contextlib.suppress(ValueError):
-            # Every program, however quick to compile: a second run then compiles nothing.
-            directory = enable_compilation_cache(setting or None, min_compile_time_secs=0.0)
-    enable_store(None if directory is None else directory / STORE_SUBDIR)
+        return None
+    if jax.config.jax_compilation_cache_dir:
+        return Path(jax.config.jax_compilation_cache_dir)  # JAX's own, without executables
+    try:
+        # Every program, however quick to compile: a second run then compiles nothing.
+        directory = enable_compilation_cache(setting or None, min_compile_time_secs=0.0)
+    except ValueError:
+        return None
+    enable_store(directory / STORE_SUBDIR)
     return directory
 
 
@@ -120,6 +122,9 @@ def enable_for_command() -> Path | None:
 STORE_SUBDIR = "executables"
 _MAGIC = b"jaxkin-executable-1\n"
 _store: Path | None = None  # the directory of stored executables; None: off
+# ``jax.monitoring`` events: an executable loaded from the store, or compiled (not found).
+STORE_LOAD_EVENT = "/jaxkin/executable_store/load"
+STORE_COMPILE_EVENT = "/jaxkin/executable_store/compile"
 
 
 def store_directory() -> Path | None:
@@ -195,7 +200,9 @@ class _StoredJit:
                 compiled = None
             else:
                 self._loaded[key] = compiled
+                jax.monitoring.record_event(STORE_LOAD_EVENT)
                 return result
+        jax.monitoring.record_event(STORE_COMPILE_EVENT)
         with _without_persistent_cache():
             # An executable that JAX's cache gave back cannot be written again (XLA's CPU
             # client keeps its code apart): compiled here from the traced program.
@@ -247,7 +254,9 @@ def _describe(fun: Any) -> str:
 
 def _key(fun: Any, static: str, tree: Any, leaves: list) -> str | None:
     """The store's key of a call, or None when the call must not be stored (a tracer, an
-    argument that is not an array or a number, several devices)."""
+    argument that is not an array or a number, several devices or processes)."""
+    if jax.process_count() != 1:
+        return None
     parts = [_describe(fun) + static, str(tree), _environment()]
     for leaf in leaves:
         if isinstance(leaf, jax.core.Tracer):
