@@ -19,6 +19,7 @@ import os
 import pickle
 import platform
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -122,6 +123,7 @@ def enable_for_command() -> Path | None:
 STORE_SUBDIR = "executables"
 _MAGIC = b"jaxkin-executable-1\n"
 _store: Path | None = None  # the directory of stored executables; None: off
+_LOCK = threading.RLock()  # loads and compiles (which turn JAX's cache off for a while)
 # ``jax.monitoring`` events: an executable loaded from the store, or compiled (not found).
 STORE_LOAD_EVENT = "/jaxkin/executable_store/load"
 STORE_COMPILE_EVENT = "/jaxkin/executable_store/compile"
@@ -191,6 +193,14 @@ class _StoredJit:
         compiled = self._loaded.get(key)
         if compiled is not None:
             return compiled(*dynamic)
+        with _LOCK:  # host threads calling one new program: loaded or compiled once
+            compiled = self._loaded.get(key)
+            if compiled is not None:
+                return compiled(*dynamic)
+            return self._first_call(key, jitted, dynamic)
+
+    def _first_call(self, key: str, jitted: Any, dynamic: tuple) -> Any:
+        """Load the program of ``key`` from the store, or compile and store it; then call it."""
         path = _store / f"{key}.exe"
         compiled = _load(path)
         if compiled is not None:
@@ -207,7 +217,20 @@ class _StoredJit:
             # An executable that JAX's cache gave back cannot be written again (XLA's CPU
             # client keeps its code apart): compiled here from the traced program.
             compiled = jitted.lower(*dynamic).compile()
-        _save(path, compiled)
+        if _save(path, compiled):
+            # Called as a later run will call it, read back: the same results in every run,
+            # and an entry that does not run is removed (this process may hold the program
+            # from JAX's cache already, whose copy cannot be written).
+            stored = _load(path)
+            try:
+                result = stored(*dynamic) if stored is not None else None
+            except Exception:
+                stored = None
+            if stored is not None:
+                self._loaded[key] = stored
+                return result
+            with contextlib.suppress(OSError):
+                path.unlink()
         self._loaded[key] = compiled
         return compiled(*dynamic)
 
@@ -340,13 +363,13 @@ def _load(path: Path) -> Any:
         return None
 
 
-def _save(path: Path, compiled: Any) -> None:
-    """Write ``compiled`` at ``path`` atomically; an executable that cannot be serialised or
-    a directory that cannot be written is skipped (the run goes on)."""
+def _save(path: Path, compiled: Any) -> bool:
+    """Write ``compiled`` at ``path`` atomically; False when the executable cannot be
+    serialised or the directory cannot be written (the run goes on)."""
     try:
         body = pickle.dumps(_serialize.serialize(compiled))
     except Exception:
-        return
+        return False
     data = _MAGIC + hashlib.sha256(body).digest() + body
     try:
         with tempfile.NamedTemporaryFile(dir=path.parent, prefix=".tmp-", delete=False) as f:
@@ -355,3 +378,5 @@ def _save(path: Path, compiled: Any) -> None:
     except OSError:
         with contextlib.suppress(OSError, NameError):
             os.unlink(f.name)
+        return False
+    return True
