@@ -12,34 +12,47 @@ with optax; its cost terms in ``costs``), ``workspace`` (voxel sweeps), ``fixedp
 a loop-bound kernel is split across.
 """
 
-from . import costs as costs
-from . import delta as delta
-from . import dyad as dyad
-from . import fixedpoint as fixedpoint
-from . import lie as lie
-from . import newton as newton
-from . import optimize as optimize
-from . import paths as paths
-from . import plan as plan
-from . import planar as planar
-from . import robot as robot
-from . import scara as scara
-from . import serial as serial
-from . import workspace as workspace
-from ._batching import num_threads as num_threads
-from ._batching import set_num_threads as set_num_threads
-from ._compile_cache import enable_compilation_cache as enable_compilation_cache
-from .jet import Jet as Jet
-from .jet import lift as lift
-from .result import FKResult as FKResult
-from .result import IKResult as IKResult
-from .result import SolverResult as SolverResult
-from .robot import JointLimits as JointLimits
-from .robot import Robot as Robot
-from .robot import fk as fk
-from .robot import ik as ik
-from .status import Status as Status
-from .status import describe as describe
+import importlib
+from typing import Any
+
+# Submodules and names are imported on first use (PEP 562): ``import jaxkin`` stays cheap and
+# the ``jaxkin`` command loads only what a subcommand needs (optax only for ``optimize``).
+_SUBMODULES = frozenset(
+    {"costs", "delta", "dyad", "fixedpoint", "lie", "newton", "optimize", "paths", "plan"}
+    | {"planar", "robot", "scara", "serial", "workspace"}
+)
+_NAMES = {
+    "num_threads": "_batching",
+    "set_num_threads": "_batching",
+    "enable_compilation_cache": "_compile_cache",
+    "Jet": "jet",
+    "lift": "jet",
+    "FKResult": "result",
+    "IKResult": "result",
+    "SolverResult": "result",
+    "JointLimits": "robot",
+    "Robot": "robot",
+    "fk": "robot",
+    "ik": "robot",
+    "Status": "status",
+    "describe": "status",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:
+        value = importlib.import_module(f"{__name__}.{name}")
+    elif name in _NAMES:
+        value = getattr(importlib.import_module(f"{__name__}.{_NAMES[name]}"), name)
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __version__ = "0.1.0"
 

@@ -37,7 +37,12 @@ def as_jet(x: Jet | ArrayLike, name: str, coords: int | None) -> Jet:
 def as_float(x: ArrayLike) -> jax.Array:
     """``x`` as a JAX array of an inexact dtype: integers and booleans become JAX's default
     float (float32, or float64 with x64); floating input keeps its dtype. Works on tracers."""
-    arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
+    if isinstance(x, jax.Array):
+        arr = x
+    elif isinstance(x, np.ndarray | np.generic):
+        arr = jax.device_put(x)  # as jnp.asarray, without compiling a program per shape
+    else:
+        arr = jnp.asarray(x)
     if not jnp.issubdtype(arr.dtype, jnp.inexact):
         arr = arr.astype(jnp.result_type(float))
     return arr

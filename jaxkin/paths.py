@@ -259,7 +259,8 @@ def pose_from_quaternions(p: ArrayLike, v: ArrayLike, a: ArrayLike) -> Jet:
     for out, r, x in ((value, rot, p), (velocity, d_rot, v), (acceleration, dd_rot, a)):
         out[..., :3, :3], out[..., :3, 3] = r, x[..., :3]
     value[..., 3, 3] = 1.0
-    return Jet.of(value, velocity, acceleration)
+    # device_put: as jnp.asarray, without compiling a program per shape
+    return Jet.of(*(jax.device_put(x) for x in (value, velocity, acceleration)))
 
 
 def quaternions_from_pose(pose: Jet) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -165,7 +165,7 @@ class Limits:
         for name, arr in (("v_max", v), ("a_max", a)):
             if np.any(arr < 0):
                 raise ValueError(f"{name} must be >= 0, got {arr}")
-        return cls(*(jnp.asarray(x) for x in (q_lo, q_hi, v, a)))
+        return cls(*(jax.device_put(x) for x in (q_lo, q_hi, v, a)))  # no program to compile
 
     def tightened(self, q_min: ArrayLike, q_max: ArrayLike) -> Limits:
         """These limits intersected with a position range (e.g. the robot's own)."""

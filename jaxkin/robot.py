@@ -65,7 +65,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _validate
+from . import _batching, _compile_cache, _validate
 from ._geometry import BOUND, LENGTH, REAL, Geometry, geometry, number
 from ._validate import is_concrete
 from .jet import Jet
@@ -165,7 +165,7 @@ class JointLimits(Geometry):
                 ) from None
             if np.any(bound < 0):
                 raise ValueError(f"JointLimits.{name} must be >= 0, got {bound}")
-            object.__setattr__(self, name, jnp.asarray(bound))
+            object.__setattr__(self, name, jax.device_put(bound))  # no program to compile
         bad = np.flatnonzero(lower > upper)
         if bad.size:
             raise ValueError(
@@ -542,7 +542,7 @@ class _Program:
             )
         else:
             xla = dict(policy.compiler_options) or None
-            self.dynamic = jax.jit(impl, compiler_options=xla)
+            self.dynamic = _compile_cache.stored_jit(impl, compiler_options=xla)
             self.static = (
                 jax.jit(impl, static_argnames="robot", compiler_options=xla)
                 if policy.constant_geometry

@@ -179,15 +179,19 @@ def _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_pat
     def target(p, v, a):
         if quaternions:  # x, y, z, qw, qx, qy, qz rows -> 4x4 transforms with rates
             return paths.pose_from_quaternions(p, v, a).astype(dtype)
-        return Jet.of(p.astype(dtype), v.astype(dtype), a.astype(dtype))
+        # Host arrays (jnp.asarray would compile a program per shape in every run).
+        return Jet(p.astype(dtype), v.astype(dtype), a.astype(dtype))
 
     def solve(p, v, a):
         jet = target(p, v, a)
         if inverse:
             res = ik(robot, jet, branch)
-            return res.q, res.status, res.margin
-        res = fk(robot, jet)
-        return res.x, res.status
+            out = res.q, res.status, res.margin
+        else:
+            res = fk(robot, jet)
+            out = res.x, res.status
+        # On the host at once: cutting a device array compiles a program in every run.
+        return jax.tree.map(np.asarray, out)
 
     desc = f"{args.kind} {'ik' if inverse else 'fk'}"
     chunk = args.chunk_size or _batching.HOST_CHUNK

@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import plan, timing
+from .. import _compile_cache, plan, timing
 from ..jet import Jet
 from ..robot import Robot, fk
 from ..status import STATUS_DTYPE, Status
@@ -91,7 +91,7 @@ def _follow(robot: Robot, path: Jet, dt: Any, real: Any, limits: plan.Limits, in
     return q, status, res.margin
 
 
-_follow_jit = jax.jit(_follow, static_argnames=("index",))
+_follow_jit = _compile_cache.stored_jit(_follow, static_argnames=("index",))
 
 
 def _padded(size: int, smallest: int) -> int:
