@@ -199,3 +199,68 @@ def test_path_mode_peak_memory_does_not_grow_with_the_path(tmp_path):
         peaks.append(int(done.stdout.split()[-1]) * 1024)  # ru_maxrss: kB on Linux
     assert (peaks[1] - peaks[0]) / 60_000 < 100, peaks
     assert read(tmp_path / "q.csv", JOINTS)["theta1"].shape == (80_000,)
+
+
+def test_plan_checks_in_windows_equal_the_whole_paths():
+    """``plan.unwrapped(turns=)``, ``solved_range``, ``range_turns`` and
+    ``checked_samples(turns=)`` window by window (8 samples, each prefixed with the previous
+    window's last one) on 40 SCARA samples (theta1 given per sample in (-pi, pi], unwrapped
+    2.66 ... 4.66 rad, limits [-4.6, -1]; a jump at sample 16, a window's first; a sample
+    not converged, one outside a limit in the solve; exact rates): the joints and statuses
+    of ``checked_samples`` on the whole path, exactly."""
+    import jax
+
+    from jaxkin import Jet, Status, plan
+    from jaxkin.scara import Scara
+
+    robot = Scara.paper()
+    t = np.linspace(0.0, 2.0, 40)
+    dt = t[1] - t[0]
+    unwrapped = np.stack([2.66 + t, 0.5 + 0.3 * np.sin(t), 10.0 + t * t], -1)
+    rates = np.stack([np.ones_like(t), 0.3 * np.cos(t), 2 * t], -1)
+    accelerations = np.stack([0 * t, -0.3 * np.sin(t), np.full_like(t, 2.0)], -1)
+    p = unwrapped.copy()
+    p[:, 0] = np.angle(np.exp(1j * p[:, 0]))  # as a per-sample IK gives it
+    p[16:, 1] += 0.2
+    q = Jet(*(x[None] for x in (p, rates, accelerations)))
+    status = np.zeros((1, 40), np.int8)
+    status[0, 5], status[0, 30] = Status.NOT_CONVERGED, Status.OUT_OF_LIMITS
+    limits = plan.Limits.create(3, q_min=[-4.6, -np.inf, -np.inf], q_max=[-1.0, np.inf, np.inf])
+    moving = np.array([True])
+
+    @jax.jit
+    def check(q, status, turns):
+        return plan.checked_samples(robot, q, status, moving, limits, dt, turns=turns)[:2]
+
+    @jax.jit
+    def unwrap(joined, k):  # a window prefixed with the previous sample and its turns
+        u = plan.unwrapped(joined, revolute, k)[:, 1:]
+        return u, plan.unwrapping_turns(joined, revolute, k)[:, 1:]
+
+    whole_q, whole_status = check(q, status, None)
+    revolute = np.array([True, True, False])
+    size = 8
+    parts, carried, low, high = [], (q.p[:, 0], np.zeros((1, 3))), None, None
+    for start in range(0, 40, size):  # the first window prefixed with its own first sample
+        raw = q.p[:, start : start + size]
+        u, k = unwrap(np.concatenate([carried[0][:, None], raw], 1), carried[1])
+        carried = (raw[:, -1], k[:, -1])
+        lo, hi = plan.solved_range(u, status[:, start : start + size] == Status.OK)
+        low = lo if low is None else np.minimum(low, lo)
+        high = hi if high is None else np.maximum(high, hi)
+        parts.append(np.asarray(u))
+    turns = plan.range_turns(low, high, revolute, limits.q_min, limits.q_max)
+    assert np.asarray(turns).tolist() == [[-1.0, 0.0, 0.0]]
+    u = np.concatenate(parts, 1)
+    got_q, got_status = [], []
+    for start in range(0, 40, size):  # prefixed with the previous sample (the first: itself)
+        rows = np.r_[max(start - 1, 0), start : start + size]
+        window = Jet(u[:, rows], q.v[:, rows], q.a[:, rows])
+        before = status[:, rows].copy()
+        before[:, 0] = before[:, 0] if start else Status.INVALID_INPUT  # no step into sample 0
+        checked, checked_status = check(window, before, turns)
+        got_q.append(np.asarray(checked.p)[:, 1:])
+        got_status.append(np.asarray(checked_status)[:, 1:])
+    np.testing.assert_array_equal(np.concatenate(got_q, 1), whole_q.p)
+    np.testing.assert_array_equal(np.concatenate(got_status, 1), whole_status)
+    assert whole_status[0, 16] == Status.DISCONTINUOUS

@@ -414,20 +414,21 @@ class PathSolver:
                 rows = rows[end:]
                 continue
             bounds = [0, *(np.flatnonzero(np.diff(rows.label)) + 1).tolist(), len(rows)]
-            short = 0  # rows of the complete candidates short enough to solve whole
+            short, arriving = 0, False  # rows of the complete candidates short enough
             for k in range(len(bounds) - 1):
                 size, complete = bounds[k + 1] - bounds[k], k < len(bounds) - 2 or final
-                if size > self.window or not complete:
+                arriving = size <= self.window and not complete
+                if size > self.window or arriving:
                     break
                 short = bounds[k + 1]
+            if arriving and short < self.chunk:  # batched with the candidates still to come
+                self.held = rows
+                return
             if short:
                 yield from self._whole(rows[:short])
                 rows = rows[short:]
-            elif bounds[1] > self.window:
+            elif len(rows):
                 self.long = _LongPath(self, int(rows.label[0]))
-            else:  # a candidate still arriving
-                self.held = rows
-                return
 
     def _whole(self, rows: _Rows) -> Iterator[Block]:
         labels = rows.label if self.labelled else None
