@@ -49,25 +49,32 @@ def solved_both_ways(capsys, argv, tmp_path, window, names):
     return tables
 
 
-def assert_same_rows(whole, windows, accel_atol=1e-13):
+def assert_same_rows(whole, windows, accel_atol=1e-13, atol=0.0):
+    """The same statuses; positions, speeds and margins equal (to ``atol``), accelerations
+    to ``accel_atol``."""
     assert whole["status"].tolist() == windows["status"].tolist()
     for key, values in whole.items():
         if key == "status":
             continue
         if key.endswith("_ddot"):
             np.testing.assert_allclose(windows[key], values, rtol=0, atol=accel_atol)
+        elif atol:
+            np.testing.assert_allclose(windows[key], values, rtol=0, atol=atol)
         else:
             np.testing.assert_array_equal(windows[key], values)
 
 
 @pytest.mark.slow
-def test_scara_windows_give_the_whole_paths_rows(tmp_path, capsys):
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_scara_windows_give_the_whole_paths_rows(tmp_path, capsys, dtype):
     """30 rows of an arc behind the base (theta1 wraps from +pi to -pi per row), rates given,
     positions shifted by 1 mm from row 16 on (the first row of the third window of 8): solved
     in windows of 8 rows, the same rows as whole, row 16 alone DISCONTINUOUS; theta1's
     unwrapped range is moved one turn down into the limits [-4.6, -1] (below -pi: a whole
     turn carried across windows, no per-row angle lies there); theta2's speed bound 0.72
-    rad/s is crossed between windows (rows OUT_OF_LIMITS on both sides)."""
+    rad/s is crossed between windows (rows OUT_OF_LIMITS on both sides). In float32 too, the
+    statuses identical, positions and speeds to 5e-7 (two ulps of theta1 ~ 3: the window
+    adds its whole turns in a separate program), accelerations to 1e-4 (of about 1)."""
     (tmp_path / "scara.toml").write_text(SCARA_TOML)
     t = np.linspace(0.0, 2.0, 30)
     p, v, a = behind_the_base(t)
@@ -75,8 +82,12 @@ def test_scara_windows_give_the_whole_paths_rows(tmp_path, capsys):
     p[16:, 0] += 1.0
     src = point_file(tmp_path / "arc.csv", t, p, v, a)
     argv = ["ik", "scara", "--robot", tmp_path / "scara.toml", "-i", src, "--v-max", "2,0.72,50"]
+    argv += ["--dtype", dtype]
     whole, windows = solved_both_ways(capsys, argv, tmp_path, 8, (*OUT, "margin"))
-    assert_same_rows(whole, windows)
+    if dtype == "float64":
+        assert_same_rows(whole, windows)
+    else:  # an ulp of theta1 (about 2.4e-7 rad) from where the turns are added
+        assert_same_rows(whole, windows, accel_atol=1e-4, atol=5e-7)
     status = whole["status"]
     assert status[16] == "DISCONTINUOUS"
     assert {"OK", "OUT_OF_LIMITS"} <= set(np.delete(status, 16))
@@ -177,7 +188,8 @@ sys.exit(code)
 def test_path_mode_peak_memory_does_not_grow_with_the_path(tmp_path):
     """``ik scara`` on one path (positions only, rates splined) of 20,000 and 80,000 rows
     with ``--chunk-size 4096``, each in a fresh process: the peak resident memory grows by
-    less than 100 bytes per extra row (the whole-path solve held about 1.8 kB per row)."""
+    less than 200 bytes per extra row (measured: about 80; the whole-path solve, compiled
+    for the path's length, grew by about 1.5 kB per row)."""
     from tests.test_cli import spiral
 
     peaks = []
@@ -197,7 +209,7 @@ def test_path_mode_peak_memory_does_not_grow_with_the_path(tmp_path):
         )
         assert done.returncode == 0, done.stderr
         peaks.append(int(done.stdout.split()[-1]) * 1024)  # ru_maxrss: kB on Linux
-    assert (peaks[1] - peaks[0]) / 60_000 < 100, peaks
+    assert (peaks[1] - peaks[0]) / 60_000 < 200, peaks
     assert read(tmp_path / "q.csv", JOINTS)["theta1"].shape == (80_000,)
 
 
