@@ -939,6 +939,7 @@ def completed_parts(
     whole: bool = False,
     why: str = "to compute rates",
     hint: str = "; or give the rate columns",
+    ordered: bool = False,
 ) -> Iterator[tuple[Trajectory, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """``complete_rates`` of a file read in parts (``trajectory_parts``), a part of about
     ``size`` rows at a time, in file order: ``(part, p, v, a, valid)``.
@@ -950,7 +951,8 @@ def completed_parts(
     ``whole`` a part ends at a candidate's end (a candidate longer than ``size`` is one
     part). ``quaternions``: pose rows (``continuous_quaternions``, signs carried from part to
     part). Times must increase strictly along each candidate (``why``, ``hint`` for the
-    message) when rates are splined or ``whole``.
+    message) when rates are splined, ``whole`` or ``ordered`` (parts of paths that may end
+    within a candidate: ``cli.planning.PathSolver`` carries a path from part to part).
 
     Raises:
         NotContiguous: a candidate's rows are split by another's (read the file whole).
@@ -1004,7 +1006,7 @@ def completed_parts(
     for part in parts:
         if carried is None:
             spline = part.t is not None and (part.v is None or part.a is None)
-            carried = _Carried(why, hint, quaternions, spline or whole)
+            carried = _Carried(why, hint, quaternions, spline or whole or ordered)
         pending = _joined([pending, carried(part)])
         while pending is not None and len(pending.p):
             rows = cut(pending, final=False)

@@ -57,6 +57,14 @@ explain (``unexplained_steps``: the solution switched) is ``DISCONTINUOUS``, whi
 ``OUT_OF_LIMITS`` at the same sample. A candidate given as a ``Jet`` whose rates are all zero
 (a path explicitly at rest) has no rates to explain its steps: it is only unwrapped.
 
+A path too long for memory is solved in windows of its samples with the same result
+(``jaxkin ik`` does so): ``path_ik`` with ``seed`` (the last solved joints before the window)
+warm-starts an iterative IK where the whole path's would be; ``unwrapped`` with ``turns``
+(prefix the window with the previous one's last sample and give that sample's turns) continues
+the unwrapping; ``solved_range`` accumulated over the windows, and ``range_turns`` of it, gives
+the whole turns ``within_turns`` would apply; ``checked_samples`` with ``turns`` then checks
+each window prefixed with the previous window's last sample, so the first step is checked too.
+
 Duration: ``retime`` times every feasible candidate's joint path as fast as the velocity and
 acceleration limits allow (``jaxkin.timing``, batched TOPP-RA, one compiled call), and
 ``best(ev, k, by="duration")`` ranks by that duration; a candidate that is not feasible or
@@ -104,10 +112,14 @@ __all__ = [
     "joint_path",
     "joint_scales",
     "limit_excess",
+    "path_ik",
+    "range_turns",
     "retime",
+    "solved_range",
     "trajectory_costs",
     "unexplained_steps",
     "unwrapped",
+    "unwrapping_turns",
     "within_turns",
 ]
 
@@ -261,36 +273,64 @@ def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
 STEP_RTOL = 0.5
 
 
-def unwrapped(q: Array, revolute: Any) -> Array:
+def unwrapping_turns(q: Array, revolute: Any, turns: Array | None = None) -> Array:
+    """The whole turns ``K`` ``(..., T, n)`` that ``unwrapped`` subtracts from joints
+    ``(..., T, n)``: ``K[t] = turns + sum_{0 < s <= t} round((q[s] - q[s-1]) / (2 pi))`` on
+    revolute joints (``revolute``: ``(n,)`` bools), 0 on the others; ``turns`` ``(..., n)``
+    those of the first sample (None: 0), so that a path unwrapped in windows, each window
+    starting with the previous one's last sample and its turns, gets the whole path's."""
+    turn = 2.0 * math.pi
+    steps = jnp.round((q[..., 1:, :] - q[..., :-1, :]) / turn)
+    steps = jnp.where(jnp.asarray(revolute) & jnp.isfinite(steps), steps, 0.0)
+    k = jnp.cumsum(steps, axis=-2)
+    k = jnp.concatenate([jnp.zeros_like(k[..., :1, :]), k], axis=-2)
+    return k if turns is None else k + jnp.asarray(turns, k.dtype)[..., None, :]
+
+
+def unwrapped(q: Array, revolute: Any, turns: Array | None = None) -> Array:
     """Joint positions ``(..., T, n)`` made continuous along ``T``: every sample of a revolute
     joint (``revolute``: ``(n,)`` bools) moved by a multiple of ``2 pi`` to the representative
-    nearest the previous (unwrapped) sample; the first sample keeps its own. That is
-    ``q[t] - 2 pi K[t]`` with ``K[t] = sum_{s <= t} round((q[s] - q[s-1]) / (2 pi))``: only
-    whole turns are subtracted, so the values are exact and the rates unchanged."""
+    nearest the previous (unwrapped) sample; the first sample keeps its own (less ``turns``
+    ``(..., n)`` whole turns when given: ``unwrapping_turns``). That is ``q[t] - 2 pi K[t]``
+    with ``K[t] = sum_{s <= t} round((q[s] - q[s-1]) / (2 pi))``: only whole turns are
+    subtracted, so the values are exact and the rates unchanged."""
+    return q - 2.0 * math.pi * unwrapping_turns(q, revolute, turns)
+
+
+def range_turns(low: Array, high: Array, revolute: Any, lower: Array, upper: Array) -> Array:
+    """The whole turns ``(..., n)`` nearest zero that put a continuous joint range
+    ``[low, high]`` ``(..., n)`` within ``[lower, upper]``: 0 when the range already fits,
+    when no whole turn makes it fit, on prismatic joints and where the range is empty
+    (``low > high``: no solved sample). The fitting shifts are ``[lower - low, upper - high]``;
+    ``within_turns`` applies them to a path's samples, and a path checked in windows
+    (``checked_samples``' ``turns``) gets them from its whole range."""
     turn = 2.0 * math.pi
-    turns = jnp.round((q[..., 1:, :] - q[..., :-1, :]) / turn)
-    turns = jnp.where(jnp.asarray(revolute) & jnp.isfinite(turns), turns, 0.0)
-    k = jnp.cumsum(turns, axis=-2)
-    return q - turn * jnp.concatenate([jnp.zeros_like(k[..., :1, :]), k], axis=-2)
+    first, last = lower - low, upper - high  # the shifts that fit
+    turns = jnp.where(
+        first > 0, jnp.ceil(first / turn), jnp.where(last < 0, jnp.floor(last / turn), 0.0)
+    )
+    fits = (turns * turn >= first) & (turns * turn <= last) & jnp.isfinite(turns)
+    return jnp.where(fits & jnp.asarray(revolute) & (low <= high), turns, 0.0)
+
+
+def solved_range(q: Array, solved: Array) -> tuple[Array, Array]:
+    """``(low, high)`` ``(..., n)``: each joint's least and greatest value over the ``solved``
+    samples ``(..., T)`` of joints ``(..., T, n)`` (the dtype's largest finite value and its
+    negative when none is solved)."""
+    big = jnp.asarray(jnp.finfo(q.dtype).max, q.dtype)
+    inside = solved[..., None]
+    low = jnp.min(jnp.where(inside, q, big), axis=-2)
+    high = jnp.max(jnp.where(inside, q, -big), axis=-2)
+    return low, high
 
 
 def within_turns(q: Array, revolute: Any, solved: Array, lower: Array, upper: Array) -> Array:
     """Continuous joints ``(..., T, n)`` shifted, per candidate and revolute joint, by the
     whole number of turns nearest zero that puts their range (over the ``solved`` samples,
     ``(..., T)``) within ``[lower, upper]``; unshifted when the range already fits or when no
-    whole turn makes it fit. The fitting shifts are ``[lower - min q, upper - max q]``."""
-    turn = 2.0 * math.pi
-    big = jnp.asarray(jnp.finfo(q.dtype).max, q.dtype)
-    inside = solved[..., None]
-    low = jnp.min(jnp.where(inside, q, big), axis=-2)
-    high = jnp.max(jnp.where(inside, q, -big), axis=-2)
-    first, last = lower - low, upper - high  # the shifts that fit
-    turns = jnp.where(
-        first > 0, jnp.ceil(first / turn), jnp.where(last < 0, jnp.floor(last / turn), 0.0)
-    )
-    fits = (turns * turn >= first) & (turns * turn <= last) & jnp.isfinite(turns)
-    turns = jnp.where(fits & jnp.asarray(revolute) & jnp.any(inside, axis=-2), turns, 0.0)
-    return q + turn * turns[..., None, :]
+    whole turn makes it fit (``range_turns`` of ``solved_range``)."""
+    turns = range_turns(*solved_range(q, solved), revolute, lower, upper)
+    return q + 2.0 * math.pi * turns[..., None, :]
 
 
 def unexplained_steps(q: Jet, dt: Any, unit: Any) -> Array:
@@ -409,6 +449,8 @@ def checked_samples(
     limits: Limits,
     dt,
     collide: Any = None,
+    *,
+    turns: Array | None = None,
 ) -> tuple[Jet, Array, Array | None]:
     """The per-sample checks every candidate goes through (``plan.evaluate``'s and the
     command line's trajectories).
@@ -422,12 +464,22 @@ def checked_samples(
     limits, then collision (``collide``: ``(body, pairs, world)`` of ``collision.prepare``, or
     None). Returns the joints, the statuses ``(N, T)`` and the least clearance per sample
     (None without ``collide``).
+
+    A long path checked in windows (the module docstring) passes ``turns`` ``(N, n)``: its
+    joints are then already unwrapped (``unwrapped`` with the previous window's turns), they
+    are shifted by these whole turns (``range_turns`` of the whole path's ``solved_range``)
+    instead of those of their own range, and each window starts with the previous one's last
+    sample (whose own status is dropped), so that every step is checked.
     """
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     solved = status == Status.OK
     dtype = q.p.dtype
     lower, upper = limits.q_min.astype(dtype), limits.q_max.astype(dtype)
-    q = Jet(within_turns(unwrapped(q.p, revolute), revolute, solved, lower, upper), q.v, q.a)
+    if turns is None:
+        p = within_turns(unwrapped(q.p, revolute), revolute, solved, lower, upper)
+    else:
+        p = q.p + 2.0 * math.pi * jnp.asarray(turns, dtype)[..., None, :]
+    q = Jet(p, q.v, q.a)
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
@@ -486,13 +538,30 @@ def _moving(path: Jet) -> Array:
     return jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))
 
 
+def path_ik(robot, path: Jet, branch_index: Any, *, seed: Any = None) -> SolverResult:
+    """The IK along sampled paths ``(N, T, *target)`` on branch ``robot.branches[branch_index]``
+    (an int or a traced ``int32``), in the robot's work dtype: its ``ik_path_kernel`` (an
+    iterative IK warm-starts every sample from the previous solution; the branch is held).
+    Pure and traceable (the kernel of ``evaluate``).
+
+    ``seed`` ``(N, n)``: for a long path solved in windows, the joints (as this function
+    returned them) of the last sample before the window whose status was ``OK`` or
+    ``OUT_OF_LIMITS`` (else the seed the previous window was given; for the first window,
+    leave it None: its first sample is then found by the full search, as in ``evaluate``).
+    An iterative IK warm-starts the window's first sample from it, so the windows give the
+    whole path's solution; an analytic IK ignores it. None (the default): unchanged.
+    """
+    path = path.astype(robot.work_dtype(path.dtype))
+    given = {} if seed is None else {"seed": jnp.asarray(seed, path.dtype)}
+    return robot.ik_path_kernel(path, branch_index, robot.IKOptions(), **given)
+
+
 def _evaluate_branch(
     robot, path: Jet, limits: Limits, dt, weights, branch_index, collide=None
 ) -> Evaluation:
     """Every task-space candidate on one branch; ``branch_index`` an int, or a traced one."""
-    # Along each candidate: an iterative IK warm-starts every sample from the previous one.
     path = path.astype(robot.work_dtype(path.dtype))
-    res = robot.ik_path_kernel(path, branch_index, robot.IKOptions())
+    res = path_ik(robot, path, branch_index)
     moving = _moving(path)
     ev = _checked(robot, res.q, res.status, res.margin, moving, limits, dt, weights, collide)
     return dataclasses.replace(ev, branch=jnp.full(ev.feasible.shape, branch_index, jnp.int8))

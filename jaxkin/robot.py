@@ -343,11 +343,14 @@ class Robot(Geometry, metaclass=abc.ABCMeta):
         ]
         return jax.lax.switch(index, solvers, target)
 
-    def ik_path_kernel(self, path: Jet, index: Any, options: Any) -> IKResult:
+    def ik_path_kernel(self, path: Jet, index: Any, options: Any, seed: Any = None) -> IKResult:
         """The IK of sampled paths ``(..., T, *target.shape)`` (consecutive samples along the
         axis before the target's) on branch ``self.branches[index]`` (``index`` an int, or a
         traced ``int32`` scalar), for the planner. By default every sample on its own; a robot
-        whose IK is iterative overrides it to warm-start each sample from the previous one."""
+        whose IK is iterative overrides it to warm-start each sample from the previous one,
+        and the first from ``seed`` ``(..., n_joints)`` when given (the joints of the last
+        solved sample before the path: a long path solved in windows), which the default
+        ignores."""
         if isinstance(index, int):
             return self.ik_kernel(path, self.branches[index], options, True)
         return self.ik_kernel_indexed(path, index, options, True)

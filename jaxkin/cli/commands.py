@@ -126,8 +126,9 @@ def _parts(args: argparse.Namespace, names: tuple[str, ...], quaternions: bool, 
     if streamed and not (args.output == "-" and first.candidate is not None):
         why = ("along a path", "; or give --each-row") if as_path else ()
         streamed_parts = files.completed_parts(
-            itertools.chain([first], parts), args.spline, chunk, quaternions, as_path, *why
-        )
+            itertools.chain([first], parts), args.spline, chunk, quaternions, False, *why,
+            ordered=as_path,
+        )  # fmt: skip
         return as_path, streamed_parts
     traj = files.read_trajectory(args.input, names, timed=False)
     return as_path, _whole(traj, args.spline, quaternions, as_path)
@@ -200,50 +201,67 @@ def _write_solved(args, inverse, robot, dtype, branch, limits, out_names, as_pat
     counts = np.zeros(len(Status), np.int64)  # rows per status
     solved_valid, n_valid, n_invalid, first_invalid = 0, 0, 0, None
     kept, statuses, times, labels = [], [], [], []  # only for --plot
-    with files.table_writer(args.output if writer else None) as write:
+
+    def solved():
+        """``(t, candidate, valid, outputs)`` of the rows in file order, as they are solved."""
+        nonlocal n_invalid, n_valid, first_invalid
+        # Every process solves every path (they are not split); a long path is solved in
+        # windows, carried from part to part.
+        solver = planning.PathSolver(robot, target, branch, limits, chunk) if as_path else None
         for traj, p, v, a, valid in parts:
             bad = np.flatnonzero(~valid)
             if bad.size and first_invalid is None:
                 first_invalid = traj.table.where(bad[0])
             n_invalid, n_valid = n_invalid + bad.size, n_valid + len(valid) - bad.size
-            if as_path:  # every process solves every path (they are not split)
-                chunks = planning.solve_paths(
-                    robot, target, traj.t, (p, v, a), traj.candidate, valid, branch, limits, chunk
-                )
-            else:
-                chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
+            if solver is not None:
+                yield from solver.feed(traj.t, traj.candidate, (p, v, a), valid)
+                continue
+            chunks = distributed.solved_chunks(solve, (p, v, a), chunk, desc, args.quiet)
             for start, stop, outputs in chunks:
-                q, qd, qdd, status = outputs[:4]
-                rows, ok = slice(start, stop), valid[start:stop]
-                candidate = None if traj.candidate is None else traj.candidate[rows]
-                if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
-                    q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
-                    sign = signs(candidate, ok, q[:, 3:])[:, None]
-                    for block in (q, qd, qdd):  # continuous along each candidate
-                        block[:, 3:] *= sign
-                for block in (q, qd, qdd):
-                    block[~ok] = np.nan  # nothing meaningful to report for invalid input
-                status = np.asarray(status, np.int8)
-                counts += np.bincount(status, minlength=len(counts))
-                solved_valid += int(np.sum(status[ok] == Status.OK))
-                if args.plot and writer:
-                    kept.append((q, qd, qdd))
-                    statuses.append(status)
-                    times.append(np.arange(start, stop) if traj.t is None else traj.t[rows])
-                    labels.append(candidate)
-                extra = {"margin": outputs[4]} if inverse else None
-                write(
-                    files.trajectory_columns(
-                        None if traj.t is None else traj.t[rows],
-                        candidate,
-                        out_names,
-                        q,
-                        qd,
-                        qdd,
-                        status_names(status),
-                        extra,
-                    )
+                rows = slice(start, stop)
+                yield (
+                    None if traj.t is None else traj.t[rows],
+                    None if traj.candidate is None else traj.candidate[rows],
+                    valid[rows],
+                    outputs,
                 )
+        if solver is not None:
+            yield from solver.finish()
+
+    written = 0  # rows
+    with files.table_writer(args.output if writer else None) as write:
+        for t_rows, candidate, ok, outputs in solved():
+            q, qd, qdd, status = outputs[:4]
+            start, stop = written, written + len(ok)
+            written = stop
+            if signs is not None:  # 4x4 transforms -> x, y, z, qw, qx, qy, qz rows
+                q, qd, qdd = paths.quaternions_from_pose(Jet(q, qd, qdd))
+                sign = signs(candidate, ok, q[:, 3:])[:, None]
+                for block in (q, qd, qdd):  # continuous along each candidate
+                    block[:, 3:] *= sign
+            for block in (q, qd, qdd):
+                block[~ok] = np.nan  # nothing meaningful to report for invalid input
+            status = np.asarray(status, np.int8)
+            counts += np.bincount(status, minlength=len(counts))
+            solved_valid += int(np.sum(status[ok] == Status.OK))
+            if args.plot and writer:
+                kept.append((q, qd, qdd))
+                statuses.append(status)
+                times.append(np.arange(start, stop) if t_rows is None else t_rows)
+                labels.append(candidate)
+            extra = {"margin": outputs[4]} if inverse else None
+            write(
+                files.trajectory_columns(
+                    t_rows,
+                    candidate,
+                    out_names,
+                    q,
+                    qd,
+                    qdd,
+                    status_names(status),
+                    extra,
+                )
+            )
     if not writer:
         return 0
     if n_invalid:

@@ -13,7 +13,21 @@ Trajectory files solved as paths (``jaxkin ik`` on a file with a ``t`` column):
   ``OUT_OF_LIMITS``: the statuses of ``plan.evaluate``.
 
 Candidates are batched (padded to a few sizes, so a file compiles a few programs), a batch
-holding about ``chunk`` samples; a candidate longer than that is solved whole.
+holding about ``chunk`` samples. A candidate longer than a window (``window_size(chunk)``, a
+power of two) is solved window by window (``PathSolver``), with the whole path's result:
+
+* each window's IK is warm-started from the joints of the last solved sample before it
+  (``plan.path_ik``'s ``seed``) on the branch held, and its joints unwrapped from the previous
+  window's last sample and its whole turns (``plan.unwrapped``'s ``turns``); the range of the
+  solved samples and whether the path moves are accumulated;
+* the windows' samples go to a temporary file: the whole turns that bring a joint's range
+  within its limits (``plan.range_turns``) are known only at the path's end;
+* then the checks (``plan.checked_samples`` with those ``turns``) run window by window, each
+  window prefixed with the previous one's last sample, so its first step is checked for
+  continuity with that sample's rates, and the rows are written.
+
+Memory is bounded by a window, not by the path; every window is padded to the window's size
+(the last one too), so a file of any length compiles the same programs.
 
 ``jaxkin plan`` evaluates a file of candidates with ``plan.evaluate`` (task space) or by
 forward kinematics (joint space), ranks them by ``costs.total`` or by the duration of their
@@ -23,6 +37,7 @@ time-optimal retiming (``jaxkin.timing``) and samples the best at a control peri
 from __future__ import annotations
 
 import dataclasses
+import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -36,12 +51,14 @@ from ..robot import Robot, fk
 from ..status import STATUS_DTYPE, Status
 
 __all__ = [
+    "PathSolver",
     "Ranked",
     "evaluate_joints",
     "evaluate_targets",
     "joint_limits",
     "rank",
     "solve_paths",
+    "window_size",
 ]
 
 MIN_SAMPLES = 8  # a path's samples are padded to a power of two, at least this
@@ -232,6 +249,323 @@ def _solve_batch(robot, to_target, t, rates, batch: _Batch, index: int, limits):
         [*(x[i, : len(rows)] for x in q), status[i, : len(rows)], margin[i, : len(rows)]]
         for i, rows in enumerate(batch.rows)
     ]
+
+
+# ------------------------------------------------------------------ long paths in windows
+def window_size(chunk: int) -> int:
+    """Samples per window of a long path: the largest power of two within ``chunk`` (at least
+    ``MIN_SAMPLES``); a path of more samples is solved in windows."""
+    return max(MIN_SAMPLES, 1 << (max(int(chunk), 1).bit_length() - 1))
+
+
+def _window(robot: Robot, path: Jet, real: Any, index: int, carry: dict | None):
+    """The IK of one window ``(1, W, *target)`` of a path (``real`` ``(1, W)`` False on
+    padding), continuing ``carry`` (None for the first window). Returns the unwrapped joints
+    (Jet ``(1, W, n)``, not yet shifted by ``within``'s whole turns), the statuses of the IK
+    (``INVALID_INPUT`` on padding), margins, and the carry of the path so far: ``seed`` (the
+    joints the next window's IK starts from), the last sample's joints as solved (``raw``)
+    and its whole turns (``turns``), the range of the solved samples (``low``, ``high``) and
+    whether any sample moves (``moving``)."""
+    res = plan.path_ik(robot, path, index, seed=None if carry is None else carry["seed"])
+    status = jnp.where(real, res.status, jnp.int8(Status.INVALID_INPUT))
+    revolute = np.array([kind == "R" for kind in robot.joint_types])
+    raw = res.q.p
+    if carry is None:
+        p, turns = plan.unwrapped(raw, revolute), plan.unwrapping_turns(raw, revolute)
+    else:  # prefixed with the previous window's last sample, which is dropped again
+        joined = jnp.concatenate([carry["raw"][:, None, :], raw], axis=1)
+        p = plan.unwrapped(joined, revolute, carry["turns"])[:, 1:]
+        turns = plan.unwrapping_turns(joined, revolute, carry["turns"])[:, 1:]
+    low, high = plan.solved_range(p, status == Status.OK)
+    axes = tuple(range(2, path.p.ndim))
+    nonzero = (path.v != 0) | (path.a != 0)
+    moving = jnp.any(nonzero & real.reshape(real.shape + (1,) * len(axes)), axis=(1, *axes))
+    # The warm start the whole path's IK would carry: the last sample solved (in or outside
+    # the limits), else the one it was given.
+    good = ((res.status == Status.OK) | (res.status == Status.OUT_OF_LIMITS)) & real
+    size = real.shape[1]
+    last_good = size - 1 - jnp.argmax(good[:, ::-1], axis=1)
+    last = jnp.sum(real, axis=1) - 1
+
+    def at(x, i):
+        return jnp.take_along_axis(x, i[:, None, None], axis=1)[:, 0]
+
+    before = raw[:, 0] if carry is None else carry["seed"]
+    out = {
+        "seed": jnp.where(jnp.any(good, axis=1)[:, None], at(raw, last_good), before),
+        "raw": at(raw, last),
+        "turns": at(turns, last),
+        "low": low,
+        "high": high,
+        "moving": moving,
+    }
+    if carry is not None:
+        out["low"] = jnp.minimum(carry["low"], low)
+        out["high"] = jnp.maximum(carry["high"], high)
+        out["moving"] = carry["moving"] | moving
+    return Jet(p, res.q.v, res.q.a), status, res.margin, out
+
+
+_window_jit = jax.jit(_window, static_argnames=("index",))
+
+
+def _window_checks(robot: Robot, q: Jet, status: Any, moving: Any, limits, dt: Any, turns: Any):
+    """``plan.checked_samples`` of a window prefixed with the previous one's last sample,
+    the joints shifted by the whole path's ``turns``."""
+    q, status, _ = plan.checked_samples(robot, q, status, moving, limits, dt, turns=turns)
+    return q, status
+
+
+_window_checks_jit = jax.jit(_window_checks)
+
+
+@dataclasses.dataclass
+class _Rows:
+    """File rows: times, candidate labels, positions, velocities, accelerations, valid."""
+
+    t: np.ndarray
+    label: np.ndarray
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    valid: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def __getitem__(self, rows: Any) -> _Rows:
+        return _Rows(*(x[rows] for x in dataclasses.astuple(self)))
+
+    @staticmethod
+    def joined(first: _Rows | None, second: _Rows) -> _Rows:
+        if first is None or not len(first):
+            return second
+        return _Rows(
+            *(np.concatenate([x, y]) for x, y in zip(dataclasses.astuple(first),
+                                                      dataclasses.astuple(second), strict=True))
+        )  # fmt: skip
+
+
+# Rows solved: (t, candidate labels or None, valid, [q, q_dot, q_ddot, status, margin]).
+Block = tuple[np.ndarray, "np.ndarray | None", np.ndarray, list[np.ndarray]]
+
+
+class PathSolver:
+    """Every candidate of a file read in parts solved as one path (module docstring), the
+    rows given back in file order as soon as they are final: ``feed`` each part, then
+    ``finish``. A candidate of at most ``window_size(chunk)`` rows is solved whole (batched
+    with others, ``solve_paths``); a longer one window by window (``_LongPath``). Candidates
+    must be contiguous in the file (``files.completed_parts`` checks it)."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        to_target: Callable[[np.ndarray, np.ndarray, np.ndarray], Jet],
+        branch: Any,
+        limits: plan.Limits,
+        chunk: int,
+    ) -> None:
+        self.robot, self.to_target, self.limits, self.chunk = robot, to_target, limits, chunk
+        self.branch, self.index = branch, robot.branches.index(branch)
+        self.window = window_size(chunk)
+        self.labelled: bool | None = None
+        self.dtype: Any = None  # of the outputs until a window is solved
+        self.held: _Rows | None = None  # rows of a candidate not yet known to be short or long
+        self.long: _LongPath | None = None
+
+    def feed(
+        self,
+        t: np.ndarray,
+        candidate: np.ndarray | None,
+        rates: tuple[np.ndarray, np.ndarray, np.ndarray],
+        valid: np.ndarray,
+    ) -> Iterator[Block]:
+        """The rows that are final once this part is read (file order)."""
+        if self.labelled is None:
+            self.labelled = candidate is not None
+            self.dtype = self.to_target(*(x[:1] for x in rates)).dtype
+        label = np.zeros(len(t), np.int64) if candidate is None else np.asarray(candidate)
+        if not _candidates(label, valid)[1]:  # interleaved: the whole file, read at once
+            rows = _Rows(np.asarray(t, float), label, *rates, valid)
+            yield from self._whole(rows)
+            return
+        rows = _Rows.joined(self.held, _Rows(np.asarray(t, float), label, *rates, valid))
+        self.held = None
+        yield from self._solve(rows, final=False)
+
+    def finish(self) -> Iterator[Block]:
+        """The rows still held, at the end of the file."""
+        rows, self.held = self.held, None
+        if rows is not None and len(rows):
+            yield from self._solve(rows, final=True)
+        if self.long is not None:  # a long path ending exactly at the end of a part
+            yield from self.long.add(None, done=True)
+            self.long = None
+
+    def _solve(self, rows: _Rows, final: bool) -> Iterator[Block]:
+        while len(rows):
+            if self.long is not None:
+                other = np.flatnonzero(rows.label != self.long.label)
+                end = int(other[0]) if other.size else len(rows)
+                done = end < len(rows) or final
+                yield from self.long.add(rows[:end], done)
+                if done:
+                    self.long = None
+                rows = rows[end:]
+                continue
+            bounds = [0, *(np.flatnonzero(np.diff(rows.label)) + 1).tolist(), len(rows)]
+            short, arriving = 0, False  # rows of the complete candidates short enough
+            for k in range(len(bounds) - 1):
+                size, complete = bounds[k + 1] - bounds[k], k < len(bounds) - 2 or final
+                arriving = size <= self.window and not complete
+                if size > self.window or arriving:
+                    break
+                short = bounds[k + 1]
+            if arriving and short < self.chunk:  # batched with the candidates still to come
+                self.held = rows
+                return
+            if short:
+                yield from self._whole(rows[:short])
+                rows = rows[short:]
+            elif len(rows):
+                self.long = _LongPath(self, int(rows.label[0]))
+
+    def _whole(self, rows: _Rows) -> Iterator[Block]:
+        labels = rows.label if self.labelled else None
+        for start, stop, outputs in solve_paths(
+            self.robot,
+            self.to_target,
+            rows.t,
+            (rows.p, rows.v, rows.a),
+            labels,
+            rows.valid,
+            self.branch,
+            self.limits,
+            self.chunk,
+        ):
+            part = slice(start, stop)
+            yield rows.t[part], None if labels is None else labels[part], rows.valid[part], outputs
+
+
+class _LongPath:
+    """One candidate longer than a window, solved window by window (module docstring): its
+    valid samples (IK results) and its file rows (times, valid) go to temporary files, then
+    the checks run and the rows are given back."""
+
+    def __init__(self, solver: PathSolver, label: int) -> None:
+        self.solver, self.label = solver, label
+        self.samples = tempfile.TemporaryFile()  # per sample: t, q, q_dot, q_ddot, status, margin
+        self.rows = tempfile.TemporaryFile()  # per file row: t, valid
+        self.pending: _Rows | None = None  # valid rows waiting for a full window
+        self.carry: dict | None = None
+        self.dtype: Any = solver.dtype
+
+    def add(self, rows: _Rows | None, done: bool) -> Iterator[Block]:
+        """Take the candidate's next rows; at its end (``done``) give back all its rows."""
+        window = self.solver.window
+        if rows is not None and len(rows):
+            self.rows.write(np.stack([rows.t, rows.valid.astype(float)], -1).tobytes())
+            self.pending = _Rows.joined(self.pending, rows[rows.valid])
+        while self.pending is not None and len(self.pending) >= window:
+            self._solve(self.pending[:window])
+            self.pending = self.pending[window:]
+        if not done:
+            return
+        if self.pending is not None and len(self.pending):
+            self._solve(self.pending)
+        self.pending = None
+        yield from self._checked()
+        self.samples.close()
+        self.rows.close()
+
+    def _solve(self, rows: _Rows) -> None:
+        """The IK of a window of valid rows (padded, at rest, to the window's size)."""
+        solver = self.solver
+        size, count = solver.window, len(rows)
+        take = np.minimum(np.arange(size), count - 1)
+        real = np.arange(size) < count
+        p = rows.p[take]
+        v, a = (np.where(real[:, None], x[take], 0.0) for x in (rows.v, rows.a))
+        target = solver.to_target(p, v, a)
+        target = target.map(lambda x: x.reshape(1, size, *x.shape[1:]))
+        target = target.astype(solver.robot.work_dtype(target.dtype))
+        q, status, margin, self.carry = _window_jit(
+            solver.robot, target, jnp.asarray(real[None]), solver.index, self.carry
+        )
+        self.dtype = q.p.dtype
+        record = np.concatenate(
+            [
+                rows.t[:, None],
+                *(np.asarray(x, float)[0, :count] for x in (q.p, q.v, q.a)),
+                np.asarray(status, float)[0, :count, None],
+                np.asarray(margin, float)[0, :count, None],
+            ],
+            axis=-1,
+        )
+        self.samples.write(record.tobytes())
+
+    def _checked(self) -> Iterator[Block]:
+        """The checks of the spooled samples, a window of file rows at a time, and the rows."""
+        solver, robot = self.solver, self.solver.robot
+        n, size, dtype = robot.n_joints, solver.window, self.dtype
+        width = 3 * n + 3
+        self.rows.seek(0)
+        self.samples.seek(0)
+        turns = moving = None
+        if self.carry is not None:
+            revolute = np.array([kind == "R" for kind in robot.joint_types])
+            lower, upper = (x.astype(dtype) for x in (solver.limits.q_min, solver.limits.q_max))
+            turns = plan.range_turns(self.carry["low"], self.carry["high"], revolute, lower, upper)
+            moving = self.carry["moving"]
+        previous = None  # the last sample given to the checks: (record, kernel status)
+        while True:
+            block = np.frombuffer(self.rows.read(size * 2 * 8), float).reshape(-1, 2)
+            if not len(block):
+                return
+            t, valid = block[:, 0].copy(), block[:, 1] > 0
+            count = int(valid.sum())
+            samples = np.frombuffer(self.samples.read(count * width * 8), float)
+            samples = samples.reshape(count, width)
+            q = [np.full((len(t), n), np.nan, dtype) for _ in range(3)]
+            status = np.full(len(t), Status.INVALID_INPUT, np.int8)
+            margin = np.full(len(t), -1.0, dtype)
+            if count:
+                checked_q, checked_status = self._check(samples, previous, turns, moving)
+                for column, values in zip(q, checked_q, strict=True):
+                    column[valid] = values
+                status[valid] = checked_status
+                margin[valid] = samples[:, -1]
+                previous = samples[-1]
+            labels = np.full(len(t), self.label, np.int64) if solver.labelled else None
+            yield t, labels, valid, [*q, status, margin]
+
+    def _check(self, samples: np.ndarray, previous: np.ndarray | None, turns, moving):
+        """``_window_checks`` of ``samples`` (records) prefixed with ``previous`` (a record,
+        or a placeholder that no check reads); padded to the window's size."""
+        solver = self.solver
+        n, size, count = solver.robot.n_joints, solver.window, len(samples)
+        first = samples[0] if previous is None else previous
+        take = np.minimum(np.arange(size), count - 1)
+        joined = np.concatenate([first[None], samples[take]])  # (size + 1, width)
+        real = np.r_[previous is not None, np.arange(size) < count]
+        status = np.where(real, joined[:, 3 * n + 1], Status.INVALID_INPUT).astype(np.int8)
+        steps = np.diff(joined[:, 0])
+        steps = np.where(real[1:] & real[:-1] & (steps > 0), steps, 1.0)
+        dtype = self.dtype
+        q = Jet(*(jnp.asarray(joined[None, :, 1 + k * n : 1 + (k + 1) * n], dtype)
+                  for k in range(3)))  # fmt: skip
+        checked, status = _window_checks_jit(
+            solver.robot,
+            q,
+            jnp.asarray(status[None]),
+            moving,
+            solver.limits,
+            jnp.asarray(steps[None], dtype),
+            turns,
+        )
+        rows = slice(1, 1 + count)
+        values = [np.asarray(x)[0, rows] for x in (checked.p, checked.v, checked.a)]
+        return values, np.asarray(status)[0, rows]
 
 
 # ------------------------------------------------------------------ jaxkin plan

@@ -379,14 +379,18 @@ class Chain(Robot):
         tols = _tolerances(chain, target.dtype, options)
         return search.solve(chain, self._as_pose(target), tols, budget, options.use_limits, rates)
 
-    def ik_path_kernel(self, path: Jet, index: Any, options: ChainIKOptions) -> IKResult:
+    def ik_path_kernel(
+        self, path: Jet, index: Any, options: ChainIKOptions, seed: Any = None
+    ) -> IKResult:
         """The search along sampled paths ``(..., T, 4, 4)``: the first sample as
-        ``ik_kernel``, every later one warm-started from the previous solution with
+        ``ik_kernel`` (or warm-started from ``seed``, the joints of the last solved sample
+        before it), every later one warm-started from the previous solution with
         ``warm_iter`` updates (``search.solve_paths``)."""
         chain = _validate.cast_leaves(self, path.dtype)
         budget = search.Budget(options.max_iter, options.restarts, options.warm_iter)
         tols = _tolerances(chain, path.dtype, options)
-        return search.solve_paths(chain, self._as_pose(path), tols, budget, options.use_limits)
+        pose = self._as_pose(path)
+        return search.solve_paths(chain, pose, tols, budget, options.use_limits, seed)
 
     def _as_pose(self, target: Jet) -> Jet:
         """Point targets ``(..., 3)`` as the poses the search reads (identity rotation, the

@@ -646,14 +646,28 @@ def solve(
 
 
 def solve_paths(
-    chain: Any, path: Jet, tols: tuple[Array, Array], budget: Budget, use_limits: bool
+    chain: Any,
+    path: Jet,
+    tols: tuple[Array, Array],
+    budget: Budget,
+    use_limits: bool,
+    seed: Array | None = None,
 ) -> IKResult:
-    """The search along sampled paths ``(..., T, 4, 4)`` (module docstring), with rates."""
+    """The search along sampled paths ``(..., T, 4, 4)`` (module docstring), with rates.
+
+    ``seed`` ``(..., n)``: the joints (the chain's units) of the last solved sample before
+    the first, for a path solved in windows: the first sample is then warm-started from it,
+    as every later one is from the previous solution (None: the first sample as ``solve``).
+    """
     prep = _prepare(chain, path, tols, use_limits, budget.runs)
-    first = prep.goal[..., 0, :, :]
-    starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
-    runs = _runs(prep, budget.max_iter, budget.runs)
-    q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
+    if seed is None:
+        first = prep.goal[..., 0, :, :]
+        starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
+        runs = _runs(prep, budget.max_iter, budget.runs)
+        q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
+    else:
+        batch = prep.goal.shape[:-3]
+        q = jnp.broadcast_to(jnp.asarray(seed, prep.g.dtype) * prep.g, (*batch, chain.n_joints))
     warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1], free_runs=1)
 
     def step(previous, sample):
@@ -662,11 +676,16 @@ def solve_paths(
         solved = (code_t == Status.OK) | (code_t == Status.OUT_OF_LIMITS)
         return jnp.where(solved[..., None], q_t, previous), (q_t, code_t)
 
+    skip = 1 if seed is None else 0  # the samples the scan warm-starts
     rest = (
-        jnp.moveaxis(x[..., 1:, *([slice(None)] * k)], x.ndim - 1 - k, 0)
+        jnp.moveaxis(x[..., skip:, *([slice(None)] * k)], x.ndim - 1 - k, 0)
         for x, k in ((prep.goal, 2), (prep.done, 0), (prep.status, 0))
     )
     _, (q_rest, code_rest) = jax.lax.scan(step, q, tuple(rest))
-    q = jnp.concatenate([q[..., None, :], jnp.moveaxis(q_rest, 0, -2)], axis=-2)
-    code = jnp.concatenate([code[..., None], jnp.moveaxis(code_rest, 0, -1)], axis=-1)
+    q_rest, code_rest = jnp.moveaxis(q_rest, 0, -2), jnp.moveaxis(code_rest, 0, -1)
+    if seed is None:
+        q = jnp.concatenate([q[..., None, :], q_rest], axis=-2)
+        code = jnp.concatenate([code[..., None], code_rest], axis=-1)
+    else:
+        q, code = q_rest, code_rest
     return _finish(prep, prep.goal, q, code, True)
