@@ -25,6 +25,7 @@ def _surface_gaps(c: col.MeshCover, points: np.ndarray) -> np.ndarray:
     return np.concatenate(gaps, axis=1).min(axis=1)
 
 
+@pytest.mark.slow  # about 4 s of CPU (trimesh's signed distances)
 def test_mesh_cover_of_a_tube_uses_capsules_and_bounds_its_overshoot():
     """An annulus (a tube, 30 cm long, radii 3 and 6 cm) and a box glued to it (two closed
     parts): every vertex and sampled surface point inside the cover, every sampled point of
