@@ -41,6 +41,7 @@ __all__ = [
     "Sum",
     "TrajectorySample",
     "acceleration",
+    "bind",
     "compose",
     "jerk",
     "limit_penalty",
@@ -137,9 +138,11 @@ class Obstacles:
         world: a ``collision.World`` (3-D; a planar robot's obstacles are placed in its plane,
             z = 0, with boxes as tall as needed).
         safety: the clearance sought, in length units (> 0).
-        body, pairs: the robot's body and self-collision pairs when bound with ``robot=``;
-            None to read them from the robot the cost is given (that robot's body must then
-            be computable from its traced geometry: the SCARA, the Delta and the arms).
+        body, pairs: the robot's body and self-collision pairs, computed on the host: by
+            ``create(robot=...)``, or by ``optimize`` (``bind``) from the robot it is given.
+            None when unbound: the cost then reads the body from the robot it sees, which
+            works only where that body can be built from traced geometry (the SCARA, the
+            Delta and the arms; not a URDF chain, whose mesh covers are computed on the host).
     """
 
     world: collision.World
@@ -162,13 +165,12 @@ class Obstacles:
         """``spheres=(centres (S, d), radii (S,))``, ``boxes=(centres (Bx, d), half_extents
         (Bx, d))`` (axis-aligned) with ``d = dims`` (2 for a planar robot: in the plane z =
         0), and/or a ``collision.World`` of any obstacles; ``safety`` in length units;
-        ``robot`` binds the cost to that robot's body (needed for a chain, and for
-        ``self_collision``, which adds the robot's self-collision pairs).
+        ``robot`` binds the cost to that robot's body now (else ``optimize`` binds it to the
+        robot it optimises); ``self_collision`` adds the robot's self-collision pairs.
 
         Raises:
             ValueError: shapes that do not match, non-finite values, radii or half extents
-                that are negative, a safety distance that is not positive, or
-                ``self_collision`` without a ``robot``.
+                that are negative, or a safety distance that is not positive.
         """
         safety = _validate.positive_number(safety, "safety")
         if dims not in (2, 3):
@@ -208,12 +210,16 @@ class Obstacles:
             merged = jax.tree.map(
                 lambda a, b: jnp.concatenate([a, b.astype(a.dtype)]), world, extra
             )
-        if self_collision and robot is None:
-            raise ValueError("self_collision: needs the robot (robot=...)")
-        body = pairs = None
-        if robot is not None:
-            body, pairs = collision.prepare(robot, self_collision)
-        return cls(merged, jnp.asarray(float(safety)), body, pairs, bool(self_collision))
+        term = cls(merged, jnp.asarray(float(safety)), None, None, bool(self_collision))
+        return term if robot is None else term.bind(robot)
+
+    def bind(self, robot: Any) -> Obstacles:
+        """This term with ``robot``'s body and self-collision pairs (host side,
+        ``collision.prepare``, cached on the robot); unchanged when already bound."""
+        if self.body is not None:
+            return self
+        body, pairs = collision.prepare(robot, self.self_collision)
+        return dataclasses.replace(self, body=body, pairs=pairs)
 
     def _barrier(self, distance: Array, safety: Array) -> Array:
         gap = jax.nn.relu(safety - distance) / safety
@@ -224,8 +230,10 @@ class Obstacles:
         q = sample.q.p
         dtype = q.dtype
         body, pairs = self.body, self.pairs
-        if body is None:  # the robot's own, from its (traced) geometry
+        if body is None:  # unbound: the robot's own, from its (traced) geometry
             body = robot.collision_body()
+            if self.self_collision:
+                pairs = collision.SelfPairs.create(body, robot.self_collision_pairs())
         body, world = body.astype(dtype), self.world.astype(dtype)
         spheres, capsules = body.place(robot.link_poses(q).astype(dtype))
         safety = jnp.asarray(self.safety, dtype)
@@ -256,6 +264,20 @@ class Sum:
             fn = next(data) if term is None else term
             total = total + jnp.asarray(weight, sample.margin.dtype) * fn(sample)
         return total
+
+
+def bind(cost: Any, robot: Any) -> Any:
+    """``cost`` with every ``Obstacles`` term in it (itself, or the data terms of a ``Sum``)
+    bound to ``robot``'s body and self-collision pairs, computed on the host (``optimize``
+    calls it before tracing: a URDF chain's body cannot be built inside the trace); any other
+    cost is returned as it is."""
+    if isinstance(cost, Obstacles):
+        return cost.bind(robot)
+    if isinstance(cost, Sum):
+        return dataclasses.replace(
+            cost, data_terms=tuple(bind(term, robot) for term in cost.data_terms)
+        )
+    return cost
 
 
 def compose(*weighted_terms: tuple[float, CostTerm]) -> Sum:

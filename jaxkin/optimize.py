@@ -62,7 +62,7 @@ from jax.typing import ArrayLike
 
 from . import _batching, _processes, _validate, paths, plan
 from ._progress import bar, is_active
-from .costs import DEFAULT_COST, CostTerm, TrajectorySample
+from .costs import DEFAULT_COST, CostTerm, TrajectorySample, bind
 from .jet import Jet
 from .robot import Robot, as_robot, fk, ik
 from .status import STATUS_DTYPE, Status
@@ -800,6 +800,7 @@ def optimize(
     n_ctrl = interior.shape[1] + 2 + (2 if rest_to_rest else 0)
     basis = jnp.asarray(paths.bezier_basis(n_ctrl, n_samples), dtype)
     dt = duration / (n_samples - 1)
+    cost = bind(cost, robot)  # obstacle terms get the robot's body here, on the host
     leaves, treedef = jax.tree.flatten(cost)
     is_data = all(isinstance(leaf, jax.Array | np.ndarray | float | int) for leaf in leaves)
     static = _Static(

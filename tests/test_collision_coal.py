@@ -17,6 +17,7 @@ import pytest
 
 from jaxkin import collision as col
 from jaxkin.collision import distance as sd
+from jaxkin.serial import from_urdf as serial_from_urdf
 
 coal = pytest.importorskip("coal")
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
@@ -168,33 +169,45 @@ def robots():
     ids=["panda", "ur5"],
 )
 def test_mesh_covers_contain_every_vertex(robots, urdf):
+    """The default covers (spheres and capsules, 16 per mesh) and the sphere-only covers
+    (``max_spheres_per_mesh=16``) contain every vertex of every collision mesh."""
     trimesh = pytest.importorskip("trimesh")
     yourdfpy = pytest.importorskip("yourdfpy")
     path = robots / urdf
-    read = col.body_from_urdf(path, max_spheres_per_mesh=16)
-    spheres, _ = read.body.per_link()
     model = yourdfpy.URDF.load(str(path), build_scene_graph=False, load_meshes=False).robot
-    checked = 0
-    for link in model.links:
-        for element in link.collisions:
-            if element.geometry.mesh is None:
-                continue
-            name = element.geometry.mesh.filename.split("://", 1)[-1]
-            mesh = trimesh.load(str(robots.parent.parent / name), force="mesh")
-            pose = np.eye(4) if element.origin is None else element.origin
-            verts = mesh.vertices @ pose[:3, :3].T + pose[:3, 3]
-            centers, radii = spheres[link.name]
-            assert len(radii) <= 16 * len(link.collisions)
-            inside = np.linalg.norm(verts[:, None] - centers[None], axis=-1) - radii[None]
-            assert np.all(inside.min(axis=1) <= 0.0), link.name
-            checked += len(verts)
-    assert checked > 500
-    assert max(read.overshoot.values()) < 0.1  # metres; docs/collision.md lists the values
+    for read in (col.body_from_urdf(path), col.body_from_urdf(path, max_spheres_per_mesh=16)):
+        spheres, capsules = read.body.per_link()
+        checked = 0
+        for link in model.links:
+            for element in link.collisions:
+                if element.geometry.mesh is None:
+                    continue
+                name = element.geometry.mesh.filename.split("://", 1)[-1]
+                mesh = trimesh.load(str(robots.parent.parent / name), force="mesh")
+                pose = np.eye(4) if element.origin is None else element.origin
+                verts = mesh.vertices @ pose[:3, :3].T + pose[:3, 3]
+                centers, radii = spheres.get(link.name, (np.zeros((0, 3)), np.zeros(0)))
+                a, b, r = capsules.get(link.name, (np.zeros((0, 3)),) * 2 + (np.zeros(0),))
+                assert len(radii) + len(r) <= 16 * len(link.collisions)
+                gap = np.linalg.norm(verts[:, None] - centers[None], axis=-1) - radii[None]
+                t = np.clip(
+                    np.einsum("pkc,kc->pk", verts[:, None] - a[None], b - a)
+                    / np.maximum(((b - a) ** 2).sum(-1), 1e-300),
+                    0.0,
+                    1.0,
+                )
+                foot = a[None] + t[..., None] * (b - a)[None]
+                gap_c = np.linalg.norm(verts[:, None] - foot, axis=-1) - r[None]
+                inside = np.concatenate([gap, gap_c], axis=1).min(axis=1)
+                assert np.all(inside <= 0.0), link.name
+                checked += len(verts)
+        assert checked > 500
+        assert max(read.overshoot.values()) < 0.06  # metres; docs/collision.md lists them
 
 
 def test_panda_collision_primitives(robots):
     """The primitives URDF: every sphere as given, every cylinder as a capsule through its
-    axis; the mesh URDF gives sphere covers only."""
+    axis."""
     read = col.body_from_urdf(robots / "panda_description/urdf/panda_collision.urdf")
     body = read.body
     text = (robots / "panda_description/urdf/panda_collision.urdf").read_text()
@@ -343,4 +356,55 @@ def test_no_missed_collision_among_obstacles(robots, urdf, srdf):
         f"{urdf}: {reference.mean():.2f} colliding; false-positive rate "
         f"{np.mean(hit[~reference]):.3f} overall, {np.mean(mine_world[~reference]):.3f} "
         f"robot-world, {np.mean(mine_self[~self_hit]):.3f} self ({world_hit.sum()} world hits)"
+    )
+
+
+def test_panda_propose_disabled_against_the_srdf(robots):
+    """``propose_disabled`` on 2000 uniform Panda configurations (the chain's link poses, the
+    fingers closed), every pair of links with geometry, against coal on the original meshes
+    at the same configurations (Pinocchio's placements) and the SRDF. The covers contain the
+    meshes, so every pair proposed "never" is free on the meshes in every sample, and every
+    pair coal finds in collision in every sample is proposed "always". Of the SRDF's "Never"
+    pairs that the meshes keep free by more than the two covers' overshoot bounds in every
+    sample, every one is proposed "never" (the bound makes the covers free there too); the
+    "never" pairs proposed hold most of the SRDF's free "Never" pairs."""
+    pin = pytest.importorskip("pinocchio")
+    path = robots / "panda_description/urdf/panda.urdf"
+    chain = serial_from_urdf(path, "panda_hand")
+    read = col.body_from_urdf(path)
+    body = chain.collision_body()
+    srdf = col.read_srdf_disabled(robots / "panda_description/srdf/panda.srdf")
+    model, cmodel, _ = pin.buildModelsFromUrdf(str(path), str(robots.parent.parent))
+    cmodel.addAllCollisionPairs()
+    data, cdata = model.createData(), pin.GeometryData(cmodel)
+    link_of = [model.frames[g.parentFrame].name for g in cmodel.geometryObjects]
+    rng = np.random.default_rng(23)
+    n = 2000
+    lo, hi = model.lowerPositionLimit[:7], model.upperPositionLimit[:7]
+    qs = rng.uniform(lo, hi, (n, 7))
+    proposed = col.propose_disabled(body, chain.link_poses, qs, chunk=1000)
+    hits: dict[frozenset, int] = {}
+    nearest: dict[frozenset, float] = {}
+    for q in qs:
+        q_pin = np.zeros(model.nq)
+        q_pin[:7] = q
+        pin.computeCollisions(model, data, cmodel, cdata, q_pin, False)
+        pin.computeDistances(model, data, cmodel, cdata, q_pin)
+        for k, pair in enumerate(cmodel.collisionPairs):
+            key = frozenset((link_of[pair.first], link_of[pair.second]))
+            hits[key] = hits.get(key, 0) + int(cdata.collisionResults[k].isCollision())
+            d = cdata.distanceResults[k].min_distance
+            nearest[key] = min(nearest.get(key, np.inf), d)
+    never = {frozenset(p) for p in proposed["never"]}
+    always = {frozenset(p) for p in proposed["always"]}
+    assert all(hits[p] == 0 for p in never)  # conservative: never a pair that collides
+    assert {p for p, h in hits.items() if h == n} <= always
+    srdf_never = {frozenset((a, b)) for a, b, why in srdf if why == "Never"}
+    free = {p for p in srdf_never if p in hits and hits[p] == 0}
+    clear = {p for p in free if nearest[p] > sum(read.overshoot[x] for x in p)}
+    assert clear <= never
+    assert len(free & never) >= 0.7 * len(free)
+    print(
+        f"propose_disabled: {len(never)} never, {len(always)} always; SRDF Never pairs "
+        f"free on the meshes: {len(free)}, proposed: {len(free & never)}"
     )

@@ -8,7 +8,7 @@
   distance over the world and which obstacle).
 - ``body``: ``Body``, spheres and capsules attached to links; ``Body.place(link_poses)``.
 - ``urdf``: ``body_from_urdf`` (``<collision>`` elements; meshes covered by spheres).
-- ``cover``: conservative sphere covers of meshes, capsule covers of boxes.
+- ``cover``: conservative sphere and capsule covers of meshes, capsule covers of boxes.
 - ``pairs``: self-collision link pairs (adjacency, SRDF ``disable_collisions``),
   ``self_distances``, ``propose_disabled``.
 - ``check``: ``check(robot, q, world)``, a robot's configurations against the world and
@@ -27,8 +27,10 @@ from .check import CheckResult as CheckResult
 from .check import check as check
 from .check import check_kernel as check_kernel
 from .check import prepare as prepare
+from .cover import MeshCover as MeshCover
 from .cover import SphereCover as SphereCover
 from .cover import box_capsules as box_capsules
+from .cover import mesh_cover as mesh_cover
 from .cover import mesh_sphere_cover as mesh_sphere_cover
 from .fused import Clearance as Clearance
 from .fused import clearance as clearance
@@ -70,6 +72,7 @@ __all__ = [
     "CheckResult",
     "Clearance",
     "HalfSpaces",
+    "MeshCover",
     "MotionResult",
     "Nearest",
     "SelfPairs",
@@ -84,6 +87,7 @@ __all__ = [
     "check_kernel",
     "clearance",
     "distance",
+    "mesh_cover",
     "mesh_sphere_cover",
     "min_clearance",
     "nearest_obstacles",

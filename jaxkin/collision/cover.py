@@ -1,15 +1,24 @@
 """Conservative covers of link geometry by spheres and capsules (host side, NumPy).
 
-- ``mesh_sphere_cover``: spheres whose union contains every triangle of a mesh (so every
-  vertex and every point of the surface). The triangles are first subdivided until their edges
-  are short against the target sphere size, then grouped by k-means on their centroids; each
-  group gets the (near-)smallest ball holding all its triangles' vertices, and a ball holds a
-  triangle when it holds its three vertices (a ball is convex). The number of spheres is doubled
-  from 1 until the cover's overshoot bound is at most ``max_overshoot`` or the budget
-  ``max_spheres`` is reached.
-- Overshoot: every point of a sphere lies within ``r + d(c, T)`` of the mesh surface, ``d(c, T)``
-  the distance from its centre to its nearest own triangle; the cover's ``overshoot`` is the
-  largest such bound (an upper bound on how far the cover reaches past the surface).
+- ``mesh_cover``: spheres and capsules whose union contains every triangle of a mesh (so every
+  vertex and every point of the surface; a convex primitive holds a triangle when it holds its
+  three vertices). The triangles are first subdivided until their edges are short against the
+  primitives wanted (a primitive must hold whole triangles, so long triangles force large
+  primitives). The cover is built top down: one primitive holds every triangle, then the
+  group whose primitive reaches farthest past the mesh is split in two (at the median along
+  each of its principal axes, or by 2-means; the split whose worse half reaches least) until
+  the budget is spent or the worst reach is at most ``max_overshoot``. Each group gets
+  whichever of its enclosing ball and its enclosing capsule reaches less far: the capsule's
+  axis is the group's principal axis through the centre of the smallest circle holding the
+  points projected across it, its radius that circle's, its segment the shortest that keeps
+  every point within the radius (closed form). Tubes and elongated links get capsules that
+  hug them, where balls overshoot by about their half-length.
+- ``mesh_sphere_cover``: the same with spheres only.
+- Overshoot: a point of a ball ``(c, r)`` lies within ``r + sd(c)`` of the mesh's solid, a
+  point of a capsule within ``r + max sd`` over its segment (``sd`` the signed distance to the
+  solid, negative inside; for a mesh of several closed parts, inside means the deepest in one
+  part); the cover's ``overshoot`` is the largest such bound (an upper bound on how far the
+  cover reaches past the mesh).
 - ``box_capsules``: capsules along a box's longest axis that contain the whole solid box.
 
 Radii are grown by a relative 1e-6 of the mesh size so the covers survive rounding to float32.
@@ -21,8 +30,11 @@ import dataclasses
 
 import numpy as np
 
-__all__ = ["SphereCover", "box_capsules", "mesh_sphere_cover"]
+__all__ = ["MeshCover", "SphereCover", "box_capsules", "mesh_cover", "mesh_sphere_cover"]
 
+import os
+
+EDGE_DIV = float(os.environ.get("EDGE_DIV", "2"))
 _ROUNDING_MARGIN = 1e-6  # relative to the mesh size: float32 rounding of centres and radii
 
 
@@ -34,6 +46,24 @@ class SphereCover:
     centers: np.ndarray
     radii: np.ndarray
     overshoot: float
+
+
+@dataclasses.dataclass(frozen=True)
+class MeshCover:
+    """Spheres ``centers (k, 3)``, ``radii (k,)`` and capsules ``a, b (m, 3)``,
+    ``capsule_radii (m,)`` whose union contains a mesh, and ``overshoot`` (an upper bound on
+    the distance from any point of the cover to the mesh)."""
+
+    centers: np.ndarray
+    radii: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    capsule_radii: np.ndarray
+    overshoot: float
+
+    @property
+    def num_primitives(self) -> int:
+        return len(self.radii) + len(self.capsule_radii)
 
 
 def _enclosing_ball(points: np.ndarray, iterations: int = 100) -> tuple[np.ndarray, float]:
@@ -105,53 +135,171 @@ def _closest_on_triangles(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
     return np.linalg.norm(p - out, axis=1)
 
 
-def _spheres_over(
-    tri: np.ndarray, labels: np.ndarray, solid: np.ndarray | None, margin: float
-) -> SphereCover:
-    """One enclosing ball per group of triangles and the cover's overshoot bound.
+def _signed_distance(
+    surface: np.ndarray, bodies: list[np.ndarray] | None, p: np.ndarray
+) -> np.ndarray:
+    """An upper bound on the signed distance of points ``p (n, 3)`` to the solid, 1-Lipschitz:
+    outside, the distance to the triangles ``surface``; inside the union of the closed
+    ``bodies`` (each a triangle array, overlapping or not), minus the largest depth in one body
+    that holds the point (the union is at least that deep there; the triangles of one body
+    inside another are not the union's surface). ``bodies`` None (a mesh that is not closed):
+    every point counts as outside."""
 
-    A ball ``(c, r)`` reaches at most ``r - d`` past the solid when ``c`` is inside it at
-    distance ``d`` from its surface (the ball of radius ``d`` about ``c`` is inside), and at
-    most ``r + d`` past the surface otherwise. ``solid``: the original closed mesh's triangles,
-    or None (not watertight: every centre counts as outside).
+    def gap(tri: np.ndarray) -> np.ndarray:
+        rows = np.broadcast_to(tri, (len(p), *tri.shape)).reshape(-1, 3, 3)
+        return (
+            _closest_on_triangles(rows, np.repeat(p, len(tri), axis=0)).reshape(len(p), -1).min(1)
+        )
+
+    if bodies is None:
+        return gap(surface)
+    dist = np.stack([gap(tri) for tri in bodies], axis=1)  # (n, bodies)
+    inside = np.stack([_winding_numbers(tri, p) > 0.5 for tri in bodies], axis=1)
+    depth = np.where(inside, dist, -np.inf).max(axis=1)
+    return np.where(inside.any(axis=1), -depth, dist.min(axis=1))
+
+
+def _closed_bodies(vertices: np.ndarray, faces: np.ndarray) -> list[np.ndarray] | None:
+    """The triangles of each connected part of the mesh, when every part is closed (every
+    edge shared by exactly two faces); None otherwise."""
+    import trimesh
+
+    if not _watertight(vertices, faces):
+        return None
+    parts = trimesh.graph.connected_components(
+        trimesh.graph.face_adjacency(faces), nodes=np.arange(len(faces)), min_len=1
+    )
+    return [vertices[faces[np.asarray(part)]] for part in parts]
+
+
+def _enclosing_capsule(points: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """A capsule ``(a, b, r)`` containing ``points``: the axis along their principal direction
+    ``u`` through the centre of a near-smallest circle holding their projection across ``u``
+    (radius ``r``); a point at axial coordinate ``t`` and distance ``rho <= r`` from the axis
+    is within ``r`` of the segment ``[t0, t1]`` iff ``t0 <= t + s`` and ``t1 >= t - s``,
+    ``s = sqrt(r^2 - rho^2)``, so the shortest segment is ``t0 = min(t + s)``, ``t1 = max(t -
+    s)`` (a point where these cross). The radius is finally the exact largest distance of the
+    points from the segment, plus ``margin``."""
+    points = np.unique(points, axis=0)
+    mean = points.mean(axis=0)
+    basis = np.linalg.svd(points - mean, full_matrices=False)[2]
+    if len(basis) < 3:  # fewer than 3 distinct points: any completed frame
+        basis = np.linalg.qr(np.concatenate([basis.T, np.eye(3)], axis=1))[0].T[:3]
+    u, across = basis[0], basis[1:3]
+    flat = (points - mean) @ across.T
+    center2, radius = _enclosing_ball(flat)
+    origin = mean + center2 @ across
+    t = (points - origin) @ u
+    rho2 = (((points - origin) @ across.T) ** 2).sum(axis=1)
+    s = np.sqrt(np.maximum(radius**2 - rho2, 0.0))
+    t0, t1 = (t + s).min(), (t - s).max()
+    if t0 > t1:  # a short group: any point between is a ball centre holding them all
+        t0 = t1 = 0.5 * (t0 + t1)
+    a, b = origin + t0 * u, origin + t1 * u
+    along = np.clip((points - a) @ (b - a) / max(float((b - a) @ (b - a)), 1e-300), 0.0, 1.0)
+    reach = np.linalg.norm(points - a - along[:, None] * (b - a), axis=1).max()
+    return a, b, float(reach) + margin
+
+
+def _fit(
+    points: np.ndarray,
+    surface: np.ndarray,
+    solid: list[np.ndarray] | None,
+    margin: float,
+    capsules: bool,
+) -> tuple[float, tuple]:
+    """The primitive holding the ``points (m, 3)`` (a group's triangles' vertices: a convex
+    primitive holding them holds the triangles) that reaches least past the mesh, and that
+    reach: ``(reach, ("sphere", c, r))`` or ``(reach, ("capsule", a, b, r))``.
+
+    A point of a ball ``(c, r)`` lies within ``r + sd(c)`` of the solid (``sd`` the signed
+    distance to the mesh: minus the depth inside the closed mesh); a point of a capsule
+    ``(a, b, r)`` within ``r + max_s sd(s)`` over its segment, bounded from ``n`` samples
+    ``h`` apart by the sampled maximum plus ``h / 2`` (``sd`` is 1-Lipschitz). ``surface``:
+    the mesh's triangles; ``solid``: its closed parts, or None (not closed: every point counts
+    as outside).
     """
-    centers, radii = [], []
-    for label in np.unique(labels):
-        center, radius = _enclosing_ball(tri[labels == label].reshape(-1, 3))
-        centers.append(center)
-        radii.append(radius + margin)
-    centers, radii = np.asarray(centers), np.asarray(radii)
-    surface = tri if solid is None else solid
-    gap = np.array(
-        [
-            _closest_on_triangles(surface, np.broadcast_to(c, (len(surface), 3))).min()
-            for c in centers
-        ]
-    )
-    inside = (
-        np.zeros(len(centers), bool) if solid is None else _winding_numbers(solid, centers) > 0.5
-    )
-    reach = np.where(inside, radii - gap, radii + gap)
-    return SphereCover(centers, radii, float(max(reach.max(), 0.0)))
+    center, radius = _enclosing_ball(points)
+    reach = radius + margin + _signed_distance(surface, solid, center[None])[0]
+    best = (reach, ("sphere", center, radius + margin))
+    if capsules:
+        a, b, r = _enclosing_capsule(points, margin)
+        length = float(np.linalg.norm(b - a))
+        if length > 0:
+            n = int(np.ceil(length / max(0.25 * r, 1e-12))) + 1
+            samples = a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+            reach = r + _signed_distance(surface, solid, samples).max() + 0.5 * length / (n - 1)
+            if reach < best[0]:
+                best = (reach, ("capsule", a, b, r))
+    return best
 
 
-def _groups(tri: np.ndarray, k: int) -> list[np.ndarray]:
-    """Candidate groupings of the triangles into at most ``k`` groups: k-means on the
-    centroids, and slices along the principal axis (rings around elongated links, whose
-    enclosing balls centre near the axis)."""
+def _halves(centroids: np.ndarray) -> list[np.ndarray]:
+    """Candidate splits of a group in two (boolean masks): at the median along its principal
+    axis, and 2-means on the centroids."""
     from scipy.cluster.vq import kmeans2
 
-    centroids = tri.mean(axis=1)
-    k = min(k, len(tri))
-    if k <= 1:
-        return [np.zeros(len(tri), dtype=int)]
-    _, spatial = kmeans2(centroids, k, minit="++", seed=0)
     centred = centroids - centroids.mean(axis=0)
-    axis = np.linalg.svd(centred, full_matrices=False)[2][0]
-    along = centred @ axis
-    edges = np.quantile(along, np.linspace(0.0, 1.0, k + 1)[1:-1])
-    slices = np.searchsorted(edges, along)
-    return [spatial, slices]
+    out = []
+    for axis in np.linalg.svd(centred, full_matrices=False)[2]:
+        along = centred @ axis
+        out.append(along > np.median(along))
+    _, labels = kmeans2(centroids, 2, minit="++", seed=0)
+    out.append(labels == 1)
+    return [m for m in out if 0 < m.sum() < len(m)]
+
+
+def _split_cover(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    surface: np.ndarray,
+    solid: list[np.ndarray] | None,
+    margin: float,
+    capsules: bool,
+    budget: int,
+    max_overshoot: float | None,
+) -> MeshCover:
+    """Top-down over the triangles ``faces`` of ``vertices``: start from one primitive holding
+    every triangle, and split the group whose primitive reaches farthest in two (of the
+    candidate splits, the one whose worse half reaches least) until the budget is spent or the
+    worst reach is at most ``max_overshoot``."""
+
+    def fit(members: np.ndarray) -> tuple[float, tuple]:
+        points = vertices[np.unique(faces[members])]
+        return _fit(points, surface, solid, margin, capsules)
+
+    groups = [np.arange(len(faces))]
+    fits = [fit(groups[0])]
+    centroids = vertices[faces].mean(axis=1)
+    stuck: set[int] = set()
+    while len(groups) < budget:
+        order = [i for i in np.argsort([-f[0] for f in fits]) if int(i) not in stuck]
+        if not order or (max_overshoot is not None and fits[order[0]][0] <= max_overshoot):
+            break
+        worst = int(order[0])
+        members = groups[worst]
+        options = []
+        for mask in _halves(centroids[members]):
+            parts = (members[mask], members[~mask])
+            pair = [fit(part) for part in parts]
+            options.append((max(pair[0][0], pair[1][0]), parts, pair))
+        if not options:
+            stuck.add(worst)  # a single triangle
+            continue
+        _, parts, pair = min(options, key=lambda o: (o[0], o[2][0][0] + o[2][1][0]))
+        groups[worst], fits[worst] = parts[0], pair[0]
+        groups.append(parts[1])
+        fits.append(pair[1])
+    balls = [f[1] for f in fits if f[1][0] == "sphere"]
+    caps = [f[1] for f in fits if f[1][0] == "capsule"]
+    return MeshCover(
+        np.array([x[1] for x in balls]).reshape(-1, 3),
+        np.array([x[2] for x in balls]),
+        np.array([x[1] for x in caps]).reshape(-1, 3),
+        np.array([x[2] for x in caps]).reshape(-1, 3),
+        np.array([x[3] for x in caps]),
+        float(max(max(f[0] for f in fits), 0.0)),
+    )
 
 
 def _watertight(vertices: np.ndarray, faces: np.ndarray) -> bool:
@@ -161,19 +309,22 @@ def _watertight(vertices: np.ndarray, faces: np.ndarray) -> bool:
     return bool(np.all(counts == 2))
 
 
-def mesh_sphere_cover(
+def mesh_cover(
     vertices: np.ndarray,
     faces: np.ndarray,
-    max_spheres: int = 16,
+    max_primitives: int = 16,
     max_overshoot: float | None = None,
-) -> SphereCover:
-    """Spheres containing every triangle of the mesh ``(vertices (v, 3), faces (f, 3))``.
+    capsules: bool = True,
+) -> MeshCover:
+    """Spheres and capsules containing every triangle of the mesh ``(vertices (v, 3), faces
+    (f, 3))``.
 
     Args:
-        vertices, faces: the mesh, in the frame the spheres are wanted in.
-        max_spheres: the sphere budget (at least 1).
-        max_overshoot: stop at the first sphere count (1, 2, 4, ...) whose overshoot bound is
-            at most this; ``None`` uses the whole budget.
+        vertices, faces: the mesh, in the frame the primitives are wanted in.
+        max_primitives: the budget of spheres and capsules together (at least 1).
+        max_overshoot: stop at the first count (1, 2, 4, ...) whose overshoot bound is at most
+            this; ``None`` uses the whole budget.
+        capsules: allow capsules (else spheres only).
     """
     import trimesh
 
@@ -183,22 +334,44 @@ def mesh_sphere_cover(
         raise ValueError(f"vertices: expected shape (v, 3) with v >= 1, got {vertices.shape}")
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
         raise ValueError(f"faces: expected shape (f, 3) with f >= 1, got {faces.shape}")
-    if int(max_spheres) < 1:
-        raise ValueError(f"max_spheres must be >= 1, got {max_spheres}")
+    if int(max_primitives) < 1:
+        raise ValueError(f"max_primitives must be >= 1, got {max_primitives}")
     size = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
     margin = _ROUNDING_MARGIN * max(size, float(np.abs(vertices).max()))
-    # triangles much smaller than the smallest sphere wanted, so groups can be tight
-    edge = size / (2.0 * np.sqrt(max_spheres)) if size > 0 else 1.0
+    # triangles much smaller than the smallest primitive wanted, so groups can be tight
+    edge = size / (4.0 * np.sqrt(max_primitives)) if size > 0 else 1.0
     v, f = trimesh.remesh.subdivide_to_size(vertices, faces, max_edge=edge, max_iter=10)
-    tri = np.asarray(v)[np.asarray(f)]
-    solid = np.asarray(vertices)[faces] if _watertight(vertices, faces) else None
-    k = 1 if max_overshoot is not None else int(max_spheres)
-    while True:
-        covers = [_spheres_over(tri, labels, solid, margin) for labels in _groups(tri, k)]
-        best = min(covers, key=lambda c: c.overshoot)
-        if (max_overshoot is not None and best.overshoot <= max_overshoot) or k >= max_spheres:
-            return best
-        k = min(2 * k, int(max_spheres))
+    solid = _closed_bodies(vertices, faces)
+    return _split_cover(
+        np.asarray(v),
+        np.asarray(f),
+        vertices[faces],
+        solid,
+        margin,
+        capsules,
+        int(max_primitives),
+        max_overshoot,
+    )
+
+
+def mesh_sphere_cover(
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    max_spheres: int = 16,
+    max_overshoot: float | None = None,
+) -> SphereCover:
+    """Spheres only containing every triangle of the mesh (``mesh_cover`` without capsules).
+
+    Args:
+        vertices, faces: the mesh, in the frame the spheres are wanted in.
+        max_spheres: the sphere budget (at least 1).
+        max_overshoot: stop at the first sphere count (1, 2, 4, ...) whose overshoot bound is
+            at most this; ``None`` uses the whole budget.
+    """
+    if int(max_spheres) < 1:
+        raise ValueError(f"max_spheres must be >= 1, got {max_spheres}")
+    cover = mesh_cover(vertices, faces, max_spheres, max_overshoot, capsules=False)
+    return SphereCover(cover.centers, cover.radii, cover.overshoot)
 
 
 def box_capsules(half_extents: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

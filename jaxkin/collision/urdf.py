@@ -7,10 +7,11 @@ applied):
 - ``<cylinder>``: the capsule with the same axis segment and radius (it contains the cylinder;
   it reaches one radius past each flat end);
 - ``<box>``: capsules along its longest axis containing the solid box (``cover.box_capsules``);
-- ``<mesh>``: spheres containing every triangle, computed on load with trimesh
-  (``cover.mesh_sphere_cover``: a sphere budget per mesh and an overshoot bound), the mesh's
-  ``scale`` applied. Mesh files are found from ``package://pkg/rel`` by looking for ``pkg/rel``
-  or ``rel`` under the given ``package_dirs`` and then under every parent of the URDF's folder.
+- ``<mesh>``: spheres and capsules containing every triangle, computed on load with trimesh
+  (``cover.mesh_cover``: a budget of primitives per mesh and an overshoot bound; spheres only
+  with ``max_spheres_per_mesh``), the mesh's ``scale`` applied. Mesh files are found from
+  ``package://pkg/rel`` by looking for ``pkg/rel`` or ``rel`` under the given ``package_dirs``
+  and then under every parent of the URDF's folder.
 
 ``link_spheres`` replaces the primitives of the named links by the user's own spheres.
 Parsing uses yourdfpy and meshes trimesh (the ``urdf`` extra).
@@ -27,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .body import Body
-from .cover import box_capsules, mesh_sphere_cover
+from .cover import box_capsules, mesh_cover
 
 __all__ = ["UrdfBody", "body_from_urdf"]
 
@@ -101,23 +102,26 @@ def _apply(pose: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 def body_from_urdf(
     source: str | os.PathLike,
-    max_spheres_per_mesh: int = 16,
+    max_primitives_per_mesh: int = 16,
     max_overshoot: float | None = None,
     link_spheres: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None,
     package_dirs: Sequence[str | os.PathLike] = (),
     dtype=None,
+    max_spheres_per_mesh: int | None = None,
 ) -> UrdfBody:
     """Read a URDF's collision geometry as a ``Body`` (spheres and capsules per link).
 
     Args:
         source: path of the URDF file, or its XML text (meshes then relative to the current
             folder).
-        max_spheres_per_mesh: sphere budget of each mesh cover.
+        max_primitives_per_mesh: budget of spheres and capsules of each mesh cover.
         max_overshoot: stop refining a mesh cover once its overshoot bound is at most this
             (metres); ``None`` uses the whole budget.
         link_spheres: link name -> ``(centers (k, 3), radii (k,))``: the user's own spheres,
             which replace everything the URDF gives that link.
         package_dirs: folders searched first for ``package://`` meshes.
+        max_spheres_per_mesh: covers of spheres only, this many per mesh (a sphere model, as
+            sphere-based checkers use), instead of ``max_primitives_per_mesh``.
 
     Returns:
         ``UrdfBody(body, joints, overshoot)``; ``body.links`` lists every URDF link.
@@ -128,6 +132,10 @@ def body_from_urdf(
     is_text = isinstance(source, str) and source.lstrip("\ufeff \t\r\n").startswith("<")
     path = Path.cwd() / "urdf" if is_text else Path(source)
     links = tuple(link.name for link in model.links)
+    budget = max_primitives_per_mesh if max_spheres_per_mesh is None else max_spheres_per_mesh
+    if int(budget) < 1:
+        name = "max_primitives_per_mesh" if max_spheres_per_mesh is None else "max_spheres_per_mesh"
+        raise ValueError(f"{name} must be >= 1, got {budget}")
     spheres: dict[str, list] = {}
     capsules: dict[str, list] = {}
     overshoot: dict[str, float] = {name: 0.0 for name in links}
@@ -153,13 +161,19 @@ def body_from_urdf(
                 mesh = trimesh.load(str(mesh_path), force="mesh")
                 scale = geometry.mesh.scale
                 vertices = np.asarray(mesh.vertices) * (1.0 if scale is None else np.asarray(scale))
-                cover = mesh_sphere_cover(
+                cover = mesh_cover(
                     _apply(pose, vertices),
                     np.asarray(mesh.faces),
-                    max_spheres_per_mesh,
+                    budget,
                     max_overshoot,
+                    capsules=max_spheres_per_mesh is None,
                 )
-                spheres.setdefault(link.name, []).append((cover.centers, cover.radii))
+                if len(cover.radii):
+                    spheres.setdefault(link.name, []).append((cover.centers, cover.radii))
+                if len(cover.capsule_radii):
+                    capsules.setdefault(link.name, []).append(
+                        (cover.a, cover.b, cover.capsule_radii)
+                    )
                 overshoot[link.name] = max(overshoot[link.name], cover.overshoot)
             else:
                 raise ValueError(f"link {link.name!r}: a <collision> element without geometry")
