@@ -351,6 +351,15 @@ def _cpu_flags() -> str:
     return platform.processor()
 
 
+def _initialize_lapack() -> None:
+    """Load LAPACK's entry points, as JAX does when it lowers a linear-algebra call: a
+    program that calls LAPACK (the chain IK's finish) and is loaded without being lowered in
+    this process would otherwise call a null function and crash the interpreter."""
+    from jaxlib import lapack
+
+    lapack._lapack.initialize()
+
+
 def _load(path: Path) -> Any:
     """The executable stored at ``path``, or None when missing, corrupt or unloadable."""
     try:
@@ -362,6 +371,7 @@ def _load(path: Path) -> Any:
     if data[: len(_MAGIC)] != _MAGIC or hashlib.sha256(body).digest() != data[len(_MAGIC) : head]:
         return None  # truncated, overwritten or not ours: compiled again
     try:
+        _initialize_lapack()
         payload, in_tree, out_tree = pickle.loads(body)
         return _serialize.deserialize_and_load(payload, in_tree, out_tree)
     except Exception:  # written by another version of a library: compiled again

@@ -6,6 +6,7 @@ slow test runs the installed command twice in fresh processes."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -210,3 +211,38 @@ def test_second_run_traces_nothing_and_writes_the_same_bytes(tmp_path):
         third = _counted_run(tmp_path, off, [*argv, "-o", f"{name}3.csv"])
         assert third[2] == 0 and (tmp_path / f"{name}3.csv").read_bytes() == written[0], name
     assert sorted(os.listdir(tmp_path / "cache" / "executables"))
+
+
+_LAPACK_PROGRAM = """
+import sys
+import jax, jax.numpy as jnp
+from jaxkin import _compile_cache
+
+def damped_solve(a, b):
+    return jax.scipy.linalg.cho_solve(jax.scipy.linalg.cho_factor(a @ a.T + jnp.eye(3)), b)
+
+_compile_cache.enable_store(sys.argv[1])
+a = jnp.arange(9.0, dtype=jnp.float32).reshape(3, 3) / 10
+print(_compile_cache.stored_jit(damped_solve)(a, jnp.ones(3, jnp.float32)).tolist())
+"""
+
+
+def test_a_program_calling_lapack_loads_in_a_fresh_process(tmp_path):
+    """LAPACK's entry points are set up when JAX lowers a linear-algebra call; a process
+    that only loads a stored program calling LAPACK (as the chain IK's finish does) must set
+    them up itself, or the call crashes the interpreter. Both runs print NumPy's solution."""
+    a = np.arange(9.0).reshape(3, 3) / 10
+    expected = np.linalg.solve(a @ a.T + np.eye(3), np.ones(3))
+    env = {**os.environ, "JAX_ENABLE_X64": "0", "JAX_PLATFORMS": "cpu"}
+    store = tmp_path / "executables"
+    for run in ("compiled", "loaded"):
+        done = subprocess.run(
+            [sys.executable, "-c", _LAPACK_PROGRAM, str(store)],
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=120,
+        )
+        assert done.returncode == 0, (run, done.returncode, done.stderr[-2000:])
+        np.testing.assert_allclose(json.loads(done.stdout), expected, rtol=1e-5)
+    assert len(list(store.glob("*.exe"))) == 1
