@@ -128,3 +128,16 @@ def test_collides_nan_rows_and_no_recompilation():
     assert count.n == 0
     with pytest.raises(ValueError, match="q"):
         collision.collides(robot, q[:, :3], world)
+
+
+def test_validate_motions_with_the_verdict_alone():
+    robot = _ur5()
+    world = _world(9)
+    rng = np.random.default_rng(10)
+    a, b = rng.uniform(-2.0, 2.0, (2, 12, robot.n_joints))
+    exact = collision.validate_motions(robot, a, b, world, 4.0, samples=16)
+    fast = collision.validate_motions(robot, a, b, world, 4.0, samples=16, clearance=False)
+    assert 0 < np.sum(exact.valid) < 12
+    np.testing.assert_array_equal(fast.valid, exact.valid)
+    np.testing.assert_array_equal(fast.first, exact.first)
+    assert np.all(np.isnan(np.asarray(fast.clearance)))

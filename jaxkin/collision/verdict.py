@@ -26,9 +26,10 @@ obstacle and every self pair is one elementwise, vectorised pass over the rows (
 
 Rounding: the verdict is conservative by a tolerance ``tol = 16 eps (1 + X)`` (``eps`` of the
 dtype, ``X`` the largest coordinate magnitude of the configuration's placed primitives and the
-world): every configuration whose exact clearance is ``<= margin`` is flagged, and a flagged
-one has a clearance ``<= margin + tol`` (``R`` above is taken as ``R + tol``; squared, the
-slack is ``tol (2 R_max + tol)``). Both paths round their placed coordinates differently, so
+world): every configuration whose exact clearance is ``<= margin`` is flagged. A flagged one
+has a linear test (half-space, capsule) ``<= margin + tol``, or a squared one ``d^2 <= R^2 +
+tol (2 R_max + tol)`` (``R`` above taken as ``R + tol`` for the largest ``R_max``), so its
+clearance is at most ``margin + tol (2 R_max + tol) / (2 R)``. Both paths round their placed coordinates differently, so
 configurations within ``tol`` of contact can only be flagged, never missed.
 
 NaN or inf in a configuration gives ``collides = True`` and ``INVALID_INPUT`` for that
