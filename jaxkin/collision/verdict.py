@@ -29,8 +29,9 @@ dtype, ``X`` the largest coordinate magnitude of the configuration's placed prim
 world): every configuration whose exact clearance is ``<= margin`` is flagged. A flagged one
 has a linear test (half-space, capsule) ``<= margin + tol``, or a squared one ``d^2 <= R^2 +
 tol (2 R_max + tol)`` (``R`` above taken as ``R + tol`` for the largest ``R_max``), so its
-clearance is at most ``margin + tol (2 R_max + tol) / (2 R)``. Both paths round their placed coordinates differently, so
-configurations within ``tol`` of contact can only be flagged, never missed.
+clearance is at most ``margin + tol (2 R_max + tol) / (2 R)``. Both paths round their placed
+coordinates differently, so configurations that close to contact can only be flagged, never
+missed.
 
 NaN or inf in a configuration gives ``collides = True`` and ``INVALID_INPUT`` for that
 element alone. Moving or resizing an obstacle reuses the compilation (array data).
