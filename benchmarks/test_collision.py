@@ -390,3 +390,45 @@ def test_coal_panda_configurations(measure, panda):
         return [pin.computeCollisions(model, data, cmodel, cdata, q, True) for q in qs]
 
     measure(run, len(qs), rounds=3, peer="pinocchio + coal, meshes (Python loop)")
+
+
+@pytest.mark.parametrize("n", [1_000, 10_000, 100_000])
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize("path", ["collides", "check"])
+def test_panda_public_verdict(measure, benchmark, panda, panda_chain, dtype, n, path):
+    """Panda configurations per second through the public verdict path
+    ``collision.collides(robot, q, world)`` (squared distances, the chain's forward kinematics
+    in rows) beside the public clearance path ``collision.check`` in the same run."""
+    q = jnp.asarray(_configurations(panda, n, dtype))
+    world = panda["world"].astype(dtype)
+    fn = col.collides if path == "collides" else col.check
+    out = measure(
+        lambda: fn(panda_chain, q, world).collides,
+        n,
+        kernel=f"collision.{path}",
+        dtype=dtype,
+        batch=n,
+    )
+    benchmark.extra_info["colliding_fraction"] = float(np.mean(np.asarray(out)))
+    benchmark.extra_info["goal_ratio"] = n / benchmark.stats.stats.min / 1e6
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+@pytest.mark.parametrize("clearance", [False, True], ids=["verdict", "clearance"])
+def test_panda_public_edges(measure, benchmark, panda, panda_chain, dtype, clearance):
+    """Edges validated per second through ``collision.validate_motions``: 1,000 edges of
+    joint length 0.3 rad at 32 states per unit of joint distance (10 intervals, 16 slots)."""
+    m = 1_000
+    start = _configurations(panda, m, dtype, seed=1)
+    step = np.random.default_rng(2).normal(size=(m, 7))
+    end = (start + 0.3 * step / np.linalg.norm(step, axis=-1, keepdims=True)).astype(dtype)
+    world = panda["world"].astype(dtype)
+    a, b = jnp.asarray(start), jnp.asarray(end)
+
+    def edges():
+        return col.validate_motions(
+            panda_chain, a, b, world, 32.0, samples=16, clearance=clearance
+        ).valid
+
+    valid = measure(edges, m, kernel="validate_motions", dtype=dtype, clearance=clearance)
+    benchmark.extra_info["valid_fraction"] = float(np.mean(np.asarray(valid)))

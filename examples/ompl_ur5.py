@@ -4,10 +4,11 @@ The UR5 of ``examples/ur5.urdf`` (no ``<collision>`` elements: its body is the s
 capsules from each link's origin to its child joints', 5 cm thick, ``with_link_radius``) must
 swing from one side of a wall to the other over a table, among a post and a ball. OMPL's
 RRT-Connect (PyPI ``ompl``, the ``ompl`` extra) searches the joint box; jaxkin answers its
-state validity queries (``collision.check``, world and self-collision) and, through a
-``MotionValidator`` subclass, its motion queries: ``checkMotion(s1, s2)`` validates the whole
-edge in one compiled call (``collision.validate_motions``, 32 states per unit of joint
-distance). The path found is then re-checked edge by edge, every edge in one call.
+state validity queries (``collision.collides``, the verdict alone, world and self-collision)
+and, through a ``MotionValidator`` subclass, its motion queries: ``checkMotion(s1, s2)``
+validates the whole edge in one compiled call (``collision.validate_motions`` with the verdict
+alone, 32 states per unit of joint distance). The path found is then re-checked edge by
+edge, every edge in one call.
 
 Run: ``python examples/ompl_ur5.py [--output-dir DIR] [--seed N]``.
 """
@@ -61,7 +62,9 @@ class JaxkinMotionValidator:
             def checkMotion(self, s1, s2, *last_valid):
                 a = np.array([[s1[i] for i in range(n_joints)]])
                 b = np.array([[s2[i] for i in range(n_joints)]])
-                result = collision.validate_motions(robot, a, b, world, RESOLUTION, samples=SAMPLES)
+                result = collision.validate_motions(
+                    robot, a, b, world, RESOLUTION, samples=SAMPLES, clearance=False
+                )
                 self.edges += 1
                 return bool(result.valid[0])
 
@@ -92,7 +95,7 @@ def plan(robot, world, start, goal, seed: int, budget: float = 20.0):
     def is_valid(state) -> bool:
         states["n"] += 1
         q = np.array([state[i] for i in range(n)])
-        return not bool(collision.check(robot, q, world).collides)
+        return not bool(collision.collides(robot, q, world).collides)
 
     setup.setStateValidityChecker(is_valid)
     validator = JaxkinMotionValidator(si, robot, world, n)
@@ -120,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1, help="OMPL's random seed")
     args = parser.parse_args(argv)
     robot, world = make_robot(), make_world()
-    collision.check(robot, START, world)  # compiles the planner's single-state check
+    collision.collides(robot, START, world)  # compiles the planner's single-state check
     ends = collision.check(robot, np.stack([START, GOAL]), world)
     print(f"start and goal clearances: {np.round(np.asarray(ends.clearance), 3)} m")
     # the first call compiles (outside the planner's time budget); the planner's reuse it

@@ -51,6 +51,9 @@ from .primitives import Spheres as Spheres
 from .primitives import point_cloud_spheres as point_cloud_spheres
 from .urdf import UrdfBody as UrdfBody
 from .urdf import body_from_urdf as body_from_urdf
+from .verdict import Verdict as Verdict
+from .verdict import collides as collides
+from .verdict import collides_kernel as collides_kernel
 from .world import BOX as BOX
 from .world import CAPSULE as CAPSULE
 from .world import HALFSPACE as HALFSPACE
@@ -79,6 +82,7 @@ __all__ = [
     "SphereCover",
     "Spheres",
     "UrdfBody",
+    "Verdict",
     "World",
     "adjacent_links",
     "body_from_urdf",
@@ -86,6 +90,8 @@ __all__ = [
     "check",
     "check_kernel",
     "clearance",
+    "collides",
+    "collides_kernel",
     "distance",
     "mesh_cover",
     "mesh_sphere_cover",

@@ -74,8 +74,11 @@ def validate_motions_kernel(
     resolution: ArrayLike,
     samples: int,
     margin: ArrayLike = 0.0,
+    clearance: bool = True,
 ) -> MotionResult:
-    """The pure kernel of ``validate_motions``: ``samples`` slots per edge (static)."""
+    """The pure kernel of ``validate_motions``: ``samples`` slots per edge (static);
+    ``clearance`` (static) False checks the states with ``collides_kernel`` (the verdict
+    alone) and reports a NaN clearance."""
     dtype = q_from.dtype
     step = q_to - q_from
     length = jnp.sqrt(jnp.sum(step * step, axis=-1))
@@ -84,8 +87,14 @@ def validate_motions_kernel(
     j = jnp.arange(samples, dtype=dtype)
     t = jnp.minimum(j / k[..., None], 1.0)  # (M, S); slots past k repeat the end
     states = q_from[..., None, :] + t[..., None] * step[..., None, :]
-    result = check_kernel(robot, body, pairs, states, world, margin)
-    hit = result.collides
+    if clearance:
+        result = check_kernel(robot, body, pairs, states, world, margin)
+        hit, smallest = result.collides, jnp.min(result.clearance, axis=-1)
+    else:
+        from .verdict import collides_kernel
+
+        hit = collides_kernel(robot, body, pairs, states, world, margin).collides
+        smallest = jnp.full(hit.shape[:-1], jnp.nan, dtype)
     valid = ~jnp.any(hit, axis=-1)
     first = jnp.where(valid, -1, jnp.argmax(hit, axis=-1))
     fraction = jnp.where(
@@ -99,12 +108,12 @@ def validate_motions_kernel(
         first.astype(jnp.int32),
         fraction.astype(dtype),
         last_valid,
-        jnp.min(result.clearance, axis=-1),
+        smallest,
         k.astype(jnp.int32),
     )
 
 
-_validate_jit = jax.jit(validate_motions_kernel, static_argnames=("samples",))
+_validate_jit = jax.jit(validate_motions_kernel, static_argnames=("samples", "clearance"))
 
 
 def validate_motions(
@@ -116,6 +125,7 @@ def validate_motions(
     margin: float = 0.0,
     self_collision: bool = True,
     samples: int | None = None,
+    clearance: bool = True,
 ) -> MotionResult:
     """Validate M joint-space edges at once (module docstring).
 
@@ -127,6 +137,9 @@ def validate_motions(
         margin, self_collision: as ``check``.
         samples: slots per edge (static); None computes them from the edges on the host (then
             ``q_from`` and ``q_to`` must be concrete).
+        clearance: False checks the states with the verdict alone (``collision.collides``:
+            faster, the same validity up to its rounding tolerance) and leaves
+            ``MotionResult.clearance`` NaN.
 
     Returns:
         ``MotionResult`` with shapes ``(M,)`` (``last_valid`` ``(M, n)``).
@@ -145,5 +158,14 @@ def validate_motions(
         raise ValueError(f"samples must be an int >= 2, got {samples!r}")
     body, pairs = prepare(robot, self_collision)
     return _validate_jit(
-        robot, body, pairs, q_from, q_to, world, resolution, samples=samples, margin=margin
+        robot,
+        body,
+        pairs,
+        q_from,
+        q_to,
+        world,
+        resolution,
+        samples=samples,
+        margin=margin,
+        clearance=clearance,
     )

@@ -1,0 +1,434 @@
+"""The collision verdict alone: per configuration, does the robot touch the world or itself?
+
+``collides(robot, q, world)`` answers what a sampling-based planner asks, ``check(...).collides``,
+without the clearance's value or its pair, and so without a square root or a double ``where``
+per pair. With ``R = r + r' + margin`` for two spheres (centres ``c``, ``c'``)::
+
+    |c - c'| - r - r' <= margin   <=>   |c - c'|^2 <= R^2        (R >= 0; never when R < 0)
+
+a sphere against a box (``u`` the centre in the box frame, ``e_i = |u_i| - h_i``,
+``s = min(R, 0)``, ``R = r + margin``)::
+
+    d <= margin   <=>   sum_i max(e_i - s, 0)^2 <= max(R, 0)^2
+
+(outside the box ``d`` is the distance to it, inside ``max_i e_i - r``: for ``R >= 0`` the
+left side is the squared distance, for ``R < 0`` it is zero exactly when every ``e_i <= R``;
+the squared tolerance below then allows ``e_i`` up to ``R + sqrt(slack)``), a sphere against a
+capsule through the squared point-segment distance, against a half-space the plane's linear
+form; a robot capsule goes through the exact signed distances of ``collision.distance``.
+
+Layout: forward kinematics and placement write each placed coordinate as a row of the chunk's
+configurations (a ``Chain`` through ``serial._kinematics.joint_prefix_rows``: rotation
+entries as ``(B,)`` rows, each sphere's centre moved into its carrying joint's frame on the
+host side, no per-link 4x4 pose; other robots through their ``link_poses``), then every
+obstacle and every self pair is one elementwise, vectorised pass over the rows (as
+``fused.clearance``), in the dtype of ``q``.
+
+Rounding: the verdict is conservative by a tolerance ``tol = 16 eps (1 + X)`` (``eps`` of the
+dtype, ``X`` the largest coordinate magnitude of the configuration's placed primitives and the
+world): every configuration whose exact clearance is ``<= margin`` is flagged. A flagged one
+has a linear test (half-space, capsule) ``<= margin + tol``, or a squared one ``d^2 <= R^2 +
+tol (2 R_max + tol)`` (``R`` above taken as ``R + tol`` for the largest ``R_max``), so its
+clearance is at most ``margin + tol (2 R_max + tol) / (2 R)``. Both paths round their placed
+coordinates differently, so configurations that close to contact can only be flagged, never
+missed.
+
+NaN or inf in a configuration gives ``collides = True`` and ``INVALID_INPUT`` for that
+element alone. Moving or resizing an obstacle reuses the compilation (array data).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+from jax.typing import ArrayLike
+
+from .._batching import map_chunks
+from .._numerics import computed_once
+from ..status import Status
+from . import distance as sd
+from .body import Body
+from .check import _as_q, _check_world, _world_batched, check_kernel, prepare
+from .fused import UNROLL, _materialised, _self_groups, _take
+from .pairs import SelfPairs
+from .world import World
+
+__all__ = ["VERDICT_CHUNK", "Verdict", "collides", "collides_kernel"]
+
+# Configurations per step: the placed rows and the temporaries of ~65 spheres stay in L2
+VERDICT_CHUNK = 512
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Verdict:
+    """Per configuration (shapes ``(...)``, the batch of ``q``).
+
+    Attributes:
+        collides: the configuration touches the world or itself (clearance ``<= margin``,
+            module docstring for rounding), or is not finite.
+        status: ``int8`` ``jaxkin.Status``: ``OK``, ``COLLISION`` or ``INVALID_INPUT``.
+    """
+
+    collides: Array
+    status: Array
+
+
+def _frames(robot: Any, q: Array) -> tuple[Array, list[int], Array | None]:
+    """Per link, a frame that carries it, in rows: ``F (12 P, C)`` (the ``P`` frames'
+    rotation entries ``R[i][j]`` at row ``12 k + 3 i + j``, translations at ``12 k + 9 + i``),
+    stored once (each placement loop reads it), the frame of each link and each link's pose
+    in its frame ``(L, 4, 4)`` (None: the identity). A ``Chain`` gives its joint-prefix
+    poses (``joint_prefix_rows``) and its links' home poses; other robots ``link_poses``."""
+    size = q.shape[0]
+    if _is_chain(robot):
+        from .._validate import cast_leaves
+        from ..serial import _kinematics
+
+        chain = cast_leaves(robot, q.dtype)
+        frames = _kinematics.joint_prefix_rows(chain, q)
+        if chain.links is None:
+            of_link, homes = list(range(len(frames))), None
+        else:
+            of_link, homes = list(chain.links.moved_by), chain.links.homes
+    else:
+        poses = robot.link_poses(q).astype(q.dtype)
+        frames = [
+            (
+                [[poses[:, k, i, j] for j in range(3)] for i in range(3)],
+                [poses[:, k, i, 3] for i in range(3)],
+            )
+            for k in range(poses.shape[-3])
+        ]
+        of_link, homes = list(range(poses.shape[-3])), None
+    rows = []
+    for rot, pos in frames:
+        for x in [rot[i][j] for i in range(3) for j in range(3)] + list(pos):
+            rows.append(jnp.broadcast_to(jnp.asarray(x, q.dtype), (size,)))
+    return computed_once(jnp.stack(rows)), of_link, homes
+
+
+def _is_chain(robot: Any) -> bool:
+    from ..serial.chain import Chain
+
+    return isinstance(robot, Chain)
+
+
+def _place(frames: Array, of_link: list[int], homes: Array | None, points: Array, links) -> Array:
+    """``points (k, 3)`` on ``links`` placed: rows ``(3, k, C)``, ``x_i = sum_m R_im c'_m +
+    p_i`` with ``c'`` the point in its link's frame (``homes``), run by run of one link."""
+    links = np.asarray(links, dtype=np.int64)
+    if homes is not None:
+        home = homes[links]
+        points = jnp.einsum("kij,kj->ki", home[:, :3, :3], points) + home[:, :3, 3]
+    cuts = np.flatnonzero(np.diff(links)) + 1
+    out: list[list[Array]] = [[], [], []]
+    for start, stop in zip([0, *cuts], [*cuts, len(links)], strict=True):
+        base = 12 * of_link[int(links[start])]
+        c = points[start:stop]
+        for i in range(3):
+            row = frames[base + 9 + i][None, :]
+            for m in range(3):
+                row = row + frames[base + 3 * i + m][None, :] * c[:, m, None]
+            out[i].append(row)
+    return jnp.stack([jnp.concatenate(rows) for rows in out])
+
+
+def _place_rows(robot: Any, body: Body, q: Array) -> tuple[Array | None, Array | None]:
+    """The body placed at configurations ``q`` ``(C, n)``: sphere centres ``(3, ns, C)``,
+    capsule end points ``(3, 2, nc, C)`` (None where there are none), stored once."""
+    frames, of_link, homes = _frames(robot, q)
+    spheres = capsules = None
+    if body.num_spheres:
+        spheres = _place(frames, of_link, homes, body.sphere_center, body.sphere_link)
+    if body.num_capsules:
+        both = jnp.concatenate([body.capsule_a, body.capsule_b])
+        placed = _place(frames, of_link, homes, both, body.capsule_link * 2)
+        nc = body.num_capsules
+        capsules = jnp.stack([placed[:, :nc], placed[:, nc:]], axis=1)
+    return _materialised((spheres, capsules))
+
+
+class _Excess:
+    """Running minimums per configuration: squared excess ``d^2 - R^2`` (collision where
+    ``<= slack``) and linear excess ``d - margin`` (collision where ``<= tol``), each kept as
+    rows ``(k, C)`` of one shape (the world pass over the robot's rows) and as ``(C,)``."""
+
+    def __init__(self):
+        self.parts: dict[tuple[str, tuple[int, ...]], Array] = {}
+
+    def _add(self, tag: str, x: Array) -> None:
+        if x.ndim == 2 and (tag, x.shape) not in self.parts:
+            if any(key[0] == tag and len(key[1]) == 2 for key in self.parts):
+                x = jnp.min(x, axis=0)  # a self group: reduced at once
+        key = (tag, x.shape)
+        old = self.parts.get(key)
+        self.parts[key] = x if old is None else jnp.minimum(old, x)
+
+    def add_sq(self, x: Array) -> None:
+        self._add("sq", x)
+
+    def add_lin(self, x: Array) -> None:
+        self._add("lin", x)
+
+    def reduced(self, tag: str) -> Array | None:
+        """The minimum ``(C,)`` of one kind, or None."""
+        out = None
+        for (t, _), x in self.parts.items():
+            if t != tag:
+                continue
+            x = jnp.min(x, axis=0) if x.ndim == 2 else x
+            out = x if out is None else jnp.minimum(out, x)
+        return out
+
+
+def _threshold(radius: Array) -> Array:
+    """``R^2`` where ``R >= 0``, else -1 (no squared distance reaches it)."""
+    return jnp.where(radius >= 0, radius * radius, -1.0)
+
+
+def _sphere_rows_world(x: list[Array], r: Array, world: World, margin: Array, acc: _Excess) -> None:
+    """Robot spheres (rows ``(k, C)``, radii ``(k, 1)``) against every obstacle."""
+    w = world
+
+    def sphere(c, ro):
+        d2 = (x[0] - c[0]) ** 2 + (x[1] - c[1]) ** 2 + (x[2] - c[2]) ** 2
+        return d2 - _threshold(r + ro + margin)
+
+    def capsule(a, b, ro):
+        d = b - a
+        dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        inv = jnp.where(dd > 0, 1.0 / jnp.where(dd > 0, dd, 1.0), 0.0)
+        rel = [x[i] - a[i] for i in range(3)]
+        t = jnp.clip((rel[0] * d[0] + rel[1] * d[1] + rel[2] * d[2]) * inv, 0.0, 1.0)
+        d2 = (rel[0] - t * d[0]) ** 2 + (rel[1] - t * d[1]) ** 2 + (rel[2] - t * d[2]) ** 2
+        return d2 - _threshold(r + ro + margin)
+
+    def box(c, rot, h):
+        # u_k = x . R_k - c . R_k: the rows are read directly, each e_k is used once
+        big = r + margin
+        shift = jnp.minimum(big, 0.0)
+        out = None
+        for k in range(3):
+            ck = c[0] * rot[0, k] + c[1] * rot[1, k] + c[2] * rot[2, k]
+            u = x[0] * rot[0, k] + x[1] * rot[1, k] + x[2] * rot[2, k] - ck
+            term = jnp.maximum(jnp.abs(u) - h[k] - shift, 0.0) ** 2
+            out = term if out is None else out + term
+        return out - jnp.where(big >= 0, big * big, 0.0)
+
+    def halfspace(n, o):
+        return x[0] * n[0] + x[1] * n[1] + x[2] * n[2] - o - r - margin
+
+    def run(arrays, fn, kind):
+        m = arrays[0].shape[0]
+        if not m:
+            return
+
+        def one(*obstacle):
+            out = fn(*obstacle)
+            return (out, None) if kind != "halfspace" else (None, out)
+
+        if m <= UNROLL:
+            for j in range(m):
+                sq, lin = one(*(a[j] for a in arrays))
+                if sq is not None:
+                    acc.add_sq(sq)
+                if lin is not None:
+                    acc.add_lin(lin)
+            return
+        sq0, lin0 = one(*(a[0] for a in arrays))
+
+        def step(j, carry):
+            sq, lin = carry
+            new_sq, new_lin = one(
+                *(jax.lax.dynamic_index_in_dim(a, j, keepdims=False) for a in arrays)
+            )
+            sq = sq if new_sq is None else jnp.minimum(sq, new_sq)
+            lin = lin if new_lin is None else jnp.minimum(lin, new_lin)
+            return sq, lin
+
+        carry = (
+            sq0 if sq0 is not None else jnp.zeros((), x[0].dtype),
+            lin0 if lin0 is not None else jnp.zeros((), x[0].dtype),
+        )
+        sq, lin = jax.lax.fori_loop(1, m, step, carry)
+        if sq0 is not None:
+            acc.add_sq(sq)
+        if lin0 is not None:
+            acc.add_lin(lin)
+
+    run((w.spheres.center, w.spheres.radius), sphere, "sphere")
+    run((w.capsules.a, w.capsules.b, w.capsules.radius), capsule, "capsule")
+    run((w.boxes.center, w.boxes.rotation, w.boxes.half_extents), box, "box")
+    run((w.halfspaces.normal, w.halfspaces.offset), halfspace, "halfspace")
+
+
+def _capsule_rows_world(
+    a: Array, b: Array, r: Array, world: World, margin: Array, acc: _Excess
+) -> None:
+    """Robot capsules (``a, b (k, C, 3)``, radii ``(k, 1)``) against every obstacle: the
+    exact signed distances (``collision.distance``)."""
+    w = world
+    for center, radius in zip(w.spheres.center, w.spheres.radius, strict=True):
+        acc.add_lin(sd.sphere_capsule(center, radius, a, b, r) - margin)
+    for oa, ob, radius in zip(w.capsules.a, w.capsules.b, w.capsules.radius, strict=True):
+        acc.add_lin(sd.capsule_capsule(a, b, r, oa, ob, radius) - margin)
+    for c, rot, h in zip(w.boxes.center, w.boxes.rotation, w.boxes.half_extents, strict=True):
+        acc.add_lin(sd.capsule_box(a, b, r, c, rot, h) - margin)
+    for n, o in zip(w.halfspaces.normal, w.halfspaces.offset, strict=True):
+        acc.add_lin(sd.capsule_halfspace(a, b, r, n, o) - margin)
+
+
+def _excess(
+    spheres: Array | None,
+    s_radius: Array,
+    capsules: Array | None,
+    c_radius: Array,
+    world: World,
+    pairs: SelfPairs | None,
+    margin: Array,
+) -> _Excess:
+    """The running minimums over every world and self pair (rows layout, ``(k, C)``)."""
+    acc = _Excess()
+    if spheres is not None:
+        x = [spheres[i] for i in range(3)]
+        _sphere_rows_world(x, s_radius[:, None], world, margin, acc)
+    if capsules is not None:
+        a = jnp.moveaxis(capsules[:, 0], 0, -1)  # (nc, C, 3)
+        b = jnp.moveaxis(capsules[:, 1], 0, -1)
+        n_obstacles = sum(
+            len(p) for p in (world.spheres, world.capsules, world.boxes, world.halfspaces)
+        )
+        if n_obstacles:
+            _capsule_rows_world(a, b, c_radius[:, None], world, margin, acc)
+    for kind, i, js in _self_groups(pairs) if pairs is not None else []:
+        if kind == "ss":
+            d2 = sum((spheres[k, i][None] - _take(spheres[k], js)) ** 2 for k in range(3))
+            acc.add_sq(d2 - _threshold(s_radius[i] + _take(s_radius, js)[:, None] + margin))
+        elif kind == "sc":
+            c = jnp.stack([spheres[k, i] for k in range(3)], -1)  # (C, 3)
+            acc.add_lin(
+                sd.sphere_capsule(c, s_radius[i], a[js], b[js], c_radius[js][:, None]) - margin
+            )
+        else:
+            acc.add_lin(
+                sd.capsule_capsule(a[i], b[i], c_radius[i], a[js], b[js], c_radius[js][:, None])
+                - margin
+            )
+    return acc
+
+
+def _scale(spheres: Array | None, capsules: Array | None, world: World) -> Array:
+    """``X`` of the module docstring per configuration ``(C,)``."""
+    parts = []
+    if spheres is not None:
+        parts.append(jnp.max(jnp.abs(spheres), axis=(0, 1)))
+    if capsules is not None:
+        parts.append(jnp.max(jnp.abs(capsules), axis=(0, 1, 2)))
+    out = parts[0] if len(parts) == 1 else jnp.maximum(*parts)
+    leaves = [
+        world.spheres.center,
+        world.capsules.a,
+        world.capsules.b,
+        world.boxes.center,
+        world.halfspaces.offset,
+    ]
+    for leaf in leaves:
+        if leaf.size:
+            out = jnp.maximum(out, jnp.max(jnp.abs(leaf)))
+    return out
+
+
+def collides_kernel(
+    robot: Any,
+    body: Body,
+    pairs: SelfPairs,
+    q: Array,
+    world: World,
+    margin: ArrayLike = 0.0,
+) -> Verdict:
+    """The pure kernel of ``collides`` (traceable, any leading batch axes of ``q``), chunk by
+    chunk (``VERDICT_CHUNK`` configurations). A world with leading batch axes goes through
+    ``check_kernel``."""
+    dtype = q.dtype
+    batch = q.shape[:-1]
+    body, world = body.astype(dtype), world.astype(dtype)
+    if _world_batched(world) or math.prod(batch) == 0 or not (body.num_spheres + body.num_capsules):
+        exact = check_kernel(robot, body, pairs, q, world, margin)
+        return Verdict(exact.collides, exact.status)
+    margin = jnp.asarray(margin, dtype)
+    eps = jnp.finfo(dtype).eps
+    self_pairs = pairs if pairs.link_pairs else None
+
+    def one(q: Array) -> Verdict:
+        q = q.reshape((-1, q.shape[-1]))
+        valid = jnp.all(jnp.isfinite(q), axis=-1)
+        q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
+        spheres, capsules = _place_rows(robot, body, q_safe)
+        tol = 16.0 * eps * (1.0 + _scale(spheres, capsules, world))
+        # the tolerance enters each R as R + tol: for the squared tests that is a slack of
+        # at most tol (2 R_max + tol) on d^2 - R^2
+        r_max = jnp.zeros((), dtype)
+        if body.num_spheres:
+            r_robot = jnp.max(body.sphere_radius)
+            r_world = [jnp.max(r) for r in (world.spheres.radius, world.capsules.radius) if r.size]
+            r_other = functools.reduce(jnp.maximum, r_world, r_robot)
+            r_max = r_robot + r_other + jnp.maximum(margin, 0.0)
+        acc = _excess(
+            spheres, body.sphere_radius, capsules, body.capsule_radius, world, self_pairs, margin
+        )
+        hit = ~valid
+        sq, lin = acc.reduced("sq"), acc.reduced("lin")
+        if sq is not None:
+            hit = hit | (sq <= tol * (2.0 * r_max + tol))
+        if lin is not None:
+            hit = hit | (lin <= tol)
+        status = jnp.where(
+            ~valid, Status.INVALID_INPUT, jnp.where(hit, Status.COLLISION, Status.OK)
+        ).astype(jnp.int8)
+        return Verdict(hit, status)
+
+    flat = q.reshape((-1, q.shape[-1]))
+    out = map_chunks(one, flat, flat.shape[:-1], VERDICT_CHUNK)
+    return jax.tree.map(lambda x: x.reshape(batch), out)
+
+
+_collides_jit = jax.jit(collides_kernel)
+
+
+def collides(
+    robot: Any,
+    q: ArrayLike,
+    world: World,
+    margin: float = 0.0,
+    self_collision: bool = True,
+) -> Verdict:
+    """Per configuration ``q`` ``(..., n_joints)``: does ``robot`` touch ``world`` or itself
+    (module docstring)? The verdict of ``check(robot, q, world, margin).collides`` without
+    the clearance or its pair.
+
+    Args:
+        robot: any robot of the protocol with ``collision_body`` and ``link_poses``.
+        q: joint coordinates, any leading batch axes (may be traced).
+        world: a ``collision.World``.
+        margin: a configuration collides where its clearance is ``<= margin`` (length units).
+        self_collision: check the robot's ``self_collision_pairs()`` too.
+
+    Returns:
+        ``Verdict`` with shapes ``(...)``.
+
+    Raises:
+        ValueError: ``q`` of the wrong trailing shape, a world that is not a ``World``, a
+            robot without a collision body.
+    """
+    q = _as_q(robot, q)
+    world = _check_world(world)
+    body, pairs = prepare(robot, self_collision)
+    return _collides_jit(robot, body, pairs, q, world, margin)
