@@ -427,6 +427,25 @@ class Robot(Geometry, metaclass=abc.ABCMeta):
         ``collision_body().links``) at joints ``q`` ``(..., n)``: a pure, traceable kernel."""
         raise ValueError(f"{type(self).__name__} has no link poses (link_poses)")
 
+    def link_frame_rows(self, q: Array) -> tuple[list, list[int], Array | None]:
+        """The link poses at joints ``q`` ``(C, n)`` in the rows layout, for checks that place
+        points elementwise: ``(frames, of_link, homes)`` with ``frames[k]`` the rotation
+        entries ``R[i][j]`` and translation entries ``p[i]`` (nested lists of ``(C,)`` arrays
+        or Python floats) of frame ``k`` (world <- frame), ``of_link[l]`` the frame carrying
+        link ``l`` and ``homes`` ``(L, 4, 4)`` each link's pose in its frame (None: the
+        identity). By default one frame per link, from ``link_poses``; a robot whose links
+        share frames (a chain's joint prefixes) overrides it."""
+        poses = self.link_poses(q)
+        count = poses.shape[-3]
+        frames = [
+            (
+                [[poses[..., k, i, j] for j in range(3)] for i in range(3)],
+                [poses[..., k, i, 3] for i in range(3)],
+            )
+            for k in range(count)
+        ]
+        return frames, list(range(count)), None
+
     def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
         """The link index pairs ``(i, j)``, ``i < j``, checked for self-collision (host side;
         by default none)."""

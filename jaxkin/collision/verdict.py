@@ -18,9 +18,9 @@ capsule through the squared point-segment distance, against a half-space the pla
 form; a robot capsule goes through the exact signed distances of ``collision.distance``.
 
 Layout: forward kinematics and placement write each placed coordinate as a row of the chunk's
-configurations (a ``Chain`` through ``serial._kinematics.joint_prefix_rows``: rotation
-entries as ``(B,)`` rows, each sphere's centre moved into its carrying joint's frame on the
-host side, no per-link 4x4 pose; other robots through their ``link_poses``), then every
+configurations (the robot's ``link_frame_rows``: for a chain its joint prefixes, rotation
+entries as ``(B,)`` rows, each sphere's centre moved into its carrying frame, no per-link
+4x4 pose; by default one frame per link from ``link_poses``), then every
 obstacle and every self pair is one elementwise, vectorised pass over the rows (as
 ``fused.clearance``), in the dtype of ``q``.
 
@@ -85,40 +85,16 @@ def _frames(robot: Any, q: Array) -> tuple[Array, list[int], Array | None]:
     """Per link, a frame that carries it, in rows: ``F (12 P, C)`` (the ``P`` frames'
     rotation entries ``R[i][j]`` at row ``12 k + 3 i + j``, translations at ``12 k + 9 + i``),
     stored once (each placement loop reads it), the frame of each link and each link's pose
-    in its frame ``(L, 4, 4)`` (None: the identity). A ``Chain`` gives its joint-prefix
-    poses (``joint_prefix_rows``) and its links' home poses; other robots ``link_poses``."""
+    in its frame ``(L, 4, 4)`` (None: the identity), from ``robot.link_frame_rows``."""
     size = q.shape[0]
-    if _is_chain(robot):
-        from .._validate import cast_leaves
-        from ..serial import _kinematics
-
-        chain = cast_leaves(robot, q.dtype)
-        frames = _kinematics.joint_prefix_rows(chain, q)
-        if chain.links is None:
-            of_link, homes = list(range(len(frames))), None
-        else:
-            of_link, homes = list(chain.links.moved_by), chain.links.homes
-    else:
-        poses = robot.link_poses(q).astype(q.dtype)
-        frames = [
-            (
-                [[poses[:, k, i, j] for j in range(3)] for i in range(3)],
-                [poses[:, k, i, 3] for i in range(3)],
-            )
-            for k in range(poses.shape[-3])
-        ]
-        of_link, homes = list(range(poses.shape[-3])), None
+    frames, of_link, homes = robot.link_frame_rows(q)
     rows = []
     for rot, pos in frames:
         for x in [rot[i][j] for i in range(3) for j in range(3)] + list(pos):
             rows.append(jnp.broadcast_to(jnp.asarray(x, q.dtype), (size,)))
-    return computed_once(jnp.stack(rows)), of_link, homes
-
-
-def _is_chain(robot: Any) -> bool:
-    from ..serial.chain import Chain
-
-    return isinstance(robot, Chain)
+    if homes is not None:
+        homes = jnp.asarray(homes, q.dtype)
+    return computed_once(jnp.stack(rows)), list(of_link), homes
 
 
 def _place(frames: Array, of_link: list[int], homes: Array | None, points: Array, links) -> Array:

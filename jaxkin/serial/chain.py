@@ -436,6 +436,16 @@ class Chain(Robot):
         carried = prefix[..., np.asarray(chain.links.moved_by, dtype=np.int32), :, :]
         return jnp.einsum("...lij,ljk->...lik", carried, chain.links.homes)
 
+    def link_frame_rows(self, q: Array) -> tuple[list, list[int], Array | None]:
+        """``Robot.link_frame_rows``: the joint-prefix poses ``exp([S_1] theta_1) ...
+        exp([S_k] theta_k)``, ``k = 0 ... n``, entry by entry (``_kinematics.joint_prefix_rows``),
+        each link carried by its prefix at its home pose ``M_l`` (``links``)."""
+        chain = _validate.cast_leaves(self, q.dtype)
+        frames = _kinematics.joint_prefix_rows(chain, q)
+        if chain.links is None:
+            return frames, list(range(len(frames))), None
+        return frames, list(chain.links.moved_by), chain.links.homes
+
     def collision_body(self) -> Body:
         """The body: from the URDF's ``<collision>`` elements for a chain read from a URDF
         (``collision.body_from_urdf``), else a skeleton of capsules of radius 0: link ``k``
