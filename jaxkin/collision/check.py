@@ -319,7 +319,15 @@ def check(
         ValueError: ``q`` of the wrong trailing shape, a world that is not a ``World``, a
             robot without a collision body.
     """
+    robot, body, pairs, q, world = checked_arguments(robot, q, world, self_collision)
+    return _check_jit(robot, body, pairs, q, world, margin)
+
+
+def checked_arguments(robot: Any, q: ArrayLike, world: Any, self_collision: bool) -> tuple:
+    """The boundary of the public checks: ``q`` as an array of the robot's joint count, the
+    world checked, the robot's body and self pairs (``prepare``); ``ValueError`` naming the
+    argument otherwise. Returns ``(robot, body, pairs, q, world)``."""
     q = _as_q(robot, q)
     world = _check_world(world)
     body, pairs = prepare(robot, self_collision)
-    return _check_jit(robot, body, pairs, q, world, margin)
+    return robot, body, pairs, q, world

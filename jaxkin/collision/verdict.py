@@ -55,7 +55,7 @@ from .._numerics import computed_once
 from ..status import Status
 from . import distance as sd
 from .body import Body
-from .check import _as_q, _check_world, _world_batched, check_kernel, prepare
+from .check import _world_batched, check_kernel, checked_arguments
 from .fused import UNROLL, _materialised, _self_groups, _take
 from .pairs import SelfPairs
 from .world import World
@@ -388,23 +388,7 @@ def collides(
 ) -> Verdict:
     """Per configuration ``q`` ``(..., n_joints)``: does ``robot`` touch ``world`` or itself
     (module docstring)? The verdict of ``check(robot, q, world, margin).collides`` without
-    the clearance or its pair.
-
-    Args:
-        robot: any robot of the protocol with ``collision_body`` and ``link_poses``.
-        q: joint coordinates, any leading batch axes (may be traced).
-        world: a ``collision.World``.
-        margin: a configuration collides where its clearance is ``<= margin`` (length units).
-        self_collision: check the robot's ``self_collision_pairs()`` too.
-
-    Returns:
-        ``Verdict`` with shapes ``(...)``.
-
-    Raises:
-        ValueError: ``q`` of the wrong trailing shape, a world that is not a ``World``, a
-            robot without a collision body.
-    """
-    q = _as_q(robot, q)
-    world = _check_world(world)
-    body, pairs = prepare(robot, self_collision)
+    the clearance or its pair: the arguments and errors of ``check``; a ``Verdict`` with
+    shapes ``(...)``."""
+    robot, body, pairs, q, world = checked_arguments(robot, q, world, self_collision)
     return _collides_jit(robot, body, pairs, q, world, margin)
