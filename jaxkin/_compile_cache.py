@@ -169,6 +169,7 @@ class _StoredJit:
         self.jitted = jax.jit(
             fun, static_argnames=static_argnames or None, compiler_options=self._options
         )
+        self._nested = jax.jit(fun, static_argnames=static_argnames or None)
         self._signature = inspect.signature(fun)
         self._dynamic = tuple(n for n in self._signature.parameters if n not in static_argnames)
         self._by_static: dict[tuple, Any] = {}  # a jitted function per static values
@@ -179,6 +180,10 @@ class _StoredJit:
         return getattr(self.jitted, name)
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        if self._options is not None and _traced((args, kwargs)):
+            # inside a caller's jit the enclosing program's compilation settings apply (JAX
+            # takes compiler options on a top-level jit only)
+            return self._nested(*args, **kwargs)
         if _store is None:
             return self.jitted(*args, **kwargs)
         jitted, dynamic, static = self.jitted, args, ""
@@ -263,6 +268,11 @@ def _without_persistent_cache() -> Iterator[None]:
     finally:
         jax.config.update("jax_enable_compilation_cache", saved)
         _jax_cache.reset_cache()
+
+
+def _traced(tree: Any) -> bool:
+    """Whether any leaf of ``tree`` is a tracer (a call inside a caller's transformation)."""
+    return any(isinstance(leaf, jax.core.Tracer) for leaf in jax.tree.leaves(tree))
 
 
 def _unwrapped(fun: Any) -> Any:

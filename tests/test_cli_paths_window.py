@@ -199,7 +199,9 @@ def test_path_mode_peak_memory_does_not_grow_with_the_path(tmp_path):
         src = write(tmp_path / f"{n}.csv", {"t": t} | {k: p[:, j] for j, k in enumerate("xyz")})
         argv = ["ik", "scara", *PAPER, "-i", src, "-o", tmp_path / "q.csv", "-q"]
         argv += ["--chunk-size", "4096"]
-        env = dict(os.environ, JAX_PLATFORMS="cpu")
+        # no compilation cache: both runs compile the same programs (a stored program loaded
+        # by the second run and compiled by the first would make their peaks incomparable)
+        env = dict(os.environ, JAX_PLATFORMS="cpu", JAXKIN_COMPILATION_CACHE="0")
         done = subprocess.run(
             [sys.executable, "-c", MEASURE, *map(str, argv)],
             capture_output=True,
