@@ -176,10 +176,11 @@ def test_urdf_chain_windows_give_the_whole_paths_rows(tmp_path, capsys):
 
 
 MEASURE = """
-import resource, sys
+import sys
 from jaxkin import cli
 code = cli.main(sys.argv[1:])
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+# VmHWM (kB): this process's own peak; ru_maxrss keeps the forking parent's across exec
+print(next(l.split()[1] for l in open("/proc/self/status") if l.startswith("VmHWM")))
 sys.exit(code)
 """
 
