@@ -3,8 +3,6 @@
 * **Chunks inside a kernel** (``map_chunks``): an iterative kernel (a Newton ``while_loop``)
   runs on cache-sized slices of the flattened batch with ``lax.map``, so its state stays in
   cache and each chunk stops as soon as its own elements have converged.
-* **Two halves** (``in_two_halves``): two independent top-level computations on the halves of
-  the batch, for kernels XLA runs faster on halves than on the whole (the dyad's autodiff path).
 * **Host parts on threads** (``PartsJit``, ``run_parts``, ``overlapping_parts``, ``join``): XLA
   on CPU runs the body of a ``while_loop`` on one core, but two programs called from two host
   threads run at the same time. A large concrete batch is split into one part per thread, each
@@ -52,8 +50,6 @@ from ._validate import is_concrete
 # Elements per chunk of map_chunks: ~20 loop arrays of 8192 float64 stay in L2 (Delta Newton
 # FK at 1e6: 2048-32768 within 15 %; the whole batch is bandwidth-bound).
 CHUNK = 8192
-# The dyad's autodiff path runs as two halves from this many elements (dyad at 1e6).
-HALVES_MIN = 1 << 17
 # Fewest elements per host-thread part (Delta Newton FK: below it dispatch and join cost what
 # the second core saves).
 MIN_PART = 1 << 15
@@ -335,35 +331,6 @@ def map_chunks(
 
     out = jax.lax.map(fn, jax.tree.map(split, tree))
     return jax.tree.map(join, out)
-
-
-def in_two_halves(fn: Callable[..., Any], args: tuple[Any, ...], batch: tuple[int, ...]) -> Any:
-    """``fn(*args)`` computed on the two halves of the flattened batch, then joined.
-
-    ``args``' leaves have shape ``(*batch, ...)`` or are scalars (passed to both halves);
-    ``fn`` is elementwise in the batch. Two top-level computations, not a loop (``map_chunks``
-    is for iterative kernels), for kernels that XLA runs faster on two independent halves than
-    on the whole batch. Below ``HALVES_MIN`` elements ``fn`` runs once on the whole batch. Odd
-    sizes give halves of unequal length.
-    """
-    size = math.prod(batch)
-    if size < HALVES_MIN:
-        return fn(*args)
-    half = size // 2
-
-    def part(x, lo, hi):
-        if jnp.ndim(x) == 0:
-            return x
-        return x.reshape((size, *x.shape[len(batch) :]))[lo:hi]
-
-    first = fn(*jax.tree.map(lambda x: part(x, 0, half), args))
-    second = fn(*jax.tree.map(lambda x: part(x, half, size), args))
-
-    def join(x, y):
-        joined = jnp.concatenate([x, y], axis=0)
-        return joined.reshape((*batch, *joined.shape[1:]))
-
-    return jax.tree.map(join, first, second)
 
 
 # ------------------------------------------------------------------ host threads

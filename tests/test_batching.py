@@ -57,32 +57,6 @@ def test_map_chunks_equals_whole_batch(batch):
         np.testing.assert_array_equal(chunked[key], whole[key])
 
 
-@pytest.mark.parametrize("batch", [(10,), (7,), (3, 5)])
-def test_in_two_halves_equals_whole_batch(batch, monkeypatch):
-    """Even, odd (unequal halves) and 2-D batches; a scalar argument reaches both halves;
-    below ``HALVES_MIN`` the function runs once."""
-    x, y = _pair(batch, seed=1)
-    calls = []
-
-    def fn(x, y, scale):
-        calls.append(y.shape)
-        return {"sum": x.sum(-1) * scale + y, "x": x * scale}
-
-    whole = fn(x, y, 2.0)
-    calls.clear()
-    monkeypatch.setattr(_batching, "HALVES_MIN", 4)
-    halves = _batching.in_two_halves(fn, (x, y, jnp.asarray(2.0)), batch)
-    size = int(np.prod(batch))
-    assert calls == [(size // 2,), (size - size // 2,)]
-    for key in whole:
-        assert halves[key].shape == whole[key].shape
-        np.testing.assert_array_equal(halves[key], whole[key])
-    monkeypatch.setattr(_batching, "HALVES_MIN", size + 1)
-    calls.clear()
-    _batching.in_two_halves(fn, (x, y, jnp.asarray(2.0)), batch)
-    assert calls == [batch]
-
-
 # ------------------------------------------------------------------ host threads
 @pytest.fixture
 def small_parts(monkeypatch):
