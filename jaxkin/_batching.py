@@ -157,42 +157,42 @@ def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], A
     # Called as the compiled executable: a jitted closure over concrete arrays passes them as
     # arguments on every call (tens of microseconds); the executable holds them as constants.
     compiled = jitted.lower(example).compile()
-    build = _builder(traced.out_info, moving, constants)
-    if build is None:
+    compiled(example)  # sets up JAX's C++ entry of the executable, called directly below
+    run = getattr(compiled, "_call", None) or compiled
+    call = _builder(traced.out_info, moving, constants, run, jitted)
+    if call is None:
         position = {i: k for k, i in enumerate(moving)}
         n = tree.num_leaves
 
-        def build(values: Any) -> Any:
+        def call(x: Array) -> Any:
+            try:
+                values = run(x)
+            except (TypeError, ValueError):  # an input it does not take as it is
+                values = jitted(x)
             leaves = [constants[i] if i in constants else values[position[i]] for i in range(n)]
             return tree.unflatten(leaves)
-
-    def call(x: Array) -> Any:
-        try:
-            values = compiled(x)
-        except (TypeError, ValueError):  # an input it does not take as it is (another device)
-            values = jitted(x)
-        return build(values)
 
     call.compiled = compiled  # for inspection (its cost analysis, its HLO)
     return call
 
 
 def _builder(
-    example: Any, moving: list[int], constants: dict[int, Any]
+    example: Any, moving: list[int], constants: dict[int, Any], run: Callable, fallback: Callable
 ) -> Callable[[Any], Any] | None:
-    """A function of the compiled outputs (leaves ``moving`` of ``example``'s tree, in order)
-    that builds the tree with the leaves ``constants`` (by leaf index) in place, for nested
-    frozen dataclasses (the results), written out as straight-line code: the objects made
-    with ``object.__new__`` and their fields set in their ``__dict__`` (their ``__init__``
-    and JAX's unflatten cost several microseconds per call), fields that hold no leaf copied
-    from ``example``. None for any other tree."""
+    """The hot call: ``run(x)`` (the compiled outputs: leaves ``moving`` of ``example``'s
+    tree, in order; ``fallback(x)`` for an input ``run`` refuses) and the tree built from them
+    with the leaves ``constants`` (by leaf index) in place, for nested frozen dataclasses (the
+    results), written out as one straight-line function: the objects made with
+    ``object.__new__`` and their fields set in their ``__dict__`` (their ``__init__`` and
+    JAX's unflatten cost several microseconds per call), fields that hold no leaf copied from
+    ``example``. None for any other tree."""
     paths = [path for path, _ in jax.tree_util.tree_flatten_with_path(example)[0]]
     if not paths or not all(
         path and all(isinstance(k, jax.tree_util.GetAttrKey) for k in path) for path in paths
     ):
         return None
     source = {i: f"v[{k}]" for k, i in enumerate(moving)}
-    namespace: dict[str, Any] = {"new": object.__new__}
+    namespace: dict[str, Any] = {"new": object.__new__, "run": run, "fallback": fallback}
     for i, value in constants.items():
         source[i] = f"k{i}"
         namespace[f"k{i}"] = value
@@ -221,20 +221,26 @@ def _builder(
         var = f"o{len(namespace)}"
         namespace[f"{var}_cls"] = type(obj)
         lines.append(f"{var} = new({var}_cls)")
-        lines.append(f"d = {var}.__dict__")
         others = {k: v for k, v in obj.__dict__.items() if k not in groups}
         if others:
             namespace[f"{var}_others"] = others
-            lines.append(f"d.update({var}_others)")
-        lines.extend(f"d[{name!r}] = {value}" for name, value in fields.items())
+            lines.append(f"{var}.__dict__.update({var}_others)")
+        items = ", ".join(f"{name!r}: {value}" for name, value in fields.items())
+        lines.append(f"{var}.__dict__.update({{{items}}})")
         return var
 
     root = node(example, [(tuple(path), i) for i, path in enumerate(paths)])
     if root is None:
         return None
-    body = "\n".join(f"    {line}" for line in (*lines, f"return {root}"))
-    exec(f"def build(v):\n{body}\n", namespace)  # straight-line code from the field names
-    return namespace["build"]
+    head = [
+        "try:",
+        "    v = run(x)",
+        "except (TypeError, ValueError):  # an input it does not take as it is (another device)",
+        "    v = fallback(x)",
+    ]
+    body = "\n".join(f"    {line}" for line in (*head, *lines, f"return {root}"))
+    exec(f"def call(x):\n{body}\n", namespace)  # straight-line code from the field names
+    return namespace["call"]
 
 
 def _input_dependent(jaxpr: Any, inputs: list[bool] | None = None) -> list[bool]:

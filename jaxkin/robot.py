@@ -760,21 +760,36 @@ def _bucketed(program: _Program, robot: Robot, p, v, a, index, options, batch: t
 # ------------------------------------------------------------------ hot single queries
 
 
-def _hot_query(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> Any:
+def _hot_query(robot: Any, kind: str, branch: Any, options: Any, x: Any) -> Any:
     """The compiled single query of ``robot`` for this input's type, shape and dtype, once the
     same robot object has asked it ``_batching.HOT_AFTER`` times (``_batching.HotQueries``);
-    None for anything else (the pipeline then does its usual input work)."""
-    kx = type(x)
-    if kx not in _JAX_TYPES and kx is not np.ndarray:
-        return None  # a Jet, a tracer, a list: the usual path
+    None for anything else (the pipeline then does its usual input work). ``options`` as the
+    caller gave it: None (the defaults) or an instance; the robot and the options are checked
+    when the program is built, so a later call that finds it skips every check."""
     try:
-        key = (id(robot), kind, branch, options, x.shape, x.dtype, jax.config.jax_enable_x64)
+        key = (id(robot), kind, branch, options, type(x), x.shape, x.dtype, _X64.value)
         entry = _HOT.programs.get(key)
-    except TypeError:  # options holding arrays (unhashable): the usual path
+    except (TypeError, AttributeError):  # unhashable options or branch, no shape: usual path
         return None
     if entry is not None and entry[0] is robot:
         return entry[1]
+    if (type(x) not in _JAX_TYPES and type(x) is not np.ndarray) or not isinstance(robot, Robot):
+        return None  # a Jet, a tracer, a list: the usual path
     return _HOT.get(key, robot, lambda: _hot_build(robot, kind, branch, options, x))
+
+
+class _ConfigX64:
+    """``jax.config.jax_enable_x64`` as ``.value`` (where JAX's own flag object is private)."""
+
+    @property
+    def value(self) -> bool:
+        return jax.config.jax_enable_x64
+
+
+try:  # the flag read in 70 ns (jax.config's attribute: 240 ns), once per hot call
+    from jax._src.config import enable_x64 as _X64
+except ImportError:  # pragma: no cover - another JAX layout
+    _X64 = _ConfigX64()
 
 
 def _hot_build(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> Any:
@@ -790,11 +805,12 @@ def _hot_build(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> An
     leaves, tree = jax.tree.flatten(robot)
     if not all(is_concrete(leaf) for leaf in leaves):
         return None
-    if kind == "ik":
-        try:
+    try:  # the usual path says what is wrong
+        if kind == "ik":
             branch = robot.default_branch if branch is None else robot.check_branch(branch)
-        except ValueError:  # the usual path says so
-            return None
+        options = make_options(robot.IKOptions if kind == "ik" else robot.FKOptions, options, {})
+    except ValueError:
+        return None
     # a robot rebuilt with the same values (a new object per episode) shares the program
     values = tuple(
         (np.asarray(leaf).dtype.str, np.shape(leaf), np.asarray(leaf).tobytes()) for leaf in leaves
@@ -803,9 +819,9 @@ def _hot_build(robot: Robot, kind: str, branch: Any, options: Any, x: Any) -> An
     if key in _HOT.by_value:
         return _HOT.by_value[key]
     if kind == "ik":
-        program = _batching.hot_program(lambda y: solve_ik(robot, y, branch, options), x)
+        program = _batching.hot_program(lambda y: _solve_ik(robot, y, branch, options), x)
     else:
-        program = _batching.hot_program(lambda y: solve_fk(robot, y, options), x)
+        program = _batching.hot_program(lambda y: _solve_fk(robot, y, options), x)
     _batching.bounded_put(_HOT.by_value, key, program, _HOT.size)
     return program
 
@@ -837,6 +853,12 @@ def ik(
         ValueError: not a robot, an unknown branch or option, or a target of the wrong shape
             or a batch shape that does not broadcast with the geometry's.
     """
+    if not option_values:  # a hot single query answers before any input work
+        hot = _hot_query(robot, "ik", branch, options, target)
+        if hot is not None:
+            return hot(target)
+        robot = as_robot(robot)
+        return _solve_ik(robot, target, branch, make_options(robot.IKOptions, options, {}))
     robot = as_robot(robot)
     return solve_ik(robot, target, branch, make_options(robot.IKOptions, options, option_values))
 
@@ -847,6 +869,11 @@ def solve_ik(robot: Robot, target: Any, branch: Any, options: Any, name: str = "
     hot = _hot_query(robot, "ik", branch, options, target)
     if hot is not None:
         return hot(target)
+    return _solve_ik(robot, target, branch, options, name)
+
+
+def _solve_ik(robot: Robot, target: Any, branch: Any, options: Any, name: str = "target") -> Any:
+    """``solve_ik`` without the hot single query."""
     branch = robot.default_branch if branch is None else robot.check_branch(branch)
     p, v, a, rates, batch = _inputs(robot, target, name, robot.target.shape)
     policy = robot.ik_policy
@@ -876,6 +903,12 @@ def fk(robot: Robot, q: Jet | ArrayLike, options: Any = None, **option_values: A
     Raises:
         ValueError: not a robot, an unknown option, or ``q`` of the wrong shape.
     """
+    if not option_values:  # a hot single query answers before any input work
+        hot = _hot_query(robot, "fk", None, options, q)
+        if hot is not None:
+            return hot(q)
+        robot = as_robot(robot)
+        return _solve_fk(robot, q, make_options(robot.FKOptions, options, {}))
     robot = as_robot(robot)
     return solve_fk(robot, q, make_options(robot.FKOptions, options, option_values))
 
@@ -885,6 +918,11 @@ def solve_fk(robot: Robot, q: Any, options: Any, name: str = "q") -> Any:
     hot = _hot_query(robot, "fk", None, options, q)
     if hot is not None:
         return hot(q)
+    return _solve_fk(robot, q, options, name)
+
+
+def _solve_fk(robot: Robot, q: Any, options: Any, name: str = "q") -> Any:
+    """``solve_fk`` without the hot single query."""
     p, v, a, rates, batch = _inputs(robot, q, name, (robot.n_joints,))
     outside = _batching.zero_rates_outside(rates, batch)
     program = _program("fk", robot, (rates, outside), robot.fk_policy)
