@@ -183,8 +183,8 @@ def _builder(
     tree, in order; ``fallback(x)`` for an input ``run`` refuses) and the tree built from them
     with the leaves ``constants`` (by leaf index) in place, for nested frozen dataclasses (the
     results), written out as one straight-line function: the objects made with
-    ``object.__new__`` and their fields set in their ``__dict__`` (their ``__init__`` and
-    JAX's unflatten cost several microseconds per call), fields that hold no leaf copied from
+    ``object.__new__`` and given their ``__dict__`` whole (their ``__init__`` and JAX's
+    unflatten cost several microseconds per call), fields that hold no leaf copied from
     ``example``. None for any other tree."""
     paths = [path for path, _ in jax.tree_util.tree_flatten_with_path(example)[0]]
     if not paths or not all(
@@ -192,7 +192,12 @@ def _builder(
     ):
         return None
     source = {i: f"v[{k}]" for k, i in enumerate(moving)}
-    namespace: dict[str, Any] = {"new": object.__new__, "run": run, "fallback": fallback}
+    namespace: dict[str, Any] = {
+        "new": object.__new__,
+        "set_attribute": object.__setattr__,
+        "run": run,
+        "fallback": fallback,
+    }
     for i, value in constants.items():
         source[i] = f"k{i}"
         namespace[f"k{i}"] = value
@@ -220,13 +225,13 @@ def _builder(
                 fields[name] = child
         var = f"o{len(namespace)}"
         namespace[f"{var}_cls"] = type(obj)
+        for name, value in obj.__dict__.items():
+            if name not in groups:  # a field without leaves, kept as it is
+                fields[name] = f"{var}_{name}"
+                namespace[f"{var}_{name}"] = value
+        items = ", ".join(f"{name!r}: {fields[name]}" for name in obj.__dict__ if name in fields)
         lines.append(f"{var} = new({var}_cls)")
-        others = {k: v for k, v in obj.__dict__.items() if k not in groups}
-        if others:
-            namespace[f"{var}_others"] = others
-            lines.append(f"{var}.__dict__.update({var}_others)")
-        items = ", ".join(f"{name!r}: {value}" for name, value in fields.items())
-        lines.append(f"{var}.__dict__.update({{{items}}})")
+        lines.append(f"set_attribute({var}, '__dict__', {{{items}}})")
         return var
 
     root = node(example, [(tuple(path), i) for i, path in enumerate(paths)])

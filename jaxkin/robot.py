@@ -766,15 +766,23 @@ def _hot_query(robot: Any, kind: str, branch: Any, options: Any, x: Any) -> Any:
     None for anything else (the pipeline then does its usual input work). ``options`` as the
     caller gave it: None (the defaults) or an instance; the robot and the options are checked
     when the program is built, so a later call that finds it skips every check."""
+    kx = type(x)
+    if kx in _JAX_TYPES:  # its abstract value holds the shape and dtype (its properties: 3x)
+        aval = x.aval
+        shape, dtype = aval.shape, aval.dtype
+    elif kx is np.ndarray:
+        shape, dtype = x.shape, x.dtype
+    else:
+        return None  # a Jet, a tracer, a list: the usual path
     try:
-        key = (id(robot), kind, branch, options, type(x), x.shape, x.dtype, _X64.value)
+        key = (id(robot), kind, branch, options, kx, shape, dtype, _X64.value)
         entry = _HOT.programs.get(key)
-    except (TypeError, AttributeError):  # unhashable options or branch, no shape: usual path
+    except TypeError:  # options or a branch that cannot be hashed: the usual path
         return None
     if entry is not None and entry[0] is robot:
         return entry[1]
-    if (type(x) not in _JAX_TYPES and type(x) is not np.ndarray) or not isinstance(robot, Robot):
-        return None  # a Jet, a tracer, a list: the usual path
+    if not isinstance(robot, Robot):
+        return None
     return _HOT.get(key, robot, lambda: _hot_build(robot, kind, branch, options, x))
 
 
