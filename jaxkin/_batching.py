@@ -157,7 +157,10 @@ def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], A
     # Called as the compiled executable: a jitted closure over concrete arrays passes them as
     # arguments on every call (tens of microseconds); the executable holds them as constants.
     compiled = jitted.lower(example).compile()
-    compiled(example)  # sets up JAX's C++ entry of the executable, called directly below
+    try:  # sets up JAX's C++ entry of the executable, called directly below
+        compiled(example)
+    except (TypeError, ValueError):  # an example it does not take as it is: see call
+        pass
     run = getattr(compiled, "_call", None) or compiled
     call = _builder(traced.out_info, moving, constants, run, jitted)
     if call is None:

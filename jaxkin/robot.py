@@ -38,8 +38,9 @@ batches) goes straight to the program compiled for its shape: no padding, no hos
 robot object asked the same single query (kind, branch, options, input shape and dtype) from a
 JAX or NumPy array ``_batching.HOT_AFTER`` times gets its own *hot* program: the geometry and
 options compiled in as constants, the outputs that do not depend on the input computed once,
-and no input work in Python (the key holds the shape and dtype already checked), in a table of
-the ``_batching.HOT_PROGRAMS`` most recently built; its results and statuses are the batched path's.
+and no input work in Python (looked up first, by the robot object and the options as given,
+checked when it was built, and the input's type, shape and dtype), in a table of the
+``_batching.HOT_PROGRAMS`` most recently built; its results and statuses are the batched path's.
 
 A new robot subclasses ``Robot`` (as a ``geometry`` dataclass whose fields are ``number``s),
 sets the class attributes and implements the pure kernels ``ik_kernel`` and ``fk_kernel``
