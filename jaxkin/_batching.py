@@ -230,8 +230,8 @@ def _builder(
         namespace[f"{var}_cls"] = type(obj)
         for name, value in obj.__dict__.items():
             if name not in groups:  # a field without leaves, kept as it is
-                fields[name] = f"{var}_{name}"
-                namespace[f"{var}_{name}"] = value
+                fields[name] = f"{var}_field_{name}"
+                namespace[f"{var}_field_{name}"] = value
         items = ", ".join(f"{name!r}: {fields[name]}" for name in obj.__dict__ if name in fields)
         lines.append(f"{var} = new({var}_cls)")
         lines.append(f"set_attribute({var}, '__dict__', {{{items}}})")
