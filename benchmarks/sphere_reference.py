@@ -16,7 +16,8 @@ configuration ``q``, in one compiled loop (``prange`` over blocks of configurati
    rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (URDF's fixed-axis roll-pitch-yaw). Joints beyond
    the configuration's joints (the Panda's fingers) are held at a fixed value (0: closed);
 2. every sphere placed, ``x = R_link c + t_link``;
-3. every sphere against every obstacle, stopping at the first hit: sphere-sphere
+3. every sphere against every obstacle, obstacle by obstacle, stopping at the first obstacle
+   hit: sphere-sphere
    ``|x - o|^2 <= R^2`` with ``R = r + r_o + margin`` (never when ``R < 0``); sphere-oriented
    box with ``u = B^T (x - c)`` (``B``: the box axes as columns), ``e_i = |u_i| - h_i``::
 
@@ -24,16 +25,18 @@ configuration ``q``, in one compiled loop (``prange`` over blocks of configurati
        R <  0:  max_i e_i <= R                   (centre at least -R deep inside)
 
    with ``R = r + margin``: exactly ``signed distance - r <= margin``;
-4. every self sphere pair (index arrays), ``|x_i - x_j|^2 <= (r_i + r_j + margin)^2``,
-   stopping at the first hit.
+4. every self sphere pair, ``|x_i - x_j|^2 <= (r_i + r_j + margin)^2``, in runs of one
+   sphere against contiguous ones (the pairs of a link pair), stopping at the first run hit.
 
 A configuration collides where some test holds: its clearance is ``<= margin``, the rule of
-jaxkin's ``check``/``collides``. The radii sums ``R`` are formed once on the host in the
-working dtype. The input is data only: the spheres (centre, radius, link), the obstacles and
-the self pairs are arrays; the caller takes them from jaxkin's public objects (``Body``,
-``World``, ``SelfPairs``) so both checkers see the same model. No bounding spheres per link
-(VAMP's first-level test) and no SIMD across configurations: each configuration is a scalar
-loop with early exits, the obstacle loop written as a branch-free reduction per sphere.
+jaxkin's ``check``/``collides``. The radii sums ``R`` and their squares are formed once on
+the host in the working dtype (as the loop would form them). The input is data only: the
+spheres (centre, radius, link), the obstacles and the self pairs are arrays; the caller
+takes them from jaxkin's public objects (``Body``, ``World``, ``SelfPairs``) so both
+checkers see the same model. No bounding spheres per link
+(VAMP's first-level test) and no SIMD across configurations: each configuration is one loop
+with early exits, each obstacle's test (and each run of self pairs) a branch-free pass over
+the spheres that LLVM vectorises.
 """
 
 from __future__ import annotations
