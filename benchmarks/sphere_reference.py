@@ -441,18 +441,23 @@ except ImportError:  # pragma: no cover
 
 
 def make_checker(model: SphereModel, threads: int = 2):
-    """``check(q (n, dof)) -> collides (n,) bool``, in ``model``'s dtype (``q`` is converted
-    outside the loop when it is not already contiguous in that dtype)."""
+    """``check(q (n, dof)) -> collides (n,) bool`` in ``model``'s dtype on ``threads`` Numba
+    threads (``q`` is copied first unless it is already contiguous in that dtype)."""
     if numba is None:
         raise ImportError("make_checker needs numba (pip install -e '.[bench]')")
     args = model.arrays()
     dtype = model.joint_rot.dtype
-    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    threads = min(threads, numba.config.NUMBA_NUM_THREADS)
 
     def check(q: np.ndarray) -> np.ndarray:
         q = np.ascontiguousarray(q, dtype)
         out = np.empty(q.shape[0], np.bool_)
-        _run(q, out, *args)
+        before = numba.get_num_threads()  # other Numba loops in the process keep theirs
+        numba.set_num_threads(threads)
+        try:
+            _run(q, out, *args)
+        finally:
+            numba.set_num_threads(before)
         return out
 
     return check
