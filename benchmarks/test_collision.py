@@ -432,3 +432,114 @@ def test_panda_public_edges(measure, benchmark, panda, panda_chain, dtype, clear
 
     valid = measure(edges, m, kernel="validate_motions", dtype=dtype, clearance=clearance)
     benchmark.extra_info["valid_fraction"] = float(np.mean(np.asarray(valid)))
+
+
+# ---------------------------------------------------------------------------------------
+# An independent sphere-model checker beside `collision.collides`: a fused Numba loop per
+# configuration (benchmarks/sphere_reference.py), on the same spheres, self pairs and world.
+
+
+@pytest.fixture(scope="module")
+def sphere_reference(panda, panda_chain):
+    """``make(dtype) -> check(q (n, 7)) -> collides (n,)``: the Numba reference with the
+    spheres and self pairs of ``col.prepare(panda_chain)`` (what ``collides`` checks), the
+    world of ``panda``, margin 0 (``collides``' default), its forward kinematics from the
+    URDF's joints read by its own parser, on 2 threads."""
+    pytest.importorskip("numba")
+    import sphere_reference as ref
+
+    body, pairs = col.prepare(panda_chain)
+    world = panda["world"]
+    assert not body.num_capsules and not pairs.sc_pair and not pairs.cc_pair
+    assert not len(world.capsules) and not len(world.halfspaces)
+    joints = ref.read_urdf_joints(_robots_folder() / "panda_description/urdf/panda.urdf")
+
+    def make(dtype):
+        model = ref.SphereModel.create(
+            joints,
+            body.links,
+            7,
+            spheres=(body.sphere_link, np.asarray(body.sphere_center), body.sphere_radius),
+            obstacles=(world.spheres.center, world.spheres.radius),
+            boxes=(world.boxes.center, world.boxes.rotation, world.boxes.half_extents),
+            pairs=pairs.ss,
+            margin=0.0,
+            dtype=dtype,
+        )
+        return ref.make_checker(model, threads=2)
+
+    return make
+
+
+def _interleaved(contenders: dict, rounds: int = 5) -> tuple[dict, dict]:
+    """Each contender's best wall time and best process CPU time over ``rounds`` rounds, the
+    contenders called in turn within each round (machine load hits them alike)."""
+    import time
+
+    wall = dict.fromkeys(contenders, float("inf"))
+    cpu = dict.fromkeys(contenders, float("inf"))
+    for fn in contenders.values():
+        jax.block_until_ready(fn())
+    for _ in range(rounds):
+        for name, fn in contenders.items():
+            start, start_cpu = time.perf_counter(), time.process_time()
+            jax.block_until_ready(fn())
+            wall[name] = min(wall[name], time.perf_counter() - start)
+            cpu[name] = min(cpu[name], time.process_time() - start_cpu)
+    return wall, cpu
+
+
+@pytest.mark.parametrize("n", [10_000, 100_000])
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_panda_sphere_reference(measure, benchmark, panda, panda_chain, sphere_reference, dtype, n):
+    """The Numba reference's configurations per second (the row), then the reference and
+    ``collision.collides`` in interleaved rounds in the same process: their throughput ratio
+    (wall clock) and their ratio per CPU-second (process CPU time; both use the 2 cores)."""
+    q = _configurations(panda, n, dtype)
+    reference = sphere_reference(dtype)
+    out = measure(
+        lambda: reference(q), n, kernel="Numba sphere reference", dtype=dtype, batch=n, threads=2
+    )
+    q_jax, world = jnp.asarray(q), panda["world"].astype(dtype)
+    contenders = {
+        "collides": lambda: col.collides(panda_chain, q_jax, world).collides,
+        "reference": lambda: reference(q),
+    }
+    wall, cpu = _interleaved(contenders)
+    verdict = np.asarray(contenders["collides"]())
+    info = benchmark.extra_info
+    info["collides_cases_per_second"] = n / wall["collides"]
+    info["reference_cases_per_second_interleaved"] = n / wall["reference"]
+    info["ratio_collides_over_reference"] = wall["reference"] / wall["collides"]
+    info["collides_cases_per_cpu_second"] = n / cpu["collides"]
+    info["reference_cases_per_cpu_second"] = n / cpu["reference"]
+    info["cpu_ratio_collides_over_reference"] = cpu["reference"] / cpu["collides"]
+    info["colliding_fraction"] = float(np.mean(out))
+    info["verdicts_differing_from_collides"] = int(np.sum(out != verdict))
+    # collides is conservative by a rounding tolerance: it may flag, never miss
+    assert not np.any(out & ~verdict)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_sphere_reference_agrees_with_check(benchmark, panda, panda_chain, sphere_reference, dtype):
+    """The reference's verdicts against ``collision.check(...).collides`` on 10,000 random
+    configurations of the scene: equal except within rounding of contact (every differing
+    configuration's float64 clearance within ``tol`` of 0: 1e-9 in float64, 1e-5 in float32,
+    about 100 float32 ulps of the scene's 1 m size)."""
+    n, tol = 10_000, {"float64": 1e-9, "float32": 1e-5}[dtype]
+    q = _configurations(panda, n, dtype, seed=7)
+    reference = sphere_reference(dtype)
+    out = benchmark.pedantic(lambda: reference(q), rounds=1, iterations=1, warmup_rounds=1)
+    world = panda["world"].astype(dtype)
+    verdict = np.asarray(col.check(panda_chain, jnp.asarray(q), world).collides)
+    exact = col.check(panda_chain, jnp.asarray(q, jnp.float64), panda["world"])
+    clearance = np.asarray(exact.clearance)
+    differ = out != verdict
+    info = benchmark.extra_info
+    info.update(kernel="Numba sphere reference vs collision.check", dtype=dtype, n_cases=n)
+    info["colliding_fraction"] = float(np.mean(out))
+    info["verdicts_differing"] = int(np.sum(differ))
+    info["max_abs_clearance_of_differing"] = float(np.max(np.abs(clearance[differ]), initial=0.0))
+    info["min_abs_clearance"] = float(np.min(np.abs(clearance)))
+    assert 0.3 < np.mean(out) < 0.8  # the scene is neither empty nor solid
+    assert np.all(np.abs(clearance[differ]) <= tol)

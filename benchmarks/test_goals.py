@@ -3,9 +3,12 @@
 jaxkin's dyad (analytic and autodiff paths), SCARA IK and Delta FK (Newton and closed form)
 run beside fused Numba loops and NumPy code written independently from the papers
 (``tests/references/``), on the same float64 inputs; the Numba loops read contiguous input rows
-prepared outside the timer. Each round calls every contender of one kernel once, in turn, and
-each keeps its best round, so machine load and the allocator's state hit every contender
-alike.
+prepared outside the timer. The Panda's collision verdict (``collision.collides``, float32,
+1e4 configurations) runs beside an independent sphere-model checker in Numba
+(``benchmarks/sphere_reference.py``) on the same spheres, self pairs and world
+(``test_collision.py``'s fixtures). Each round calls every contender of one kernel once, in
+turn, and each keeps its best round, so machine load and the allocator's state hit every
+contender alike.
 
 The test FAILS when a ratio falls below its floor in ``FLOORS``: the floors were measured on
 the project's 2-core machine (date, commit and runs beside them) and sit below the lowest of
@@ -13,7 +16,7 @@ repeated runs by a margin for run-to-run noise, so a regression shows in the com
 makes it. A goal (``GOALS``) is where a ratio should be;
 missing one prints ``MISSED`` without failing. Skipped without numba (``pip install -e
 '.[bench]'``). ``make bench-goals`` runs this file alone (about a minute); one test per
-kernel, so ``-k dyad`` (``scara``, ``delta``) runs one kernel's ratios.
+kernel, so ``-k dyad`` (``scara``, ``delta``, ``collision``) runs one kernel's ratios.
 """
 
 from __future__ import annotations
@@ -24,17 +27,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+
+# the Panda scene's fixtures (module scope), requested by the collision ratio alone
+from test_collision import _configurations, panda, panda_chain, sphere_reference  # noqa: F401
 from test_delta import ROBOT, data
 from test_scara import L_AB, L_BC, L_OA, trajectories
 
 import tests.references.delta as ref_delta
 from jaxkin import Jet, delta, dyad, scara
+from jaxkin import collision as col
 from tests.references.dyad import dyad_numpy, dyad_rows, make_numba_dyad, random_dyads
 from tests.references.scara import ik_numpy as scara_numpy
 from tests.references.scara import make_numba_ik as make_numba_scara
 
 N = 1_000_000
 SCARA_SHAPE = (250, 1000)  # trajectories x samples
+N_COLLISION = 10_000  # Panda configurations, float32
 ROUNDS = 9
 
 # ratio name: (numerator, denominator), throughput over throughput. The autodiff ratio is
@@ -47,6 +55,7 @@ RATIOS = {
     "scara.ik / numpy": ("scara.ik", "scara numpy"),
     "delta.fk / numba newton x8": ("delta.fk", "delta fk numba"),
     "delta.fk_closed_form / numpy": ("delta.fk_closed_form", "delta closed form numpy"),
+    "collision.collides / numba spheres": ("collision.collides", "collision numba spheres"),
 }
 GOALS = {
     "dyad analytic / numba": 0.9,
@@ -58,7 +67,10 @@ GOALS = {
 # The guard: floors from three runs of this file on 2026-11-26 at commit d01ca2e on the 2-core
 # machine (the runs: benchmarks/README.md), each about 0.65x the lowest run. Raise a floor when
 # a kernel gets faster; lower one only with a measurement that explains why. The dyad's
-# autodiff floor was raised after its rework (0.86-0.94 over three runs at load 6-12).
+# autodiff floor was raised after its rework (0.86-0.94 over three runs at load 6-12). The
+# collision verdict's floor: about 0.8x the lowest of five float32 1e4 ratios measured on
+# 2026-11-26 at commit 384e1b7, load average 5-6 (0.67, 0.34, 0.47 here; 0.38, 0.49 in
+# test_collision.py's test_panda_sphere_reference).
 FLOORS = {
     "dyad analytic / numba": 0.5,
     "dyad analytic / numpy": 1.1,
@@ -67,6 +79,7 @@ FLOORS = {
     "scara.ik / numpy": 0.6,
     "delta.fk / numba newton x8": 0.75,
     "delta.fk_closed_form / numpy": 2.9,
+    "collision.collides / numba spheres": 0.27,
 }
 
 
@@ -113,18 +126,38 @@ def _delta_contenders() -> dict:
     }
 
 
+def _collision_contenders(request) -> dict:
+    """The Panda scene of test_collision.py (65 spheres, 18 obstacles, 700 self pairs), random
+    configurations within the joint limits, float32; both checkers on both cores."""
+    scene, chain = request.getfixturevalue("panda"), request.getfixturevalue("panda_chain")
+    q = _configurations(scene, N_COLLISION, "float32")
+    q_jax, world = jax.device_put(q), scene["world"].astype("float32")
+    reference = request.getfixturevalue("sphere_reference")("float32")
+    return {
+        "collision.collides": lambda: col.collides(chain, q_jax, world).collides,
+        "collision numba spheres": lambda: reference(q),
+    }
+
+
 # One test per kernel (``-k dyad`` runs the dyad's ratios alone); every ratio compares
 # contenders of the same test, so each ratio is still measured within one process and one
 # sequence of interleaved rounds.
-CONTENDERS = {"dyad": _dyad_contenders, "scara": _scara_contenders, "delta": _delta_contenders}
+CONTENDERS = {
+    "dyad": _dyad_contenders,
+    "scara": _scara_contenders,
+    "delta": _delta_contenders,
+    "collision": _collision_contenders,
+}
 
 
 @pytest.mark.parametrize("kernel", list(CONTENDERS))
-def test_goal_ratios(benchmark, kernel):
+def test_goal_ratios(benchmark, request, kernel):
     pytest.importorskip("numba")
-    contenders = CONTENDERS[kernel]()
+    make = CONTENDERS[kernel]
+    contenders = make(request) if kernel == "collision" else make()
     cases = dict.fromkeys(contenders, N)
     cases.update(dict.fromkeys(("scara.ik", "scara numba", "scara numpy"), np.prod(SCARA_SHAPE)))
+    cases.update(dict.fromkeys(("collision.collides", "collision numba spheres"), N_COLLISION))
     best = dict.fromkeys(contenders, float("inf"))
     for fn in contenders.values():
         jax.block_until_ready(fn())  # compile and warm up, outside the timer
@@ -137,8 +170,9 @@ def test_goal_ratios(benchmark, kernel):
     ratios = {
         name: rate[num] / rate[den] for name, (num, den) in RATIOS.items() if num in contenders
     }
-    benchmark.extra_info.update(kernel=f"goal ratios ({kernel}), interleaved", dtype="float64")
-    benchmark.extra_info["n_cases"] = N
+    dtype = "float32" if kernel == "collision" else "float64"
+    benchmark.extra_info.update(kernel=f"goal ratios ({kernel}), interleaved", dtype=dtype)
+    benchmark.extra_info["n_cases"] = max(cases.values())
     benchmark.extra_info.update({f"{name} (cases/s)": round(r) for name, r in rate.items()})
     benchmark.extra_info.update({name: round(r, 2) for name, r in ratios.items()})
     benchmark.pedantic(lambda: None, rounds=1, iterations=1)
