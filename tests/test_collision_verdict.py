@@ -203,8 +203,8 @@ def test_culled_world_equals_the_full_pass():
 @pytest.mark.slow
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_culled_world_shapes_contact_nan_and_fallback(dtype):
-    """Both dtypes: culled (default capacity, every candidate, none: the full pass past the
-    capacity) against the full pass over two chunks; batch shapes () (7,) (3,5); margins at
+    """Both dtypes: culled (every candidate tested; none: the full pass past the capacity)
+    against the full pass over two chunks (the default capacity runs in every public call); batch shapes () (7,) (3,5); margins at
     configurations' own clearances (contact within rounding); NaN rows; a moved obstacle
     reuses the compilation."""
     robot = _spheres_ur5()
@@ -213,7 +213,7 @@ def test_culled_world_shapes_contact_nan_and_fallback(dtype):
     q = rng.uniform(-3.0, 3.0, (700, robot.n_joints)).astype(dtype)
     q[5, 2] = np.nan
     full = _kernel(False)(robot, q, world)
-    for capacity in (None, 1.0, 1e-9):
+    for capacity in (1.0, 1e-9):
         out = _kernel(True, capacity)(robot, q, world)
         np.testing.assert_array_equal(out.collides, full.collides)
         np.testing.assert_array_equal(out.status, full.status)
