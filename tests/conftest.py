@@ -5,10 +5,10 @@ again. Tests that count compilations count ``jax.jit`` specialisations, which th
 not change. Slow tests are marked ``@pytest.mark.slow`` at the test (``make test`` leaves them
 out, ``make test-slow`` runs them).
 
-Each test file's compiled programs are released when the file is done: a worker that kept every
-program it compiled grew past the kernel's limit on memory mappings (``vm.max_map_count``, 65530
-by default; XLA maps a few regions per program), and XLA aborted the process when it could map
-no more."""
+A worker releases its compiled programs after a test file once it holds many memory mappings: a
+worker that kept every program it compiled grew past the kernel's limit (``vm.max_map_count``,
+65530 by default; XLA maps a few regions per program), and XLA aborted the process when it
+could map no more."""
 
 import gc
 import os
@@ -25,10 +25,24 @@ jax.config.update(
 jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
 
 
+# Mappings after which a worker drops its programs (a test file adds a few thousand at most)
+RELEASE_AFTER_MAPPINGS = 20_000
+
+
+def _memory_mappings() -> int:
+    """The number of this process's memory mappings (Linux), or a count that forces a release."""
+    try:
+        with open("/proc/self/maps", "rb") as maps:
+            return sum(1 for _ in maps)
+    except OSError:
+        return RELEASE_AFTER_MAPPINGS
+
+
 @pytest.fixture(autouse=True, scope="module")
 def _release_compiled_programs():
-    """Drop JAX's compiled programs after each test file (a later file loads them again from the
-    persistent cache when it needs them)."""
+    """After a test file, drop JAX's compiled programs if the worker holds many mappings (a later
+    file loads the programs it needs again from the persistent cache)."""
     yield
-    jax.clear_caches()
-    gc.collect()
+    if _memory_mappings() >= RELEASE_AFTER_MAPPINGS:
+        jax.clear_caches()
+        gc.collect()

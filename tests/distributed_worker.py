@@ -139,7 +139,9 @@ def run(out_dir: Path, distributed: bool) -> dict[str, np.ndarray]:
         table = np.c_[
             np.tile(np.arange(T) * DT, 2), np.repeat([0, 1], T), trajectory.p.reshape(-1, 3)
         ]
-        source = out_dir / "spiral.csv"
+        # One copy per process: both write into the same directory, and a copy rewritten while
+        # the other process reads it is seen empty
+        source = out_dir / f"spiral-{jax.process_index()}.csv"
         np.savetxt(source, table, delimiter=",", header="t,candidate,x,y,z", comments="")
         ik_argv = ["ik", "scara", "--robot", "paper", "-i", str(source), "-q"]
         assert cli.main([*ik_argv, "-o", str(out_dir / "ik.csv"), *flag]) == 0

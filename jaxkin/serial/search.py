@@ -96,9 +96,13 @@ FREE_RUNS = 4
 # XLA options of the compiled search (``CompilePolicy.compiler_options``): the CPU's older
 # per-kernel code generation and LLVM at -O1 compile its few hundred small kernels in about a
 # third of the time of the defaults, at the same speed of the search (docs/performance.md).
-# XLA options of the search's own compilation (none: the per-kernel LLVM code generation at
-# -O1 compiled it twice as fast, but a process that had compiled it so later crashed in XLA)
-COMPILER_OPTIONS: tuple = ()
+# XLA options of the compiled search (``CompilePolicy.compiler_options``): the CPU's older
+# per-kernel code generation and LLVM at -O1 compile its few hundred small kernels in about
+# half the time of the defaults, at the same speed of the search (docs/performance.md).
+COMPILER_OPTIONS: tuple = (
+    ("xla_cpu_use_fusion_emitters", False),
+    ("xla_backend_optimization_level", 1),
+)
 
 _TWO_PI = 2.0 * np.pi
 
