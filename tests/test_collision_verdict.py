@@ -204,9 +204,9 @@ def test_culled_world_equals_the_full_pass():
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_culled_world_shapes_contact_nan_and_fallback(dtype):
     """Both dtypes: culled (every candidate tested; none: the full pass past the capacity)
-    against the full pass over two chunks (the default capacity runs in every public call); batch shapes () (7,) (3,5); margins at
-    configurations' own clearances (contact within rounding); NaN rows; a moved obstacle
-    reuses the compilation."""
+    against the full pass over two chunks (the default capacity runs in every public call);
+    batch shapes () (7,) (3,5); margins at configurations' own clearances (contact within
+    rounding); NaN rows; a moved obstacle reuses the compilation."""
     robot = _spheres_ur5()
     world = _world(13).astype(dtype)
     rng = np.random.default_rng(14)
