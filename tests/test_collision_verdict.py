@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -141,3 +143,89 @@ def test_validate_motions_with_the_verdict_alone():
     np.testing.assert_array_equal(fast.valid, exact.valid)
     np.testing.assert_array_equal(fast.first, exact.first)
     assert np.all(np.isnan(np.asarray(fast.clearance)))
+
+
+def _spheres_ur5():
+    """Spheres on every link of the UR5 (the culled path tests spheres), the forearm with 7
+    (two groups of the culling, the second padded) and the wrist links with one each."""
+    line = lambda k, length, r: (  # noqa: E731
+        np.stack([np.zeros(k), np.zeros(k), np.linspace(0.0, length, k)], -1),
+        np.full(k, r),
+    )
+    spheres = {
+        "base_link": line(2, 0.1, 0.05),
+        "shoulder_link": line(2, 0.1, 0.05),
+        "upper_arm_link": line(4, 0.4, 0.05),
+        "forearm_link": line(7, 0.35, 0.04),
+        "wrist_1_link": line(1, 0.0, 0.02),
+        "wrist_2_link": line(1, 0.0, 0.02),
+        "wrist_3_link": line(1, 0.0, 0.02),
+    }
+    return serial.from_urdf(UR5, "tool0").with_link_spheres(spheres)
+
+
+def _kernel(cull: bool, capacity: float | None = None):
+    """``collides_kernel`` under a jit of its own (a fresh trace reads ``WORLD_CAPACITY``)."""
+    from jaxkin.collision import cull as culling
+    from jaxkin.collision import verdict
+
+    def run(robot, body, pairs, q, world, margin):
+        return verdict.collides_kernel(robot, body, pairs, q, world, margin, cull=cull)
+
+    jitted = jax.jit(run)
+    saved = culling.WORLD_CAPACITY
+
+    def call(robot, q, world, margin=0.0):
+        body, pairs = collision.prepare(robot)
+        culling.WORLD_CAPACITY = saved if capacity is None else capacity
+        try:
+            return jitted(robot, body, pairs, jnp.asarray(q), world, margin)
+        finally:
+            culling.WORLD_CAPACITY = saved
+
+    return call
+
+
+def test_culled_world_equals_the_full_pass():
+    """Float64: the bounding spheres first (every candidate tested: capacity 1) give the
+    same flags as every sphere-obstacle pair, which agree with the exact clearance."""
+    robot = _spheres_ur5()
+    world = _world(11)
+    q = np.random.default_rng(12).uniform(-3.0, 3.0, (300, robot.n_joints))
+    culled = _kernel(True, capacity=1.0)(robot, q, world, 0.01)
+    full = _kernel(False)(robot, q, world, 0.01)
+    np.testing.assert_array_equal(culled.collides, full.collides)
+    np.testing.assert_array_equal(culled.status, full.status)
+    hit = _agree(robot, q, world, 0.01, "float64")
+    assert 0.05 < np.mean(hit) < 0.95
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_culled_world_shapes_contact_nan_and_fallback(dtype):
+    """Both dtypes: culled (every candidate tested; none: the full pass past the capacity)
+    against the full pass over two chunks (the default capacity runs in every public call);
+    batch shapes () (7,) (3,5); margins at configurations' own clearances (contact within
+    rounding); NaN rows; a moved obstacle reuses the compilation."""
+    robot = _spheres_ur5()
+    world = _world(13).astype(dtype)
+    rng = np.random.default_rng(14)
+    q = rng.uniform(-3.0, 3.0, (700, robot.n_joints)).astype(dtype)
+    q[5, 2] = np.nan
+    full = _kernel(False)(robot, q, world)
+    for capacity in (1.0, 1e-9):
+        out = _kernel(True, capacity)(robot, q, world)
+        np.testing.assert_array_equal(out.collides, full.collides)
+        np.testing.assert_array_equal(out.status, full.status)
+    assert out.status[5] == Status.INVALID_INPUT
+    for shape in [(), (7,), (3, 5)]:
+        qs = rng.uniform(-3.0, 3.0, (*shape, robot.n_joints)).astype(dtype)
+        _agree(robot, qs, world, 0.0, dtype)
+    for k in range(0, 40, 8):
+        margin = float(collision.check(robot, q[k], world).clearance)
+        assert bool(collision.collides(robot, q[k], world, margin).collides)
+        assert not bool(collision.collides(robot, q[k], world, margin - 1e-3).collides)
+    collision.collides(robot, q, world)
+    with compilations() as count:
+        collision.collides(robot, q, _world(15).astype(dtype))
+    assert count.n == 0

@@ -33,6 +33,11 @@ clearance is at most ``margin + tol (2 R_max + tol) / (2 R)``. Both paths round 
 coordinates differently, so configurations that close to contact can only be flagged, never
 missed.
 
+Culling (``collision.cull``): the spheres' world pass goes through bounding spheres of groups
+of at most five spheres of a link first; only the (group, configuration) candidates they flag
+get the exact sphere tests (the same tests on the same placed rows, so the same verdict), a
+chunk with more candidates than the capacity the full pass.
+
 NaN or inf in a configuration gives ``collides = True`` and ``INVALID_INPUT`` for that
 element alone. Moving or resizing an obstacle reuses the compilation (array data).
 """
@@ -56,6 +61,7 @@ from ..status import Status
 from . import distance as sd
 from .body import Body
 from .check import _world_batched, check_kernel, checked_arguments
+from .cull import bounding_spheres, cull_world, sphere_groups
 from .fused import UNROLL, _materialised, _self_groups, _take
 from .pairs import SelfPairs
 from .world import World
@@ -117,11 +123,14 @@ def _place(frames: Array, of_link: list[int], homes: Array | None, points: Array
     return jnp.stack([jnp.concatenate(rows) for rows in out])
 
 
-def _place_rows(robot: Any, body: Body, q: Array) -> tuple[Array | None, Array | None]:
+def _place_rows(
+    robot: Any, body: Body, q: Array, extra: tuple[Array, tuple[int, ...]] | None = None
+) -> tuple[Array | None, Array | None, Array | None]:
     """The body placed at configurations ``q`` ``(C, n)``: sphere centres ``(3, ns, C)``,
-    capsule end points ``(3, 2, nc, C)`` (None where there are none), stored once."""
+    capsule end points ``(3, 2, nc, C)`` and the ``extra`` points ``(k, 3)`` on links
+    ``(k,)`` ``(3, k, C)`` (None where there are none), stored once."""
     frames, of_link, homes = _frames(robot, q)
-    spheres = capsules = None
+    spheres = capsules = points = None
     if body.num_spheres:
         spheres = _place(frames, of_link, homes, body.sphere_center, body.sphere_link)
     if body.num_capsules:
@@ -129,7 +138,9 @@ def _place_rows(robot: Any, body: Body, q: Array) -> tuple[Array | None, Array |
         placed = _place(frames, of_link, homes, both, body.capsule_link * 2)
         nc = body.num_capsules
         capsules = jnp.stack([placed[:, :nc], placed[:, nc:]], axis=1)
-    return _materialised((spheres, capsules))
+    if extra is not None:
+        points = _place(frames, of_link, homes, *extra)
+    return _materialised((spheres, capsules, points))
 
 
 class _Excess:
@@ -170,80 +181,75 @@ def _threshold(radius: Array) -> Array:
     return jnp.where(radius >= 0, radius * radius, -1.0)
 
 
-def _sphere_rows_world(x: list[Array], r: Array, world: World, margin: Array, acc: _Excess) -> None:
-    """Robot spheres (rows ``(k, C)``, radii ``(k, 1)``) against every obstacle."""
+def _sphere_test(x: list[Array], r: Array, margin: Array, c, ro) -> Array:
+    """Squared excess of spheres (rows ``x``, radii ``r``) over a sphere obstacle. The
+    obstacle's entries (``c[i]``, ``ro``) are scalars or arrays broadcasting against ``x``."""
+    d2 = (x[0] - c[0]) ** 2 + (x[1] - c[1]) ** 2 + (x[2] - c[2]) ** 2
+    return d2 - _threshold(r + ro + margin)
+
+
+def _capsule_test(x: list[Array], r: Array, margin: Array, a, b, ro) -> Array:
+    """Squared excess over a capsule obstacle: the squared point-segment distance."""
+    d = [b[i] - a[i] for i in range(3)]
+    dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    inv = jnp.where(dd > 0, 1.0 / jnp.where(dd > 0, dd, 1.0), 0.0)
+    rel = [x[i] - a[i] for i in range(3)]
+    t = jnp.clip((rel[0] * d[0] + rel[1] * d[1] + rel[2] * d[2]) * inv, 0.0, 1.0)
+    d2 = (rel[0] - t * d[0]) ** 2 + (rel[1] - t * d[1]) ** 2 + (rel[2] - t * d[2]) ** 2
+    return d2 - _threshold(r + ro + margin)
+
+
+def _box_test(x: list[Array], r: Array, margin: Array, c, rot, h) -> Array:
+    """Squared excess over a box (module docstring); ``rot[i, k]`` the rotation's entries."""
+    # u_k = x . R_k - c . R_k: the rows are read directly, each e_k is used once
+    big = r + margin
+    shift = jnp.minimum(big, 0.0)
+    out = None
+    for k in range(3):
+        ck = c[0] * rot[0, k] + c[1] * rot[1, k] + c[2] * rot[2, k]
+        u = x[0] * rot[0, k] + x[1] * rot[1, k] + x[2] * rot[2, k] - ck
+        term = jnp.maximum(jnp.abs(u) - h[k] - shift, 0.0) ** 2
+        out = term if out is None else out + term
+    return out - jnp.where(big >= 0, big * big, 0.0)
+
+
+def _halfspace_test(x: list[Array], r: Array, margin: Array, n, o) -> Array:
+    """Linear excess over a half-space ``n . x <= o``."""
+    return x[0] * n[0] + x[1] * n[1] + x[2] * n[2] - o - r - margin
+
+
+def _world_kinds(world: World) -> list[tuple[Any, bool, tuple[Array, ...]]]:
+    """``(test, squared, arrays (m, ...))`` per non-empty obstacle kind."""
     w = world
+    kinds = [
+        (_sphere_test, True, (w.spheres.center, w.spheres.radius)),
+        (_capsule_test, True, (w.capsules.a, w.capsules.b, w.capsules.radius)),
+        (_box_test, True, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
+        (_halfspace_test, False, (w.halfspaces.normal, w.halfspaces.offset)),
+    ]
+    return [kind for kind in kinds if kind[2][0].shape[0]]
 
-    def sphere(c, ro):
-        d2 = (x[0] - c[0]) ** 2 + (x[1] - c[1]) ** 2 + (x[2] - c[2]) ** 2
-        return d2 - _threshold(r + ro + margin)
 
-    def capsule(a, b, ro):
-        d = b - a
-        dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-        inv = jnp.where(dd > 0, 1.0 / jnp.where(dd > 0, dd, 1.0), 0.0)
-        rel = [x[i] - a[i] for i in range(3)]
-        t = jnp.clip((rel[0] * d[0] + rel[1] * d[1] + rel[2] * d[2]) * inv, 0.0, 1.0)
-        d2 = (rel[0] - t * d[0]) ** 2 + (rel[1] - t * d[1]) ** 2 + (rel[2] - t * d[2]) ** 2
-        return d2 - _threshold(r + ro + margin)
+def _sphere_rows_world(x: list[Array], r: Array, kinds: list, margin: Array, acc: _Excess) -> None:
+    """Robot spheres (rows ``(k, C)``, radii ``(k, 1)``) against the obstacles of ``kinds``
+    (``_world_kinds``)."""
 
-    def box(c, rot, h):
-        # u_k = x . R_k - c . R_k: the rows are read directly, each e_k is used once
-        big = r + margin
-        shift = jnp.minimum(big, 0.0)
-        out = None
-        for k in range(3):
-            ck = c[0] * rot[0, k] + c[1] * rot[1, k] + c[2] * rot[2, k]
-            u = x[0] * rot[0, k] + x[1] * rot[1, k] + x[2] * rot[2, k] - ck
-            term = jnp.maximum(jnp.abs(u) - h[k] - shift, 0.0) ** 2
-            out = term if out is None else out + term
-        return out - jnp.where(big >= 0, big * big, 0.0)
+    def add(out, squared):
+        (acc.add_sq if squared else acc.add_lin)(out)
 
-    def halfspace(n, o):
-        return x[0] * n[0] + x[1] * n[1] + x[2] * n[2] - o - r - margin
-
-    def run(arrays, fn, kind):
+    for test, squared, arrays in kinds:
         m = arrays[0].shape[0]
-        if not m:
-            return
-
-        def one(*obstacle):
-            out = fn(*obstacle)
-            return (out, None) if kind != "halfspace" else (None, out)
-
         if m <= UNROLL:
             for j in range(m):
-                sq, lin = one(*(a[j] for a in arrays))
-                if sq is not None:
-                    acc.add_sq(sq)
-                if lin is not None:
-                    acc.add_lin(lin)
-            return
-        sq0, lin0 = one(*(a[0] for a in arrays))
+                add(test(x, r, margin, *(a[j] for a in arrays)), squared)
+            continue
+        first = test(x, r, margin, *(a[0] for a in arrays))
 
-        def step(j, carry):
-            sq, lin = carry
-            new_sq, new_lin = one(
-                *(jax.lax.dynamic_index_in_dim(a, j, keepdims=False) for a in arrays)
-            )
-            sq = sq if new_sq is None else jnp.minimum(sq, new_sq)
-            lin = lin if new_lin is None else jnp.minimum(lin, new_lin)
-            return sq, lin
+        def step(j, best, test=test, arrays=arrays):
+            obstacle = (jax.lax.dynamic_index_in_dim(a, j, keepdims=False) for a in arrays)
+            return jnp.minimum(best, test(x, r, margin, *obstacle))
 
-        carry = (
-            sq0 if sq0 is not None else jnp.zeros((), x[0].dtype),
-            lin0 if lin0 is not None else jnp.zeros((), x[0].dtype),
-        )
-        sq, lin = jax.lax.fori_loop(1, m, step, carry)
-        if sq0 is not None:
-            acc.add_sq(sq)
-        if lin0 is not None:
-            acc.add_lin(lin)
-
-    run((w.spheres.center, w.spheres.radius), sphere, "sphere")
-    run((w.capsules.a, w.capsules.b, w.capsules.radius), capsule, "capsule")
-    run((w.boxes.center, w.boxes.rotation, w.boxes.half_extents), box, "box")
-    run((w.halfspaces.normal, w.halfspaces.offset), halfspace, "halfspace")
+        add(jax.lax.fori_loop(1, m, step, first), squared)
 
 
 def _capsule_rows_world(
@@ -270,12 +276,15 @@ def _excess(
     world: World,
     pairs: SelfPairs | None,
     margin: Array,
+    sphere_kinds: list,
 ) -> _Excess:
-    """The running minimums over every world and self pair (rows layout, ``(k, C)``)."""
+    """The running minimums over the world and self pairs (rows layout, ``(k, C)``): the
+    spheres against the obstacle kinds ``sphere_kinds`` (``_world_kinds``; the others are
+    culled), the capsules against every obstacle, every self pair."""
     acc = _Excess()
     if spheres is not None:
         x = [spheres[i] for i in range(3)]
-        _sphere_rows_world(x, s_radius[:, None], world, margin, acc)
+        _sphere_rows_world(x, s_radius[:, None], sphere_kinds, margin, acc)
     if capsules is not None:
         a = jnp.moveaxis(capsules[:, 0], 0, -1)  # (nc, C, 3)
         b = jnp.moveaxis(capsules[:, 1], 0, -1)
@@ -329,10 +338,12 @@ def collides_kernel(
     q: Array,
     world: World,
     margin: ArrayLike = 0.0,
+    cull: bool = True,
 ) -> Verdict:
     """The pure kernel of ``collides`` (traceable, any leading batch axes of ``q``), chunk by
     chunk (``VERDICT_CHUNK`` configurations). A world with leading batch axes goes through
-    ``check_kernel``."""
+    ``check_kernel``. ``cull`` (static): the robot's spheres through their bounding spheres
+    first (``collision.cull``); False runs every pair (the same verdict)."""
     dtype = q.dtype
     batch = q.shape[:-1]
     body, world = body.astype(dtype), world.astype(dtype)
@@ -342,12 +353,20 @@ def collides_kernel(
     margin = jnp.asarray(margin, dtype)
     eps = jnp.finfo(dtype).eps
     self_pairs = pairs if pairs.link_pairs else None
+    kinds = _world_kinds(world)
+    # the spheres' world pass culled for the obstacle kinds written out (not point clouds)
+    culled = [k for k in kinds if k[2][0].shape[0] <= UNROLL] if cull and body.num_spheres else []
+    rest = [k for k in kinds if not any(k is c for c in culled)]
+    if culled:
+        groups = sphere_groups(body.sphere_link)
+        g_center, g_radius = bounding_spheres(groups, body.sphere_center, body.sphere_radius)
+    extra = (g_center, groups.link) if culled else None
 
     def one(q: Array) -> Verdict:
         q = q.reshape((-1, q.shape[-1]))
         valid = jnp.all(jnp.isfinite(q), axis=-1)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
-        spheres, capsules = _place_rows(robot, body, q_safe)
+        spheres, capsules, centers = _place_rows(robot, body, q_safe, extra)
         tol = 16.0 * eps * (1.0 + _scale(spheres, capsules, world))
         # the tolerance enters each R as R + tol: for the squared tests that is a slack of
         # at most tol (2 R_max + tol) on d^2 - R^2
@@ -357,15 +376,37 @@ def collides_kernel(
             r_world = [jnp.max(r) for r in (world.spheres.radius, world.capsules.radius) if r.size]
             r_other = functools.reduce(jnp.maximum, r_world, r_robot)
             r_max = r_robot + r_other + jnp.maximum(margin, 0.0)
+        slack = tol * (2.0 * r_max + tol)
         acc = _excess(
-            spheres, body.sphere_radius, capsules, body.capsule_radius, world, self_pairs, margin
+            spheres,
+            body.sphere_radius,
+            capsules,
+            body.capsule_radius,
+            world,
+            self_pairs,
+            margin,
+            rest,
         )
         hit = ~valid
         sq, lin = acc.reduced("sq"), acc.reduced("lin")
         if sq is not None:
-            hit = hit | (sq <= tol * (2.0 * r_max + tol))
+            hit = hit | (sq <= slack)
         if lin is not None:
             hit = hit | (lin <= tol)
+        if culled:
+            reach = g_radius[:, None] + (jnp.sqrt(slack) + 2.0 * tol)[None, :]
+
+            def full() -> Array:
+                part = _Excess()
+                x = [spheres[i] for i in range(3)]
+                _sphere_rows_world(x, body.sphere_radius[:, None], culled, margin, part)
+                out = jnp.zeros((q.shape[0],), bool)
+                sq, lin = part.reduced("sq"), part.reduced("lin")
+                out = out if sq is None else out | (sq <= slack)
+                return out if lin is None else out | (lin <= tol)
+
+            args = (groups, spheres, body.sphere_radius, centers, reach, margin, slack, tol)
+            hit = hit | cull_world(culled, *args, full)
         status = jnp.where(
             ~valid, Status.INVALID_INPUT, jnp.where(hit, Status.COLLISION, Status.OK)
         ).astype(jnp.int8)
@@ -376,7 +417,7 @@ def collides_kernel(
     return jax.tree.map(lambda x: x.reshape(batch), out)
 
 
-_collides_jit = jax.jit(collides_kernel)
+_collides_jit = jax.jit(collides_kernel, static_argnames=("cull",))
 
 
 def collides(
