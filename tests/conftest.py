@@ -17,6 +17,9 @@ import tempfile
 import jax
 import pytest
 
+from jaxkin import _batching
+from jaxkin import robot as robot_module
+
 jax.config.update("jax_enable_x64", True)
 jax.config.update(
     "jax_compilation_cache_dir",
@@ -46,3 +49,12 @@ def _release_compiled_programs():
     if _memory_mappings() >= RELEASE_AFTER_MAPPINGS:
         jax.clear_caches()
         gc.collect()
+
+
+@pytest.fixture
+def hot_after_two(monkeypatch):
+    """Programs built at the second call (the default waits longer), from an empty table."""
+    monkeypatch.setattr(_batching, "HOT_AFTER", 2)
+    robot_module._HOT.clear()
+    yield
+    robot_module._HOT.clear()

@@ -6,7 +6,6 @@ import importlib.metadata
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pytest
 
 import jaxkin
 from jaxkin import _batching, scara, serial
@@ -15,15 +14,6 @@ from jaxkin.jet import Jet
 from jaxkin.result import FKResult
 from jaxkin.status import Status
 from tests.helpers import compilations
-
-
-@pytest.fixture
-def hot_after_two(monkeypatch):
-    """Programs built at the second call (the default waits longer), from an empty table."""
-    monkeypatch.setattr(_batching, "HOT_AFTER", 2)
-    robot_module._HOT.clear()
-    yield
-    robot_module._HOT.clear()
 
 
 def _screw_chain():

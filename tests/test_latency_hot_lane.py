@@ -8,19 +8,10 @@ import numpy as np
 import pytest
 
 import jaxkin
-from jaxkin import _batching, delta, scara
+from jaxkin import delta, scara
 from jaxkin import robot as robot_module
 from jaxkin.status import Status
 from tests.helpers import compilations
-
-
-@pytest.fixture
-def hot_after_two(monkeypatch):
-    """Programs built at the second call (the default waits longer), from an empty table."""
-    monkeypatch.setattr(_batching, "HOT_AFTER", 2)
-    robot_module._HOT.clear()
-    yield
-    robot_module._HOT.clear()
 
 
 def test_the_hot_lane_refuses_what_the_usual_path_refuses(hot_after_two):
