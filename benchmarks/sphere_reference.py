@@ -246,36 +246,35 @@ class SphereModel:
         return tuple(getattr(self, f.name) for f in fields(self))
 
 
-def _collides(
-    q,
-    poses,
-    placed,
-    parent,
-    child,
-    kind,
-    q_of,
-    value,
-    j_rot,
-    j_pos,
-    j_k,
-    j_k2,
-    j_axis,
-    s_link,
-    s_center,
-    o_center,
-    o_reach2,
-    b_center,
-    b_rot,
-    b_half,
-    b_reach2,
-    b_deep,
-    run_sphere,
-    run_start,
-    run_stop,
-    run_offset,
-    p_reach2,
-):
+def _collides(q, poses, placed, model):
     """One configuration (compiled by Numba): True at the first test that holds."""
+    (
+        parent,
+        child,
+        kind,
+        q_of,
+        value,
+        j_rot,
+        j_pos,
+        j_k,
+        j_k2,
+        j_axis,
+        _,
+        s_link,
+        s_center,
+        o_center,
+        o_reach2,
+        b_center,
+        b_rot,
+        b_half,
+        b_reach2,
+        b_deep,
+        run_sphere,
+        run_start,
+        run_stop,
+        run_offset,
+        p_reach2,
+    ) = model  # SphereModel.arrays(), n_links unused here
     # 1. forward kinematics, link by link: T_child = T_parent T_origin M(q)
     for j in range(parent.shape[0]):
         p, c = parent[j], child[j]
@@ -360,73 +359,17 @@ def _collides(
     return False
 
 
-def _run(
-    q,
-    out,
-    parent,
-    child,
-    kind,
-    q_of,
-    value,
-    j_rot,
-    j_pos,
-    j_k,
-    j_k2,
-    j_axis,
-    n_links,
-    s_link,
-    s_center,
-    o_center,
-    o_reach2,
-    b_center,
-    b_rot,
-    b_half,
-    b_reach2,
-    b_deep,
-    run_sphere,
-    run_start,
-    run_stop,
-    run_offset,
-    p_reach2,
-):
+def _run(q, out, model):
     """``out[i] = collides(q[i])`` (compiled by Numba): ``prange`` over blocks of ``BLOCK``
     configurations, each block with its own scratch (link poses, placed spheres)."""
-    n = q.shape[0]
+    n, n_links, n_spheres = q.shape[0], model[10], model[11].shape[0]
     for block in prange((n + BLOCK - 1) // BLOCK):
         poses = np.zeros((n_links, 3, 4), q.dtype)
-        placed = np.empty((3, s_link.shape[0]), q.dtype)
+        placed = np.empty((3, n_spheres), q.dtype)
         for a in range(3):
             poses[0, a, a] = 1  # the root link at the world's origin
         for i in range(block * BLOCK, min(n, (block + 1) * BLOCK)):
-            out[i] = _collides(
-                q[i],
-                poses,
-                placed,
-                parent,
-                child,
-                kind,
-                q_of,
-                value,
-                j_rot,
-                j_pos,
-                j_k,
-                j_k2,
-                j_axis,
-                s_link,
-                s_center,
-                o_center,
-                o_reach2,
-                b_center,
-                b_rot,
-                b_half,
-                b_reach2,
-                b_deep,
-                run_sphere,
-                run_start,
-                run_stop,
-                run_offset,
-                p_reach2,
-            )
+            out[i] = _collides(q[i], poses, placed, model)
 
 
 try:  # numba is a benchmark extra; without it the module still imports (and its parser runs)
@@ -455,7 +398,7 @@ def make_checker(model: SphereModel, threads: int = 2):
         before = numba.get_num_threads()  # other Numba loops in the process keep theirs
         numba.set_num_threads(threads)
         try:
-            _run(q, out, *args)
+            _run(q, out, args)
         finally:
             numba.set_num_threads(before)
         return out
