@@ -17,9 +17,6 @@ import tempfile
 import jax
 import pytest
 
-from jaxkin import _batching
-from jaxkin import robot as robot_module
-
 jax.config.update("jax_enable_x64", True)
 jax.config.update(
     "jax_compilation_cache_dir",
@@ -54,6 +51,9 @@ def _release_compiled_programs():
 @pytest.fixture
 def hot_after_two(monkeypatch):
     """Programs built at the second call (the default waits longer), from an empty table."""
+    from jaxkin import _batching  # imported after the configuration above
+    from jaxkin import robot as robot_module
+
     monkeypatch.setattr(_batching, "HOT_AFTER", 2)
     robot_module._HOT.clear()
     yield
