@@ -175,6 +175,12 @@ class _Excess:
             out = x if out is None else jnp.minimum(out, x)
         return out
 
+    def hits(self, slack: Array, tol: Array, hit: Array) -> Array:
+        """``hit`` or a squared excess ``<= slack`` or a linear one ``<= tol``, ``(C,)``."""
+        sq, lin = self.reduced("sq"), self.reduced("lin")
+        hit = hit if sq is None else hit | (sq <= slack)
+        return hit if lin is None else hit | (lin <= tol)
+
 
 def _threshold(radius: Array) -> Array:
     """``R^2`` where ``R >= 0``, else -1 (no squared distance reaches it)."""
@@ -387,12 +393,7 @@ def collides_kernel(
             margin,
             rest,
         )
-        hit = ~valid
-        sq, lin = acc.reduced("sq"), acc.reduced("lin")
-        if sq is not None:
-            hit = hit | (sq <= slack)
-        if lin is not None:
-            hit = hit | (lin <= tol)
+        hit = acc.hits(slack, tol, ~valid)
         if culled:
             reach = g_radius[:, None] + (jnp.sqrt(slack) + 2.0 * tol)[None, :]
 
@@ -400,10 +401,7 @@ def collides_kernel(
                 part = _Excess()
                 x = [spheres[i] for i in range(3)]
                 _sphere_rows_world(x, body.sphere_radius[:, None], culled, margin, part)
-                out = jnp.zeros((q.shape[0],), bool)
-                sq, lin = part.reduced("sq"), part.reduced("lin")
-                out = out if sq is None else out | (sq <= slack)
-                return out if lin is None else out | (lin <= tol)
+                return part.hits(slack, tol, jnp.zeros((q.shape[0],), bool))
 
             args = (groups, spheres, body.sphere_radius, centers, reach, margin, slack, tol)
             hit = hit | cull_world(culled, *args, full)
