@@ -1,5 +1,9 @@
 """Bounding spheres checked first: the verdict's robot spheres against the world, culled.
 
+Off by default (``collides_kernel(..., cull=True)`` turns it on): on the CPU the verdict's
+blocks of every sphere-obstacle pair, reduced by halving, are faster than the compaction,
+gathers and scatters below (``docs/performance.md``).
+
 The robot's spheres are grouped, link by link, into groups of at most ``GROUP`` spheres
 (consecutive indices of one link: a static grouping). Each group has a bounding sphere in its
 link's frame, computed from the body's arrays (a new radius does not recompile): the centre
