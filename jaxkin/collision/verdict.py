@@ -348,9 +348,9 @@ def _excess(
         )
         if n_obstacles:
             _capsule_rows_world(a, b, c_radius[:, None], world, margin, acc)
-    groups = _self_groups(pairs) if pairs is not None else []
+    # sphere-sphere pairs in dense blocks; sphere-capsule and capsule-capsule groups below
+    groups = [g for g in _self_groups(pairs) if g[0] != "ss"] if pairs is not None else []
     if pairs is not None:
-        groups = [g for g in groups if g[0] != "ss"]
         for firsts, seconds in _ss_blocks(pairs):
             xi = [_take(spheres[k], firsts)[:, None] for k in range(3)]
             xj = [_take(spheres[k], seconds)[None] for k in range(3)]

@@ -94,9 +94,6 @@ BLOCK = 8 * QUEUE_SLOTS
 # solves the element; ``OUT_OF_LIMITS`` needs every one to meet them, each outside the limits.
 FREE_RUNS = 4
 # XLA options of the compiled search (``CompilePolicy.compiler_options``): the CPU's older
-# per-kernel code generation and LLVM at -O1 compile its few hundred small kernels in about a
-# third of the time of the defaults, at the same speed of the search (docs/performance.md).
-# XLA options of the compiled search (``CompilePolicy.compiler_options``): the CPU's older
 # per-kernel code generation and LLVM at -O1 compile its few hundred small kernels in about
 # half the time of the defaults, at the same speed of the search (docs/performance.md).
 COMPILER_OPTIONS: tuple = (
