@@ -187,14 +187,16 @@ sys.exit(code)
 
 @pytest.mark.slow
 def test_path_mode_peak_memory_does_not_grow_with_the_path(tmp_path):
-    """``ik scara`` on one path (positions only, rates splined) of 20,000 and 80,000 rows
+    """``ik scara`` on one path (positions only, rates splined) of 20,000 and 200,000 rows
     with ``--chunk-size 4096``, each in a fresh process: the peak resident memory grows by
-    less than 200 bytes per extra row (measured: about 80; the whole-path solve, compiled
-    for the path's length, grew by about 1.5 kB per row)."""
+    less than 400 bytes per extra row. Measured: the two peaks within 10 MB of each other
+    (about 350 MB, set by compilation, varies by that much from process to process), so
+    the long path is needed to see growth through that noise; the whole-path solve,
+    compiled for the path's length, grew by about 1.5 kB per row (270 MB)."""
     from tests.test_cli import spiral
 
     peaks = []
-    for n in (20_000, 80_000):
+    for n in (20_000, 200_000):
         t = np.arange(n) * 0.01
         p, _, _ = spiral(t)
         src = write(tmp_path / f"{n}.csv", {"t": t} | {k: p[:, j] for j, k in enumerate("xyz")})
@@ -212,8 +214,8 @@ def test_path_mode_peak_memory_does_not_grow_with_the_path(tmp_path):
         )
         assert done.returncode == 0, done.stderr
         peaks.append(int(done.stdout.split()[-1]) * 1024)  # ru_maxrss: kB on Linux
-    assert (peaks[1] - peaks[0]) / 60_000 < 200, peaks
-    assert read(tmp_path / "q.csv", JOINTS)["theta1"].shape == (80_000,)
+    assert (peaks[1] - peaks[0]) / 180_000 < 400, peaks
+    assert read(tmp_path / "q.csv", JOINTS)["theta1"].shape == (200_000,)
 
 
 def test_plan_checks_in_windows_equal_the_whole_paths():
