@@ -250,3 +250,79 @@ def test_task_jacobian_rate_matches_autodiff(target):
     rate = search._task_jacobian_rate(mimic, rot, jac_theta, q_dot)
     assert rate.shape == expected.shape
     np.testing.assert_allclose(rate, expected, rtol=0, atol=1e-12)
+
+
+def _with_leaf(chain: serial.Chain, name: str, value):
+    """``chain`` with its numeric field ``name`` replaced (no validation: ``value`` may be
+    traced)."""
+    import jax
+
+    def pick(path, leaf):
+        return value if path[-1] == jax.tree_util.GetAttrKey(name) else leaf
+
+    return jax.tree_util.tree_map_with_path(pick, chain)
+
+
+@pytest.mark.slow
+def test_implicit_derivatives_keep_the_tool_on_the_target(chain):
+    """Derivatives of ``jaxkin.ik``'s joints, checked through the forward kinematics (autodiff
+    of ``jaxkin.fk``, independent of the search), on 4 poses of the test chain (all ``OK``):
+
+    * along a body twist ``xi`` of the target, ``T(e) = T exp(e [xi])``: the joints' derivative
+      moves the tool by ``T^-1 dT = [xi]`` (to 1e-8);
+    * along a change of the chain (its home pose's translation; its screws, kept unit), with
+      the target fixed: the tool stays on the target, ``d fk(chain(e), q(e)) = 0`` (to 1e-8);
+    * reverse mode equals forward mode (to 1e-12), and every derivative is finite.
+
+    Slow tier: each derivative compiles the search once more (about 40 s in all)."""
+    import jax
+    import jax.numpy as jnp
+
+    from jaxkin import lie
+
+    q0, poses = _targets(chain, 4, 11)
+    result = jaxkin.ik(chain, poses)
+    assert (np.asarray(result.status) == Status.OK).all()
+    q = np.asarray(result.q.p)
+    xi = np.random.default_rng(12).normal(size=(4, 6))
+
+    def solved(e):
+        return jaxkin.ik(chain, poses @ lie.se3_exp(e[:, None] * xi)).q.p
+
+    zero = jnp.zeros(4)
+    q_ref, dq = jax.jvp(solved, (zero,), (jnp.ones(4),))
+    np.testing.assert_allclose(q_ref, q, rtol=0, atol=1e-12)  # a traced program of its own
+
+    def tool(c, joints):
+        return jaxkin.fk(c, joints).x.p
+
+    moved = jax.jvp(lambda x: tool(chain, x), (q,), (dq,))[1]
+    np.testing.assert_allclose(np.linalg.inv(poses) @ moved, lie.se3_hat(xi), rtol=0, atol=1e-8)
+
+    rng = np.random.default_rng(13)
+    screws = np.asarray(chain.screws)
+    rotating = np.linalg.norm(screws[:, :3], axis=1) > 0.5
+    unit = np.where(rotating[:, None], screws[:, :3], screws[:, 3:])  # each screw's unit vector
+    # Tangents that keep unit screws (a revolute axis turned and moved, a sliding direction
+    # turned): the kernels assume unit screws, so only these are changes of a chain.
+    turned = np.cross(unit, rng.normal(size=unit.shape))
+    moved = np.cross(unit, rng.normal(size=unit.shape))
+    for name, tangent in (
+        ("home", np.pad(rng.normal(size=(3, 1)), ((0, 1), (3, 0)))),
+        ("screws", np.concatenate([turned * rotating[:, None], moved], axis=1)),
+    ):
+        base = jnp.asarray(getattr(chain, name))
+
+        def on_target(x, name=name):
+            changed = _with_leaf(chain, name, x)
+            return tool(changed, jaxkin.ik(changed, poses).q.p)
+
+        drift = jax.jvp(on_target, (base,), (jnp.asarray(tangent),))[1]
+        assert np.isfinite(drift).all()
+        np.testing.assert_allclose(drift, 0.0, rtol=0, atol=1e-8, err_msg=name)
+
+    weights = rng.normal(size=q.shape)
+    forward = jax.jacfwd(solved)(zero)
+    reverse = jax.grad(lambda e: jnp.sum(weights * solved(e)))(zero)
+    assert np.isfinite(forward).all()
+    np.testing.assert_allclose(reverse, np.einsum("ij,ijk->k", weights, forward), atol=1e-12)

@@ -42,6 +42,7 @@ import math
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
@@ -49,7 +50,7 @@ from jax.typing import ArrayLike
 
 from .. import _batching, _validate
 from .._geometry import BOUND, REAL, Geometry, geometry, label, number, static
-from .._numerics import eps
+from .._numerics import eps, safe_norm
 from ..collision.body import Body
 from ..collision.check import chain_self_pairs
 from ..collision.pairs import read_srdf_disabled, self_collision_link_pairs
@@ -341,8 +342,8 @@ class Chain(Robot):
         """``|p_home|`` plus the distances of the revolute axes from the base origin (``|v_i|``
         of their screws); 1 when all are zero."""
         rotating = jnp.any(self.screws[:, :3] != 0, axis=-1)
-        offsets = jnp.where(rotating, jnp.linalg.norm(self.screws[:, 3:], axis=-1), 0.0)
-        total = jnp.linalg.norm(self.home[:3, 3]) + jnp.sum(offsets)
+        offsets = jnp.where(rotating, safe_norm(self.screws[:, 3:], axis=-1), 0.0)
+        total = safe_norm(self.home[:3, 3]) + jnp.sum(offsets)
         return jnp.where(total > 0, total, 1.0)
 
     def reach(self) -> tuple[Array, Array]:
@@ -359,13 +360,19 @@ class Chain(Robot):
         # distance from ``centre`` is at most ``radius`` in every configuration; a revolute
         # joint moves it to its projection on the joint's axis (fixed in both links).
         centre = jnp.where(rotating[0], foot[0], jnp.zeros(3, screws.dtype))
-        current, radius = centre, jnp.zeros((), screws.dtype)
-        for i in range(self.n_path_joints):
-            on_axis = foot[i] + omega[i] * jnp.dot(omega[i], current - foot[i])
-            step = jnp.linalg.norm(on_axis - current)
-            radius = radius + jnp.where(rotating[i], step, stroke[i])
-            current = jnp.where(rotating[i], on_axis, current)
-        radius = radius + jnp.linalg.norm(self.home[:3, 3] - current)
+
+        def joint(carry: tuple, axis: tuple) -> tuple:
+            current, radius = carry
+            foot_i, omega_i, rotating_i, stroke_i = axis
+            on_axis = foot_i + omega_i * jnp.dot(omega_i, current - foot_i)
+            step = safe_norm(on_axis - current)
+            radius = radius + jnp.where(rotating_i, step, stroke_i)
+            return (jnp.where(rotating_i, on_axis, current), radius), None
+
+        # A loop, not unrolled: one copy in the chain IK's compiled program.
+        start = (centre, jnp.zeros((), screws.dtype))
+        (current, radius), _ = jax.lax.scan(joint, start, (foot, omega, rotating, stroke))
+        radius = radius + safe_norm(self.home[:3, 3] - current)
         return centre, radius
 
     def ik_kernel(self, target: Jet, branch: Any, options: ChainIKOptions, rates: bool) -> IKResult:

@@ -570,32 +570,53 @@ def _runs(prep: _Prepared, max_iter: int, runs: int) -> _Runs:
     )
 
 
+@jax.custom_jvp
+def _solution(q: Array, unit: Any, goal: Array, ok: Array) -> Array:
+    """The search's solution ``q`` ``(..., n)`` (units of the chain) as a function of the chain
+    ``unit`` and the goal ``(..., 4, 4)``: its value is ``q``; its derivatives are the
+    implicit ones of a solution (``_solution_jvp``), zero where not ``ok``. The search itself
+    is not differentiated, and a call that is not differentiated computes nothing here."""
+    return q
+
+
+@_solution.defjvp
+def _solution_jvp(primals: tuple, tangents: tuple) -> tuple[Array, Array]:
+    """One Newton step at the solution, ``dq = J^+ V`` with ``V`` the residual
+    (``_residual``: ``log(T(q)^-1 T_d)``, or ``p_bd`` for a point), differentiated in the
+    chain and the goal at fixed ``q``: ``q_dot = J^+ V_dot``, the derivative of the solution
+    of ``V(q, chain, goal) = 0`` (the residual is zero there up to the tolerances; its own
+    derivative through ``J^+`` is kept, as differentiating the step gives). Where not ``ok``
+    the goal is the reached pose itself (a finite step) and the derivative zero."""
+    q, unit, goal, ok = primals
+    _, unit_dot, goal_dot, _ = tangents
+    zero = jnp.zeros((), q.dtype)
+
+    def newton_step(unit: Any, goal: Array) -> Array:
+        fk = _kinematics.fk_and_jacobian(unit, q, "body", looped=True)
+        reached = lie.from_rotation_translation(fk[0], fk[1])
+        toward = jnp.where(ok[..., None, None], goal, reached)
+        residual, jac, _, _ = _residual(unit, q, toward, fk)
+        return _step.damped_step_looped(jac, residual, zero, eps(q.dtype), _step.spd_solve_lapack)
+
+    _, dq_dot = jax.jvp(newton_step, (unit, goal), (unit_dot, goal_dot))
+    return q, jnp.where(ok[..., None], dq_dot, 0.0)
+
+
 def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool) -> IKResult:
     """Joint rates, margins and implicit derivatives at the solutions (module docstring)."""
     unit, g, scale, target = prep.unit, prep.g, prep.scale, prep.safe
     dtype = q_unit.dtype
     ok = status == Status.OK
-    fixed = jax.lax.stop_gradient(q_unit)
-    fk = _kinematics.fk_and_jacobian(unit, fixed, "body", looped=True)
     point = unit.target_kind == "point"
-    # Implicit derivatives: one Newton step at the solution, whose value is removed; the
-    # goal of a failed element is its own pose (finite derivatives of the log at identity).
-    reached = lie.from_rotation_translation(fk[0], fk[1])
-    toward = jnp.where(ok[..., None, None], goal, reached)
-    # One residual (one SE(3) log in the program) of both targets: ``toward`` for the step,
-    # ``goal`` for the margin's error.
-    both = jnp.stack([toward, jnp.broadcast_to(goal, toward.shape)])
-    residuals, jac_residual, err_rots, err_poss = _residual(unit, fixed, both, fk)
-    residual, err_rot, err_pos = residuals[0], err_rots[1], err_poss[1]
-    floor = eps(dtype)
-    zero = jnp.zeros((), dtype)
-    dq = _step.damped_step_looped(jac_residual, residual, zero, floor, _step.spd_solve_lapack)
-    q_unit = fixed + jnp.where(ok[..., None], dq - jax.lax.stop_gradient(dq), 0.0)
-    rot, _, jac_theta = _kinematics.screws_fk_and_jacobian(
+    q_unit = _solution(jax.lax.stop_gradient(q_unit), unit, goal, ok)
+    rot, p, jac_theta = _kinematics.screws_fk_and_jacobian(
         unit.screws, unit.home, _kinematics.angles(unit, q_unit), "body", looped=True
     )
     jac = _kinematics.couple(unit, jac_theta)
+    _, _, err_rot, err_pos = _residual(unit, q_unit, goal, (rot, p, jac))
     jac = rot @ jac[..., 3:, :] if point else jac
+    floor = eps(dtype)
+    zero = jnp.zeros((), dtype)
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / scale, dtype)])
     solved_outside = status == Status.OUT_OF_LIMITS
     if rates:
