@@ -387,7 +387,8 @@ def _task_jacobian_rate(chain: Any, rot: Array, jac_theta: Array, q_dot: Array) 
 
 def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
     """One projected Levenberg-Marquardt update of every lane. ``starts`` ``(..., S, n)``: the
-    lane's first ``S`` runs' starts; ``done``: lanes that take no part."""
+    lane's first ``S`` runs' starts, projected onto the box as ``runs.seeds`` are (``_search``);
+    ``done``: lanes that take no part."""
     box, q = runs.box, lane.q
     one = jnp.asarray(1.0, q.dtype)
     bounded = jnp.any(jnp.isfinite(box.lower) | jnp.isfinite(box.upper))
@@ -440,7 +441,7 @@ def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -
     mine = jnp.take_along_axis(starts, jnp.clip(pick, 0, own - 1)[..., None, None], -2)
     shared = jnp.take(runs.seeds, jnp.minimum(following, runs.runs - 1), axis=0)
     mine_first = (following < own) | (following > runs.runs)
-    restart = _project(jnp.where(mine_first[..., None], mine[..., 0, :], shared), box)
+    restart = jnp.where(mine_first[..., None], mine[..., 0, :], shared)  # projected (_search)
     restart = jnp.where((following == runs.runs)[..., None], best_q, restart)
     q_next = jnp.where(spent[..., None], restart, moved)
     q_end = jnp.where(solved[..., None], turned, jnp.where(excluded[..., None], outside_q, best_q))
@@ -468,6 +469,9 @@ def _search(
     ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``, ``NOT_CONVERGED`` or the preset status.
     """
     per_element = (runs.runs + runs.free_runs) * (runs.max_iter + 1) + 2
+    # Every start projected once, here: the loop's restarts take them as they are.
+    starts = _project(starts, runs.box)
+    runs = dataclasses.replace(runs, seeds=_project(runs.seeds, runs.box))
     batch = starts.shape[:-2]
     size = math.prod(batch)
     if slots is not None and size > slots:
@@ -487,19 +491,19 @@ def _search(
     def cond(state: _InStep) -> Array:
         return (state.steps < per_element) & jnp.any(~state.done)
 
-    init = _InStep(_fresh(_project(starts[..., 0, :], runs.box)), done, status, jnp.int32(0))
+    init = _InStep(_fresh(starts[..., 0, :]), done, status, jnp.int32(0))
     final = jax.lax.while_loop(cond, body, init)
     return final.lane.q, final.status
 
 
 def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: int):
-    """``_search`` as a work queue (``_batching.work_queue``) over flat ``(B, ...)`` elements.
-    Each element gets the same updates as in step (the same starts and seeds), so the same
-    results."""
+    """``_search`` as a work queue (``_batching.work_queue``) over flat ``(B, ...)`` elements
+    (``starts`` projected). Each element gets the same updates as in step (the same starts and
+    seeds), so the same results."""
     size = starts.shape[0]
 
     def fresh(slot: Array) -> _Lane:
-        return _fresh(_project(starts[jnp.minimum(slot, size - 1), 0], runs.box))
+        return _fresh(starts[jnp.minimum(slot, size - 1), 0])
 
     def step(slot: Array, lane: _Lane):
         i = jnp.minimum(slot, size - 1)
@@ -507,12 +511,12 @@ def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: 
         out = _update(runs, target[i], starts[i], lane, preset)
         # A preset element ends at once with its preset status and its start.
         finished = out.ended | (preset & (slot < size))
-        q_out = jnp.where(out.ended[..., None], out.q, _project(starts[i, 0], runs.box))
+        q_out = jnp.where(out.ended[..., None], out.q, starts[i, 0])
         code = jnp.where(out.ended, out.code, status[i])
         return out.lane, finished, (q_out, code)
 
     limit = (-(-size // slots) + 1) * per_element
-    initial = (_project(starts[:, 0], runs.box), status)
+    initial = (starts[:, 0], status)
     return _batching.work_queue(step, fresh, initial, size, slots, limit)
 
 
