@@ -121,18 +121,26 @@ def _compose(a: tuple[Array, Array], b: tuple[Array, Array]) -> tuple[Array, Arr
     return jnp.einsum("...ij,...jk->...ik", rot_a, rot_b), _mat_vec(rot_a, p_b) + p_a
 
 
-def _joint_exp(screw: Array, theta: Array) -> tuple[Array, Array]:
-    """``exp([S] theta)`` of one unit screw ``(6,)`` at angles ``theta`` ``(...)`` as
-    ``(R, p)`` (module docstring): ``W``, ``W^2``, ``W v`` and ``W^2 v`` are unbatched; the
-    batched work is one ``sin``, one ``cos`` and multiply-adds."""
-    w = lie.hat(screw[:3])
+def _screw_terms(screws: Array) -> tuple[Array, ...]:
+    """Per unit screw of ``screws`` ``(m, 6)``: ``W = hat(omega)``, ``W^2``, ``v``, ``W v``
+    and ``W^2 v`` (``(m, 3, 3)`` twice, ``(m, 3)`` three times), the unbatched factors of
+    ``_joint_exp``, computed once for every joint (outside the loop over the joints)."""
+    w = lie.hat(screws[:, :3])
     w2 = w @ w
-    v = screw[3:]
+    v = screws[:, 3:]
+    return w, w2, v, _mat_vec(w, v), _mat_vec(w2, v)
+
+
+def _joint_exp(terms: tuple[Array, ...], theta: Array) -> tuple[Array, Array]:
+    """``exp([S] theta)`` of one unit screw at angles ``theta`` ``(...)`` as ``(R, p)``
+    (module docstring), from its ``_screw_terms`` (unbatched): the batched work is one
+    ``sin``, one ``cos`` and multiply-adds."""
+    w, w2, v, wv, w2v = terms
     s, c = sincos(theta)
     q, s, c = theta[..., None], s[..., None], c[..., None]
     omc = 1.0 - c
     rot = jnp.eye(3, dtype=theta.dtype) + s[..., None] * w + omc[..., None] * w2
-    return rot, q * v + omc * (w @ v) + (q - s) * (w2 @ v)
+    return rot, q * v + omc * wv + (q - s) * w2v
 
 
 def joint_prefix_poses(chain: Any, q: Array) -> Array:
@@ -143,8 +151,9 @@ def joint_prefix_poses(chain: Any, q: Array) -> Array:
     eye = jnp.broadcast_to(jnp.eye(3, dtype=theta.dtype), (*theta.shape[:-1], 3, 3))
     acc = (eye, jnp.zeros((*theta.shape[:-1], 3), theta.dtype))
     poses = [lie.from_rotation_translation(*acc)]
+    terms = _screw_terms(chain.screws)
     for i in range(theta.shape[-1]):
-        e = _joint_exp(chain.screws[i], theta[..., i])
+        e = _joint_exp(tuple(t[i] for t in terms), theta[..., i])
         acc = _compose(acc, e)
         poses.append(lie.from_rotation_translation(*acc))
     return jnp.stack(poses, axis=-3)
@@ -161,14 +170,14 @@ def _identity(theta: Array) -> tuple[Array, Array]:
 
 
 def _over_joints(body, carry, screws: Array, theta: Array, looped: bool):
-    """``body(carry, (S_i, theta_i)) -> (carry, out_i)`` over the joints in order: a
+    """``body(carry, (S_i, terms_i, theta_i)) -> (carry, out_i)`` over the joints in order
+    (``terms_i`` the screw's ``_screw_terms``): a
     ``lax.scan`` (one copy of the body in the compiled program: the chain IK's search, whose
     program holds several FK and Jacobian evaluations; and a single configuration's FK, whose
     program XLA then counts as cheap and runs on the calling thread) or unrolled (``looped``
     False: a batch's FK). The same operations in the same order either way."""
-    return jax.lax.scan(
-        body, carry, (screws, jnp.moveaxis(theta, -1, 0)), unroll=1 if looped else True
-    )
+    joints = (screws, _screw_terms(screws), jnp.moveaxis(theta, -1, 0))
+    return jax.lax.scan(body, carry, joints, unroll=1 if looped else True)
 
 
 def screws_fk_rp(
@@ -179,7 +188,8 @@ def screws_fk_rp(
     ``_over_joints``)."""
 
     def body(acc, joint):
-        return _compose(acc, _joint_exp(*joint)), None
+        _, terms, theta_i = joint
+        return _compose(acc, _joint_exp(terms, theta_i)), None
 
     acc, _ = _over_joints(body, _identity(theta), screws, theta, looped)
     return _compose(acc, _home(home))
@@ -194,8 +204,9 @@ def screws_fk_and_jacobian(
 
     # Prefix products P_{i-1} = E_1 ... E_{i-1}; column i = Ad(P_{i-1}) S_i.
     def body(prefix, joint):
-        column = apply_adjoint(prefix[0], prefix[1], joint[0][:, None])[..., 0]
-        return _compose(prefix, _joint_exp(*joint)), column
+        screw, terms, theta_i = joint
+        column = apply_adjoint(prefix[0], prefix[1], screw[:, None])[..., 0]
+        return _compose(prefix, _joint_exp(terms, theta_i)), column
 
     prefix, columns = _over_joints(body, _identity(theta), screws, theta, looped)
     rot, p = _compose(prefix, _home(home))
