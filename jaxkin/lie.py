@@ -298,11 +298,12 @@ def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
     # Branch 2 (t > pi/2): u u^T = ((R + R^T)/2 - cos t I) / (1 - cos t); take the column of
     # the largest diagonal entry (as argmax: first maximum), sign from anti.
     neg = cos_t < 0.0
-    one_minus_cos = jnp.where(neg, 1.0 - cos_t, 1.0)
-    diag = [(rot[k][k] - cos_t) / one_minus_cos for k in range(3)]
+    # One division each (XLA stores a shared quotient in a loop of its own).
+    inv_one_minus_cos = 1.0 / jnp.where(neg, 1.0 - cos_t, 1.0)
+    diag = [(rot[k][k] - cos_t) * inv_one_minus_cos for k in range(3)]
 
     def sym(i: int, j: int) -> Array:
-        return diag[i] if i == j else 0.5 * (rot[i][j] + rot[j][i]) / one_minus_cos
+        return diag[i] if i == j else 0.5 * (rot[i][j] + rot[j][i]) * inv_one_minus_cos
 
     pick0 = (diag[0] >= diag[1]) & (diag[0] >= diag[2])
     pick1 = ~pick0 & (diag[1] >= diag[2])
@@ -311,8 +312,8 @@ def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
         return jnp.where(pick0, values[0], jnp.where(pick1, values[1], values[2]))
 
     column = [choose([sym(i, 0), sym(i, 1), sym(i, 2)]) for i in range(3)]  # u * u_k
-    u_k = safe_sqrt(jnp.where(neg, choose(diag), 1.0))
-    u = [column[i] / u_k for i in range(3)]
+    inv_u_k = 1.0 / safe_sqrt(jnp.where(neg, choose(diag), 1.0))
+    u = [column[i] * inv_u_k for i in range(3)]
     dot = u[0] * anti[0] + u[1] * anti[1] + u[2] * anti[2]
     scale = jnp.where(dot < 0.0, -theta, theta)
     omega = [jnp.where(neg, scale * u[i], factor * anti[i]) for i in range(3)]
