@@ -11,6 +11,8 @@ cut-off of the singular values, so a rank-deficient ``J`` gives a finite step). 
 positive definite system is solved by a Cholesky factorisation unrolled over its static size
 (``spd_solve``): elementwise batch arithmetic, much faster on CPU than a batched LAPACK call for
 sizes up to 6. Matrices and vectors are nested lists of batch arrays (structure of arrays).
+The chain IK's search solves it on arrays by one loop of Gauss-Jordan elimination
+(``spd_solve_looped``: a small compiled program), its finish by LAPACK (``spd_solve_lapack``).
 
 The twist to a target ``T_d`` from the pose ``T = [R, p]`` is ``V_b = log(T^-1 T_d)``
 (``body_twist``): ``R_bd = R^T R_d``, ``p_bd = R^T (p_d - p)``; ``|omega|`` of the twist is the
@@ -109,43 +111,35 @@ def damped_step(jac: Array, twist: Array, damping, floor: float | None = None) -
 
 
 def spd_solve_looped(a: Array, b: Array) -> Array:
-    """``spd_solve`` for arrays, ``a`` ``(..., k, k)`` symmetric positive definite and ``b``
-    ``(..., k)``: the same Cholesky factorisation and substitutions as loops over the ``k``
-    columns (one copy of each in the compiled program, where ``spd_solve`` unrolls
-    ``O(k^3)`` scalar operations)."""
+    """Solve ``a x = b`` for symmetric positive definite ``a`` ``(..., k, k)`` and ``b``
+    ``(..., k)`` by Gauss-Jordan elimination on ``[a | b]``, one loop over the ``k`` columns:
+    the pivot row is divided by its pivot and subtracted from every other row, so the last
+    column ends as ``x``. Without row exchanges: the pivots of a positive definite matrix are
+    its Schur complements' diagonals, positive (a damped system's at least the damping); a
+    pivot is clamped at ``sqrt(tiny)``, so a zero system gives ``x = 0``. One loop in the
+    compiled program (a Cholesky factorisation and its two substitutions were three)."""
     k = b.shape[-1]
     tiny = float(jnp.finfo(b.dtype).tiny) ** 0.5
-    index = jnp.arange(k)
+    rows = jnp.arange(k)
+    augmented = jnp.concatenate([a, b[..., None]], -1)
 
-    def factor(j, chol):
-        row = jnp.where(index < j, chol[..., j, :], 0.0)  # L[j, :j]
-        root = jnp.sqrt(jnp.maximum(a[..., j, j] - jnp.sum(row * row, -1), tiny))
-        below = (a[..., :, j] - jnp.einsum("...ik,...k->...i", chol, row)) / root[..., None]
-        column = jnp.where(index > j, below, jnp.where(index == j, root[..., None], 0.0))
-        return chol.at[..., :, j].set(column)
+    def eliminate(j, augmented):
+        pivot = jnp.maximum(augmented[..., j, j], tiny)
+        row = augmented[..., j, :] * (1.0 / pivot)[..., None]
+        factor = jnp.where(rows == j, 0.0, augmented[..., :, j])
+        augmented = augmented - factor[..., :, None] * row[..., None, :]
+        return jnp.where((rows == j)[:, None], row[..., None, :], augmented)
 
-    chol = jax.lax.fori_loop(0, k, factor, jnp.zeros(a.shape, b.dtype))
-
-    def forward(i, y):
-        done = jnp.sum(chol[..., i, :] * y, -1)  # y is zero from i on
-        return y.at[..., i].set((b[..., i] - done) / chol[..., i, i])
-
-    def backward(t, x):
-        i = k - 1 - t
-        done = jnp.sum(chol[..., :, i] * x, -1)  # x is zero up to i
-        return x.at[..., i].set((y[..., i] - done) / chol[..., i, i])
-
-    y = jax.lax.fori_loop(0, k, forward, jnp.zeros(b.shape, b.dtype))
-    return jax.lax.fori_loop(0, k, backward, jnp.zeros(b.shape, b.dtype))
+    return jax.lax.fori_loop(0, k, eliminate, augmented)[..., k]
 
 
 def spd_solve_lapack(a: Array, b: Array) -> Array:
-    """``spd_solve_looped`` by LAPACK (``potrf``, then two ``trsm``): calls into the library,
-    so no code of its own to compile, for a solve that runs once per batch (the chain IK's
-    rates and implicit derivatives); slower per element than the loops on small matrices.
-    Where rounding makes a damped, nearly singular ``a`` indefinite (its factorisation fails),
-    ``k eps trace(a)`` is added to the diagonal: a finite solution, as the loops' clamped
-    pivots give."""
+    """``spd_solve_looped``'s system by LAPACK's Cholesky factorisation (``potrf``, then two
+    ``trsm``): calls into the library, so no code of its own to compile, for a solve that runs
+    once per batch (the chain IK's rates and implicit derivatives); slower per element than
+    the loop on small matrices. Where rounding makes a damped, nearly singular ``a``
+    indefinite (its factorisation fails), ``k eps trace(a)`` is added to the diagonal: a
+    finite solution, as the loop's clamped pivots give."""
     k = a.shape[-1]
     trial = jnp.linalg.cholesky(jax.lax.stop_gradient(a))
     failed = ~all_finite(trial.reshape(*trial.shape[:-2], k * k))
