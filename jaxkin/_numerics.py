@@ -141,7 +141,7 @@ def spd_det_looped(g: Array) -> Array:
     return det
 
 
-def isotropy(jac: Array, looped: bool = False, lapack: bool = False) -> Array:
+def isotropy(jac: Array, looped: bool = False) -> Array:
     """How far a Jacobian ``(..., m, n)`` is from singular, in [0, 1], shape ``(...)``.
 
     With ``s_1 .. s_k`` its ``k = min(m, n)`` singular values: their geometric mean over their
@@ -150,9 +150,8 @@ def isotropy(jac: Array, looped: bool = False, lapack: bool = False) -> Array:
     from ``G = J J^T`` (or ``J^T J``) as ``det(G)^(1/2k) / sqrt(trace(G) / k)``; invariant to a
     common scale of ``J``, so scale rows and columns to one set of units first (e.g. lengths
     divided by the robot's size). ``looped``: the determinant as ``spd_det_looped`` (a
-    smaller compiled program, the same values); ``lapack``: by LAPACK's LU factorisation
-    (``jnp.linalg.det`` clamped at 0: no code of its own to compile, for a margin computed
-    once per batch; the same values to rounding).
+    smaller compiled program, the same values). No LAPACK call: its first use in a process
+    imports scipy (about 0.2 s), which a first call would pay.
     """
     m, n = jac.shape[-2:]
     if m <= n:
@@ -161,10 +160,7 @@ def isotropy(jac: Array, looped: bool = False, lapack: bool = False) -> Array:
         g = jnp.einsum("...ki,...kj->...ij", jac, jac)
     k = g.shape[-1]
     mean_sq = jnp.trace(g, axis1=-2, axis2=-1) / k
-    if lapack:
-        det = jnp.maximum(jnp.linalg.det(g), 0.0)
-    else:
-        det = spd_det_looped(g) if looped else spd_det(g)
+    det = spd_det_looped(g) if looped else spd_det(g)
     positive = (mean_sq > 0) & (det > 0)
     ratio = det / jnp.where(positive, mean_sq, 1.0) ** k  # in [0, 1]
     root = jnp.exp(jnp.log(jnp.where(positive, ratio, 1.0)) / (2 * k))

@@ -193,7 +193,9 @@ def rigid_target(target: Array) -> Array:
     rot = jnp.where(finite[..., None, None], target[..., :3, :3], jnp.eye(3, dtype=target.dtype))
     gram = jnp.swapaxes(rot, -1, -2) @ rot - jnp.eye(3, dtype=rot.dtype)
     orthonormal = jnp.max(jnp.abs(gram), axis=(-2, -1)) <= singular_rtol(rot.dtype)
-    return finite & orthonormal & (jnp.linalg.det(rot) > 0)
+    # det R = r_0 . (r_1 x r_2), elementwise: no LAPACK call (whose first use imports scipy).
+    det = jnp.sum(rot[..., 0, :] * jnp.cross(rot[..., 1, :], rot[..., 2, :]), axis=-1)
+    return finite & orthonormal & (det > 0)
 
 
 def norm3(x: list[Array]) -> Array:

@@ -645,7 +645,7 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         q_jet = Jet.constant(q)
     error = jnp.minimum(err_rot + err_pos, 1.0)
     solved = ok | (status == Status.OUT_OF_LIMITS)
-    margin = jnp.where(solved, isotropy(jac, lapack=True), -error)
+    margin = jnp.where(solved, isotropy(jac), -error)
     margin = jnp.where(status == Status.INVALID_INPUT, -1.0, margin)
     return IKResult(q_jet, status, margin.astype(dtype))
 
