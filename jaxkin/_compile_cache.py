@@ -363,8 +363,9 @@ def _cpu_flags() -> str:
 
 def _initialize_lapack() -> None:
     """Load LAPACK's entry points, as JAX does when it lowers a linear-algebra call: a
-    program that calls LAPACK (the chain IK's finish) and is loaded without being lowered in
-    this process would otherwise call a null function and crash the interpreter."""
+    program that calls LAPACK and is loaded without being lowered in this process would
+    otherwise call a null function and crash the interpreter. Only for a program that names
+    a LAPACK call (``_load``): the set-up imports scipy, about 0.2 s."""
     from jaxlib import lapack
 
     lapack._lapack.initialize()
@@ -381,8 +382,9 @@ def _load(path: Path) -> Any:
     if data[: len(_MAGIC)] != _MAGIC or hashlib.sha256(body).digest() != data[len(_MAGIC) : head]:
         return None  # truncated, overwritten or not ours: compiled again
     try:
-        _initialize_lapack()
         payload, in_tree, out_tree = pickle.loads(body)
+        if b"lapack" in payload:  # the serialised program names its LAPACK calls
+            _initialize_lapack()
         return _serialize.deserialize_and_load(payload, in_tree, out_tree)
     except Exception:  # written by another version of a library: compiled again
         return None

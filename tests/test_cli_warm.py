@@ -229,7 +229,7 @@ print(_compile_cache.stored_jit(damped_solve)(a, jnp.ones(3, jnp.float32)).tolis
 
 def test_a_program_calling_lapack_loads_in_a_fresh_process(tmp_path):
     """LAPACK's entry points are set up when JAX lowers a linear-algebra call; a process
-    that only loads a stored program calling LAPACK (as the chain IK's finish does) must set
+    that only loads a stored program calling LAPACK (a linear-algebra call) must set
     them up itself, or the call crashes the interpreter. Both runs print NumPy's solution."""
     a = np.arange(9.0).reshape(3, 3) / 10
     expected = np.linalg.solve(a @ a.T + np.eye(3), np.ones(3))

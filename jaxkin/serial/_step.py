@@ -11,8 +11,9 @@ cut-off of the singular values, so a rank-deficient ``J`` gives a finite step). 
 positive definite system is solved by a Cholesky factorisation unrolled over its static size
 (``spd_solve``): elementwise batch arithmetic, much faster on CPU than a batched LAPACK call for
 sizes up to 6. Matrices and vectors are nested lists of batch arrays (structure of arrays).
-The chain IK's search solves it on arrays by one loop of Gauss-Jordan elimination
-(``spd_solve_looped``: a small compiled program), its finish by LAPACK (``spd_solve_lapack``).
+The chain IK solves it on arrays by one loop of Gauss-Jordan elimination
+(``spd_solve_looped``: a small compiled program, and no LAPACK call, whose first use in a
+process imports scipy).
 
 The twist to a target ``T_d`` from the pose ``T = [R, p]`` is ``V_b = log(T^-1 T_d)``
 (``body_twist``): ``R_bd = R^T R_d``, ``p_bd = R^T (p_d - p)``; ``|omega|`` of the twist is the
@@ -37,7 +38,6 @@ __all__ = [
     "rigid_target",
     "damped_step_looped",
     "spd_solve",
-    "spd_solve_lapack",
     "spd_solve_looped",
 ]
 
@@ -116,8 +116,9 @@ def spd_solve_looped(a: Array, b: Array) -> Array:
     the pivot row is divided by its pivot and subtracted from every other row, so the last
     column ends as ``x``. Without row exchanges: the pivots of a positive definite matrix are
     its Schur complements' diagonals, positive (a damped system's at least the damping); a
-    pivot is clamped at ``sqrt(tiny)``, so a zero system gives ``x = 0``. One loop in the
-    compiled program (a Cholesky factorisation and its two substitutions were three)."""
+    pivot is clamped at ``sqrt(tiny)``, so a zero system gives ``x = 0`` and a singular one a
+    finite ``x``. One loop in the compiled program (a Cholesky factorisation and its two
+    substitutions were three)."""
     k = b.shape[-1]
     tiny = float(jnp.finfo(b.dtype).tiny) ** 0.5
     rows = jnp.arange(k)
@@ -133,29 +134,12 @@ def spd_solve_looped(a: Array, b: Array) -> Array:
     return jax.lax.fori_loop(0, k, eliminate, augmented)[..., k]
 
 
-def spd_solve_lapack(a: Array, b: Array) -> Array:
-    """``spd_solve_looped``'s system by LAPACK's Cholesky factorisation (``potrf``, then two
-    ``trsm``): calls into the library, so no code of its own to compile, for a solve that runs
-    once per batch (the chain IK's rates and implicit derivatives); slower per element than
-    the loop on small matrices. Where rounding makes a damped, nearly singular ``a``
-    indefinite (its factorisation fails), ``k eps trace(a)`` is added to the diagonal: a
-    finite solution, as the loop's clamped pivots give."""
-    k = a.shape[-1]
-    trial = jnp.linalg.cholesky(jax.lax.stop_gradient(a))
-    failed = ~all_finite(trial.reshape(*trial.shape[:-2], k * k))
-    lift = k * float(jnp.finfo(a.dtype).eps) * jnp.trace(a, axis1=-2, axis2=-1)
-    a = jnp.where(failed[..., None, None], a + lift[..., None, None] * jnp.eye(k, dtype=a.dtype), a)
-    chol = jnp.linalg.cholesky(a)
-    return jax.scipy.linalg.cho_solve((chol, True), b[..., None])[..., 0]
-
-
 def damped_step_looped(
     jac: Array, twist: Array, damping: Array, floor: float | None = None, solve=spd_solve_looped
 ) -> Array:
     """The step of ``damped_step`` for ``jac`` ``(..., r, n)`` and ``twist`` ``(..., r)``, as
     array products and ``solve`` of the symmetric positive definite system
-    (``spd_solve_looped``: a small compiled program, the chain IK search; or
-    ``spd_solve_lapack``)."""
+    (``spd_solve_looped``: a small compiled program, the chain IK)."""
     r, n = jac.shape[-2:]
     jac_t = jnp.swapaxes(jac, -1, -2)
     trace = jnp.sum(jac * jac, axis=(-2, -1))

@@ -600,7 +600,7 @@ def _solution_jvp(primals: tuple, tangents: tuple) -> tuple[Array, Array]:
         reached = lie.from_rotation_translation(fk[0], fk[1])
         toward = jnp.where(ok[..., None, None], goal, reached)
         residual, jac, _, _ = _residual(unit, q, toward, fk)
-        return _step.damped_step_looped(jac, residual, zero, eps(q.dtype), _step.spd_solve_lapack)
+        return _step.damped_step_looped(jac, residual, zero, eps(q.dtype))
 
     _, dq_dot = jax.jvp(newton_step, (unit, goal), (unit_dot, goal_dot))
     return q, jnp.where(ok[..., None], dq_dot, 0.0)
@@ -627,12 +627,10 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
         velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
         rows = rows[3:] if point else rows
-        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor, _step.spd_solve_lapack)
+        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
         jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _step.damped_step_looped(
-            jac, acceleration * rows - drift, zero, floor, _step.spd_solve_lapack
-        )
+        q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
         okc = ok[..., None]
     q = q_unit / g
     # Back in the chain's units a joint at its limit may pass it by an ulp: moved back (values
