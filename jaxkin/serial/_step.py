@@ -116,9 +116,8 @@ def spd_solve_looped(a: Array, b: Array) -> Array:
     the pivot row is divided by its pivot and subtracted from every other row, so the last
     column ends as ``x``. Without row exchanges: the pivots of a positive definite matrix are
     its Schur complements' diagonals, positive (a damped system's at least the damping); a
-    pivot is clamped at ``sqrt(tiny)``, so a zero system gives ``x = 0`` and a singular one a
-    finite ``x``. One loop in the compiled program (a Cholesky factorisation and its two
-    substitutions were three)."""
+    pivot is clamped at ``sqrt(tiny)``, so a zero system gives ``x = 0``. One loop in the
+    compiled program (a Cholesky factorisation and its two substitutions were three)."""
     k = b.shape[-1]
     tiny = float(jnp.finfo(b.dtype).tiny) ** 0.5
     rows = jnp.arange(k)
