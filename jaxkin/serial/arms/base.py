@@ -26,6 +26,7 @@ from ...result import FKResult, IKResult
 from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
 from ...status import Status
 from ..dh import DHTable, transforms
+from ..search import COMPILER_OPTIONS
 from .kernels import ArmIKResult, fk_kernel, ik_all_jit, ik_branch_kernel
 
 __all__ = ["Arm", "fk", "ik_all_branches", "ik_jet"]
@@ -42,8 +43,9 @@ class Arm(Robot, abstract=True):
 
     joint_types: ClassVar[str]
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
-    # Every branch is solved anyway: the branch is picked by a traced index, one program.
-    ik_policy: ClassVar = CompilePolicy(branch_as_data=True)
+    # Every branch is solved anyway: the branch is picked by a traced index, one program,
+    # compiled with the chain search's XLA options (half the compile time, and faster).
+    ik_policy: ClassVar = CompilePolicy(branch_as_data=True, compiler_options=COMPILER_OPTIONS)
 
     @property
     def joint_names(self) -> tuple[str, ...]:
