@@ -44,7 +44,7 @@ class Arm(Robot, abstract=True):
     joint_types: ClassVar[str]
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
     # Every branch is solved anyway: the branch is picked by a traced index, one program,
-    # compiled with the chain search's XLA options (half the compile time, and faster).
+    # compiled with the chain search's XLA options (a first call in about half the time).
     ik_policy: ClassVar = CompilePolicy(branch_as_data=True, compiler_options=COMPILER_OPTIONS)
 
     @property
