@@ -290,6 +290,27 @@ def test_validate_motions_reuses_its_compilation():
         collision.validate_motions(SCARA, a, b[:, :2], world, 1.0)
 
 
+def test_an_edge_longer_than_its_slots_is_not_valid():
+    """Slots fixed by the caller that end before the edge does: the edge is checked at its
+    own spacing as far as they reach and reported not valid, never checked more coarsely.
+    The ball sits at the edge's midpoint, which 4 slots do not reach."""
+    world = scara_world([[130.0, 0.0, 150.0]], [10.0], -1000.0)
+    a, b = np.array([[-1.0, 0.0, 10.0]]), np.array([[1.0, 0.0, 10.0]])  # 2 rad: 16 intervals
+    assert bool(collision.check(SCARA, (a + b) / 2, world).collides[0])
+    whole = collision.validate_motions(SCARA, a, b, world, 8.0)
+    assert not bool(whole.valid[0]) and int(whole.states[0]) == 16
+    for samples in (2, 4, 8):
+        short = collision.validate_motions(SCARA, a, b, world, 8.0, samples=samples)
+        states = a + (np.arange(samples) / 16)[:, None] * (b - a)
+        assert not np.any(np.asarray(collision.check(SCARA, states, world).collides))
+        assert not bool(short.valid[0])
+        assert int(short.first[0]) == samples and int(short.states[0]) == 16
+        assert float(short.fraction[0]) == samples / 16
+        np.testing.assert_allclose(short.last_valid[0], states[-1], rtol=0, atol=1e-12)
+    fits = collision.validate_motions(SCARA, a, a + (b - a) / 8, world, 8.0, samples=4)
+    assert bool(fits.valid[0]) and int(fits.first[0]) == -1  # 2 intervals fit in 4 slots
+
+
 # ------------------------------------------------------------------ plan.evaluate
 def test_plan_evaluate_with_a_world():
     t = np.linspace(0.0, 1.0, 12)

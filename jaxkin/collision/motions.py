@@ -9,6 +9,11 @@ sample slots (a power of two at least ``max_m k_m + 1``, so that similar batches
 compilation); slots past ``k_m`` repeat the end state. The states go through
 ``check_kernel`` at once, ``(M, S)`` configurations, and each edge reports whether all its
 states are free and the first that is not.
+
+An edge that needs more states than the slots a caller fixed (``k_m > S - 1``) is checked
+at its own spacing as far as the slots reach, ``t_j = j / k_m`` for ``j < S``, and is not
+valid even when those states are free: its rest was not checked. Its first failing state
+is then the first unchecked one, ``j = S``, and ``last_valid`` the last checked state.
 """
 
 from __future__ import annotations
@@ -37,14 +42,18 @@ class MotionResult:
     """Per edge (shapes ``(M,)``).
 
     Attributes:
-        valid: every checked state of the edge is free (and finite).
+        valid: the edge was checked at the requested resolution and every state is free
+            (and finite).
         first: index ``j`` of the first colliding state (``t = j / k``), ``-1`` for a valid
-            edge.
-        fraction: ``t`` of the first colliding state in [0, 1]; 1 for a valid edge.
+            edge; the slot count ``S`` for an edge whose checked states are free but that
+            needed more states than ``S`` (the first state not checked).
+        fraction: ``t`` of the first colliding (or unchecked) state in [0, 1]; 1 for a
+            valid edge.
         last_valid: the last free state before ``first`` (``q_to`` for a valid edge,
             ``q_from`` when the start itself collides), ``(M, n)``.
         clearance: the smallest clearance over the edge's states.
-        states: ``k``, the number of intervals the edge was cut into.
+        states: ``k``, the number of intervals the resolution cuts the edge into (more
+            than ``S - 1`` for an edge not checked to its end).
     """
 
     valid: Array
@@ -83,9 +92,10 @@ def validate_motions_kernel(
     step = q_to - q_from
     length = jnp.sqrt(jnp.sum(step * step, axis=-1))
     k = jnp.ceil(length * jnp.asarray(resolution, dtype))
-    k = jnp.clip(jnp.where(jnp.isfinite(k), k, 1.0), 1.0, samples - 1)
+    k = jnp.maximum(jnp.where(jnp.isfinite(k), k, 1.0), 1.0)
     j = jnp.arange(samples, dtype=dtype)
     t = jnp.minimum(j / k[..., None], 1.0)  # (M, S); slots past k repeat the end
+    unchecked = k > samples - 1  # the slots end before the edge does
     states = q_from[..., None, :] + t[..., None] * step[..., None, :]
     if clearance:
         result = check_kernel(robot, body, pairs, states, world, margin)
@@ -95,12 +105,12 @@ def validate_motions_kernel(
 
         hit = collides_kernel(robot, body, pairs, states, world, margin).collides
         smallest = jnp.full(hit.shape[:-1], jnp.nan, dtype)
-    valid = ~jnp.any(hit, axis=-1)
-    first = jnp.where(valid, -1, jnp.argmax(hit, axis=-1))
-    fraction = jnp.where(
-        valid, 1.0, jnp.take_along_axis(t, jnp.maximum(first, 0)[..., None], -1)[..., 0]
-    )
-    before = jnp.maximum(first - 1, 0)
+    free = ~jnp.any(hit, axis=-1)
+    valid = free & ~unchecked
+    first = jnp.where(free, jnp.where(unchecked, samples, -1), jnp.argmax(hit, axis=-1))
+    hit_t = jnp.take_along_axis(t, jnp.clip(first, 0, samples - 1)[..., None], -1)[..., 0]
+    fraction = jnp.where(valid, 1.0, jnp.where(free, jnp.minimum(samples / k, 1.0), hit_t))
+    before = jnp.clip(first - 1, 0, samples - 1)
     last = jnp.take_along_axis(states, before[..., None, None], axis=-2)[..., 0, :]
     last_valid = jnp.where(valid[..., None], q_to, jnp.where((first == 0)[..., None], q_from, last))
     return MotionResult(
@@ -109,7 +119,7 @@ def validate_motions_kernel(
         fraction.astype(dtype),
         last_valid,
         smallest,
-        k.astype(jnp.int32),
+        jnp.minimum(k, np.iinfo(np.int32).max).astype(jnp.int32),
     )
 
 
