@@ -223,7 +223,9 @@ class Evaluation(SolverResult):
         limits: the limits applied, ``(q_min, q_max, v_max, a_max)`` as tuples of floats
             (static; ``applied_limits()`` gives them as ``Limits``).
         min_clearance: with a ``world``, the smallest clearance along the candidate
-            (``collision.check``: signed distance, robot-world and self), ``(N,)``; else None.
+            (``collision.check``: signed distance, robot-world and self) over the samples
+            the solve reached (the others have no joints to place), 0 for a candidate with
+            none, ``(N,)``; else None.
     """
 
     q: Jet
@@ -462,8 +464,8 @@ def checked_samples(
     joints are unwrapped and brought within their limits, then the checks run in order, each
     only on the samples still OK, so the first failing check names a sample: continuity, then
     limits, then collision (``collide``: ``(body, pairs, world)`` of ``collision.prepare``, or
-    None). Returns the joints, the statuses ``(N, T)`` and the least clearance per sample
-    (None without ``collide``).
+    None). Returns the joints, the statuses ``(N, T)`` and each candidate's least clearance
+    over its solved samples (None without ``collide``).
 
     A long path checked in windows (the module docstring) passes ``turns`` ``(N, n)``: its
     joints are then already unwrapped (``unwrapped`` with the previous window's turns), they
@@ -496,7 +498,9 @@ def checked_samples(
     if collide is not None:  # collision.check of every sample: the body against world and self
         checked = collision.check_kernel(robot, *collide[:2], q.p, collide[2])
         checks.append((checked.collides, Status.COLLISION))
-        min_clearance = jnp.min(checked.clearance, axis=-1)
+        # an unsolved sample's joints are a placeholder: its clearance says nothing
+        clearance = jnp.where(solved, checked.clearance, jnp.inf)
+        min_clearance = jnp.where(jnp.any(solved, -1), jnp.min(clearance, axis=-1), 0.0)
     for failed, code in checks:
         status = jnp.where((status == Status.OK) & failed, jnp.int8(code), status)
     return q, status.astype(STATUS_DTYPE), min_clearance

@@ -338,6 +338,25 @@ def test_plan_evaluate_with_a_world():
         plan.evaluate(SCARA, path, world="floor")
 
 
+def test_plan_min_clearance_leaves_out_unsolved_samples():
+    """A path that ends inside the inner hole of the workspace: the unreachable samples'
+    joints are placeholders (the arm folded) and their clearance is not the candidate's;
+    a candidate with no solved sample reports 0."""
+    s = np.linspace(0.0, 1.0, 20)[None, :, None]
+    into_hole = np.array([100.0, 0.0, 60.0]) + s * np.array([-90.0, 0.0, 0.0])
+    inside = np.broadcast_to(np.array([5.0, 0.0, 60.0]), into_hole.shape)
+    path = paths.path_from_samples(np.concatenate([into_hole, inside]), 0.05)
+    world = scara_world([[0.0, 0.0, 400.0]], [1.0], -1000.0)
+    ev = plan.evaluate(SCARA, path, world=world)
+    status = np.asarray(ev.status)
+    solved = status == Status.OK
+    assert 0 < solved[0].sum() < 20 and not solved[1].any()
+    clearance = np.asarray(collision.check(SCARA, ev.q.p, world).clearance)
+    assert clearance[0][~solved[0]].min() < clearance[0][solved[0]].min()  # what was counted
+    np.testing.assert_allclose(ev.min_clearance[0], clearance[0][solved[0]].min(), rtol=1e-12)
+    assert float(ev.min_clearance[1]) == 0.0
+
+
 # ------------------------------------------------------------------ slow: Pinocchio
 @pytest.mark.slow
 def test_urdf_chain_link_poses_against_pinocchio():
