@@ -428,6 +428,14 @@ class Robot(Geometry, metaclass=abc.ABCMeta):
         ``collision_body().links``) at joints ``q`` ``(..., n)``: a pure, traceable kernel."""
         raise ValueError(f"{type(self).__name__} has no link poses (link_poses)")
 
+    def placeable(self, q: Array) -> Array:
+        """Whether ``link_poses`` places the body as the robot assembles at finite joints
+        ``q`` ``(..., n)``: ``(...,)`` bool (a pure, traceable kernel). True by default; a
+        closed chain overrides it for joints at which it cannot assemble (a Delta's actuator
+        angles that its rods cannot join to the platform), where its poses are a
+        placeholder."""
+        return jnp.ones(q.shape[:-1], bool)
+
     def link_frame_rows(self, q: Array) -> tuple[list, list[int], Array | None]:
         """The link poses at joints ``q`` ``(C, n)`` in the rows layout, for checks that place
         points elementwise: ``(frames, of_link, homes)`` with ``frames[k]`` the rotation

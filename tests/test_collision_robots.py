@@ -77,6 +77,27 @@ def test_delta_body_arms_rods_and_platform():
     assert body.links[-1] == "platform" and len(robot.self_collision_pairs()) == 15
 
 
+def test_delta_that_does_not_assemble_is_unreachable_not_free():
+    """Rods too short to reach the platform from some actuator angles: the closed form FK
+    finds no assembly there, so the body has no pose; ``check`` and ``collides`` report
+    UNREACHABLE (colliding, clearance 0) for those elements alone."""
+    robot = delta.Delta(7.0, 2.5, 15.5, 10.0, link_radius=0.5)
+    q = np.array([[0.0, 0.0, 0.0], [-1.2, 1.2, 0.0], [1.4, 1.4, 1.4], [np.nan, 0.0, 0.0]])
+    fk = np.asarray(delta.fk_closed_form(robot, q[:3]).status)
+    np.testing.assert_array_equal(fk, [Status.UNREACHABLE, Status.UNREACHABLE, Status.OK])
+    world = collision.World.create(spheres=collision.Spheres.create([[0.0, 0.0, 500.0]], 1.0))
+    expected = [Status.UNREACHABLE, Status.UNREACHABLE, Status.OK, Status.INVALID_INPUT]
+    result = collision.check(robot, q, world)
+    np.testing.assert_array_equal(result.status, expected)
+    np.testing.assert_array_equal(result.collides, [True, True, False, True])
+    clearance, link = np.asarray(result.clearance), np.asarray(result.link)
+    np.testing.assert_array_equal(clearance[[0, 1, 3]], 0.0)
+    assert clearance[2] > 0 and np.all(link[[0, 1, 3]] == -1)
+    np.testing.assert_array_equal(collision.collides(robot, q, world).status, expected)
+    alone = collision.check(robot, q[2:3], world)
+    np.testing.assert_array_equal(result.clearance[2], alone.clearance[0])
+
+
 def dh_origins(table, q):
     """Origins of DH frames 0 ... n, written out (standard DH)."""
     a, alpha, d, theta = (np.asarray(getattr(table, k)) for k in ("a", "alpha", "d", "theta"))

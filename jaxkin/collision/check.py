@@ -20,7 +20,9 @@ Everything after the host-side set-up (the body and the pairs, read once per rob
 pure function of arrays, compiled once per shapes: moving, resizing or turning an obstacle, or
 giving the body other radii, reuses the compilation. A configuration with NaN or inf gets
 ``status = INVALID_INPUT``, ``collides = True`` and a clearance of 0 (a finite placeholder)
-without touching the other elements of the batch.
+without touching the other elements of the batch; so does one at which the robot does not
+assemble (``Robot.placeable``: a Delta's rods that cannot reach the platform), with
+``status = UNREACHABLE``.
 """
 
 from __future__ import annotations
@@ -60,6 +62,7 @@ ROBOT_WORLD, SELF = 0, 1
 CHECK_CHUNK = 1024
 
 _OK, _INVALID_INPUT, _COLLISION = Status.OK, Status.INVALID_INPUT, Status.COLLISION
+_UNREACHABLE = Status.UNREACHABLE
 
 
 @jax.tree_util.register_dataclass
@@ -71,7 +74,8 @@ class CheckResult:
         clearance: smallest signed distance, robot-world and self (the dtype's largest finite
             value when there is nothing to hit; 0 for invalid input).
         collides: ``clearance <= margin``, or invalid input.
-        status: ``int8`` ``jaxkin.Status``: ``OK``, ``COLLISION`` or ``INVALID_INPUT``.
+        status: ``int8`` ``jaxkin.Status``: ``OK``, ``COLLISION``, ``INVALID_INPUT`` or
+            ``UNREACHABLE`` (joints at which the robot does not assemble).
         pair_kind: ``int8``: ``ROBOT_WORLD`` (0), ``SELF`` (1), or -1 (nothing to hit).
         link: the robot link (index into ``body.links``) of the closest pair.
         other: for ``ROBOT_WORLD`` the obstacle's index within its kind, for ``SELF`` the
@@ -167,6 +171,7 @@ def check_kernel(
     def one(q: Array) -> CheckResult:
         valid = jnp.all(jnp.isfinite(q), axis=-1)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
+        placed = robot.placeable(q_safe)
         spheres, capsules = body.place(robot.link_poses(q_safe).astype(dtype))
         near = fused.clearance(spheres, capsules, world, pairs if pairs.link_pairs else None)
         nothing = near.distance >= jnp.finfo(dtype).max
@@ -179,7 +184,8 @@ def check_kernel(
         other = jnp.where(is_self, jnp.maximum(link, second), near.other_index)
         obstacle_kind = jnp.where(is_self | nothing, -1, near.other_kind)
         first, other = (jnp.where(nothing, -1, x) for x in (first, other))
-        return _verdict(valid, near.distance, pair_kind, first, other, obstacle_kind, margin)
+        pair = (pair_kind, first, other, obstacle_kind)
+        return _verdict(valid, placed, near.distance, *pair, margin)
 
     return map_chunks(one, q, batch, CHECK_CHUNK)
 
@@ -198,6 +204,7 @@ def _check_per_primitive(
     dtype = q.dtype
     valid = jnp.all(jnp.isfinite(q), axis=-1)
     q_safe = jnp.where(valid[..., None], q, 0.0)
+    placed = robot.placeable(q_safe)
     body, world = body.astype(dtype), world.astype(dtype)
     spheres, capsules = body.place(robot.link_poses(q_safe).astype(dtype))
     near_s, near_c = nearest_obstacles(spheres, capsules, world)
@@ -240,11 +247,12 @@ def _check_per_primitive(
     obstacle_kind = jnp.where(is_self | nothing, -1, world_kind).astype(jnp.int8)
 
     margin = jnp.asarray(margin, dtype)
-    return _verdict(valid, clearance, pair_kind, link, other, obstacle_kind, margin)
+    return _verdict(valid, placed, clearance, pair_kind, link, other, obstacle_kind, margin)
 
 
 def _verdict(
     valid: Array,
+    placed: Array,
     distance: Array,
     pair_kind: Array,
     link: Array,
@@ -253,19 +261,22 @@ def _verdict(
     margin: Array,
 ) -> CheckResult:
     """The ``CheckResult`` of the closest pair (``-1`` fields where there is none): a
-    configuration that is not finite gets clearance 0, collides, ``INVALID_INPUT`` and no
-    pair; the others collide at a clearance ``<= margin``."""
-    clearance = jnp.where(valid, distance, jnp.zeros((), distance.dtype))
-    collides = ~valid | (clearance <= margin)
-    status = jnp.where(~valid, _INVALID_INPUT, jnp.where(collides, _COLLISION, _OK))
+    configuration that is not finite (``INVALID_INPUT``), or at which the robot does not
+    assemble (``placed`` False: ``UNREACHABLE``), gets clearance 0, collides and no pair;
+    the others collide at a clearance ``<= margin``."""
+    known = valid & placed
+    clearance = jnp.where(known, distance, jnp.zeros((), distance.dtype))
+    collides = ~known | (clearance <= margin)
+    status = jnp.where(collides, _COLLISION, _OK)
+    status = jnp.where(~valid, _INVALID_INPUT, jnp.where(~placed, _UNREACHABLE, status))
     return CheckResult(
         clearance,
         collides,
         status.astype(jnp.int8),
-        jnp.where(valid, pair_kind, -1).astype(jnp.int8),
-        jnp.where(valid, link, -1).astype(jnp.int32),
-        jnp.where(valid, other, -1).astype(jnp.int32),
-        jnp.where(valid, obstacle_kind, -1).astype(jnp.int8),
+        jnp.where(known, pair_kind, -1).astype(jnp.int8),
+        jnp.where(known, link, -1).astype(jnp.int32),
+        jnp.where(known, other, -1).astype(jnp.int32),
+        jnp.where(known, obstacle_kind, -1).astype(jnp.int8),
     )
 
 

@@ -46,7 +46,8 @@ sphere tests (the same tests on the same placed rows, so the same verdict), a ch
 candidates than the capacity the full pass.
 
 NaN or inf in a configuration gives ``collides = True`` and ``INVALID_INPUT`` for that
-element alone. Moving or resizing an obstacle reuses the compilation (array data).
+element alone (``UNREACHABLE`` where the robot does not assemble, ``Robot.placeable``).
+Moving or resizing an obstacle reuses the compilation (array data).
 """
 
 from __future__ import annotations
@@ -87,7 +88,8 @@ class Verdict:
     Attributes:
         collides: the configuration touches the world or itself (clearance ``<= margin``,
             module docstring for rounding), or is not finite.
-        status: ``int8`` ``jaxkin.Status``: ``OK``, ``COLLISION`` or ``INVALID_INPUT``.
+        status: ``int8`` ``jaxkin.Status``: ``OK``, ``COLLISION``, ``INVALID_INPUT`` or
+            ``UNREACHABLE`` (joints at which the robot does not assemble).
     """
 
     collides: Array
@@ -428,6 +430,7 @@ def collides_kernel(
         q = q.reshape((-1, q.shape[-1]))
         valid = jnp.all(jnp.isfinite(q), axis=-1)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
+        placed = robot.placeable(q_safe)
         spheres, capsules, centers = _place_rows(robot, body, q_safe, extra)
         tol = 16.0 * eps * (1.0 + _scale(spheres, capsules, world))
         # the tolerance enters each R as R + tol: for the squared tests that is a slack of
@@ -449,7 +452,7 @@ def collides_kernel(
             margin,
             rest,
         )
-        hit = acc.hits(slack, tol, ~valid)
+        hit = acc.hits(slack, tol, ~(valid & placed))
         if culled:
             reach = g_radius[:, None] + (jnp.sqrt(slack) + 2.0 * tol)[None, :]
 
@@ -461,9 +464,9 @@ def collides_kernel(
 
             args = (groups, spheres, body.sphere_radius, centers, reach, margin, slack, tol)
             hit = hit | cull_world(culled, *args, full)
-        status = jnp.where(
-            ~valid, Status.INVALID_INPUT, jnp.where(hit, Status.COLLISION, Status.OK)
-        ).astype(jnp.int8)
+        status = jnp.where(hit, Status.COLLISION, Status.OK)
+        status = jnp.where(~placed, Status.UNREACHABLE, status)
+        status = jnp.where(~valid, Status.INVALID_INPUT, status).astype(jnp.int8)
         return Verdict(hit, status)
 
     flat = q.reshape((-1, q.shape[-1]))

@@ -164,6 +164,12 @@ class Delta(Robot):
         poses += arms + rods + [lie.from_rotation_translation(eye, x)]
         return jnp.stack(poses, -3)
 
+    def placeable(self, q: Array) -> Array:
+        """The rods reach the platform: the closed form FK finds an assembly (``OK``,
+        ``OUT_OF_LIMITS`` or ``SINGULAR``; not ``UNREACHABLE`` or ``INVALID_INPUT``)."""
+        status = forward._fk_closed_form_impl(self, q).status
+        return (status != Status.UNREACHABLE) & (status != Status.INVALID_INPUT)
+
     def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
         """Arms against arms, rods against rods and other chains' arms, and the platform
         against the arms (a rod is adjacent to its arm and to the platform)."""
