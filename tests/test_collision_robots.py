@@ -139,6 +139,24 @@ def test_link_radius_is_validated_and_arms_keep_their_lengths():
     assert len(arm.lengths(float)) == 3 and float(arm.length_scale()) == pytest.approx(0.75)
 
 
+def test_arm_radius_traced_needs_its_pairs_from_values():
+    """An analytic arm's self pairs leave out the links in contact at q = 0, a choice made
+    from values: a traced radius gets a clear error naming the way out, and without self
+    pairs the clearance's derivative in the radius is the finite difference's."""
+    world = collision.World.create(spheres=collision.Spheres.create([[0.4, 0.1, 0.3]], 0.1))
+    q = np.random.default_rng(0).uniform(-3.0, 3.0, (3, 6))
+
+    def total(radius, self_collision=True):
+        arm = serial.Puma560(link_radius=radius)
+        return collision.check(arm, q, world, self_collision=self_collision).clearance.sum()
+
+    with pytest.raises(ValueError, match="self_collision=False"):
+        jax.grad(total)(0.03)
+    slope = float(jax.grad(lambda r: total(r, False))(0.03))
+    step = (float(total(0.03 + 1e-6, False)) - float(total(0.03 - 1e-6, False))) / 2e-6
+    assert np.isfinite(slope) and slope == pytest.approx(step, rel=1e-6)
+
+
 def test_chain_from_urdf_tip_link_pose_and_skeleton():
     chain = serial.from_urdf(UR5, "tool0").with_link_radius(0.04)
     q = np.random.default_rng(3).uniform(-2, 2, (4, 6))

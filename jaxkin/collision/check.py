@@ -110,7 +110,14 @@ def chain_self_pairs(
     pairs = SelfPairs.create(body, candidates)
     home = robot.link_poses(jnp.zeros(robot.n_joints, body.sphere_radius.dtype))
     spheres, capsules = body.place(home)
-    distance = np.asarray(self_distances(spheres, capsules, pairs))
+    distance = self_distances(spheres, capsules, pairs)
+    if isinstance(distance, jax.core.Tracer):  # the pairs are static: chosen from values
+        raise ValueError(
+            f"robot: {type(robot).__name__}'s self-collision pairs leave out the links in "
+            "contact at q = 0, so they need its geometry as values, not traced (pass "
+            "self_collision=False to differentiate in its link_radius or lengths)"
+        )
+    distance = np.asarray(distance)
     return tuple(p for p, d in zip(candidates, distance, strict=True) if d > 0)
 
 
