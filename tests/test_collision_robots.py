@@ -249,6 +249,35 @@ def test_clearance_gradient_is_finite_in_contact_and_penetration():
         np.testing.assert_allclose(g, fd, atol=1e-5)
 
 
+def test_check_arguments_name_the_argument():
+    """A margin that is not one finite number, complex or boolean ``q`` and a missing robot
+    raise naming the argument; integer ``q`` and a traced margin still work."""
+    world = scara_world([[130.0, 0.0, 150.0]], [10.0], -1000.0)
+    q = np.array([[0.0, 0.0, 10.0], [3.0, 0.0, 10.0]])
+    for margin in (np.nan, np.inf, "a", np.array([0.0, 1.0]), True):
+        with pytest.raises(ValueError, match="margin must be a finite number"):
+            collision.check(SCARA, q, world, margin=margin)
+        with pytest.raises(ValueError, match="margin must be a finite number"):
+            collision.validate_motions(SCARA, q, q[::-1], world, 2.0, margin=margin)
+    for bad in (q.astype(complex), q.astype(bool)):
+        with pytest.raises(ValueError, match="q: expected real joint coordinates"):
+            collision.check(SCARA, bad, world)
+        with pytest.raises(ValueError, match="q_from: expected real joint coordinates"):
+            collision.validate_motions(SCARA, bad, q, world, 2.0)
+    with pytest.raises(ValueError, match="robot: expected a robot"):
+        collision.check(None, q, world)
+    with pytest.raises(ValueError, match="robot: expected a robot"):
+        collision.validate_motions(None, q, q, world, 2.0)
+    exact = collision.check(SCARA, q, world, margin=1.0)
+    assert exact.collides[0] and not exact.collides[1]
+    ints = collision.check(SCARA, q.astype(int), world, margin=1)
+    np.testing.assert_array_equal(ints.clearance, exact.clearance)
+    same = collision.check(SCARA, q, world, margin=np.float32(1.0))
+    np.testing.assert_array_equal(same.collides, exact.collides)
+    traced = jax.jit(lambda m: collision.check(SCARA, q, world, margin=m).collides)(1.0)
+    np.testing.assert_array_equal(traced, exact.collides)
+
+
 # ------------------------------------------------------------------ motions
 @pytest.mark.slow
 def test_validate_motions_against_check_of_every_state():
@@ -288,6 +317,20 @@ def test_validate_motions_reuses_its_compilation():
         collision.validate_motions(SCARA, a, b, world, 0.0)
     with pytest.raises(ValueError, match="q_to"):
         collision.validate_motions(SCARA, a, b[:, :2], world, 1.0)
+
+
+def test_validate_motions_takes_numpy_resolutions():
+    world = scara_world([[130.0, 0.0, 150.0]], [10.0], -1000.0)
+    a, b = np.array([[-1.0, 0.0, 10.0]]), np.array([[1.0, 0.0, 10.0]])
+    plain = collision.validate_motions(SCARA, a, b, world, 4.0)
+    assert not plain.valid[0] and int(plain.states[0]) == 8
+    for resolution in (np.float32(4.0), np.int64(4), np.array(4.0), 4):
+        other = collision.validate_motions(SCARA, a, b, world, resolution)
+        for field in ("valid", "first", "fraction", "states"):
+            np.testing.assert_array_equal(getattr(other, field), getattr(plain, field))
+    for resolution in (True, np.array([4.0]), np.float32(np.nan), -1):
+        with pytest.raises(ValueError, match="resolution must be a positive finite number"):
+            collision.validate_motions(SCARA, a, b, world, resolution)
 
 
 def test_an_edge_longer_than_its_slots_is_not_valid():
