@@ -144,6 +144,29 @@ def test_chain_own_spheres_override():
         chain.with_link_spheres({"nope": (np.zeros((1, 3)), np.array([0.1]))})
 
 
+def test_chain_own_spheres_are_copied_and_checked():
+    centers, radii = np.zeros((2, 3)), np.array([0.05, 0.06])
+    chain = serial.from_urdf(UR5, "tool0").with_link_spheres({"forearm_link": (centers, radii)})
+    centers[0, 0], radii[0] = 5.0, 9.0  # the chain kept copies: its body does not move
+    own_c, own_r = chain.collision_body().per_link()[0]["forearm_link"]
+    np.testing.assert_array_equal(own_c, np.zeros((2, 3)))
+    np.testing.assert_array_equal(own_r, [0.05, 0.06])
+    one = chain.with_link_spheres({"forearm_link": ([0.0, 0.0, 0.1], 0.07)})  # one sphere
+    np.testing.assert_array_equal(one.collision_body().per_link()[0]["forearm_link"][1], [0.07])
+    bad = [
+        ((np.zeros((1, 2)), [0.1]), r"center: expected shape \(k, 3\), got \(1, 2\)"),
+        ((np.zeros((3, 2)), [0.1, 0.2]), r"center: expected shape \(k, 3\), got \(3, 2\)"),
+        ((np.zeros((2, 3)), [0.1, 0.2, 0.3]), "radius: shape"),
+        ((np.zeros((1, 3)), [-0.1]), "radius must be >= 0"),
+        (([[0.0, np.nan, 0.0]], [0.1]), "center must be finite"),
+        ((np.zeros((1, 3)), [np.inf]), "radius must be finite"),
+        (np.zeros((1, 3)), r"expected \(centers"),
+    ]
+    for value, message in bad:
+        with pytest.raises(ValueError, match=r"spheres\['forearm_link'\]: " + message):
+            chain.with_link_spheres({"forearm_link": value})
+
+
 # ------------------------------------------------------------------ brute-force check
 def segment_points(a, b, n):
     t = np.linspace(0.0, 1.0, n)[:, None]
