@@ -441,6 +441,37 @@ def test_boundary_errors_name_the_argument():
         col.World.create(boxes=col.Spheres.empty())
 
 
+def test_counts_that_do_not_broadcast_and_scalar_sizes_name_the_argument():
+    with pytest.raises(ValueError, match=r"radius: shape \(3,\) does not broadcast to \(2,\)"):
+        col.Spheres.create(np.zeros((2, 3)), [1.0, 2.0, 3.0])
+    with pytest.raises(ValueError, match="radius: shape"):
+        col.Capsules.create(np.zeros((2, 3)), np.ones((2, 3)), [0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match="half_extents: shape"):
+        col.Boxes.create(np.zeros((2, 3)), np.ones((3, 3)))
+    with pytest.raises(ValueError, match="offset: shape"):
+        col.HalfSpaces.create(np.eye(3), [1.0, 2.0])
+    for center in (np.zeros((1, 2)), np.zeros((3, 2)), np.zeros(2)):
+        with pytest.raises(ValueError, match="center: expected shape"):
+            col.Spheres.create(center, 1.0)
+    with pytest.raises(ValueError, match="points: expected shape"):
+        col.point_cloud_spheres(np.zeros((4, 2)), 0.1)
+    pts = np.random.default_rng(3).uniform(-1, 1, (50, 3))
+    for voxel in (np.array([0.1, 0.1, 0.1]), np.nan, True):
+        with pytest.raises(ValueError, match="voxel must be a positive finite number"):
+            col.point_cloud_spheres(pts, voxel)
+    for point_radius in (np.nan, np.ones(2)):
+        with pytest.raises(ValueError, match="point_radius must be a finite number"):
+            col.point_cloud_spheres(pts, 0.5, point_radius)
+    with pytest.raises(ValueError, match="point_radius must be >= 0"):
+        col.point_cloud_spheres(pts, 0.5, -0.1)
+    plain = col.point_cloud_spheres(pts, 0.5, 0.01, dtype=np.float64)
+    for voxel in (np.float32(0.5), np.array(0.5)):
+        same = col.point_cloud_spheres(pts, voxel, np.float64(0.01), dtype=np.float64)
+        np.testing.assert_array_equal(same.radius, plain.radius)
+    one = col.Spheres.create(np.zeros((2, 3)), [1.0])  # one radius for all
+    np.testing.assert_array_equal(one.radius, [1.0, 1.0])
+
+
 def test_point_cloud_spheres_contain_every_point():
     rng = np.random.default_rng(4)
     pts = rng.uniform(-1, 1, size=(2000, 3))
@@ -484,6 +515,23 @@ def test_body_place_and_override():
         body.with_link_spheres({"hand": (np.zeros((1, 3)), [0.1])})
     with pytest.raises(ValueError, match="link_poses"):
         body.place(jnp.zeros((2, 4, 4)))
+
+
+def test_body_shapes_name_the_link_and_nothing_is_reshaped():
+    for center in (np.arange(6.0).reshape(3, 2), np.zeros((1, 2)), np.zeros((1, 1, 3))):
+        with pytest.raises(ValueError, match=r"spheres\['a'\]: center: expected shape \(k, 3\)"):
+            col.Body.create(["a"], spheres={"a": (center, [0.1, 0.2])})
+    with pytest.raises(ValueError, match=r"spheres\['a'\]: radius: shape"):
+        col.Body.create(["a"], spheres={"a": (np.zeros((2, 3)), [0.1, 0.2, 0.3])})
+    with pytest.raises(ValueError, match=r"spheres\['a'\]: expected \(centers"):
+        col.Body.create(["a"], spheres={"a": np.zeros((1, 3))})
+    with pytest.raises(ValueError, match=r"capsules\['a'\]: b: expected shape \(k, 3\)"):
+        col.Body.create(["a"], capsules={"a": (np.zeros((1, 3)), np.zeros((1, 2)), 0.1)})
+    with pytest.raises(ValueError, match=r"spheres: expected a mapping"):
+        col.Body.create(["a"], spheres=[(np.zeros((1, 3)), 0.1)])
+    body = col.Body.create(["a", "b"], spheres={"a": (v(1, 2, 3), 0.5), "b": ([], [])})
+    np.testing.assert_array_equal(body.sphere_center, [[1.0, 2.0, 3.0]])
+    assert body.sphere_link == (0,)
 
 
 def test_box_capsules_contain_the_box():

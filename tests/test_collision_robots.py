@@ -183,6 +183,29 @@ def test_chain_own_spheres_override():
         chain.with_link_spheres({"nope": (np.zeros((1, 3)), np.array([0.1]))})
 
 
+def test_chain_own_spheres_are_copied_and_checked():
+    centers, radii = np.zeros((2, 3)), np.array([0.05, 0.06])
+    chain = serial.from_urdf(UR5, "tool0").with_link_spheres({"forearm_link": (centers, radii)})
+    centers[0, 0], radii[0] = 5.0, 9.0  # the chain kept copies: its body does not move
+    own_c, own_r = chain.collision_body().per_link()[0]["forearm_link"]
+    np.testing.assert_array_equal(own_c, np.zeros((2, 3)))
+    np.testing.assert_array_equal(own_r, [0.05, 0.06])
+    one = chain.with_link_spheres({"forearm_link": ([0.0, 0.0, 0.1], 0.07)})  # one sphere
+    np.testing.assert_array_equal(one.collision_body().per_link()[0]["forearm_link"][1], [0.07])
+    bad = [
+        ((np.zeros((1, 2)), [0.1]), r"center: expected shape \(k, 3\), got \(1, 2\)"),
+        ((np.zeros((3, 2)), [0.1, 0.2]), r"center: expected shape \(k, 3\), got \(3, 2\)"),
+        ((np.zeros((2, 3)), [0.1, 0.2, 0.3]), "radius: shape"),
+        ((np.zeros((1, 3)), [-0.1]), "radius must be >= 0"),
+        (([[0.0, np.nan, 0.0]], [0.1]), "center must be finite"),
+        ((np.zeros((1, 3)), [np.inf]), "radius must be finite"),
+        (np.zeros((1, 3)), r"expected \(centers"),
+    ]
+    for value, message in bad:
+        with pytest.raises(ValueError, match=r"spheres\['forearm_link'\]: " + message):
+            chain.with_link_spheres({"forearm_link": value})
+
+
 # ------------------------------------------------------------------ brute-force check
 def segment_points(a, b, n):
     t = np.linspace(0.0, 1.0, n)[:, None]
@@ -288,6 +311,35 @@ def test_clearance_gradient_is_finite_in_contact_and_penetration():
         np.testing.assert_allclose(g, fd, atol=1e-5)
 
 
+def test_check_arguments_name_the_argument():
+    """A margin that is not one finite number, complex or boolean ``q`` and a missing robot
+    raise naming the argument; integer ``q`` and a traced margin still work."""
+    world = scara_world([[130.0, 0.0, 150.0]], [10.0], -1000.0)
+    q = np.array([[0.0, 0.0, 10.0], [3.0, 0.0, 10.0]])
+    for margin in (np.nan, np.inf, "a", np.array([0.0, 1.0]), True):
+        with pytest.raises(ValueError, match="margin must be a finite number"):
+            collision.check(SCARA, q, world, margin=margin)
+        with pytest.raises(ValueError, match="margin must be a finite number"):
+            collision.validate_motions(SCARA, q, q[::-1], world, 2.0, margin=margin)
+    for bad in (q.astype(complex), q.astype(bool)):
+        with pytest.raises(ValueError, match="q: expected real joint coordinates"):
+            collision.check(SCARA, bad, world)
+        with pytest.raises(ValueError, match="q_from: expected real joint coordinates"):
+            collision.validate_motions(SCARA, bad, q, world, 2.0)
+    with pytest.raises(ValueError, match="robot: expected a robot"):
+        collision.check(None, q, world)
+    with pytest.raises(ValueError, match="robot: expected a robot"):
+        collision.validate_motions(None, q, q, world, 2.0)
+    exact = collision.check(SCARA, q, world, margin=1.0)
+    assert exact.collides[0] and not exact.collides[1]
+    ints = collision.check(SCARA, q.astype(int), world, margin=1)
+    np.testing.assert_array_equal(ints.clearance, exact.clearance)
+    same = collision.check(SCARA, q, world, margin=np.float32(1.0))
+    np.testing.assert_array_equal(same.collides, exact.collides)
+    traced = jax.jit(lambda m: collision.check(SCARA, q, world, margin=m).collides)(1.0)
+    np.testing.assert_array_equal(traced, exact.collides)
+
+
 # ------------------------------------------------------------------ motions
 @pytest.mark.slow
 def test_validate_motions_against_check_of_every_state():
@@ -327,6 +379,20 @@ def test_validate_motions_reuses_its_compilation():
         collision.validate_motions(SCARA, a, b, world, 0.0)
     with pytest.raises(ValueError, match="q_to"):
         collision.validate_motions(SCARA, a, b[:, :2], world, 1.0)
+
+
+def test_validate_motions_takes_numpy_resolutions():
+    world = scara_world([[130.0, 0.0, 150.0]], [10.0], -1000.0)
+    a, b = np.array([[-1.0, 0.0, 10.0]]), np.array([[1.0, 0.0, 10.0]])
+    plain = collision.validate_motions(SCARA, a, b, world, 4.0)
+    assert not plain.valid[0] and int(plain.states[0]) == 8
+    for resolution in (np.float32(4.0), np.int64(4), np.array(4.0), 4):
+        other = collision.validate_motions(SCARA, a, b, world, resolution)
+        for field in ("valid", "first", "fraction", "states"):
+            np.testing.assert_array_equal(getattr(other, field), getattr(plain, field))
+    for resolution in (True, np.array([4.0]), np.float32(np.nan), -1):
+        with pytest.raises(ValueError, match="resolution must be a positive finite number"):
+            collision.validate_motions(SCARA, a, b, world, resolution)
 
 
 def test_an_edge_longer_than_its_slots_is_not_valid():

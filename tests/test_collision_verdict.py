@@ -132,6 +132,23 @@ def test_collides_nan_rows_and_no_recompilation():
         collision.collides(robot, q[:, :3], world)
 
 
+def test_collides_arguments_name_the_argument():
+    """A NaN margin would make every configuration free (``clearance <= NaN`` is False)."""
+    robot = _ur5()
+    world = _world(6)
+    q = np.random.default_rng(7).uniform(-3.0, 3.0, (4, robot.n_joints))
+    for margin in (np.nan, -np.inf, np.zeros(2), "0"):
+        with pytest.raises(ValueError, match="margin must be a finite number"):
+            collision.collides(robot, q, world, margin)
+    with pytest.raises(ValueError, match="q: expected real joint coordinates"):
+        collision.collides(robot, q + 0j, world)
+    with pytest.raises(ValueError, match="robot: expected a robot"):
+        collision.collides(None, q, world)
+    exact = collision.collides(robot, q, world, 0.01)
+    same = collision.collides(robot, q, world, np.float32(0.01))
+    np.testing.assert_array_equal(same.collides, exact.collides)
+
+
 def test_validate_motions_with_the_verdict_alone():
     robot = _ur5()
     world = _world(9)

@@ -19,9 +19,56 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
-from .primitives import Capsules, Spheres
+from .primitives import Capsules, Spheres, _sphere_arrays
 
 __all__ = ["Body"]
+
+
+def _link_points(x: ArrayLike, name: str) -> np.ndarray:
+    """Points on one link as ``(k, 3)``: one point may be ``(3,)``, no points ``[]``."""
+    arr = np.asarray(x)
+    if arr.shape == (0,):
+        arr = arr.reshape(0, 3)
+    elif arr.shape == (3,):
+        arr = arr[None]
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"{name}: expected shape (k, 3), got {arr.shape}")
+    return arr
+
+
+def _fields(value: Any, where: str, names: tuple[str, ...]) -> tuple:
+    """One link's primitives ``value``: a tuple or list of ``len(names)`` arrays."""
+    if not (isinstance(value, tuple | list) and len(value) == len(names)):
+        raise ValueError(f"{where}: expected ({', '.join(names)}), got {type(value).__name__}")
+    return tuple(value)
+
+
+def link_spheres(
+    spheres: Mapping[str, tuple[ArrayLike, ArrayLike]], links: tuple[str, ...]
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The user's spheres per link, checked and copied (host side, float64, read-only):
+    link name -> ``(centers (k, 3), radii (k,))``; a ``ValueError`` names ``spheres`` and the
+    link otherwise (an unknown link, a shape, a value that is not finite, a negative radius).
+    """
+    if not isinstance(spheres, Mapping):
+        raise ValueError(
+            f"spheres: expected a mapping link name -> (centers, radii), "
+            f"got {type(spheres).__name__}"
+        )
+    out = {}
+    for name, value in spheres.items():
+        if name not in links:
+            raise ValueError(f"spheres: unknown link {name!r} (links: {links})")
+        where = f"spheres[{name!r}]"
+        center, radius = _fields(value, where, ("centers (k, 3)", "radii (k,)"))
+        try:
+            arrays = _sphere_arrays(_link_points(center, "center"), radius, np.float64)
+        except ValueError as err:
+            raise ValueError(f"{where}: {err}") from None
+        for arr in arrays:
+            arr.setflags(write=False)  # the copies a frozen robot keeps
+        out[name] = arrays
+    return out
 
 
 @jax.tree_util.register_dataclass
@@ -67,19 +114,21 @@ class Body:
             raise ValueError(f"links must be distinct link names, got {links!r}")
         index = {name: i for i, name in enumerate(links)}
         s_link, s_c, s_r, c_link, c_a, c_b, c_r = [], [], [], [], [], [], []
-        for name, (center, radius) in (spheres or {}).items():
-            if name not in index:
-                raise ValueError(f"spheres: unknown link {name!r} (links: {links})")
-            sph = Spheres.create(np.reshape(center, (-1, 3)), radius, np.float64)
-            s_link += [index[name]] * len(sph)
-            s_c.append(np.asarray(sph.center))
-            s_r.append(np.asarray(sph.radius))
-        for name, (a, b, radius) in (capsules or {}).items():
+        for name, (center, radius) in link_spheres(spheres or {}, links).items():
+            s_link += [index[name]] * len(radius)
+            s_c.append(center)
+            s_r.append(radius)
+        for name, value in (capsules or {}).items():
             if name not in index:
                 raise ValueError(f"capsules: unknown link {name!r} (links: {links})")
-            cap = Capsules.create(
-                np.reshape(a, (-1, 3)), np.reshape(b, (-1, 3)), radius, np.float64
-            )
+            where = f"capsules[{name!r}]"
+            a, b, radius = _fields(value, where, ("a (k, 3)", "b (k, 3)", "radii (k,)"))
+            try:
+                cap = Capsules.create(
+                    _link_points(a, "a"), _link_points(b, "b"), radius, np.float64
+                )
+            except ValueError as err:
+                raise ValueError(f"{where}: {err}") from None
             c_link += [index[name]] * len(cap)
             c_a.append(np.asarray(cap.a))
             c_b.append(np.asarray(cap.b))

@@ -38,6 +38,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
+from .._validate import finite_number, is_concrete
 from ..status import Status
 from . import fused
 from .body import Body
@@ -290,14 +291,30 @@ def _verdict(
 _check_jit = jax.jit(check_kernel)
 
 
+def _check_robot(robot: Any) -> Any:
+    """``robot`` if it has the collision protocol's ``n_joints``, ``collision_body`` and
+    ``link_poses`` (``prepare`` checks the body it returns)."""
+    if not (
+        hasattr(robot, "n_joints")
+        and callable(getattr(robot, "collision_body", None))
+        and callable(getattr(robot, "link_poses", None))
+    ):
+        raise ValueError(
+            f"robot: expected a robot with n_joints, collision_body() and link_poses() (a "
+            f"jaxkin robot), got {type(robot).__name__}"
+        )
+    return robot
+
+
 def _as_q(robot: Any, q: ArrayLike, name: str = "q") -> Array:
     if not isinstance(q, jax.Array):
         q = np.asarray(q)
-        if not np.issubdtype(q.dtype, np.floating):
-            q = q.astype(jnp.result_type(float))
-    q = jnp.asarray(q)
+    # complex q would lose its imaginary part, boolean q is no joint coordinate
+    if not (jnp.issubdtype(q.dtype, jnp.floating) or jnp.issubdtype(q.dtype, jnp.integer)):
+        raise ValueError(f"{name}: expected real joint coordinates, got dtype {q.dtype}")
     if not jnp.issubdtype(q.dtype, jnp.floating):
         q = q.astype(jnp.result_type(float))
+    q = jnp.asarray(q)
     if q.ndim < 1 or q.shape[-1] != robot.n_joints:
         raise ValueError(
             f"{name}: expected shape (..., {robot.n_joints}) for {type(robot).__name__}, "
@@ -310,6 +327,15 @@ def _check_world(world: Any) -> World:
     if not isinstance(world, World):
         raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
     return world
+
+
+def _check_margin(margin: Any) -> Any:
+    """A concrete ``margin`` as a finite real number (a float); a traced one unchanged (the
+    caller's ``jit`` or ``vmap``)."""
+    if not is_concrete(margin):
+        return margin
+    # a NaN or -inf margin would report every configuration free (clearance <= margin False)
+    return finite_number(margin, "margin")
 
 
 def check(
@@ -327,25 +353,34 @@ def check(
         q: joint coordinates, any leading batch axes (may be traced: ``check`` works under
             ``jit`` and ``vmap``).
         world: a ``collision.World`` (array data: moving obstacles does not recompile).
-        margin: a configuration collides where its clearance is ``<= margin`` (length units).
+        margin: a configuration collides where its clearance is ``<= margin`` (length units;
+            one finite number, or traced).
         self_collision: check the robot's ``self_collision_pairs()`` too.
 
     Returns:
         ``CheckResult`` with shapes ``(...)``.
 
     Raises:
-        ValueError: ``q`` of the wrong trailing shape, a world that is not a ``World``, a
-            robot without a collision body.
+        ValueError: ``q`` of the wrong trailing shape or not real, a world that is not a
+            ``World``, a margin that is not one finite number, a robot without a collision
+            body.
     """
-    robot, body, pairs, q, world = checked_arguments(robot, q, world, self_collision)
+    robot, body, pairs, q, world, margin = checked_arguments(
+        robot, q, world, margin, self_collision
+    )
     return _check_jit(robot, body, pairs, q, world, margin)
 
 
-def checked_arguments(robot: Any, q: ArrayLike, world: Any, self_collision: bool) -> tuple:
-    """The boundary of the public checks: ``q`` as an array of the robot's joint count, the
-    world checked, the robot's body and self pairs (``prepare``); ``ValueError`` naming the
-    argument otherwise. Returns ``(robot, body, pairs, q, world)``."""
+def checked_arguments(
+    robot: Any, q: ArrayLike, world: Any, margin: Any, self_collision: bool
+) -> tuple:
+    """The boundary of the public checks: the robot checked, ``q`` as an array of its joint
+    count, the world and a concrete margin checked, the robot's body and self pairs
+    (``prepare``); ``ValueError`` naming the argument otherwise. Returns ``(robot, body,
+    pairs, q, world, margin)``."""
+    robot = _check_robot(robot)
     q = _as_q(robot, q)
     world = _check_world(world)
+    margin = _check_margin(margin)
     body, pairs = prepare(robot, self_collision)
-    return robot, body, pairs, q, world
+    return robot, body, pairs, q, world, margin

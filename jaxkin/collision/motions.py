@@ -28,8 +28,9 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from .._validate import positive_number
 from .body import Body
-from .check import _as_q, _check_world, check_kernel, prepare
+from .check import _as_q, _check_margin, _check_robot, _check_world, check_kernel, prepare
 from .pairs import SelfPairs
 from .world import World
 
@@ -143,7 +144,7 @@ def validate_motions(
         robot: a robot with ``collision_body`` and ``link_poses``.
         q_from, q_to: the edges' ends, ``(M, n_joints)`` (or any common leading axes).
         world: the obstacles.
-        resolution: states per unit of joint distance (> 0).
+        resolution: states per unit of joint distance (a number > 0; NumPy scalars too).
         margin, self_collision: as ``check``.
         samples: slots per edge (static); None computes them from the edges on the host (then
             ``q_from`` and ``q_to`` must be concrete).
@@ -153,13 +154,18 @@ def validate_motions(
 
     Returns:
         ``MotionResult`` with shapes ``(M,)`` (``last_valid`` ``(M, n)``).
+
+    Raises:
+        ValueError: as ``check``; ``q_from`` and ``q_to`` of different shapes, a resolution
+            that is not a positive finite number, ``samples`` not an int ``>= 2``.
     """
+    robot = _check_robot(robot)
     q_from, q_to = _as_q(robot, q_from, "q_from"), _as_q(robot, q_to, "q_to")
     if q_from.shape != q_to.shape:
         raise ValueError(f"q_from and q_to: shapes differ, {q_from.shape} and {q_to.shape}")
-    if not (isinstance(resolution, int | float) and math.isfinite(resolution) and resolution > 0):
-        raise ValueError(f"resolution must be a positive finite number, got {resolution!r}")
+    resolution = positive_number(resolution, "resolution")
     world = _check_world(world)
+    margin = _check_margin(margin)
     dtype = jnp.result_type(q_from, q_to)
     q_from, q_to = q_from.astype(dtype), q_to.astype(dtype)
     if samples is None:

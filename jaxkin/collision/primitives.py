@@ -20,6 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
+from .._validate import finite_number, positive_number
+
 __all__ = ["Boxes", "Capsules", "HalfSpaces", "Spheres", "point_cloud_spheres"]
 
 
@@ -39,6 +41,18 @@ def _floats(x: ArrayLike, name: str, shape_tail: tuple[int, ...], dtype=None) ->
     return arr.astype(dtype or jnp.result_type(float))
 
 
+def _per_primitive(x: ArrayLike, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``x`` broadcast to ``shape`` (one value per primitive, or one for all), or a
+    ``ValueError`` naming it."""
+    arr = np.asarray(x)
+    try:
+        return np.broadcast_to(arr, shape)
+    except ValueError:
+        raise ValueError(
+            f"{name}: shape {arr.shape} does not broadcast to {shape} (one per primitive)"
+        ) from None
+
+
 def _nonnegative(arr: np.ndarray, name: str) -> np.ndarray:
     if np.any(arr < 0):
         raise ValueError(f"{name} must be >= 0, got minimum {arr.min()}")
@@ -52,6 +66,16 @@ def _count(name: str, *arrays: np.ndarray, axes: tuple[int, ...]) -> None:
         raise ValueError(f"{name}: fields disagree on the number of primitives: {sorted(counts)}")
 
 
+def _sphere_arrays(
+    center: ArrayLike, radius: ArrayLike, dtype=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Host side, new arrays: sphere centres ``(..., n, 3)`` and radii ``(..., n)`` (one for
+    all, or one per centre), finite, radii ``>= 0``; ``ValueError`` naming the argument."""
+    c = _floats(center, "center", (3,), dtype)
+    r = _floats(_per_primitive(radius, "radius", c.shape[:-1]), "radius", (), dtype)
+    return c, _nonnegative(r, "radius")
+
+
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Spheres:
@@ -62,11 +86,7 @@ class Spheres:
 
     @classmethod
     def create(cls, center: ArrayLike, radius: ArrayLike, dtype=None) -> Spheres:
-        c = _floats(center, "center", (3,), dtype)
-        r = _nonnegative(
-            _floats(np.broadcast_to(radius, c.shape[:-1]), "radius", (), dtype), "radius"
-        )
-        return cls(jnp.asarray(c), jnp.asarray(r))
+        return cls(*map(jnp.asarray, _sphere_arrays(center, radius, dtype)))
 
     @classmethod
     def empty(cls, dtype=None) -> Spheres:
@@ -90,7 +110,7 @@ class Capsules:
     def create(cls, a: ArrayLike, b: ArrayLike, radius: ArrayLike, dtype=None) -> Capsules:
         pa, pb = _floats(a, "a", (3,), dtype), _floats(b, "b", (3,), dtype)
         _count("Capsules", pa, pb, axes=(2, 2))
-        r = _floats(np.broadcast_to(radius, pa.shape[:-1]), "radius", (), dtype)
+        r = _floats(_per_primitive(radius, "radius", pa.shape[:-1]), "radius", (), dtype)
         return cls(jnp.asarray(pa), jnp.asarray(pb), jnp.asarray(_nonnegative(r, "radius")))
 
     @classmethod
@@ -124,7 +144,9 @@ class Boxes:
     ) -> Boxes:
         c = _floats(center, "center", (3,), dtype)
         h = _nonnegative(
-            _floats(np.broadcast_to(half_extents, c.shape), "half_extents", (3,), dtype),
+            _floats(
+                _per_primitive(half_extents, "half_extents", c.shape), "half_extents", (3,), dtype
+            ),
             "half_extents",
         )
         if rotation is None:
@@ -164,7 +186,7 @@ class HalfSpaces:
         length = np.linalg.norm(n, axis=-1, keepdims=True)
         if np.any(length == 0):
             raise ValueError("normal must be non-zero vectors")
-        o = _floats(np.broadcast_to(offset, n.shape[:-1]), "offset", (), dtype)
+        o = _floats(_per_primitive(offset, "offset", n.shape[:-1]), "offset", (), dtype)
         return cls(jnp.asarray(n / length), jnp.asarray(o / length[..., 0]))
 
     @classmethod
@@ -189,9 +211,9 @@ def point_cloud_spheres(
     pts = _floats(points, "points", (3,), np.float64)
     if pts.ndim != 2:
         raise ValueError(f"points: expected shape (n, 3), got {pts.shape}")
-    if not (np.isfinite(voxel) and voxel > 0):
-        raise ValueError(f"voxel must be a positive cell size, got {voxel!r}")
-    if not (np.isfinite(point_radius) and point_radius >= 0):
+    voxel = positive_number(voxel, "voxel")
+    point_radius = finite_number(point_radius, "point_radius")
+    if point_radius < 0:
         raise ValueError(f"point_radius must be >= 0, got {point_radius!r}")
     if len(pts) == 0:
         return Spheres.empty(dtype)

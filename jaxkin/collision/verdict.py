@@ -494,7 +494,9 @@ def collides(
     the clearance or its pair: the arguments and errors of ``check``; a ``Verdict`` with
     shapes ``(...)``. A concrete batch of at least ``2 VERDICT_MIN_PART`` configurations
     runs as one part per host thread (``jaxkin.set_num_threads``)."""
-    robot, body, pairs, q, world = checked_arguments(robot, q, world, self_collision)
+    robot, body, pairs, q, world, margin = checked_arguments(
+        robot, q, world, margin, self_collision
+    )
     if _world_batched(world):
         return _collides_jit(robot, body, pairs, q, world, margin)
     return _collides_parts(robot, body, pairs, q, world, margin, batch=q.shape[:-1])

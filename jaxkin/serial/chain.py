@@ -51,7 +51,7 @@ from jax.typing import ArrayLike
 from .. import _batching, _validate
 from .._geometry import BOUND, REAL, Geometry, geometry, label, number, static
 from .._numerics import eps, safe_norm
-from ..collision.body import Body
+from ..collision.body import Body, link_spheres
 from ..collision.check import chain_self_pairs
 from ..collision.pairs import read_srdf_disabled, self_collision_link_pairs
 from ..collision.urdf import body_from_urdf
@@ -498,16 +498,16 @@ class Chain(Robot):
 
     def with_link_spheres(self, spheres: Any) -> Chain:
         """This chain with the named links' collision geometry replaced by the user's own
-        spheres: ``{link: (centers (k, 3), radii (k,))}`` in that link's frame."""
+        spheres: ``{link: (centers (k, 3), radii (k,) or one radius)}`` in that link's frame,
+        finite, radii ``>= 0`` (a ``ValueError`` names the link otherwise). The chain keeps
+        copies: editing the arrays afterwards does not change it."""
         links = self.links
         if links is None:
             m = self.n_path_joints
             homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
             links = ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
-        for name in spheres:
-            if name not in links.names:
-                raise ValueError(f"spheres: unknown link {name!r} (links: {links.names})")
-        merged = tuple({**dict(links.spheres), **dict(spheres)}.items())
+        own = link_spheres(spheres, tuple(links.names))
+        merged = tuple({**dict(links.spheres), **own}.items())
         return self.replace(links=links.replace(spheres=merged))
 
     def with_link_radius(self, radius: float) -> Chain:
