@@ -121,27 +121,7 @@ def spd_det(g: Array) -> Array:
     return det
 
 
-def spd_det_looped(g: Array) -> Array:
-    """``spd_det`` as a loop over the ``k`` pivots (one copy of the elimination in the compiled
-    program, where ``spd_det`` unrolls ``O(k^3)`` scalar operations): the same operations in
-    the same order, so the same values."""
-    k = g.shape[-1]
-    below = jnp.arange(k)
-
-    def eliminate(i, carry):
-        rows, det = carry
-        pivot = jnp.maximum(rows[..., i, i], 0.0)
-        inv = jnp.where(pivot > 0, 1.0 / jnp.where(pivot > 0, pivot, 1.0), 0.0)
-        factor = rows[..., :, i] * inv[..., None]
-        update = rows - factor[..., :, None] * rows[..., i, None, :]
-        later = below > i
-        return jnp.where(later[:, None] & later[None, :], update, rows), det * pivot
-
-    _, det = jax.lax.fori_loop(0, k, eliminate, (g, jnp.ones(g.shape[:-2], g.dtype)))
-    return det
-
-
-def isotropy(jac: Array, looped: bool = False) -> Array:
+def isotropy(jac: Array) -> Array:
     """How far a Jacobian ``(..., m, n)`` is from singular, in [0, 1], shape ``(...)``.
 
     With ``s_1 .. s_k`` its ``k = min(m, n)`` singular values: their geometric mean over their
@@ -149,9 +129,8 @@ def isotropy(jac: Array, looped: bool = False) -> Array:
     inequality, 1 when every ``s_i`` is equal, 0 exactly when the Jacobian loses rank). Computed
     from ``G = J J^T`` (or ``J^T J``) as ``det(G)^(1/2k) / sqrt(trace(G) / k)``; invariant to a
     common scale of ``J``, so scale rows and columns to one set of units first (e.g. lengths
-    divided by the robot's size). ``looped``: the determinant as ``spd_det_looped`` (a
-    smaller compiled program, the same values). No LAPACK call: its first use in a process
-    imports scipy (about 0.2 s), which a first call would pay.
+    divided by the robot's size). No LAPACK call: its first use in a process imports scipy
+    (about 0.2 s), which a first call would pay.
     """
     m, n = jac.shape[-2:]
     if m <= n:
@@ -160,7 +139,7 @@ def isotropy(jac: Array, looped: bool = False) -> Array:
         g = jnp.einsum("...ki,...kj->...ij", jac, jac)
     k = g.shape[-1]
     mean_sq = jnp.trace(g, axis1=-2, axis2=-1) / k
-    det = spd_det_looped(g) if looped else spd_det(g)
+    det = spd_det(g)
     positive = (mean_sq > 0) & (det > 0)
     ratio = det / jnp.where(positive, mean_sq, 1.0) ** k  # in [0, 1]
     root = jnp.exp(jnp.log(jnp.where(positive, ratio, 1.0)) / (2 * k))

@@ -154,7 +154,7 @@ def test_arm_radius_traced_needs_its_pairs_from_values():
         jax.grad(total)(0.03)
     slope = float(jax.grad(lambda r: total(r, False))(0.03))
     step = (float(total(0.03 + 1e-6, False)) - float(total(0.03 - 1e-6, False))) / 2e-6
-    assert np.isfinite(slope) and slope == pytest.approx(step, rel=1e-6)
+    assert np.isfinite(slope) and slope == pytest.approx(step, rel=1e-8)
 
 
 def test_chain_from_urdf_tip_link_pose_and_skeleton():

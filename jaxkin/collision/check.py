@@ -112,7 +112,7 @@ def chain_self_pairs(
     home = robot.link_poses(jnp.zeros(robot.n_joints, body.sphere_radius.dtype))
     spheres, capsules = body.place(home)
     distance = self_distances(spheres, capsules, pairs)
-    if isinstance(distance, jax.core.Tracer):  # the pairs are static: chosen from values
+    if not is_concrete(distance):  # the pairs are static: chosen from values
         raise ValueError(
             f"robot: {type(robot).__name__}'s self-collision pairs leave out the links in "
             "contact at q = 0, so they need its geometry as values, not traced (pass "
@@ -292,16 +292,13 @@ _check_jit = jax.jit(check_kernel)
 
 
 def _check_robot(robot: Any) -> Any:
-    """``robot`` if it has the collision protocol's ``n_joints``, ``collision_body`` and
-    ``link_poses`` (``prepare`` checks the body it returns)."""
-    if not (
-        hasattr(robot, "n_joints")
-        and callable(getattr(robot, "collision_body", None))
-        and callable(getattr(robot, "link_poses", None))
-    ):
+    """``robot`` if it has the collision protocol's ``n_joints``, ``collision_body``,
+    ``link_poses`` and ``placeable`` (``prepare`` checks the body it returns)."""
+    methods = ("collision_body", "link_poses", "placeable")
+    if not (hasattr(robot, "n_joints") and all(callable(getattr(robot, m, None)) for m in methods)):
         raise ValueError(
-            f"robot: expected a robot with n_joints, collision_body() and link_poses() (a "
-            f"jaxkin robot), got {type(robot).__name__}"
+            f"robot: expected a robot with n_joints, collision_body(), link_poses() and "
+            f"placeable() (a jaxkin robot), got {type(robot).__name__}"
         )
     return robot
 
