@@ -31,7 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxkin import Jet, Status, scara
+from jaxkin import IKResult, Jet, Status, scara
 from jaxkin.status import status_names
 
 # Examples may set global config (the library never does): float64 for table-grade values.
@@ -65,11 +65,11 @@ def spiral(t: np.ndarray) -> Jet:
     return Jet.of(p, v, a)
 
 
-def solve(robot: scara.Scara, d: Jet) -> dict[int, scara.ScaraIKResult]:
+def solve(robot: scara.Scara, d: Jet) -> dict[int, IKResult]:
     return {branch: scara.ik(robot, d, branch=branch) for branch in robot.branches}
 
 
-def write_csv(path: Path, t: np.ndarray, results: dict[int, scara.ScaraIKResult]) -> None:
+def write_csv(path: Path, t: np.ndarray, results: dict[int, IKResult]) -> None:
     with path.open("w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(COLUMNS)
@@ -83,7 +83,9 @@ def write_csv(path: Path, t: np.ndarray, results: dict[int, scara.ScaraIKResult]
                 writer.writerow([f"{x:.17g}" for x in row] + [names[i], branch])
 
 
-def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.ScaraIKResult]) -> bool:
+def plot(
+    path: Path, robot: scara.Scara, robot_d: Jet, t: np.ndarray, results: dict[int, IKResult]
+) -> bool:
     try:
         import matplotlib
 
@@ -94,10 +96,15 @@ def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.Scara
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5))
     colours = {1: "tab:blue", -1: "tab:orange"}
     p = np.asarray(robot_d.p)
+    # The elbow B at the final instant: the end of the arm's segment, in the arm plane.
+    elbows = {
+        branch: robot.link_segments(res.q.p[-1], robot_d.p[-1])[0, 1, :2]
+        for branch, res in results.items()
+    }
     ax = axes[0, 0]  # plan view: path and the robot at the final instant
     ax.plot(p[:, 0], p[:, 1], "k-", lw=0.8, label="path of D (eq. 16)")
-    for branch, res in results.items():
-        b = np.asarray(res.elbow.p[-1])
+    for branch, elbow in elbows.items():
+        b = np.asarray(elbow)
         ax.plot(
             [0, b[0], p[-1, 0]],
             [0, b[1], p[-1, 1]],
@@ -111,8 +118,8 @@ def plot(path: Path, robot_d: Jet, t: np.ndarray, results: dict[int, scara.Scara
     ax.set_title("Plan view")
     ax.legend(fontsize=7)
     ax = axes[1, 0]  # side view at the final instant
-    for branch, res in results.items():
-        b = np.asarray(res.elbow.p[-1])
+    for branch, elbow in elbows.items():
+        b = np.asarray(elbow)
         ax.plot(
             [0, 0, b[0], p[-1, 0], p[-1, 0]],
             [0, L_OA, L_OA, L_OA, p[-1, 2]],
@@ -186,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     csv_path = output / "scara_spiral.csv"
     write_csv(csv_path, t, results)
     png_path = output / "scara_spiral.png"
-    plotted = plot(png_path, d, t, results)
+    plotted = plot(png_path, robot, d, t, results)
 
     print(
         f"SCARA spiral (eq. 16): l_OA={L_OA:g}, l_AB={L_AB:g}, l_BC={L_BC:g} mm, "

@@ -9,6 +9,10 @@ and ``0 * inf = nan`` would poison the whole batch.
 
 from __future__ import annotations
 
+import functools
+import math
+import operator
+
 import jax
 import jax.numpy as jnp
 from jax import Array
@@ -85,7 +89,23 @@ def safe_norm(x: ArrayLike, axis: int = -1) -> Array:
 def all_finite(x: ArrayLike, axis: int | tuple[int, ...] | None = -1) -> Array:
     """True where every entry along ``axis`` is finite (``axis=None``: elementwise)."""
     finite = jnp.isfinite(x)
-    return finite if axis is None else jnp.all(finite, axis=axis)
+    if axis is None:
+        return finite
+    return all_last(finite) if axis == -1 else jnp.all(finite, axis=axis)
+
+
+def all_last(x: ArrayLike) -> Array:
+    """``jnp.all(x, axis=-1)``: ``(..., k)`` -> ``(...)``.
+
+    For a single element (leading shape of size 1: the single query) the ``k`` columns are
+    and-ed one by one: there a reduction inside a fused loop costs every call of the compiled
+    program a buffer that XLA's CPU runtime sets up anew, once per loop that reads it; in a
+    batch the reduction is one loop that the others read.
+    """
+    x = jnp.asarray(x)
+    if math.prod(x.shape[:-1]) != 1 or x.shape[-1] == 0:
+        return jnp.all(x, axis=-1)
+    return functools.reduce(operator.and_, (x[..., k] for k in range(x.shape[-1])))
 
 
 def computed_once(x: Array) -> Array:

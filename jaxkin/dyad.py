@@ -38,7 +38,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _batching, _validate
-from ._numerics import computed_once, rsqrt, singular_rtol
+from ._numerics import all_last, computed_once, rsqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
 from .planar import angle_rates, length_rates, link_end_rates
@@ -340,8 +340,8 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
         if not lengths_are_scalars
         else (jnp.abs(b[0] - a[0]) <= 2.0 * reach)
     )
-    valid = jnp.all(jnp.concatenate([finite_columns, near], axis=-1), axis=-1)
-    finite = jnp.all(finite_columns, axis=-1)  # read by the status output only
+    valid = all_last(jnp.concatenate([finite_columns, near], axis=-1))
+    finite = all_last(finite_columns)  # read by the status output only
     if lengths_are_scalars:
         valid = valid & lengths_finite
         finite = finite & lengths_finite

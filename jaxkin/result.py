@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ._numerics import all_finite
 from .jet import Jet, lift
 from .status import STATUS_DTYPE, Status, describe
 
@@ -91,7 +92,7 @@ def forward_result(pose: Callable[[Array], Array], q: Jet, rates: bool, target_n
     ``q = 0`` with zero rates; the others ``OK``. With ``rates`` the target's rates come from
     ``jaxkin.lift`` (nested forward-mode derivatives), else they are zero.
     """
-    valid = jnp.all(jnp.isfinite(jnp.concatenate([q.p, q.v, q.a], -1)), -1)
+    valid = all_finite(jnp.concatenate([q.p, q.v, q.a], -1))
     safe = q.map(lambda x: jnp.where(valid[..., None], x, 0.0))
     x = lift(pose)(safe) if rates else Jet.constant(pose(safe.p))
     mask = valid.reshape(valid.shape + (1,) * target_ndim)

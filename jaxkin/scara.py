@@ -19,7 +19,8 @@ Statuses (``jaxkin.Status``), from the dyad with its tolerance ``sqrt(eps) (l_ab
 ``INVALID_INPUT`` (NaN/inf in D), ``SINGULAR_COINCIDENT`` (D on the axis with equal links),
 ``UNREACHABLE`` (outside the annulus ``|l_ab - l_bc| <= r <= l_ab + l_bc``),
 ``SINGULAR_EXTENDED``/``SINGULAR_FOLDED`` (beta = 0 or pi), ``OUT_OF_LIMITS`` (solved, but a
-joint limit is violated; every status above wins over it), ``OK``. Where the status is neither
+joint limit is violated; every status above wins over it: whether a singular solution is
+within the limits is ``robot.limits.contains(q.p)``), ``OK``. Where the status is neither
 OK nor OUT_OF_LIMITS the rates are 0; positions are the dyad's finite placeholders. ``margin``
 is the dyad's ``sin(beta)^2`` (< 0 outside the workspace, -1 for invalid input).
 
@@ -29,11 +30,9 @@ Conventions, the derivation and float32 accuracy: ``docs/conventions.md`` and
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-import jax
 import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
@@ -54,7 +53,6 @@ __all__ = [
     "JOINT_NAMES",
     "JointLimits",
     "Scara",
-    "ScaraIKResult",
     "fk",
     "ik",
     "relative_elbow_angle",
@@ -239,24 +237,6 @@ class Scara(Robot):
         return _fk_impl(self, q, rates)
 
 
-@jax.tree_util.register_dataclass
-@dataclasses.dataclass(frozen=True)
-class ScaraIKResult(IKResult):
-    """Solution of a batch of SCARA inverse kinematics problems.
-
-    Attributes:
-        q: Jet of the joint coordinates ``(theta1, theta2, l3)``, shape ``(..., 3)``.
-        status: ``int8`` codes of ``jaxkin.Status``, shape ``(...)``.
-        margin: the dyad's ``sin(beta)^2`` distance to the workspace boundary, shape ``(...)``.
-        elbow: Jet of the elbow B in the arm plane, shape ``(..., 2)``.
-        within_limits: True where the returned positions are a solution (status OK,
-            OUT_OF_LIMITS or singular) and satisfy every joint limit, shape ``(...)``.
-    """
-
-    elbow: Jet
-    within_limits: Array
-
-
 def relative_elbow_angle(theta2: Jet | ArrayLike) -> Jet | Array:
     """The usual relative elbow angle ([UANL]'s ``q2``) from eq. 15's ``theta2``.
 
@@ -274,7 +254,7 @@ def _broadcast_geometry(robot: Scara, batch: tuple[int, ...]) -> tuple[Array, Ar
     return tuple(jnp.broadcast_to(x, batch) for x in (robot.l_oa, robot.l_ab, robot.l_bc))
 
 
-def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True) -> ScaraIKResult:
+def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True) -> IKResult:
     robot = robot.astype(d.dtype)  # inside jit: no per-call dispatch on the host
     lengths = (robot.l_oa, robot.l_ab, robot.l_bc)
     batch = jnp.broadcast_shapes(d.shape[:-1], *(jnp.shape(x) for x in lengths))
@@ -287,7 +267,7 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True)
     # Double-where, step 1: replace non-finite elements (including z, which the dyad never
     # sees) by a harmless reachable target before any arithmetic.
     valid = (
-        all_finite(jnp.concatenate([d.p, d.v, d.a], axis=-1))
+        all_finite(jnp.concatenate([d.p, d.v, d.a], axis=-1) if rates else d.p)
         & jnp.isfinite(l_oa)
         & jnp.isfinite(l_ab)
         & jnp.isfinite(l_bc)
@@ -310,7 +290,7 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True)
         inv_bc = jnp.asarray(1.0 / l_bc)[..., None]
         theta_bc, _ = planar.angle(Jet.constant((wrist_p - sol.c) * inv_bc))
         q = Jet.constant(jnp.stack([sol.phi, sol.phi - theta_bc.p, l_oa - d.p[..., 2]], -1))
-        elbow, dyad_status, margin = Jet.constant(sol.c), sol.status, sol.margin
+        dyad_status, margin = sol.status, sol.margin
         ok = dyad_status == Status.OK
     elif method == "analytic":
         wrist = d[..., :2]  # eq. 13: C = (x_D, y_D) with the same rates
@@ -333,42 +313,32 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True)
         )
         l3 = Jet(l_oa - d.p[..., 2], -d.v[..., 2], -d.a[..., 2])  # eq. 14
         q = Jet.stack([theta1, theta2, l3])
-        elbow, dyad_status, margin = sol.c, sol.status, sol.margin
+        dyad_status, margin = sol.status, sol.margin
     else:
 
-        def position(d_p: Array) -> tuple[Array, Array, Array, Array]:
-            """Position-level SCARA IK: q (..., 3), elbow (..., 2), status, margin."""
+        def position(d_p: Array) -> tuple[Array, Array, Array]:
+            """Position-level SCARA IK: q (..., 3), status, margin."""
             wrist_p = d_p[..., :2]
             sol = dyad.solve(shoulder, wrist_p, l_ab, l_bc, mode=branch)
             theta_bc, _ = planar.angle(
                 Jet.constant((wrist_p - sol.c.p) / jnp.asarray(l_bc)[..., None])
             )
             q = jnp.stack([sol.phi.p, sol.phi.p - theta_bc.p, l_oa - d_p[..., 2]], axis=-1)
-            return q, sol.c.p, sol.status, sol.margin
+            return q, sol.status, sol.margin
 
-        q, elbow, dyad_status, margin = lift(position)(d)
+        q, dyad_status, margin = lift(position)(d)
         margin = margin.p
         ok = dyad_status == Status.OK
 
     if rates:
         okc = ok[..., None]
         q = Jet(q.p, jnp.where(okc, q.v, 0.0), jnp.where(okc, q.a, 0.0))
-        elbow = Jet(elbow.p, jnp.where(okc, elbow.v, 0.0), jnp.where(okc, elbow.a, 0.0))
 
-    has_solution = valid & (
-        ok | (dyad_status == Status.SINGULAR_EXTENDED) | (dyad_status == Status.SINGULAR_FOLDED)
-    )
-    if robot.limits is None:
-        within_limits = has_solution
-    else:
-        within_limits = has_solution & robot.limits.contains(q.p)
-    status = jnp.where(
-        ~valid,
-        Status.INVALID_INPUT,
-        jnp.where(ok & ~within_limits, Status.OUT_OF_LIMITS, dyad_status),
-    ).astype(STATUS_DTYPE)
+    if robot.limits is not None:  # a singular status wins over the limits (module docstring)
+        dyad_status = jnp.where(ok & ~robot.limits.contains(q.p), Status.OUT_OF_LIMITS, dyad_status)
+    status = jnp.where(~valid, Status.INVALID_INPUT, dyad_status).astype(STATUS_DTYPE)
     margin = jnp.where(valid, margin, -1.0)
-    return ScaraIKResult(q, status, margin, elbow, within_limits)
+    return IKResult(q, status, margin)
 
 
 def _check_robot(robot: Any) -> Scara:
@@ -379,7 +349,7 @@ def _check_robot(robot: Any) -> Scara:
 
 def ik(
     robot: Scara, d: Jet | ArrayLike, branch: int | None = None, method: str = "analytic"
-) -> ScaraIKResult:
+) -> IKResult:
     """SCARA inverse kinematics: joint position, velocity and acceleration [Noriega, eqs. 11-15].
 
     Args:
@@ -391,9 +361,9 @@ def ik(
             IK lifted by ``jaxkin.lift``); the same values.
 
     Returns:
-        ``ScaraIKResult`` with ``q`` (Jet ``(..., 3)``: theta1, theta2, l3), ``status``,
-        ``margin``, ``elbow`` (Jet ``(..., 2)``) and ``within_limits``. Work is done in
-        ``d``'s floating dtype (the geometry is cast to it).
+        ``IKResult`` with ``q`` (Jet ``(..., 3)``: theta1, theta2, l3), ``status`` and
+        ``margin`` (the elbow B is ``robot.link_segments(q.p, d)[..., 0, 1, :]``). Work is
+        done in ``d``'s floating dtype (the geometry is cast to it).
 
     Raises:
         ValueError: ``robot`` not a ``Scara``, ``d`` whose last axis is not 3, batch shapes

@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxkin._numerics import isotropy, rsqrt, safe_sqrt, spd_det
+from jaxkin._numerics import all_finite, all_last, isotropy, rsqrt, safe_sqrt, spd_det
 
 X = jnp.asarray(np.random.default_rng(3).uniform(1e-3, 50.0, 200))
 
@@ -83,3 +83,20 @@ def test_isotropy_matches_the_singular_values():
         ours = np.asarray(isotropy(j))
         np.testing.assert_allclose(ours[5:], expected, rtol=1e-12, atol=0)
         assert np.all(np.isfinite(ours)) and np.all(ours[:5] <= 0.1)
+
+
+def test_all_last_equals_jnp_all_for_one_element_and_batches():
+    """One element (the columns and-ed one by one) and batches (a reduction): jnp.all's
+    values and shapes, empty rows included; all_finite through it."""
+    rng = np.random.default_rng(5)
+    for shape in [(3,), (1, 4), (1, 1, 2), (5, 3), (2, 1, 3), (1, 0), (4, 0), (0, 3)]:
+        x = rng.random(shape) > 0.3
+        got = all_last(jnp.asarray(x))
+        assert got.shape == shape[:-1] and got.dtype == jnp.bool_
+        np.testing.assert_array_equal(got, np.all(x, axis=-1))
+    for row in ([1.0, 2.0, 3.0], [1.0, np.nan, 3.0], [np.inf, 0.0, 0.0]):
+        for shape in ((3,), (1, 3)):
+            y = np.asarray(row).reshape(shape)
+            np.testing.assert_array_equal(all_finite(y), np.all(np.isfinite(y), axis=-1))
+    assert not bool(all_last(jnp.asarray([True, False, True])))
+    assert bool(all_last(jnp.asarray([[True, True]]))[0])
