@@ -331,8 +331,9 @@ def _sanitized(a: list[Array], b: list[Array], l_ac: Array, l_bc: Array):
     # Double-where, step 1: replace non-finite elements, and those beyond twice the reach
     # (where a square could overflow; the dyad cannot assemble there), by a harmless dyad
     # (A = 0, B = (1, 0), unit links) before any math, so neither values nor gradients can
-    # become NaN. The mask is a reduction on purpose: XLA keeps it as one loop that the others
-    # read, whereas an elementwise mask would be recomputed in each of the kernel's loops.
+    # become NaN. A batch's mask is a reduction on purpose: XLA keeps it as one loop that the
+    # others read, whereas an elementwise mask would be recomputed in each of the kernel's
+    # loops (one element's is elementwise: ``all_last``).
     finite_columns = jnp.isfinite(jnp.concatenate(columns, axis=-1))
     reach = l_ac + l_bc  # the comparison below is False for NaN and for an overflowed difference
     near = (

@@ -38,6 +38,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
+from .._numerics import all_finite
 from .._validate import finite_number, is_concrete
 from ..status import Status
 from . import fused
@@ -177,7 +178,7 @@ def check_kernel(
     margin = jnp.asarray(margin, dtype)
 
     def one(q: Array) -> CheckResult:
-        valid = jnp.all(jnp.isfinite(q), axis=-1)
+        valid = all_finite(q)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
         placed = robot.placeable(q_safe)
         spheres, capsules = body.place(robot.link_poses(q_safe).astype(dtype))
@@ -210,7 +211,7 @@ def _check_per_primitive(
     ``self_distances``): for a world with leading batch axes, and the reference of the
     fused pass in the tests."""
     dtype = q.dtype
-    valid = jnp.all(jnp.isfinite(q), axis=-1)
+    valid = all_finite(q)
     q_safe = jnp.where(valid[..., None], q, 0.0)
     placed = robot.placeable(q_safe)
     body, world = body.astype(dtype), world.astype(dtype)

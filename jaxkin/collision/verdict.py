@@ -64,7 +64,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import PartsJit, map_chunks
-from .._numerics import computed_once
+from .._numerics import all_finite, computed_once
 from ..status import Status
 from . import distance as sd
 from .body import Body
@@ -428,7 +428,7 @@ def collides_kernel(
 
     def one(q: Array) -> Verdict:
         q = q.reshape((-1, q.shape[-1]))
-        valid = jnp.all(jnp.isfinite(q), axis=-1)
+        valid = all_finite(q)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
         placed = robot.placeable(q_safe)
         spheres, capsules, centers = _place_rows(robot, body, q_safe, extra)
