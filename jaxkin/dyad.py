@@ -37,7 +37,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _validate
+from . import _validate
+from ._execute import Kernel, Policy
 from ._numerics import all_last, computed_once, rsqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
@@ -380,7 +381,9 @@ def _position_impl(a: Array, b: Array, l_ac: Array, l_bc: Array, mode: int) -> D
 
 
 _DYAD_CORES = {"a": 1, "b": 1, "l_ac": 0, "l_bc": 0}
-_position_jit = _batching.PaddedJit(jax.jit(_position_impl, static_argnames=("mode",)), _DYAD_CORES)
+_position_jit = Kernel(
+    _position_impl, static=("mode",), batched=_DYAD_CORES, policy=Policy(pad=True)
+)
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
@@ -431,8 +434,8 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     return DyadResult(c, phi, _far_status(status, far), margin.p)
 
 
-_solve_jit = _batching.PaddedJit(
-    jax.jit(_solve_impl, static_argnames=("mode", "method")), _DYAD_CORES
+_solve_jit = Kernel(
+    _solve_impl, static=("mode", "method"), batched=_DYAD_CORES, policy=Policy(pad=True)
 )
 
 

@@ -35,12 +35,12 @@ from __future__ import annotations
 
 from typing import Any
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from ._execute import kernel
 from ._numerics import computed_once, eps, safe_sqrt
 from ._validate import as_float
 
@@ -72,7 +72,7 @@ def _small_angle(dtype) -> float:
     return 5.0 * eps(dtype) ** 0.125
 
 
-@jax.jit
+@kernel
 def hat(omega: ArrayLike) -> Array:
     """Skew-symmetric matrix of a 3-vector: ``(..., 3) -> (..., 3, 3)``, ``hat(a) b = a x b``."""
     omega = as_float(omega)
@@ -107,7 +107,7 @@ def vee(mat: ArrayLike, *, xp: Any = jnp, skew: bool = False) -> Array:
     )
 
 
-@jax.jit
+@kernel
 def se3_hat(xi: ArrayLike) -> Array:
     """4x4 matrix of a twist ``(omega, v)``: ``(..., 6) -> (..., 4, 4)``."""
     xi = as_float(xi)
@@ -116,7 +116,7 @@ def se3_hat(xi: ArrayLike) -> Array:
     return jnp.concatenate([top, bottom], axis=-2)
 
 
-@jax.jit
+@kernel
 def se3_vee(mat: ArrayLike) -> Array:
     """Inverse of ``se3_hat``: ``(..., 4, 4) -> (..., 6)`` ordered ``(omega, v)``."""
     mat = as_float(mat)
@@ -144,7 +144,7 @@ def _exp_coefficients(theta_sq: Array) -> tuple[Array, Array, Array]:
     )
 
 
-@jax.jit
+@kernel
 def so3_exp(omega: ArrayLike) -> Array:
     """Rotation matrix of a rotation vector (Rodrigues): ``(..., 3) -> (..., 3, 3)``."""
     omega = as_float(omega)
@@ -154,7 +154,7 @@ def so3_exp(omega: ArrayLike) -> Array:
     return eye + a[..., None, None] * k + b[..., None, None] * (k @ k)
 
 
-@jax.jit
+@kernel
 def se3_exp(xi: ArrayLike) -> Array:
     """Homogeneous transform of a twist ``(omega, v)``: ``(..., 6) -> (..., 4, 4)``.
 
@@ -173,7 +173,7 @@ def se3_exp(xi: ArrayLike) -> Array:
     return from_rotation_translation(rot, p)
 
 
-@jax.jit
+@kernel
 def from_rotation_translation(rot: ArrayLike, p: ArrayLike) -> Array:
     """Assemble ``[[R, p], [0, 1]]`` from ``R`` (..., 3, 3) and ``p`` (..., 3)."""
     rot, p = as_float(rot), as_float(p)
@@ -339,7 +339,7 @@ def se3_log_soa(rot: Rot, p: Vec) -> Vec:
     return [*omega, *(p[i] - 0.5 * wp[i] + d * wwp[i] for i in range(3))]
 
 
-@jax.jit
+@kernel
 def so3_log(rot: ArrayLike) -> Array:
     """Rotation vector of a rotation matrix: ``(..., 3, 3) -> (..., 3)``, angle in [0, pi].
 
@@ -350,7 +350,7 @@ def so3_log(rot: ArrayLike) -> Array:
     return jnp.stack(omega, axis=-1)
 
 
-@jax.jit
+@kernel
 def se3_log(transform: ArrayLike) -> Array:
     """Twist ``(omega, v)`` of a homogeneous transform: ``(..., 4, 4) -> (..., 6)``.
 
@@ -359,7 +359,7 @@ def se3_log(transform: ArrayLike) -> Array:
     return jnp.stack(se3_log_soa(*unpack(as_float(transform))), axis=-1)
 
 
-@jax.jit
+@kernel
 def se3_inverse(transform: ArrayLike) -> Array:
     """Inverse of a homogeneous transform: ``[[R^T, -R^T p], [0, 1]]``, ``(..., 4, 4)``."""
     transform = as_float(transform)
@@ -368,7 +368,7 @@ def se3_inverse(transform: ArrayLike) -> Array:
     return from_rotation_translation(rot_t, p)
 
 
-@jax.jit
+@kernel
 def adjoint(transform: ArrayLike) -> Array:
     """Adjoint of a transform on ``(omega, v)`` twists: ``(..., 4, 4) -> (..., 6, 6)``.
 

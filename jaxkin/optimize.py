@@ -60,11 +60,12 @@ import optax
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _processes, _validate, paths, plan
+from . import _processes, _validate, paths, plan
+from ._execute import as_robot, fk, ik, kernel, map_candidates
 from ._progress import bar, is_active
 from .costs import DEFAULT_COST, CostTerm, TrajectorySample, bind
 from .jet import Jet
-from .robot import Robot, as_robot, fk, ik
+from .robot import Robot
 from .status import STATUS_DTYPE, Status
 
 __all__ = ["DIVERGED_SIZES", "LBFGS", "Adam", "LoopState", "OptimizationResult", "Stop", "optimize"]
@@ -256,7 +257,7 @@ class LoopState:
     history: Array
 
 
-@functools.partial(jax.jit, static_argnames="static")
+@kernel(static=("static",))
 def _start(x: Array, data: dict, static: _Static) -> LoopState:
     """The loop's initial state for guesses ``x`` ``(B, K', d)``."""
     value_and_grad = jax.value_and_grad(_objective)
@@ -277,7 +278,7 @@ def _start(x: Array, data: dict, static: _Static) -> LoopState:
     )
 
 
-@functools.partial(jax.jit, static_argnames="static")
+@kernel(static=("static",))
 def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
     """Iterations until every guess has stopped or loop iteration ``stop``; a guess stops
     after ``static.steps`` steps at the latest."""
@@ -406,7 +407,7 @@ def _two_loop(g: Array, state: dict) -> Array:
     return -r
 
 
-@functools.partial(jax.jit, static_argnames="static")
+@kernel(static=("static",))
 def _run_lbfgs(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
     """``LBFGS``'s loop: every iteration evaluates one trial point per running guess."""
     value_and_grad = jax.vmap(jax.value_and_grad(_objective), in_axes=(0, None, None))
@@ -504,7 +505,7 @@ def _run_lbfgs(initial: LoopState, data: dict, stop: Array, static: _Static) -> 
     return jax.lax.while_loop(cond, body, initial)
 
 
-@functools.partial(jax.jit, static_argnames="static")
+@kernel(static=("static",))
 def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
     """Controls, tool paths, history and stop codes of finished guesses; the divergence
     checks (blown-up cost, control points far outside the box) applied."""
@@ -527,7 +528,7 @@ def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
     return controls, path, q, status, f, history.T, stop, grad_norm
 
 
-@jax.jit
+@kernel
 def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array) -> Any:
     """``plan.Evaluation`` of joint trajectories ``(N, T, n)`` (continuous by construction):
     a sample is ``OUT_OF_LIMITS`` where a limit is passed, else its FK status."""
@@ -855,7 +856,7 @@ def optimize(
 
     # A guess's steps never depend on the others' (a stopped guess is held), so each device
     # runs its own guesses' loop to its own end.
-    out = _batching.map_candidates(run, interior, interior.shape[0], name="interior")
+    out = map_candidates(run, interior, interior.shape[0], name="interior")
     ctrl, path, q, fk_status, f, history, stop, grad_norm, iterations = out
     history = history.T
     evaluation = _evaluation(robot, joint, path, q, fk_status, limits, branch, dt)

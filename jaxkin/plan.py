@@ -75,7 +75,7 @@ so memory stays bounded besides the returned arrays; the chunks run on the host 
 several JAX devices, in one process or in many joined by ``jax.distributed`` (every process
 then calls ``evaluate`` with the same arguments), the candidates are split into one block per
 device, each process evaluates its own devices' blocks, and the results are global arrays
-split along the candidate axis (``jaxkin._batching.map_candidates``; ``docs/scaling.md``).
+split along the candidate axis (``jaxkin._execute.map_candidates``; ``docs/scaling.md``).
 """
 
 from __future__ import annotations
@@ -92,11 +92,12 @@ from jax.typing import ArrayLike
 
 from . import _batching, _processes, _validate, collision
 from . import timing as _timing
+from ._execute import Kernel, Policy, as_robot, kernel, map_candidates
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
 from .paths import Path
 from .result import SolverResult
-from .robot import Robot, as_robot
+from .robot import Robot
 from .status import STATUS_DTYPE, Status
 
 __all__ = [
@@ -629,9 +630,7 @@ def _evaluate_impl(
 
 
 # Candidates are padded (the core of a path: its samples and the target's axes, per call).
-_evaluate_jit = _batching.PaddedJit(
-    jax.jit(_evaluate_impl, static_argnames=("branch", "space")), {}
-)
+_evaluate_jit = Kernel(_evaluate_impl, static=("branch", "space"), policy=Policy(pad=True))
 
 
 # ------------------------------------------------------------------ public API
@@ -736,7 +735,7 @@ def evaluate(
         placeholder = jax.tree.map(lambda x: jnp.zeros((1, *x.shape[1:]), x.dtype), path)
         ev = jax.tree.map(lambda x: x[:0], call(placeholder))
     else:
-        ev = _batching.map_candidates(call, path, chunk_size)
+        ev = map_candidates(call, path, chunk_size)
     applied = tuple(tuple(float(x) for x in np.asarray(b)) for b in jax.tree.leaves(limits))
     return dataclasses.replace(ev, dt=dt, space=space, limits=applied)
 
@@ -790,7 +789,7 @@ def _weights(weights: Any, n: int) -> Array:
 RANKINGS = ("cost", "duration")
 
 
-@jax.jit
+@kernel
 def _feasible_only(timed: _timing.Timing, feasible: Array) -> _timing.Timing:
     """``timed`` with the candidates that are not feasible marked ``UNTIMEABLE`` (zeros)."""
     ok = feasible & (timed.status == Status.OK)

@@ -38,13 +38,14 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _validate, dyad, lie, planar
+from ._execute import solve_fk, solve_ik
 from ._geometry import LENGTH, NONNEGATIVE, geometry, number
 from ._numerics import all_finite, computed_once
 from ._trig import cos_alone, sin_alone, sincos
 from .collision.body import Body
 from .jet import Jet, lift
 from .result import FKResult, IKResult
-from .robot import POINT, JointLimits, Robot, options, solve_fk, solve_ik
+from .robot import POINT, JointLimits, Robot, options
 from .status import STATUS_DTYPE, Status
 
 __all__ = [

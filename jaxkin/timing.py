@@ -59,6 +59,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _splines, _validate
+from ._execute import kernel
 from .jet import Jet
 from .result import SolverResult
 from .status import STATUS_DTYPE, Status
@@ -183,7 +184,7 @@ def _spline_slopes(knots: Array, end: str) -> Array:
     return jax.lax.linalg.tridiagonal_solve(lower, diag, upper, rhs)
 
 
-@functools.partial(jax.jit, static_argnames=("subdivisions", "end"))
+@kernel(static=("subdivisions", "end"))
 def _spline_path(knots: Array, subdivisions: int, end: str) -> JointPath:
     """The spline through ``knots`` (``(..., K, n)`` at ``s = 0..K-1``), sampled
     ``subdivisions`` times per segment."""
@@ -427,7 +428,7 @@ def _time_one(
     return t[-1], status, t, speed, acceleration
 
 
-@functools.partial(jax.jit, static_argnames=("scheme", "speed_bound"))
+@kernel(static=("scheme", "speed_bound"))
 def _retime(
     path: JointPath,
     v_max: Array,
@@ -610,7 +611,7 @@ def _sample_one(
     return jet, valid
 
 
-@jax.jit
+@kernel
 def _sample(path: JointPath, timing: Timing, times: Array) -> RetimedTrajectory:
     batch = timing.duration.shape
     flat = int(np.prod(batch, dtype=int))

@@ -24,7 +24,6 @@ holds the whole mask, gathered as bits); ``jaxkin._processes.to_host`` gives it 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from typing import Any
 
@@ -34,8 +33,9 @@ import numpy as np
 from jax import Array
 
 from . import _batching, _processes
+from ._execute import as_robot, ik, kernel
 from ._progress import bar
-from .robot import Robot, as_robot, ik
+from .robot import Robot
 
 __all__ = ["WorkspaceResult", "grid_axes", "sweep"]
 
@@ -105,7 +105,7 @@ def _check_box(robot: Robot, bounds: Any, resolution: Any) -> tuple[Bounds, floa
     return bounds, resolution
 
 
-@functools.partial(jax.jit, static_argnames=("branch", "accept"))
+@kernel(static=("branch", "accept"))
 def _reachable(robot: Robot, points: Array, branch: Any, accept: tuple[int, ...]) -> Array:
     """Whether each point's status is one of ``accept``: ``(M,)`` bool."""
     status = ik(robot, points, branch).status.astype(jnp.int32)

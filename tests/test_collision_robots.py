@@ -534,7 +534,13 @@ def dataclasses_replace(sample, q):
 
 
 def _fields(result) -> dict[str, np.ndarray]:
-    return {f: np.array(getattr(result, f)) for f in result.__dataclass_fields__}
+    """Every field of a ``CheckResult``, its closest pair's and its world and self parts'."""
+    names = ("clearance", "collides", "status", "pair_kind", "link", "other", "obstacle_kind")
+    out = {f: np.array(getattr(result, f)) for f in names}
+    for part in ("world", "self_collision"):
+        value = getattr(result, part)
+        out.update({f"{part}.{f}": np.array(getattr(value, f)) for f in value.__dataclass_fields__})
+    return out
 
 
 @pytest.mark.slow
@@ -569,13 +575,16 @@ def test_check_fused_pass_equals_the_per_primitive_queries():
     # ties: a primitive nearest to a joint centre is as near to both links that meet there
     # (their capsules share the end point), and either link may be reported
     tie = np.zeros(n, bool)
-    for name in ("link", "other"):
+    links = ("link", "other", "world.link", "self_collision.first", "self_collision.second")
+    for name in links:
         differs = fused[name] != reference[name]
         np.testing.assert_array_equal(np.abs(fused[name] - reference[name])[differs], 1)
         tie |= differs
     assert np.sum(tie) <= 1e-3 * n
-    for name in ("link", "other"):
+    for name in links:
         fused[name][tie] = reference[name][tie]
+    for part in ("world.clearance", "self_collision.clearance"):
+        np.testing.assert_allclose(fused.pop(part), reference.pop(part), atol=1e-12)
     for name, value in reference.items():
         np.testing.assert_array_equal(fused[name], value, err_msg=name)
     assert 0 < np.sum(fused["collides"]) < n

@@ -33,8 +33,6 @@ import sys
 import threading
 from collections.abc import Iterator, Sequence
 
-from .._compile_cache import enable_for_command, enable_store, store_directory
-
 __all__ = ["EXIT_BROKEN_PIPE", "EXIT_ERROR", "EXIT_INTERRUPTED", "Terminated", "main"]
 
 EXIT_ERROR = 2
@@ -90,10 +88,11 @@ def _run(argv: list[str], debug: bool) -> int:
     from .parser import build_parser
     from .robots import CliError
 
-    store = store_directory()
-    enable_for_command()  # the persistent compilation cache (docs/cli.md)
     try:
         args = build_parser().parse_args(argv)
+        from .._execute.cache import enable_for_command  # after --help: JAX loads in ~1 s
+
+        enable_for_command()  # the persistent compilation cache (docs/cli.md)
         args.notes = []
         code = int(args.func(args) or 0)
         if not getattr(args, "quiet", False):
@@ -126,8 +125,6 @@ def _run(argv: list[str], debug: bool) -> int:
         prefix = "" if known else f"internal error ({type(exc).__name__}): "
         print(f"jaxkin: error: {prefix}{text}", file=sys.stderr)
         return EXIT_ERROR
-    finally:
-        enable_store(store)  # stored executables for this command only
 
 
 if __name__ == "__main__":

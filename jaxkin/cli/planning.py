@@ -45,7 +45,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import _compile_cache, plan, timing
+from .. import plan, timing
+from .._execute import Kernel
 from ..jet import Jet
 from ..robot import Robot, fk
 from ..status import STATUS_DTYPE, Status
@@ -108,7 +109,7 @@ def _follow(robot: Robot, path: Jet, dt: Any, real: Any, limits: plan.Limits, in
     return q, status, res.margin
 
 
-_follow_jit = _compile_cache.stored_jit(_follow, static_argnames=("index",))
+_follow_jit = Kernel(_follow, static=("index",))
 
 
 def _padded(size: int, smallest: int) -> int:
@@ -306,7 +307,7 @@ def _window(robot: Robot, path: Jet, real: Any, index: int, carry: dict | None):
     return Jet(p, res.q.v, res.q.a), status, res.margin, out
 
 
-_window_jit = jax.jit(_window, static_argnames=("index",))
+_window_jit = Kernel(_window, static=("index",))
 
 
 def _window_checks(robot: Robot, q: Jet, status: Any, moving: Any, limits, dt: Any, turns: Any):
@@ -316,7 +317,7 @@ def _window_checks(robot: Robot, q: Jet, status: Any, moving: Any, limits, dt: A
     return q, status
 
 
-_window_checks_jit = jax.jit(_window_checks)
+_window_checks_jit = Kernel(_window_checks)
 
 
 @dataclasses.dataclass

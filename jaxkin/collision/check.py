@@ -11,10 +11,12 @@ with ``d`` the exact signed distance (``collision.distance``: negative in penetr
 configuration collides where ``clearance <= margin``. The pair that attains the clearance is
 reported: a robot link and an obstacle (``kind``, ``index``), or two robot links.
 
-The reduction is one fused pass over the placed primitives (``fused.clearance``: robot-world
-and self pairs together, configurations minor), run chunk by chunk over large batches so that
-memory stays bounded; a world with leading batch axes goes through the per-primitive queries
-(``world.nearest_obstacles``, ``pairs.self_distances``), which give the same values.
+The world and self clearances are reported apart too, each with its closest pair. The
+reduction is one pass over the placed primitives in the rows layout (``fused.world_and_self``:
+loops over the obstacles and the self pairs, configurations minor), run chunk by chunk over
+large batches so that memory stays bounded; a world with leading batch axes goes through the
+per-primitive queries (``world.nearest_obstacles``, ``pairs.self_distances``), which give the
+same values.
 
 Everything after the host-side set-up (the body and the pairs, read once per robot) is one
 pure function of arrays, compiled once per shapes: moving, resizing or turning an obstacle, or
@@ -38,18 +40,22 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
+from .._execute import Kernel
 from .._numerics import all_finite
 from .._validate import finite_number, is_concrete
 from ..status import Status
 from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
-from .world import SPHERE, World, nearest_obstacles
+from .rows import place
+from .world import World, nearest_obstacles
 
 __all__ = [
     "ROBOT_WORLD",
     "SELF",
     "CheckResult",
+    "SelfContact",
+    "WorldContact",
     "chain_self_pairs",
     "check",
     "check_kernel",
@@ -69,6 +75,42 @@ _UNREACHABLE = Status.UNREACHABLE
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
+class WorldContact:
+    """The closest robot-world pair per configuration (shapes ``(...)``).
+
+    Attributes:
+        clearance: the smallest robot-world signed distance (the dtype's largest finite value
+            with no obstacle or no robot primitive; 0 for a configuration not checked).
+        link: the robot link (index into ``body.links``) of the closest pair, -1 for none.
+        kind: ``int8`` ``collision.SPHERE/CAPSULE/BOX/HALFSPACE`` of the obstacle, -1 for none.
+        index: the obstacle's index within its kind, -1 for none.
+    """
+
+    clearance: Array
+    link: Array
+    kind: Array
+    index: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class SelfContact:
+    """The closest self-collision pair per configuration (shapes ``(...)``).
+
+    Attributes:
+        clearance: the smallest signed distance over the checked self pairs (the dtype's
+            largest finite value with none; 0 for a configuration not checked).
+        first, second: the pair's links (``first < second``, indices into ``body.links``),
+            -1 for none.
+    """
+
+    clearance: Array
+    first: Array
+    second: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
 class CheckResult:
     """Per configuration (shapes ``(...)``, the batch of ``q``).
 
@@ -78,21 +120,46 @@ class CheckResult:
         collides: ``clearance <= margin``, or invalid input.
         status: ``int8`` ``jaxkin.Status``: ``OK``, ``COLLISION``, ``INVALID_INPUT`` or
             ``UNREACHABLE`` (joints at which the robot does not assemble).
-        pair_kind: ``int8``: ``ROBOT_WORLD`` (0), ``SELF`` (1), or -1 (nothing to hit).
-        link: the robot link (index into ``body.links``) of the closest pair.
-        other: for ``ROBOT_WORLD`` the obstacle's index within its kind, for ``SELF`` the
-            other link; -1 otherwise.
-        obstacle_kind: ``int8`` ``collision.SPHERE/CAPSULE/BOX/HALFSPACE`` for
-            ``ROBOT_WORLD``, -1 otherwise.
+        world: the closest robot-world pair and its clearance (``WorldContact``).
+        self_collision: the closest self pair and its clearance (``SelfContact``).
+
+    The closest pair overall (ties go to the world pair): ``pair_kind`` (``ROBOT_WORLD``,
+    ``SELF`` or -1 with nothing to hit), ``link`` (the robot link), ``other`` (the
+    obstacle's index within its kind, or the other link), ``obstacle_kind`` (-1 for a self
+    pair).
     """
 
     clearance: Array
     collides: Array
     status: Array
-    pair_kind: Array
-    link: Array
-    other: Array
-    obstacle_kind: Array
+    world: WorldContact
+    self_collision: SelfContact
+
+    @property
+    def _self_closer(self) -> Array:
+        return self.self_collision.clearance < self.world.clearance
+
+    @property
+    def pair_kind(self) -> Array:
+        """``int8``: ``ROBOT_WORLD``, ``SELF``, or -1 (nothing to hit)."""
+        none = (self.world.link < 0) & (self.self_collision.first < 0)
+        kind = jnp.where(self._self_closer, SELF, ROBOT_WORLD)
+        return jnp.where(none, -1, kind).astype(jnp.int8)
+
+    @property
+    def link(self) -> Array:
+        """The robot link of the closest pair (the first of a self pair), -1 for none."""
+        return jnp.where(self._self_closer, self.self_collision.first, self.world.link)
+
+    @property
+    def other(self) -> Array:
+        """The obstacle's index within its kind, or the other link of a self pair."""
+        return jnp.where(self._self_closer, self.self_collision.second, self.world.index)
+
+    @property
+    def obstacle_kind(self) -> Array:
+        """``int8`` obstacle kind of a robot-world pair, -1 otherwise."""
+        return jnp.where(self._self_closer, -1, self.world.kind).astype(jnp.int8)
 
 
 def chain_self_pairs(
@@ -143,8 +210,8 @@ def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
     return prepared
 
 
-def _world_batched(world: World) -> bool:
-    """True when the obstacles carry leading batch axes (the fused pass takes one world)."""
+def world_batched(world: World) -> bool:
+    """True when the obstacles carry leading batch axes (the rows layout takes one world)."""
     return (
         world.spheres.radius.ndim > 1
         or world.capsules.radius.ndim > 1
@@ -165,38 +232,48 @@ def check_kernel(
 
     One pass per chunk of configurations (``_batching.map_chunks``: at most ``CHECK_CHUNK``
     configurations at a time, so memory stays bounded for any batch): forward kinematics,
-    placement, then the fused robot-world and self clearance (``fused.clearance``). A world
-    with leading batch axes goes through the per-primitive queries instead.
+    placement, then the world and self clearances (``fused.world_and_self``). A world with
+    leading batch axes goes through the per-primitive queries instead.
     """
     dtype = q.dtype
     batch = q.shape[:-1]
     body, world = body.astype(dtype), world.astype(dtype)
-    if _world_batched(world) or math.prod(batch) == 0 or not (body.num_spheres + body.num_capsules):
+    if world_batched(world) or math.prod(batch) == 0 or not (body.num_spheres + body.num_capsules):
         return _check_per_primitive(robot, body, pairs, q, world, margin)
     prim_link = jnp.asarray(np.asarray(body.sphere_link + body.capsule_link, dtype=np.int32))
-    ns = body.num_spheres
+    link_pairs = np.asarray(pairs.link_pairs or [(-1, -1)], dtype=np.int32)
+    n_obstacles = max(1, sum(len(a[0]) for _, _, a in fused.obstacle_kinds(world)))
+    self_pairs = pairs if pairs.link_pairs else None
     margin = jnp.asarray(margin, dtype)
 
     def one(q: Array) -> CheckResult:
         valid = all_finite(q)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
         placed = robot.placeable(q_safe)
-        spheres, capsules = body.place(robot.link_poses(q_safe).astype(dtype))
-        near = fused.clearance(spheres, capsules, world, pairs if pairs.link_pairs else None)
-        nothing = near.distance >= jnp.finfo(dtype).max
-        link = prim_link[near.robot_index + jnp.where(near.robot_kind == SPHERE, 0, ns)]
-        second = prim_link[near.other_index + jnp.where(near.other_kind == SPHERE, 0, ns)]
-        is_self = ~near.world
-        pair_kind = jnp.where(nothing, -1, jnp.where(is_self, SELF, ROBOT_WORLD))
-        # a self pair is reported as (smaller link, larger link), as its link pair is listed
-        first = jnp.where(is_self, jnp.minimum(link, second), link)
-        other = jnp.where(is_self, jnp.maximum(link, second), near.other_index)
-        obstacle_kind = jnp.where(is_self | nothing, -1, near.other_kind)
-        first, other = (jnp.where(nothing, -1, x) for x in (first, other))
-        pair = (pair_kind, first, other, obstacle_kind)
-        return _verdict(valid, placed, near.distance, *pair, margin)
+        parts = fused.world_and_self(place(robot, body, q_safe), world, self_pairs)
+        code = parts.world_code
+        prim = jnp.clip(code // n_obstacles, 0, max(len(prim_link) - 1, 0))
+        kind, index = fused.obstacle_of(world, code % n_obstacles)
+        none = code < 0
+        world_contact = WorldContact(
+            parts.world,
+            jnp.where(none, -1, prim_link[prim]),
+            jnp.where(none, -1, kind),
+            jnp.where(none, -1, index),
+        )
+        pair = fused.self_link_pair(self_pairs, parts.own_code)
+        own = pair < 0
+        safe = jnp.clip(pair, 0, len(link_pairs) - 1)
+        self_contact = SelfContact(
+            parts.own,
+            jnp.where(own, -1, jnp.asarray(link_pairs[:, 0])[safe]),
+            jnp.where(own, -1, jnp.asarray(link_pairs[:, 1])[safe]),
+        )
+        return _verdict(valid, placed, world_contact, self_contact, margin)
 
-    return map_chunks(one, q, batch, CHECK_CHUNK)
+    flat = q.reshape((-1, q.shape[-1]))
+    out = map_chunks(one, flat, flat.shape[:-1], CHECK_CHUNK)
+    return jax.tree.map(lambda x: x.reshape((*batch, *x.shape[1:])), out)
 
 
 def _check_per_primitive(
@@ -209,7 +286,7 @@ def _check_per_primitive(
 ) -> CheckResult:
     """``check_kernel`` through the per-primitive queries (``nearest_obstacles`` and
     ``self_distances``): for a world with leading batch axes, and the reference of the
-    fused pass in the tests."""
+    rows pass in the tests."""
     dtype = q.dtype
     valid = all_finite(q)
     q_safe = jnp.where(valid[..., None], q, 0.0)
@@ -222,74 +299,70 @@ def _check_per_primitive(
 
     # robot-world: the closest robot primitive and its obstacle
     prim_link = np.asarray(body.sphere_link + body.capsule_link, dtype=np.int32)
+    none = jnp.full(batch, -1, jnp.int32)
     if len(prim_link):
         d_world = jnp.concatenate([near_s.distance, near_c.distance], axis=-1)
         kinds = jnp.concatenate([near_s.kind, near_c.kind], axis=-1)
         index = jnp.concatenate([near_s.index, near_c.index], axis=-1)
         p = jnp.argmin(d_world, axis=-1)
         world_clear = jnp.take_along_axis(d_world, p[..., None], -1)[..., 0]
-        world_kind = jnp.take_along_axis(kinds, p[..., None], -1)[..., 0]
-        world_index = jnp.take_along_axis(index, p[..., None], -1)[..., 0]
-        world_link = jnp.asarray(prim_link)[p]
+        nothing = world_clear >= big
+        world_contact = WorldContact(
+            world_clear,
+            jnp.where(nothing, -1, jnp.asarray(prim_link)[p]),
+            jnp.where(nothing, -1, jnp.take_along_axis(kinds, p[..., None], -1)[..., 0]),
+            jnp.where(nothing, -1, jnp.take_along_axis(index, p[..., None], -1)[..., 0]),
+        )
     else:
-        world_clear = jnp.full(batch, big, dtype)
-        world_kind = jnp.full(batch, -1, jnp.int8)
-        world_index = world_link = jnp.full(batch, -1, jnp.int32)
+        world_contact = WorldContact(jnp.full(batch, big, dtype), none, none, none)
 
     # self: the closest checked link pair
     if pairs.link_pairs:
         d_self = self_distances(spheres, capsules, pairs)
         k = jnp.argmin(d_self, axis=-1)
-        self_clear = jnp.take_along_axis(d_self, k[..., None], -1)[..., 0]
         link_pairs = np.asarray(pairs.link_pairs, dtype=np.int32)
-        self_a, self_b = jnp.asarray(link_pairs[:, 0])[k], jnp.asarray(link_pairs[:, 1])[k]
+        self_contact = SelfContact(
+            jnp.take_along_axis(d_self, k[..., None], -1)[..., 0],
+            jnp.asarray(link_pairs[:, 0])[k],
+            jnp.asarray(link_pairs[:, 1])[k],
+        )
     else:
-        self_clear = jnp.full(batch, big, dtype)
-        self_a = self_b = jnp.full(batch, -1, jnp.int32)
-
-    is_self = self_clear < world_clear
-    clearance = jnp.minimum(world_clear, self_clear)
-    nothing = clearance >= big
-    pair_kind = jnp.where(nothing, -1, jnp.where(is_self, SELF, ROBOT_WORLD)).astype(jnp.int8)
-    link = jnp.where(nothing, -1, jnp.where(is_self, self_a, world_link)).astype(jnp.int32)
-    other = jnp.where(nothing, -1, jnp.where(is_self, self_b, world_index)).astype(jnp.int32)
-    obstacle_kind = jnp.where(is_self | nothing, -1, world_kind).astype(jnp.int8)
-
-    margin = jnp.asarray(margin, dtype)
-    return _verdict(valid, placed, clearance, pair_kind, link, other, obstacle_kind, margin)
+        self_contact = SelfContact(jnp.full(batch, big, dtype), none, none)
+    return _verdict(valid, placed, world_contact, self_contact, jnp.asarray(margin, dtype))
 
 
 def _verdict(
     valid: Array,
     placed: Array,
-    distance: Array,
-    pair_kind: Array,
-    link: Array,
-    other: Array,
-    obstacle_kind: Array,
+    world: WorldContact,
+    own: SelfContact,
     margin: Array,
 ) -> CheckResult:
-    """The ``CheckResult`` of the closest pair (``-1`` fields where there is none): a
-    configuration that is not finite (``INVALID_INPUT``), or at which the robot does not
-    assemble (``placed`` False: ``UNREACHABLE``), gets clearance 0, collides and no pair;
-    the others collide at a clearance ``<= margin``."""
+    """The ``CheckResult`` of the closest pairs: a configuration that is not finite
+    (``INVALID_INPUT``), or at which the robot does not assemble (``placed`` False:
+    ``UNREACHABLE``), gets clearances 0, collides and no pair; the others collide at a
+    clearance ``<= margin``."""
     known = valid & placed
-    clearance = jnp.where(known, distance, jnp.zeros((), distance.dtype))
+    zero = jnp.zeros((), world.clearance.dtype)
+    world = WorldContact(
+        jnp.where(known, world.clearance, zero),
+        jnp.where(known, world.link, -1).astype(jnp.int32),
+        jnp.where(known, world.kind, -1).astype(jnp.int8),
+        jnp.where(known, world.index, -1).astype(jnp.int32),
+    )
+    own = SelfContact(
+        jnp.where(known, own.clearance, zero),
+        jnp.where(known, own.first, -1).astype(jnp.int32),
+        jnp.where(known, own.second, -1).astype(jnp.int32),
+    )
+    clearance = jnp.minimum(world.clearance, own.clearance)
     collides = ~known | (clearance <= margin)
     status = jnp.where(collides, _COLLISION, _OK)
     status = jnp.where(~valid, _INVALID_INPUT, jnp.where(~placed, _UNREACHABLE, status))
-    return CheckResult(
-        clearance,
-        collides,
-        status.astype(jnp.int8),
-        jnp.where(known, pair_kind, -1).astype(jnp.int8),
-        jnp.where(known, link, -1).astype(jnp.int32),
-        jnp.where(known, other, -1).astype(jnp.int32),
-        jnp.where(known, obstacle_kind, -1).astype(jnp.int8),
-    )
+    return CheckResult(clearance, collides, status.astype(jnp.int8), world, own)
 
 
-_check_jit = jax.jit(check_kernel)
+_check_jit = Kernel(check_kernel)
 
 
 def _check_robot(robot: Any) -> Any:

@@ -28,6 +28,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from .._execute import Kernel
 from .._validate import positive_number
 from .body import Body
 from .check import _as_q, _check_margin, _check_robot, _check_world, check_kernel, prepare
@@ -124,7 +125,7 @@ def validate_motions_kernel(
     )
 
 
-_validate_jit = jax.jit(validate_motions_kernel, static_argnames=("samples", "clearance"))
+_validate_jit = Kernel(validate_motions_kernel, static=("samples", "clearance"))
 
 
 def validate_motions(

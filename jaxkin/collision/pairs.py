@@ -25,6 +25,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._execute import Kernel
 from . import distance as sd
 from .body import Body
 from .primitives import Capsules, Spheres
@@ -272,11 +273,12 @@ def propose_disabled(
         link_pairs = [(i, j) for k, i in enumerate(geo) for j in geo[k + 1 :]]
     pairs = SelfPairs.create(body, link_pairs)
 
-    @jax.jit
-    def extremes(q):
+    def extremes_of(q):
         spheres, capsules = body.place(link_poses(q))
         d = self_distances(spheres, capsules, pairs)
         return jnp.min(d, axis=0), jnp.max(d, axis=0)
+
+    extremes = Kernel(extremes_of)  # one program for this call's chunks
 
     lo, hi = None, None
     for start in range(0, len(samples), chunk):

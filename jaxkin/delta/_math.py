@@ -27,7 +27,8 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _validate
+from .._execute import WHOLE, Kernel, Policy
 from .._geometry import concrete_scalars
 from .._numerics import computed_once, safe_sqrt
 from .._trig import cos_alone, sin_alone
@@ -46,8 +47,8 @@ __all__ = [
     "any3",
     "as_coords",
     "centre_components",
-    "compiled",
     "components",
+    "constant_geometry_kernel",
     "cos_sin",
     "dot3",
     "far_away",
@@ -194,26 +195,24 @@ def frozen(robot: Robot) -> Robot | None:
     return jax.tree.unflatten(jax.tree.structure(robot), list(values))
 
 
-def compiled(
+def constant_geometry_kernel(
     fn: Callable[..., Any],
-    static_argnames: tuple[str, ...] = (),
-    batched_argnames: tuple[str, ...] = (),
+    static: tuple[str, ...] = (),
+    batched: dict[str, int] | None = None,
 ) -> Callable[..., Any]:
-    """``jax.jit(fn)`` that compiles a concrete geometry in as constants.
+    """A ``Kernel`` of ``fn`` that compiles a concrete geometry in as constants.
 
     A geometry of Python numbers is a static argument (one compilation per robot, cached), so
     XLA folds it into the kernel; a traced or batched geometry (gradients with respect to the
     design, ``vmap`` over robots) takes the dynamic path.
 
-    With ``batched_argnames``, large batches are split across host threads
-    (``jaxkin._batching``) and the call takes the batch shape as the keyword ``batch``.
+    With ``batched`` (argument name -> core axes), small batches are padded and large ones
+    split across host threads (``Policy(pad=True, threads=True)``), and the call takes the
+    batch shape as the keyword ``batch``.
     """
-    if batched_argnames:
-        dynamic = _batching.PartsJit(fn, static_argnames, batched_argnames)
-        static = _batching.PartsJit(fn, ("robot", *static_argnames), batched_argnames)
-    else:
-        dynamic = jax.jit(fn, static_argnames=static_argnames)
-        static = jax.jit(fn, static_argnames=("robot", *static_argnames))
+    policy = Policy(pad=True, threads=True) if batched else WHOLE
+    dynamic = Kernel(fn, static=static, batched=batched, policy=policy)
+    static = Kernel(fn, static=("robot", *static), batched=batched, policy=policy)
 
     @functools.wraps(fn)
     def call(robot: Robot, *args: Any, **kwargs: Any) -> Any:
@@ -222,7 +221,6 @@ def compiled(
             return dynamic(robot, *args, **kwargs)
         return static(concrete, *args, **kwargs)
 
-    call.takes_batch = bool(batched_argnames)
     return call
 
 

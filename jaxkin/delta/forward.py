@@ -42,7 +42,7 @@ from ..status import STATUS_DTYPE, Status
 from ._math import (
     any3,
     centre_components,
-    compiled,
+    constant_geometry_kernel,
     cos_sin,
     finite3,
     home,
@@ -354,12 +354,13 @@ def _fk_chunked(
 
 # Warm-started FK (``jaxkin.delta.fk`` with a guess): the Newton loop runs on one core per
 # program, so large batches are split across host threads.
-fk_guess_jit = _batching.PaddedJit(
-    compiled(_fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"), ("theta", "guess")),
+fk_guess_jit = constant_geometry_kernel(
+    _fk_chunked,
+    ("tol", "max_iter", "method", "rates", "zero_rates"),
     {"theta": 1, "guess": 1},
 )
-closed_form_jit = compiled(_fk_closed_form_impl)
-branch_jit = compiled(_branch_impl)
+closed_form_jit = constant_geometry_kernel(_fk_closed_form_impl)
+branch_jit = constant_geometry_kernel(_branch_impl)
 
 
 def fk_kernel(robot: Robot, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:

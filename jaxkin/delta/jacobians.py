@@ -31,7 +31,17 @@ from ..lie import cross_soa
 from ..result import SolverResult
 from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
-from ._math import UX, UY, compiled, components, cos_sin, dot3, home, in_own_units, params
+from ._math import (
+    UX,
+    UY,
+    components,
+    constant_geometry_kernel,
+    cos_sin,
+    dot3,
+    home,
+    in_own_units,
+    params,
+)
 
 __all__ = [
     "SingularityResult",
@@ -154,4 +164,4 @@ def singularity_kernel(robot: Robot, p: Array, theta: Array) -> SingularityResul
     return SingularityResult(inverse, direct, status)
 
 
-singularity_jit = compiled(singularity_kernel)
+singularity_jit = constant_geometry_kernel(singularity_kernel)

@@ -24,11 +24,12 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _batching, _validate, lie
+from .._execute import solve_fk, solve_ik
 from .._geometry import BOUND, LENGTH, NONNEGATIVE, geometry, number
 from ..collision.body import Body
 from ..jet import Jet
 from ..result import IKResult
-from ..robot import POINT, CompilePolicy, JointLimits, Robot, solve_fk, solve_ik
+from ..robot import POINT, CompilePolicy, JointLimits, Robot
 from ..status import Status
 from . import forward, inverse, jacobians
 from ._math import BRANCHES, JOINT_NAMES, UX, UY, as_coords, float_dtype

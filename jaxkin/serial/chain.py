@@ -48,7 +48,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _validate
+from .._execute import Kernel, Policy
 from .._geometry import BOUND, REAL, Geometry, geometry, label, number, static
 from .._numerics import eps, safe_norm
 from ..collision.body import Body, link_spheres
@@ -443,15 +444,15 @@ class Chain(Robot):
         carried = prefix[..., np.asarray(chain.links.moved_by, dtype=np.int32), :, :]
         return jnp.einsum("...lij,ljk->...lik", carried, chain.links.homes)
 
-    def link_frame_rows(self, q: Array) -> tuple[list, list[int], Array | None]:
+    def link_frame_rows(self, q: Array) -> tuple[tuple[Array, Array], tuple[int, ...], Any]:
         """``Robot.link_frame_rows``: the joint-prefix poses ``exp([S_1] theta_1) ...
-        exp([S_k] theta_k)``, ``k = 0 ... n``, entry by entry (``_kinematics.joint_prefix_rows``),
-        each link carried by its prefix at its home pose ``M_l`` (``links``)."""
+        exp([S_k] theta_k)``, ``k = 0 ... n`` (``_kinematics.joint_prefix_frames``), each link
+        carried by its prefix at its home pose ``M_l`` (``links``)."""
         chain = _validate.cast_leaves(self, q.dtype)
-        frames = _kinematics.joint_prefix_rows(chain, q)
+        frames = _kinematics.joint_prefix_frames(chain, q)
         if chain.links is None:
-            return frames, list(range(len(frames))), None
-        return frames, list(chain.links.moved_by), chain.links.homes
+            return frames, tuple(range(frames[0].shape[0])), None
+        return frames, tuple(chain.links.moved_by), chain.links.homes
 
     def collision_body(self) -> Body:
         """The body: from the URDF's ``<collision>`` elements for a chain read from a URDF
@@ -584,9 +585,8 @@ def _jacobian_impl(chain: Chain, q: Array, which: str) -> Array:
 
 
 # Large batches split across host threads (memory-bound: 36-42 outputs per element).
-_jacobian_jit = _batching.PaddedJit(
-    _batching.PartsJit(_jacobian_impl, static_argnames=("which",), batched_argnames=("q",)),
-    {"q": 1},
+_jacobian_jit = Kernel(
+    _jacobian_impl, static=("which",), batched={"q": 1}, policy=Policy(pad=True, threads=True)
 )
 
 

@@ -34,6 +34,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate, lie
+from .._execute import Kernel
 from .._geometry import REAL, Geometry, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
@@ -211,7 +212,7 @@ def screws(table: DHTable) -> tuple[Array, Array]:
     return jnp.stack(rows), frames[-1]
 
 
-_screws_jit = jax.jit(screws)
+_screws_jit = Kernel(screws)
 
 
 def from_dh(

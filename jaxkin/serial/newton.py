@@ -31,7 +31,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _validate
+from .._execute import Kernel, Policy
 from .._numerics import all_finite
 from ..result import SolverResult
 from ..status import STATUS_DTYPE, Status
@@ -159,9 +160,11 @@ def _ik_impl(
     return NewtonIKResult(q, converged, iterations, err, history, status)
 
 
-_ik_jit = _batching.PaddedJit(
-    jax.jit(_ik_impl, static_argnames=("max_iter", "frame")),
-    {"target": 2, "q0": 1},
+_ik_jit = Kernel(
+    _ik_impl,
+    static=("max_iter", "frame"),
+    batched={"target": 2, "q0": 1},
+    policy=Policy(pad=True),
     axes={"history": 1},
 )
 

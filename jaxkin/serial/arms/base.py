@@ -19,11 +19,12 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from ... import _batching, _validate
+from ..._execute import solve_fk, solve_ik
 from ...collision.body import Body
 from ...collision.check import chain_self_pairs
 from ...jet import Jet
 from ...result import FKResult, IKResult
-from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
+from ...robot import CompilePolicy, Robot
 from ...status import Status
 from ..dh import DHTable, transforms
 from ..search import COMPILER_OPTIONS

@@ -23,7 +23,8 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from ... import _batching, _validate
+from ... import _validate
+from ..._execute import Kernel, Policy
 from ..._numerics import isotropy, safe_norm
 from ...jet import Jet, lift
 from ...result import FKResult, IKResult, SolverResult, forward_result
@@ -127,7 +128,7 @@ def ik_all_kernel(robot: Robot, target: Array) -> ArmIKResult:
     return ArmIKResult(q, valid, status, robot.branches)
 
 
-ik_all_jit = _batching.PaddedJit(jax.jit(ik_all_kernel), {})
+ik_all_jit = Kernel(ik_all_kernel, policy=Policy(pad=True))
 
 
 def _task(robot: Robot, q: Array) -> Array:
