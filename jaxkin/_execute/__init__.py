@@ -24,8 +24,10 @@ from .cache import default_cache_dir as default_cache_dir
 from .cache import enable_compilation_cache as enable_compilation_cache
 from .candidates import map_candidates as map_candidates
 from .handles import Handle as Handle
+from .handles import batch_shape as batch_shape
 from .handles import builds as builds
 from .handles import compiled as compiled
+from .handles import handle_dtype as handle_dtype
 from .kernel import WHOLE as WHOLE
 from .kernel import Kernel as Kernel
 from .kernel import Policy as Policy
@@ -43,11 +45,13 @@ __all__ = [
     "Kernel",
     "Policy",
     "as_robot",
+    "batch_shape",
     "builds",
     "compiled",
     "default_cache_dir",
     "enable_compilation_cache",
     "fk",
+    "handle_dtype",
     "ik",
     "kernel",
     "make_options",

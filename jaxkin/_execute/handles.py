@@ -30,7 +30,15 @@ import numpy as np
 
 from .. import _batching
 
-__all__ = ["Handle", "HotQueries", "batch_shape", "builds", "compiled", "shared_by_value"]
+__all__ = [
+    "Handle",
+    "HotQueries",
+    "batch_shape",
+    "builds",
+    "compiled",
+    "handle_dtype",
+    "shared_by_value",
+]
 
 
 class Handle:
@@ -147,6 +155,17 @@ def batch_shape(batch: Any) -> tuple[int, ...]:
     if any(d < 0 for d in shape) or isinstance(batch, bool):
         raise ValueError(f"batch: expected sizes >= 0, got {batch!r}")
     return shape
+
+
+def handle_dtype(dtype: Any, name: str = "dtype") -> np.dtype:
+    """A handle's floating dtype: JAX's default float for None; ``ValueError`` naming
+    ``name`` for one that is not floating or needs JAX's 64-bit mode off."""
+    dtype = np.dtype(jax.numpy.result_type(float) if dtype is None else dtype)
+    if dtype.kind != "f":
+        raise ValueError(f"{name}: expected a floating dtype, got {dtype}")
+    if dtype != jax.dtypes.canonicalize_dtype(dtype):
+        raise ValueError(f"{name}: {dtype} needs JAX's 64-bit mode (jax_enable_x64)")
+    return dtype
 
 
 # ------------------------------------------------------------------ hot single queries

@@ -35,7 +35,7 @@ from .. import _batching, _validate
 from .._validate import is_concrete
 from ..jet import Jet
 from ..result import FKResult, IKResult
-from .handles import Handle, HotQueries, batch_shape, builds, shared_by_value
+from .handles import Handle, HotQueries, batch_shape, builds, handle_dtype, shared_by_value
 from .kernel import Kernel, Policy
 
 __all__ = [
@@ -509,10 +509,5 @@ def _example(robot: Any, batch: Any, core: tuple, dtype: Any, rates: bool, name:
     """Zeros of shape ``(*batch, *core)`` in ``dtype`` (a ``Jet`` with ``rates``): the input
     a handle is compiled for; ``ValueError`` naming ``batch`` or ``dtype``."""
     batch = batch_shape(batch)
-    dtype = np.dtype(jnp.result_type(float) if dtype is None else dtype)
-    if dtype.kind != "f":
-        raise ValueError(f"dtype: expected a floating dtype for {name}, got {dtype}")
-    if dtype != jax.dtypes.canonicalize_dtype(dtype):
-        raise ValueError(f"dtype: {dtype} needs JAX's 64-bit mode (jax_enable_x64)")
-    zeros = np.zeros((*batch, *core), dtype)
+    zeros = np.zeros((*batch, *core), handle_dtype(dtype))
     return Jet(zeros, zeros, zeros) if rates else zeros

@@ -40,7 +40,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
-from .._execute import Kernel
+from .._execute import Handle, Kernel, batch_shape, builds, handle_dtype
 from .._numerics import all_finite
 from .._validate import finite_number, is_concrete
 from ..status import Status
@@ -455,3 +455,81 @@ def checked_arguments(
     margin = _check_margin(margin)
     body, pairs = prepare(robot, self_collision)
     return robot, body, pairs, q, world, margin
+
+
+@dataclasses.dataclass(frozen=True)
+class HandleSetup:
+    """What a compiled handle of a check holds (``handle_setup``): the robot, its body and
+    self pairs, the margin, the dtype and batch shape of the configurations it takes, the
+    world's layout and the world packed into one array (``World.packed``), and ``rebind``
+    (another world of the same layout, packed; ``Handle.rebound``)."""
+
+    robot: Any
+    body: Body
+    pairs: SelfPairs
+    margin: Any
+    dtype: np.dtype
+    batch: tuple[int, ...]
+    layout: tuple
+    packed: Array
+    rebind: Any
+
+    def world(self, flat: Array) -> World:
+        """The world of this layout from a packed array (inside the handle's program)."""
+        return World.unpacked(flat, self.layout)
+
+    def configurations(self) -> np.ndarray:
+        """Zero configurations of the handle's shape and dtype (the example it compiles)."""
+        return np.zeros((*self.batch, self.robot.n_joints), self.dtype)
+
+
+def handle_setup(
+    robot: Any, world: Any, batch: Any, margin: Any, self_collision: bool, dtype: Any
+) -> HandleSetup:
+    """The boundary of a check's compiled handle, done once: the robot, world, margin,
+    batch and dtype checked (``ValueError`` naming the argument), the body and self pairs
+    prepared, the world packed."""
+    robot = _check_robot(robot)
+    world = _check_world(world)
+    margin = _check_margin(margin)
+    body, pairs = prepare(robot, self_collision)
+    dtype = handle_dtype(dtype)
+    layout = world.layout()
+
+    def rebind(other: Any) -> tuple[Array]:
+        other = _check_world(other)
+        if other.layout() != layout:
+            raise ValueError(
+                "world: another layout than the handle's (the same kinds and numbers of "
+                "obstacles; pad a kind with far-away obstacles, or make a new handle)"
+            )
+        return (jax.device_put(other.packed(dtype)),)
+
+    packed = rebind(world)[0]
+    return HandleSetup(
+        robot, body, pairs, margin, dtype, batch_shape(batch), layout, packed, rebind
+    )
+
+
+@builds(check)
+def _check_handle(
+    robot: Any,
+    world: World,
+    batch: Any = 1,
+    margin: float = 0.0,
+    self_collision: bool = True,
+    dtype: Any = None,
+) -> Handle:
+    """``compiled(collision.check, robot, world, batch=1, margin=0.0, self_collision=True,
+    dtype=None)``: ``handle(q)`` for configurations ``(*batch, n_joints)`` in ``dtype`` (JAX's
+    default float for None), the robot's body, self pairs and margin compiled in, the world
+    passed as one packed array (``handle.rebound(world)`` takes another world of the same
+    layout without compiling); the ``CheckResult`` of ``check`` on the same input."""
+    setup = handle_setup(robot, world, batch, margin, self_collision, dtype)
+
+    def run(q: Array, flat: Array) -> CheckResult:
+        world = setup.world(flat)
+        return check_kernel(setup.robot, setup.body, setup.pairs, q, world, setup.margin)
+
+    example = setup.configurations()
+    return Handle(run, (example,), bound=(setup.packed,), rebind=setup.rebind)

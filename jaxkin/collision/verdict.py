@@ -52,12 +52,12 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
-from .._execute import Kernel, Policy
+from .._execute import Handle, Kernel, Policy, builds
 from .._numerics import all_finite
 from ..status import Status
 from . import distance as sd
 from .body import Body
-from .check import check_kernel, checked_arguments, world_batched
+from .check import check_kernel, checked_arguments, handle_setup, world_batched
 from .pairs import SelfPairs
 from .rows import CAPSULE_CHUNK, Placed, loop_pairs, loop_world, place, tree_min
 from .world import World
@@ -324,3 +324,26 @@ def collides(
         robot, q, world, margin, self_collision
     )
     return _collides_jit(robot, body, pairs, q, world, margin, batch=q.shape[:-1])
+
+
+@builds(collides)
+def _collides_handle(
+    robot: Any,
+    world: World,
+    batch: Any = 1,
+    margin: float = 0.0,
+    self_collision: bool = True,
+    dtype: Any = None,
+) -> Handle:
+    """``compiled(collision.collides, robot, world, batch=1, margin=0.0,
+    self_collision=True, dtype=None)``: ``handle(q)`` for configurations ``(*batch,
+    n_joints)``, the ``Verdict`` of ``collides`` on the same input (the arguments as for
+    ``check``'s handle; ``handle.rebound(world)`` for another world of the same layout)."""
+    setup = handle_setup(robot, world, batch, margin, self_collision, dtype)
+
+    def run(q: Array, flat: Array) -> Verdict:
+        world = setup.world(flat)
+        return collides_kernel(setup.robot, setup.body, setup.pairs, q, world, setup.margin)
+
+    example = setup.configurations()
+    return Handle(run, (example,), bound=(setup.packed,), rebind=setup.rebind)

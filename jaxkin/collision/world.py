@@ -15,9 +15,12 @@ and ``kind = index = -1``.
 from __future__ import annotations
 
 import dataclasses
+import math
+from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from . import distance as sd
 from .primitives import Boxes, Capsules, HalfSpaces, Spheres
@@ -67,6 +70,32 @@ class World:
 
     def astype(self, dtype) -> World:
         return jax.tree.map(lambda x: x.astype(dtype), self)
+
+    def layout(self) -> tuple:
+        """The world's structure: its tree and every array's shape (``packed``/``unpacked``;
+        two worlds of one layout share a compiled program)."""
+        leaves, tree = jax.tree.flatten(self)
+        return tree, tuple(tuple(np.shape(x)) for x in leaves)
+
+    def packed(self, dtype: Any) -> np.ndarray:
+        """Every array of the world in one flat host array of ``dtype`` (``layout`` order): a
+        compiled handle takes a world as one argument (one transfer per call, not one per
+        array)."""
+        leaves = jax.tree.leaves(self)
+        if not leaves:
+            return np.zeros(0, dtype)
+        return np.concatenate([np.asarray(x, dtype).ravel() for x in leaves])
+
+    @staticmethod
+    def unpacked(flat: Any, layout: tuple) -> World:
+        """The world of ``layout`` from its ``packed`` array (traceable: static slices)."""
+        tree, shapes = layout
+        leaves, start = [], 0
+        for shape in shapes:
+            size = math.prod(shape)
+            leaves.append(flat[start : start + size].reshape(shape))
+            start += size
+        return jax.tree.unflatten(tree, leaves)
 
 
 @jax.tree_util.register_dataclass
