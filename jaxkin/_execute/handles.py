@@ -53,6 +53,8 @@ class Handle:
             compiling.
         rebind: ``rebind(*values) -> bound`` for ``rebound`` (checks and converts its
             arguments, e.g. a world of the same layout); None: nothing to rebind.
+        compiler_options: XLA options of the compilation (``(name, value)`` pairs), as the
+            entry point's ``Policy`` gives them.
 
     Attributes:
         compiled: the ``jax.stages.Compiled`` executable (its HLO: ``compiled.as_text()``).
@@ -66,10 +68,12 @@ class Handle:
         examples: tuple,
         bound: tuple = (),
         rebind: Callable[..., tuple] | None = None,
+        compiler_options: tuple = (),
     ) -> None:
         self._bound = tuple(bound)
         self._rebind = rebind
-        traced = jax.jit(fn).trace(*examples, *self._bound)
+        options = dict(compiler_options) or None
+        traced = jax.jit(fn, compiler_options=options).trace(*examples, *self._bound)
         tree = jax.tree.structure(traced.out_info)
         inputs = [True] * len(traced.jaxpr.jaxpr.invars)
         dependent = _input_dependent(traced.jaxpr.jaxpr, inputs)
@@ -85,7 +89,9 @@ class Handle:
 
         # the inputs' constant outputs from one call of ``fn`` as it is (no compilation of them)
         constants = jax.tree.leaves(fn(*examples, *self._bound))
-        self.compiled = jax.jit(outputs).lower(*examples, *self._bound).compile()
+        self.compiled = (
+            jax.jit(outputs, compiler_options=options).lower(*examples, *self._bound).compile()
+        )
         self._run = None
         self._tree = tree
         self._moving = tuple(moving)

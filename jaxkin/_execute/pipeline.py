@@ -485,7 +485,8 @@ def _ik_handle(
     branch = robot.check_branch(branch)
     options = make_options(robot.IKOptions, options, option_values)
     example = _example(robot, batch, robot.target.shape, dtype, rates, "target")
-    return Handle(lambda x: _solve_ik(robot, x, branch, options), (example,))
+    xla = robot.ik_policy.compiler_options
+    return Handle(lambda x: _solve_ik(robot, x, branch, options), (example,), compiler_options=xla)
 
 
 @builds(fk)
@@ -502,7 +503,8 @@ def _fk_handle(
     robot = as_robot(robot)
     options = make_options(robot.FKOptions, options, option_values)
     example = _example(robot, batch, (robot.n_joints,), dtype, rates, "q")
-    return Handle(lambda q: _solve_fk(robot, q, options), (example,))
+    xla = robot.fk_policy.compiler_options
+    return Handle(lambda q: _solve_fk(robot, q, options), (example,), compiler_options=xla)
 
 
 def _example(robot: Any, batch: Any, core: tuple, dtype: Any, rates: bool, name: str) -> Any:

@@ -40,14 +40,14 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
-from .._execute import Handle, Kernel, batch_shape, builds, handle_dtype
+from .._execute import Handle, Kernel, Policy, batch_shape, builds, handle_dtype
 from .._numerics import all_finite
 from .._validate import finite_number, is_concrete
 from ..status import Status
 from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
-from .rows import place
+from .rows import COMPILER_OPTIONS, place
 from .world import World, nearest_obstacles
 
 __all__ = [
@@ -362,7 +362,7 @@ def _verdict(
     return CheckResult(clearance, collides, status.astype(jnp.int8), world, own)
 
 
-_check_jit = Kernel(check_kernel)
+_check_jit = Kernel(check_kernel, policy=Policy(pad=False, compiler_options=COMPILER_OPTIONS))
 
 
 def _check_robot(robot: Any) -> Any:
@@ -532,4 +532,10 @@ def _check_handle(
         return check_kernel(setup.robot, setup.body, setup.pairs, q, world, setup.margin)
 
     example = setup.configurations()
-    return Handle(run, (example,), bound=(setup.packed,), rebind=setup.rebind)
+    return Handle(
+        run,
+        (example,),
+        bound=(setup.packed,),
+        rebind=setup.rebind,
+        compiler_options=COMPILER_OPTIONS,
+    )

@@ -28,7 +28,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .._execute import Handle, Kernel, builds
+from .._execute import Handle, Kernel, Policy, builds
 from .._validate import positive_number
 from .body import Body
 from .check import (
@@ -41,6 +41,7 @@ from .check import (
     prepare,
 )
 from .pairs import SelfPairs
+from .rows import COMPILER_OPTIONS
 from .verdict import collides_kernel
 from .world import World
 
@@ -139,7 +140,11 @@ def validate_motions_kernel(
     )
 
 
-_validate_jit = Kernel(validate_motions_kernel, static=("samples", "clearance"))
+_validate_jit = Kernel(
+    validate_motions_kernel,
+    static=("samples", "clearance"),
+    policy=Policy(pad=False, compiler_options=COMPILER_OPTIONS),
+)
 
 
 def validate_motions(
@@ -236,4 +241,10 @@ def _validate_motions_handle(
         )
 
     example = setup.configurations()
-    return Handle(run, (example, example), bound=(setup.packed,), rebind=setup.rebind)
+    return Handle(
+        run,
+        (example, example),
+        bound=(setup.packed,),
+        rebind=setup.rebind,
+        compiler_options=COMPILER_OPTIONS,
+    )

@@ -37,6 +37,7 @@ from .body import Body
 
 __all__ = [
     "CAPSULE_CHUNK",
+    "COMPILER_OPTIONS",
     "OBSTACLE_CHUNK",
     "PAIR_CHUNK",
     "Placed",
@@ -53,6 +54,9 @@ __all__ = [
 # Self pairs per step of a pair loop: a step's block (PAIR_CHUNK, B) of one configuration
 # fits a cache line's worth of work per pair and a chunk of 512 configurations stays in L2
 PAIR_CHUNK = 256
+# XLA options of every program of the checks: the CPU's older fusion emitters generate the
+# loop bodies' fusions (over obstacles and pairs) 2-5x faster than the newer ones
+COMPILER_OPTIONS: tuple = (("xla_cpu_use_fusion_emitters", False),)
 # Obstacles of one kind per step of a world loop, written out in the step (loop_world): for
 # the spheres' tests; a capsule's exact distances (a few hundred operations each) take one
 OBSTACLE_CHUNK = 8

@@ -59,7 +59,15 @@ from . import distance as sd
 from .body import Body
 from .check import check_kernel, checked_arguments, handle_setup, world_batched
 from .pairs import SelfPairs
-from .rows import CAPSULE_CHUNK, Placed, loop_pairs, loop_world, place, tree_min
+from .rows import (
+    CAPSULE_CHUNK,
+    COMPILER_OPTIONS,
+    Placed,
+    loop_pairs,
+    loop_world,
+    place,
+    tree_min,
+)
 from .world import World
 
 __all__ = ["TOLERANCE", "VERDICT_CHUNK", "Verdict", "collides", "collides_kernel", "verdict_rows"]
@@ -304,7 +312,9 @@ VERDICT_MIN_PART = 2048
 _collides_jit = Kernel(
     collides_kernel,
     batched={"q": 1},
-    policy=Policy(pad=False, threads=True, min_part=VERDICT_MIN_PART),
+    policy=Policy(
+        pad=False, threads=True, min_part=VERDICT_MIN_PART, compiler_options=COMPILER_OPTIONS
+    ),
 )
 
 
@@ -346,4 +356,10 @@ def _collides_handle(
         return collides_kernel(setup.robot, setup.body, setup.pairs, q, world, setup.margin)
 
     example = setup.configurations()
-    return Handle(run, (example,), bound=(setup.packed,), rebind=setup.rebind)
+    return Handle(
+        run,
+        (example,),
+        bound=(setup.packed,),
+        rebind=setup.rebind,
+        compiler_options=COMPILER_OPTIONS,
+    )
