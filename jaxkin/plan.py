@@ -706,7 +706,7 @@ def evaluate(
     if world is not None:
         if not isinstance(world, collision.World):
             raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
-        collide = (*collision.prepare(robot), world)
+        collide = (*collision.prepare(robot), collision.world.refuse_cylinders(world))
     n, t = path.shape[:2]
     # "best" holds every branch of a chunk at once; a joint path solves every branch once
     held = len(robot.branches) if (branch == "best" or space == "joint") else 1

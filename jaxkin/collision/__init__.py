@@ -1,7 +1,7 @@
 """Collision geometry: primitives, exact signed distances, the world, robot bodies as data.
 
-- ``primitives``: ``Spheres``, ``Capsules``, ``Boxes`` (oriented), ``HalfSpaces`` as array
-  pytrees; ``point_cloud_spheres`` (voxel down-sampling).
+- ``primitives``: ``Spheres``, ``Capsules``, ``Boxes`` (oriented), ``Cylinders``,
+  ``HalfSpaces`` as array pytrees; ``point_cloud_spheres`` (voxel down-sampling).
 - ``distance``: closed-form signed distances of every robot/world pair (negative in
   penetration, finite gradients everywhere).
 - ``world``: ``World`` and ``nearest_obstacles`` (per robot primitive, the smallest signed
@@ -46,6 +46,7 @@ from .pairs import self_collision_link_pairs as self_collision_link_pairs
 from .pairs import self_distances as self_distances
 from .primitives import Boxes as Boxes
 from .primitives import Capsules as Capsules
+from .primitives import Cylinders as Cylinders
 from .primitives import HalfSpaces as HalfSpaces
 from .primitives import Spheres as Spheres
 from .primitives import point_cloud_spheres as point_cloud_spheres
@@ -56,6 +57,7 @@ from .verdict import collides as collides
 from .verdict import collides_kernel as collides_kernel
 from .world import BOX as BOX
 from .world import CAPSULE as CAPSULE
+from .world import CYLINDER as CYLINDER
 from .world import HALFSPACE as HALFSPACE
 from .world import SPHERE as SPHERE
 from .world import Nearest as Nearest
@@ -65,6 +67,7 @@ from .world import nearest_obstacles as nearest_obstacles
 __all__ = [
     "BOX",
     "CAPSULE",
+    "CYLINDER",
     "HALFSPACE",
     "ROBOT_WORLD",
     "SELF",
@@ -74,6 +77,7 @@ __all__ = [
     "Capsules",
     "CheckResult",
     "Clearance",
+    "Cylinders",
     "HalfSpaces",
     "MeshCover",
     "MotionResult",

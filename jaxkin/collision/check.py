@@ -44,7 +44,7 @@ from ..status import Status
 from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
-from .world import SPHERE, World, nearest_obstacles
+from .world import SPHERE, World, nearest_obstacles, refuse_cylinders
 
 __all__ = [
     "ROBOT_WORLD",
@@ -324,7 +324,7 @@ def _as_q(robot: Any, q: ArrayLike, name: str = "q") -> Array:
 def _check_world(world: Any) -> World:
     if not isinstance(world, World):
         raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
-    return world
+    return refuse_cylinders(world)  # until the kernels below take them
 
 
 def _check_margin(margin: Any) -> Any:
