@@ -8,6 +8,9 @@
   distance over the world and which obstacle).
 - ``body``: ``Body``, spheres and capsules attached to links; ``Body.place(link_poses)``.
 - ``urdf``: ``body_from_urdf`` (``<collision>`` elements; meshes covered by spheres).
+- ``scene``: world files (JSON, YAML): ``read_world``, ``write_world``.
+- ``moveit``: MoveIt planning scenes (YAML) as a ``World``: ``read_moveit_scene``; a motion
+  plan request's start and goals: ``read_moveit_request``.
 - ``cover``: conservative sphere and capsule covers of meshes, capsule covers of boxes.
 - ``pairs``: self-collision link pairs (adjacency, SRDF ``disable_collisions``),
   ``self_distances``, ``propose_disabled``.
@@ -38,6 +41,9 @@ from .fused import min_clearance as min_clearance
 from .motions import MotionResult as MotionResult
 from .motions import validate_motions as validate_motions
 from .motions import validate_motions_kernel as validate_motions_kernel
+from .moveit import MoveItRequest as MoveItRequest
+from .moveit import read_moveit_request as read_moveit_request
+from .moveit import read_moveit_scene as read_moveit_scene
 from .pairs import SelfPairs as SelfPairs
 from .pairs import adjacent_links as adjacent_links
 from .pairs import propose_disabled as propose_disabled
@@ -50,6 +56,8 @@ from .primitives import Cylinders as Cylinders
 from .primitives import HalfSpaces as HalfSpaces
 from .primitives import Spheres as Spheres
 from .primitives import point_cloud_spheres as point_cloud_spheres
+from .scene import read_world as read_world
+from .scene import write_world as write_world
 from .urdf import UrdfBody as UrdfBody
 from .urdf import body_from_urdf as body_from_urdf
 from .verdict import Verdict as Verdict
@@ -80,6 +88,7 @@ __all__ = [
     "Cylinders",
     "HalfSpaces",
     "MeshCover",
+    "MoveItRequest",
     "MotionResult",
     "Nearest",
     "SelfPairs",
@@ -104,9 +113,13 @@ __all__ = [
     "point_cloud_spheres",
     "prepare",
     "propose_disabled",
+    "read_moveit_request",
+    "read_moveit_scene",
     "read_srdf_disabled",
+    "read_world",
     "self_collision_link_pairs",
     "self_distances",
     "validate_motions",
     "validate_motions_kernel",
+    "write_world",
 ]
