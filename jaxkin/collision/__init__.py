@@ -8,6 +8,8 @@
   distance over the world and which obstacle).
 - ``body``: ``Body``, spheres and capsules attached to links; ``Body.place(link_poses)``.
 - ``urdf``: ``body_from_urdf`` (``<collision>`` elements; meshes covered by spheres).
+- ``body_files``: bodies as other planners' files: cuRobo's sphere lists
+  (``read_sphere_lists``), spherised URDFs (``spherized_urdf``; read by ``body_from_urdf``).
 - ``scene``: world files (JSON, YAML): ``read_world``, ``write_world``.
 - ``moveit``: MoveIt planning scenes (YAML) as a ``World``: ``read_moveit_scene``; a motion
   plan request's start and goals: ``read_moveit_request``.
@@ -24,6 +26,8 @@
 
 from . import distance as distance
 from .body import Body as Body
+from .body_files import read_sphere_lists as read_sphere_lists
+from .body_files import spherized_urdf as spherized_urdf
 from .check import ROBOT_WORLD as ROBOT_WORLD
 from .check import SELF as SELF
 from .check import CheckResult as CheckResult
@@ -115,10 +119,12 @@ __all__ = [
     "propose_disabled",
     "read_moveit_request",
     "read_moveit_scene",
+    "read_sphere_lists",
     "read_srdf_disabled",
     "read_world",
     "self_collision_link_pairs",
     "self_distances",
+    "spherized_urdf",
     "validate_motions",
     "validate_motions_kernel",
     "write_world",

@@ -563,6 +563,9 @@ class ChainLinks(Geometry):
         spheres: label, the user's own spheres per link, ``((name, (centers, radii)), ...)``.
         disabled: label, link name pairs left out of self-collision (an SRDF's).
         radius: label, the skeleton's capsule radius for a URDF without ``<collision>``.
+        held: label, the joints off the path not at 0, ``((name, position), ...)``
+            (``from_urdf(..., fixed=...)`` and the joints that mimic those): ``homes`` places
+            the links they carry there.
     """
 
     homes: Array = number(REAL, (-1, 4, 4))
@@ -573,6 +576,7 @@ class ChainLinks(Geometry):
     spheres: tuple = label(default=())
     disabled: tuple = label(default=())
     radius: float = label(default=0.0)
+    held: tuple = label(default=())
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
