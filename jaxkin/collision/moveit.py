@@ -39,7 +39,7 @@ from . import _yaml
 from .primitives import Boxes, Cylinders, Spheres
 from .world import World
 
-__all__ = ["MoveItRequest", "read_moveit_request", "read_moveit_scene"]
+__all__ = ["MoveItRequest", "read_moveit_request", "read_moveit_scene", "scene_world"]
 
 _TYPES = {1: "box", 2: "sphere", 3: "cylinder", 4: "cone"}
 _DIMENSIONS = {"box": 3, "sphere": 1, "cylinder": 2}
@@ -109,7 +109,11 @@ def read_moveit_scene(path: str | os.PathLike, dtype=None) -> World:
         ImportError: PyYAML is missing (the ``yaml`` extra).
     """
     path = Path(path)
-    document = _document(path)
+    return scene_world(_document(path), path, dtype)
+
+
+def scene_world(document: Mapping, path: Path, dtype=None) -> World:
+    """``read_moveit_scene`` of a document already read from ``path``."""
     world = document.get("world", document)
     if not isinstance(world, Mapping) or "collision_objects" not in world:
         raise ValueError(f"{path}: no world.collision_objects (not a MoveIt planning scene)")

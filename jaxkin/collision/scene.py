@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from .. import lie
-from . import _yaml
+from . import _yaml, moveit
 from .primitives import (
     Boxes,
     Capsules,
@@ -232,11 +232,25 @@ def _scaled(prim: Any, factor: float) -> Any:
     return type(prim)(**{k: v * factor if k in lengths else v for k, v in fields.items()})
 
 
+def _unit(units: Any) -> float:
+    if units not in UNITS:
+        raise ValueError(f"units must be one of {', '.join(UNITS)}, got {units!r}")
+    return UNITS[units]
+
+
+def _converted(world: World, factor: float) -> World:
+    kinds = {f: _scaled(getattr(world, f), factor) for f in world.__dataclass_fields__}
+    return World(**kinds)
+
+
 def read_world(path: str | os.PathLike, units: str | None = None, dtype=None) -> World:
     """The ``World`` of a world file (module docstring).
 
+    A YAML file without ``units`` that holds ``world.collision_objects`` is a MoveIt planning
+    scene, read by ``read_moveit_scene`` (metres).
+
     Args:
-        path: a ``.json``, ``.yaml`` or ``.yml`` world file.
+        path: a ``.json``, ``.yaml`` or ``.yml`` world file, or a MoveIt planning scene.
         units: the unit the world is wanted in (``"m"``, ``"cm"``, ``"mm"``); None keeps the
             file's.
         dtype: of the world's arrays (default: JAX's default float).
@@ -253,6 +267,9 @@ def read_world(path: str | os.PathLike, units: str | None = None, dtype=None) ->
         raise ValueError(
             f"{path}: a world file is one mapping of keys, got {type(document).__name__}"
         )
+    if "units" not in document and ("world" in document or "collision_objects" in document):
+        world = moveit.scene_world(document, path, dtype)  # a MoveIt planning scene: metres
+        return world if units is None else _converted(world, UNITS["m"] / _unit(units))
     unknown = sorted(set(document) - set(_TOP))
     if unknown:
         raise ValueError(f"{path}: unknown key {unknown[0]!r} (keys: {', '.join(_TOP)})")
@@ -262,13 +279,11 @@ def read_world(path: str | os.PathLike, units: str | None = None, dtype=None) ->
         raise ValueError(f"{path}: version {document['version']!r} is not read (only {VERSION})")
     if "units" not in document:
         raise ValueError(f"{path}: missing 'units' (the length unit: {', '.join(UNITS)})")
-    factor = 1.0
-    for name, unit in (("units", document["units"]), ("units=", units)):
-        if unit is not None and unit not in UNITS:
-            where = path if name == "units" else "read_world"
-            raise ValueError(f"{where}: {name} must be one of {', '.join(UNITS)}, got {unit!r}")
-    if units is not None:
-        factor = UNITS[document["units"]] / UNITS[units]
+    if document["units"] not in UNITS:
+        raise ValueError(
+            f"{path}: units must be one of {', '.join(UNITS)}, got {document['units']!r}"
+        )
+    factor = 1.0 if units is None else UNITS[document["units"]] / _unit(units)
     builders = _builders(path.parent)
     parts: dict[str, list] = {kind: [] for kind in _KEYS}
     for kind in _KEYS:
