@@ -16,7 +16,7 @@ from jaxkin import collision as col
 from jaxkin import costs, plan, scara
 from jaxkin.collision import distance as sd
 
-from .helpers import compilations
+from .helpers import compilations, gradient_against_differences
 
 Z = np.array([0.0, 0.0, 1.0])
 O = np.zeros(3)
@@ -144,19 +144,8 @@ _CAPSULE = jax.jit(_capsule_cylinder_unit)
 _CAPSULE_GRAD = jax.jit(jax.grad(_capsule_cylinder_unit, argnums=tuple(range(7))))
 
 
-def _fd_check(args, h=1e-6, tol=1e-7):
-    """Gradient against central differences, argument by argument."""
-    args = [np.asarray(x, dtype=float) for x in args]
-    fn = _CAPSULE
-    grads = _CAPSULE_GRAD(*[jnp.asarray(x) for x in args])
-    for i, (x, g) in enumerate(zip(args, grads, strict=True)):
-        num = np.zeros_like(x)
-        for idx in np.ndindex(x.shape):
-            plus, minus = [y.copy() for y in args], [y.copy() for y in args]
-            plus[i][idx] += h
-            minus[i][idx] -= h
-            num[idx] = (float(fn(*plus)) - float(fn(*minus))) / (2 * h)
-        np.testing.assert_allclose(np.asarray(g), num, atol=tol, err_msg=f"argument {i}")
+def _fd_check(args):
+    gradient_against_differences(_CAPSULE, args, grad=_CAPSULE_GRAD)
 
 
 @pytest.mark.parametrize(

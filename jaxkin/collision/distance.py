@@ -596,27 +596,13 @@ def _arc_depth(taus: tuple, frame: tuple, shapes: tuple) -> jax.Array:
     return best + line - sg(line)
 
 
-def sphere_cylinder(
-    c: jax.Array,
-    r: jax.Array,
-    center: jax.Array,
-    axis: jax.Array,
-    radius: jax.Array,
-    half: jax.Array,
-) -> jax.Array:
+def sphere_cylinder(c: jax.Array, r: jax.Array, *cylinder: jax.Array) -> jax.Array:
     """Signed distance between spheres ``(c, r)`` and cylinders ``(center, axis, radius,
-    half-length)``."""
-    return point_cylinder(c, center, axis, radius, half) - r
+    half)`` (``point_cylinder``'s)."""
+    return point_cylinder(c, *cylinder) - r
 
 
-def capsule_cylinder(
-    a: jax.Array,
-    b: jax.Array,
-    r: jax.Array,
-    center: jax.Array,
-    axis: jax.Array,
-    radius: jax.Array,
-    half: jax.Array,
-) -> jax.Array:
-    """Signed distance between capsules ``(a, b, r)`` and cylinders."""
-    return segment_cylinder(a, b, center, axis, radius, half) - r
+def capsule_cylinder(a: jax.Array, b: jax.Array, r: jax.Array, *cylinder: jax.Array) -> jax.Array:
+    """Signed distance between capsules ``(a, b, r)`` and cylinders ``(center, axis, radius,
+    half)`` (``segment_cylinder``'s)."""
+    return segment_cylinder(a, b, *cylinder) - r
