@@ -11,6 +11,7 @@ one padded shape, so the SCARA path kernel compiles once for the module. The URD
 from __future__ import annotations
 
 import importlib.metadata
+import json
 
 import numpy as np
 import pytest
@@ -531,3 +532,56 @@ def test_memory_is_bounded_by_the_chunk(tmp_path, capsys, mode):
         finally:
             tracemalloc.stop()
     assert (peaks[1] - peaks[0]) / 24_000 < 20, peaks
+
+
+def test_plan_with_a_world_file(tmp_path, capsys):
+    """``--world``: a post of 6 mm square standing on the -x axis, its near face 87 mm from
+    the base. The arm of the arc of 60 mm stays within 80 mm of the base (the elbow's
+    radius), so it keeps at least 7 mm clear and stays feasible; the arcs of 90 and 120 mm
+    reach past the post's radius while sweeping across the -x axis (the tip, then the
+    forearm from the elbow to the tip) and fail with COLLISION; --ranking gets each
+    candidate's clearance. Joint-space candidates are checked too. A world with cylinders, a
+    missing file and a bad entry are one-line errors naming the file."""
+    t = np.linspace(0.0, 2.0, 21)
+    src = candidates_file(tmp_path / "c.csv", t, ARCS)
+    post = {"name": "post", "center": [-90.0, 0.0, 0.0], "half_extents": [3, 3, 500]}
+    world = {"units": "mm", "frame": "the SCARA's base", "boxes": [post]}
+    (tmp_path / "post.json").write_text(json.dumps(world))
+    argv = ["plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "best.csv", "-k", 2,
+            "--v-max", "1.5,2,20", "--a-max", "5,8,100",
+            "--ranking", tmp_path / "rank.csv"]  # fmt: skip
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "post.json")
+    assert code == 0, err
+    names = ("candidate", "feasible", "failure", "first_failure", "clearance")
+    ranking = read(tmp_path / "rank.csv", names)
+    assert ranking["failure"].tolist() == ["COLLISION", "UNREACHABLE", "", "COLLISION"]
+    assert ranking["first_failure"][0] <= 10  # at or before the post (t = 1 is sample 10)
+    assert ranking["clearance"][0] < 0 and ranking["clearance"][3] < 0
+    assert ranking["clearance"][2] >= 7.0
+    # joint space: candidate 0 holds the tool over the post, candidate 1 far from it
+    q_post = scara_ref.ik_numpy(*behind_the_base(np.ones(1), 90.0, 1.0), *L, mode=1)[0][0]
+    joints = {"candidate": np.repeat([0, 1], 21), "t": np.r_[t, t]}
+    for j, n in enumerate(JOINTS):
+        joints[n] = np.r_[np.full(21, q_post[j]), np.full(21, [0.0, 0.5, 60.0][j])]
+    jsrc = write(tmp_path / "j.csv", joints)
+    code, _, err = run(
+        capsys, "plan", "scara", *PAPER, "-i", jsrc, "-o", tmp_path / "jb.csv", "--by", "cost",
+        "--ranking", tmp_path / "jr.csv", "--world", tmp_path / "post.json",
+    )  # fmt: skip
+    assert code == 0, err
+    jr = read(tmp_path / "jr.csv", names)
+    assert jr["failure"].tolist() == ["COLLISION", ""] and jr["first_failure"][0] == 0
+    world["cylinders"] = [{"center": [0, 0, 0], "radius": 1, "half_length": 1}]
+    (tmp_path / "cyl.json").write_text(json.dumps(world))
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "cyl.json")
+    assert code == 2 and "cylinders are not yet supported" in err
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "none.json")
+    assert code == 2 and "--world" in err and "no such world file" in err
+    world.pop("cylinders")
+    world["boxes"][0]["half_extents"] = [3, 3]
+    (tmp_path / "bad.json").write_text(json.dumps(world))
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "bad.json")
+    assert code == 2 and "bad.json: boxes[0] ('post'): half_extents must be shape [3]" in err
+    code, _, err = run(capsys, *argv[:-2], "--ranking", tmp_path / "post.json",
+                       "--world", tmp_path / "post.json")  # fmt: skip
+    assert code == 2 and str(tmp_path / "post.json") in err  # an input is never overwritten

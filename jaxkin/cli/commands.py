@@ -400,6 +400,25 @@ def cmd_workspace(args: argparse.Namespace) -> int:
     return 0
 
 
+def _world(path: str) -> Any:
+    """The obstacles of ``--world`` (a world file or a MoveIt scene), or a ``CliError``."""
+    from .. import collision
+
+    try:
+        return collision.read_world(path)
+    except (ValueError, ImportError) as exc:
+        raise CliError(f"--world {path}: {exc}") from None
+
+
+def _checked(evaluate: Any, *args: Any, **kwargs: Any) -> Any:
+    """``evaluate(*args, **kwargs)``, a ``ValueError`` (a world the checks refuse) as a
+    ``CliError``."""
+    try:
+        return evaluate(*args, **kwargs)
+    except ValueError as exc:
+        raise CliError(f"--world: {exc}") from None
+
+
 def _candidate_samples(traj: files.Trajectory, valid: np.ndarray) -> tuple[list[np.ndarray], float]:
     """The rows of every candidate (first-appearance order) and the common sample period:
     every candidate must have the same number of samples, uniformly spaced by one period,
@@ -436,7 +455,7 @@ def _candidate_samples(traj: files.Trajectory, valid: np.ndarray) -> tuple[list[
 def cmd_plan(args: argparse.Namespace) -> int:
     """``jaxkin plan``: evaluate a file of candidate paths, rank them, write the best retimed."""
     _join(args)
-    inputs = {"--input": args.input, "--robot": _robot_file(args)}
+    inputs = {"--input": args.input, "--robot": _robot_file(args), "--world": args.world}
     outputs = {"--output": args.output, "--ranking": args.ranking}
     try:
         files.check_outputs(outputs, inputs)
@@ -446,6 +465,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise CliError(f"--period must be a positive number, got {args.period:g}")
     dtype = set_dtype(args.dtype)
     robot = robot_from_args(args)
+    world = None if args.world is None else _world(args.world)
     pose = robot.target == POSE
     if not (robot.target.is_point or pose):
         raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
@@ -465,7 +485,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise CliError(str(exc)) from None
     if joint_space:
         jet = Jet.of(*(x[take].astype(dtype) for x in (p, v, a)))
-        evaluation = planning.evaluate_joints(robot, jet, dt, limits)
+        evaluation = _checked(planning.evaluate_joints, robot, jet, dt, limits, world=world)
     else:
         branch = "best" if args.branch == "best" else parse_branch(robot, args.branch)
         flat = [x[take].reshape(-1, x.shape[-1]) for x in (p, v, a)]
@@ -474,7 +494,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
         else:
             jet = Jet.of(*(x.astype(dtype) for x in flat))
         jet = jet.map(lambda x: x.reshape(*take.shape, *x.shape[1:]))
-        evaluation = planning.evaluate_targets(robot, jet, dt, limits, branch, args.chunk_size)
+        evaluation = _checked(
+            planning.evaluate_targets, robot, jet, dt, limits, branch, args.chunk_size, world=world
+        )
     period = args.period if args.period is not None else dt
     try:
         ranked = planning.rank(evaluation, dt, limits, args.best, args.by, period)
@@ -497,6 +519,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 "failure": ranked.failure.astype(str),
                 "cost": np.where(np.isfinite(ranked.cost), ranked.cost, np.nan),
                 "duration": ranked.duration,
+                **({} if world is None else {"clearance": np.asarray(evaluation.min_clearance)}),
             },
         )
     with files.table_writer(args.output) as write:

@@ -215,6 +215,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pl.add_argument("--ranking", metavar="FILE", help="also write every candidate's scores")
     pl.add_argument(
+        "--world",
+        metavar="FILE",
+        help="obstacles: a world file (.json, .yaml; collision.read_world) or a MoveIt "
+        "planning scene (.yaml), in the robot's base frame and length unit: a sample whose "
+        "body touches them or itself fails (COLLISION)",
+    )
+    pl.add_argument(
         "--spline",
         choices=_splines.END_CONDITIONS,
         default="not-a-knot",

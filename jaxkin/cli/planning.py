@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import plan, timing
+from .. import collision, plan, timing
 from .._execute import Kernel
 from ..jet import Jet
 from ..robot import Robot, fk
@@ -594,13 +594,24 @@ class Ranked:
     retimed: timing.RetimedTrajectory | None
 
 
-def evaluate_joints(robot: Robot, q: Jet, dt: float, limits: plan.Limits) -> plan.Evaluation:
+def evaluate_joints(
+    robot: Robot, q: Jet, dt: float, limits: plan.Limits, world: Any = None
+) -> plan.Evaluation:
     """Joint-space candidates ``(N, T, n)``: forward kinematics along each (its statuses),
-    then ``OUT_OF_LIMITS`` where a joint leaves its limits, and ``plan.evaluate``'s costs."""
+    then ``OUT_OF_LIMITS`` where a joint leaves its limits, then, with a ``world``,
+    ``COLLISION`` where ``collision.check`` finds the body touching it or itself (as
+    ``plan.evaluate`` checks its samples; ``min_clearance`` each candidate's least clearance
+    over its samples), and ``plan.evaluate``'s costs."""
     res = fk(robot, q)
     status = jnp.asarray(res.status)
     violated = plan.limit_excess(q, limits) > 0
     status = jnp.where((status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status)
+    min_clearance = None
+    if world is not None:
+        checked = collision.check(robot, q.p, world)
+        hit = (status == Status.OK) & jnp.asarray(checked.collides)
+        status = jnp.where(hit, jnp.int8(Status.COLLISION), status)
+        min_clearance = jnp.min(jnp.asarray(checked.clearance), axis=-1)
     bad = status != Status.OK
     feasible = ~jnp.any(bad, axis=-1)
     first = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
@@ -613,17 +624,26 @@ def evaluate_joints(robot: Robot, q: Jet, dt: float, limits: plan.Limits) -> pla
         branch=jnp.zeros(feasible.shape, jnp.int8),
         costs=plan.trajectory_costs(q, dt, limits, feasible),
         branches=robot.branches,
+        min_clearance=min_clearance,
     )
 
 
 def evaluate_targets(
-    robot: Robot, path: Jet, dt: float, limits: plan.Limits, branch: Any, samples: int | None
+    robot: Robot,
+    path: Jet,
+    dt: float,
+    limits: plan.Limits,
+    branch: Any,
+    samples: int | None,
+    world: Any = None,
 ) -> plan.Evaluation:
     """Task-space candidates ``(N, T, *target)`` by ``plan.evaluate`` (the robot's own limits
-    apply there too; ``limits`` can only tighten them), about ``samples`` samples per call
-    (None: its default)."""
+    apply there too; ``limits`` can only tighten them; with a ``world`` its collision check),
+    about ``samples`` samples per call (None: its default)."""
     chunk = None if samples is None else max(1, samples // path.shape[1])
-    return plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt, chunk_size=chunk)
+    return plan.evaluate(
+        robot, path, limits=limits, branch=branch, dt=dt, chunk_size=chunk, world=world
+    )
 
 
 def rank(

@@ -217,6 +217,7 @@ def world_batched(world: World) -> bool:
         or world.capsules.radius.ndim > 1
         or world.boxes.half_extents.ndim > 2
         or world.halfspaces.offset.ndim > 1
+        or world.cylinders.radius.ndim > 1
     )
 
 

@@ -40,7 +40,7 @@ from .rows import (
     tree_argmin,
     tree_min,
 )
-from .world import BOX, CAPSULE, HALFSPACE, SPHERE, World
+from .world import BOX, CAPSULE, CYLINDER, HALFSPACE, SPHERE, World
 
 __all__ = [
     "Clearance",
@@ -59,9 +59,9 @@ class Clearance:
     world and self pairs, and its pair: ``world`` (True: robot-world pair, False: self pair),
     the robot primitive ``robot_kind`` (``SPHERE`` or ``CAPSULE``, int8) and ``robot_index``
     (int32, within its kind), and the other member ``other_kind`` / ``other_index``: an
-    obstacle (``SPHERE, CAPSULE, BOX, HALFSPACE``) for a world pair, a robot primitive for a
-    self pair. With nothing to check the distance is the dtype's largest finite value and
-    the kinds and indices are -1."""
+    obstacle (``SPHERE, CAPSULE, BOX, HALFSPACE, CYLINDER``) for a world pair, a robot
+    primitive for a self pair. With nothing to check the distance is the dtype's largest
+    finite value and the kinds and indices are -1."""
 
     distance: jax.Array
     world: jax.Array
@@ -94,7 +94,9 @@ def obstacle_kinds(world: World) -> list[tuple[int, int, tuple[jax.Array, ...]]]
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
         (HALFSPACE, w.halfspaces, (w.halfspaces.normal, w.halfspaces.offset)),
-    ]:
+        (CYLINDER, w.cylinders, (w.cylinders.center, w.cylinders.axis, w.cylinders.radius,
+                                 w.cylinders.half_length)),
+    ]:  # fmt: skip
         if len(prims):
             out.append((kind, offset, arrays))
             offset += len(prims)
@@ -114,6 +116,8 @@ def _sphere_distance(kind: int, c: jax.Array, r: jax.Array, obstacle: tuple) -> 
         return sd.sphere_capsule(c, r, *obstacle)
     if kind == BOX:
         return sd.sphere_box(c, r, *obstacle)
+    if kind == CYLINDER:
+        return sd.sphere_cylinder(c, r, *obstacle)
     return sd.sphere_halfspace(c, r, *obstacle)
 
 
@@ -125,6 +129,8 @@ def _capsule_distance(kind: int, a: jax.Array, b: jax.Array, r: jax.Array, obsta
         return sd.capsule_capsule(a, b, r, *obstacle)
     if kind == BOX:
         return sd.capsule_box(a, b, r, *obstacle)
+    if kind == CYLINDER:
+        return sd.capsule_cylinder(a, b, r, *obstacle)
     return sd.capsule_halfspace(a, b, r, *obstacle)
 
 

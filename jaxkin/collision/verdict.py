@@ -15,7 +15,8 @@ a sphere against a box (``u`` the centre in the box frame, ``e_i = |u_i| - h_i``
 left side is the squared distance, for ``R < 0`` it is zero exactly when every ``e_i <= R``;
 the squared tolerance below then allows ``e_i`` up to ``R + sqrt(slack)``), a sphere against a
 capsule through the squared point-segment distance, against a half-space the plane's linear
-form; a robot capsule goes through the exact signed distances of ``collision.distance``.
+form, against a cylinder its exact signed distance; a robot capsule goes through the exact
+signed distances of ``collision.distance``.
 
 Layout (``collision.rows``): forward kinematics and placement write each placed coordinate as
 a row of the chunk's configurations, in the dtype of ``q``. One loop step per obstacle tests
@@ -163,8 +164,25 @@ def _sphere_kinds(world: World) -> list[tuple[Any, bool, tuple[Array, ...], Any]
          lambda o: (_norm_inf(o[0]) + _norm_inf(o[2]), 0.0)),
         (_halfspace_test, False, (w.halfspaces.normal, w.halfspaces.offset),
          lambda o: (jnp.abs(o[1]), 0.0)),
+        (_cylinder_test, False, _cylinder_fields(w), _cylinder_scale),
     ]  # fmt: skip
     return [kind for kind in kinds if kind[2][0].shape[0]]
+
+
+def _cylinder_test(x: list[Array], r: Array, margin: Array, *cylinder: Array) -> Array:
+    """Linear excess over a cylinder: the exact signed distance (a square root: no squared
+    form keeps the rim's rounding bounded) less the margin."""
+    return sd.sphere_cylinder(jnp.stack(x, axis=-1), r, *cylinder) - margin
+
+
+def _cylinder_fields(w: World) -> tuple[Array, ...]:
+    c = w.cylinders
+    return (c.center, c.axis, c.radius, c.half_length)
+
+
+def _cylinder_scale(o: tuple) -> tuple[Array, float]:
+    """A cylinder's largest coordinate magnitude: its centre's plus its extent."""
+    return _norm_inf(o[0]) + o[2] + o[3], 0.0
 
 
 def _capsule_kinds(world: World) -> list[tuple[Any, tuple[Array, ...], Any]]:
@@ -181,6 +199,8 @@ def _capsule_kinds(world: World) -> list[tuple[Any, tuple[Array, ...], Any]]:
          lambda o: _norm_inf(o[0]) + _norm_inf(o[2])),
         (lambda a, b, r, o: sd.capsule_halfspace(a, b, r, *o),
          (w.halfspaces.normal, w.halfspaces.offset), lambda o: jnp.abs(o[1])),
+        (lambda a, b, r, o: sd.capsule_cylinder(a, b, r, *o), _cylinder_fields(w),
+         lambda o: _cylinder_scale(o)[0]),
     ]  # fmt: skip
     return [kind for kind in kinds if kind[1][0].shape[0]]
 

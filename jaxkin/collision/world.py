@@ -1,14 +1,15 @@
 """The world: obstacles of every kind as arrays, and each robot primitive's nearest obstacle.
 
-``World`` holds ``Spheres``, ``Capsules``, ``Boxes`` and ``HalfSpaces`` (any of them empty).
+``World`` holds ``Spheres``, ``Capsules``, ``Boxes``, ``HalfSpaces`` and ``Cylinders`` (any of
+them empty).
 Its arrays are pytree leaves: moving, resizing or re-orienting obstacles keeps the shapes and
 so reuses a compiled check; adding or removing an obstacle changes a shape (pad with far-away
 obstacles to avoid that).
 
 ``nearest_obstacles(spheres, capsules, world)`` gives, for every robot sphere and capsule (in
 world coordinates, any leading batch axes), the smallest signed distance over all obstacles and
-which obstacle attains it (``kind`` from ``SPHERE, CAPSULE, BOX, HALFSPACE`` and the index
-within that kind). With no obstacle at all the distance is the dtype's largest finite value
+which obstacle attains it (``kind`` from ``SPHERE, CAPSULE, BOX, HALFSPACE, CYLINDER`` and the
+index within that kind). With no obstacle at all the distance is the dtype's largest finite value
 and ``kind = index = -1``.
 """
 
@@ -23,11 +24,20 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import distance as sd
-from .primitives import Boxes, Capsules, HalfSpaces, Spheres
+from .primitives import Boxes, Capsules, Cylinders, HalfSpaces, Spheres
 
-__all__ = ["BOX", "CAPSULE", "HALFSPACE", "SPHERE", "Nearest", "World", "nearest_obstacles"]
+__all__ = [
+    "BOX",
+    "CAPSULE",
+    "CYLINDER",
+    "HALFSPACE",
+    "SPHERE",
+    "Nearest",
+    "World",
+    "nearest_obstacles",
+]
 
-SPHERE, CAPSULE, BOX, HALFSPACE = 0, 1, 2, 3
+SPHERE, CAPSULE, BOX, HALFSPACE, CYLINDER = 0, 1, 2, 3, 4
 
 
 @jax.tree_util.register_dataclass
@@ -40,6 +50,7 @@ class World:
     capsules: Capsules
     boxes: Boxes
     halfspaces: HalfSpaces
+    cylinders: Cylinders
 
     @classmethod
     def create(
@@ -49,9 +60,23 @@ class World:
         boxes: Boxes | None = None,
         halfspaces: HalfSpaces | None = None,
         dtype=None,
+        *,
+        cylinders: Cylinders | None = None,
     ) -> World:
-        given = {"spheres": spheres, "capsules": capsules, "boxes": boxes, "halfspaces": halfspaces}
-        kinds = {"spheres": Spheres, "capsules": Capsules, "boxes": Boxes, "halfspaces": HalfSpaces}
+        given = {
+            "spheres": spheres,
+            "capsules": capsules,
+            "boxes": boxes,
+            "halfspaces": halfspaces,
+            "cylinders": cylinders,
+        }
+        kinds = {
+            "spheres": Spheres,
+            "capsules": Capsules,
+            "boxes": Boxes,
+            "halfspaces": HalfSpaces,
+            "cylinders": Cylinders,
+        }
         for name, value in given.items():
             if value is not None and not isinstance(value, kinds[name]):
                 raise ValueError(
@@ -97,12 +122,16 @@ class World:
             start += size
         return jax.tree.unflatten(tree, leaves)
 
+    def counts(self) -> dict[str, int]:
+        """The number of obstacles of each kind, by field name."""
+        return {f.name: len(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Nearest:
     """Per robot primitive: ``distance`` (signed, smallest over the world), the obstacle's
-    ``kind`` (int8: ``SPHERE, CAPSULE, BOX, HALFSPACE``; -1 with no obstacle) and its
+    ``kind`` (int8: ``SPHERE, CAPSULE, BOX, HALFSPACE, CYLINDER``; -1 with no obstacle) and its
     ``index`` (int32) within that kind. Shapes ``(..., n)``."""
 
     distance: jax.Array
@@ -113,14 +142,21 @@ class Nearest:
 def _obstacle_args(world: World) -> list[tuple[int, tuple[jax.Array, ...]]]:
     """Each non-empty kind of obstacle with its arrays, given a new axis for the robot
     primitives: ``(kind, arrays (..., 1, m_kind, ...))``."""
-    w = world
+    w, c = world, world.cylinders
     kinds = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
         (HALFSPACE, w.halfspaces, (w.halfspaces.normal, w.halfspaces.offset)),
+        (CYLINDER, w.cylinders, (c.center, c.axis, c.radius, c.half_length)),
     ]
-    core = {SPHERE: (1, 0), CAPSULE: (1, 1, 0), BOX: (1, 2, 1), HALFSPACE: (1, 0)}
+    core = {
+        SPHERE: (1, 0),
+        CAPSULE: (1, 1, 0),
+        BOX: (1, 2, 1),
+        HALFSPACE: (1, 0),
+        CYLINDER: (1, 1, 0, 0),
+    }
     return [
         (
             kind,
@@ -140,12 +176,14 @@ _SPHERE_TO = {
     CAPSULE: sd.sphere_capsule,
     BOX: sd.sphere_box,
     HALFSPACE: sd.sphere_halfspace,
+    CYLINDER: sd.sphere_cylinder,
 }
 _CAPSULE_TO = {
     SPHERE: lambda a, b, r, c, rc: sd.sphere_capsule(c, rc, a, b, r),
     CAPSULE: sd.capsule_capsule,
     BOX: sd.capsule_box,
     HALFSPACE: sd.capsule_halfspace,
+    CYLINDER: sd.capsule_cylinder,
 }
 
 

@@ -459,10 +459,14 @@ class Chain(Robot):
         (``collision.body_from_urdf``), else a skeleton of capsules of radius 0: link ``k``
         from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the projection of
         the previous point on the next axis, as ``reach()``), the last link to the tip; a
-        prismatic joint's travel is not covered. Links given spheres by
-        ``with_link_spheres`` have those instead."""
+        prismatic joint's travel is not covered. A body given by ``with_body`` replaces
+        either; links given spheres by ``with_link_spheres`` have those instead."""
         links = self.links
         spheres = dict(links.spheres) if links is not None else {}
+        if links is not None and links.body:  # with_body: the user's, in place of any other
+            given_spheres, given_capsules = (dict(part) for part in links.body)
+            body = Body.create(tuple(links.names), given_spheres, given_capsules)
+            return body.with_link_spheres(spheres) if spheres else body
         if links is not None and links.source:
             read = body_from_urdf(links.source, link_spheres=spheres or None)
             if read.body.links != tuple(links.names):
@@ -510,6 +514,34 @@ class Chain(Robot):
         own = link_spheres(spheres, tuple(links.names))
         merged = tuple({**dict(links.spheres), **own}.items())
         return self.replace(links=links.replace(spheres=merged))
+
+    def with_body(self, body: Body) -> Chain:
+        """This chain with ``body`` as its whole collision body (a spherised URDF's, cuRobo's
+        spheres through ``Body.create``, or any other), in place of the URDF's
+        ``<collision>`` elements, which are then not read. ``body.links`` must be the chain's
+        links in order (``collision_body().links``). The chain keeps host copies."""
+        if not isinstance(body, Body):
+            raise ValueError(f"body: expected a collision.Body, got {type(body).__name__}")
+        links = self.links
+        if links is None:
+            m = self.n_path_joints
+            homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
+            links = ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
+        if tuple(body.links) != tuple(links.names):
+            raise ValueError(
+                f"body: its links {tuple(body.links)} are not the chain's {tuple(links.names)}"
+            )
+        spheres, capsules = body.per_link()
+
+        def frozen(parts: dict) -> tuple:
+            copies = {name: tuple(np.array(x, dtype=np.float64) for x in arrays)
+                      for name, arrays in parts.items()}  # fmt: skip
+            for arrays in copies.values():
+                for arr in arrays:
+                    arr.setflags(write=False)
+            return tuple(copies.items())
+
+        return self.replace(links=links.replace(body=(frozen(spheres), frozen(capsules))))
 
     def with_link_radius(self, radius: float) -> Chain:
         """This chain (read from a URDF without ``<collision>`` elements) with the capsules of
@@ -564,6 +596,11 @@ class ChainLinks(Geometry):
         spheres: label, the user's own spheres per link, ``((name, (centers, radii)), ...)``.
         disabled: label, link name pairs left out of self-collision (an SRDF's).
         radius: label, the skeleton's capsule radius for a URDF without ``<collision>``.
+        body: label, a whole body given by ``with_body``: ``(spheres, capsules)``, each
+            ``((link, arrays), ...)`` as ``Body.per_link`` gives them; empty for none.
+        held: label, the joints off the path not at 0, ``((name, position), ...)``
+            (``from_urdf(..., fixed=...)`` and the joints that mimic those): ``homes`` places
+            the links they carry there.
     """
 
     homes: Array = number(REAL, (-1, 4, 4))
@@ -574,6 +611,8 @@ class ChainLinks(Geometry):
     spheres: tuple = label(default=())
     disabled: tuple = label(default=())
     radius: float = label(default=0.0)
+    body: tuple = label(default=())
+    held: tuple = label(default=())
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
