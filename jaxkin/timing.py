@@ -401,7 +401,11 @@ def _time_one(
 
     def forward(x: Array, stage: tuple) -> tuple[Array, Array]:
         joint, d, lo_next, hi_next = stage
-        room = joint.hi - joint.r * x
+        # A slab's room is known to its terms' round-off only: at a joint whose dq/ds is
+        # round-off (p ~ 0) and whose r x is at its bound, room / p would be 0 / 0, and its
+        # sign (the sign of p's round-off) would decide between no bound and u <= 0.
+        slack = 64.0 * eps * (jnp.abs(joint.hi) + jnp.abs(joint.r * x))
+        room = joint.hi - joint.r * x + slack
         bound = jnp.where(joint.p > 0, room / jnp.where(joint.p > 0, joint.p, 1.0), big)
         u = jnp.minimum(jnp.min(bound), (hi_next - x) / (2.0 * d))
         x_next = jnp.clip(x + 2.0 * d * u, lo_next, hi_next)
