@@ -869,7 +869,8 @@ def best(
         by: ``"cost"`` (``costs.total``, the smoothest first) or ``"duration"`` (the
             minimum duration under the joints' velocity and acceleration limits, the fastest
             first: ``retime``; candidates that cannot be timed are left out).
-        timing: ``retime(evaluation)`` when already computed (for ``by="duration"``).
+        timing: ``retime(evaluation)`` when already computed (for ``by="duration"``); any
+            timing of the candidates is ranked over the feasible ones only.
 
     Returns:
         ``(indices, values)``: candidate indices sorted by increasing cost or duration (ties
@@ -886,7 +887,13 @@ def best(
             timing = retime(evaluation)
         elif not isinstance(timing, _timing.Timing):
             raise ValueError(f"timing must be plan.retime's Timing, got {type(timing).__name__}")
-        key, usable = timing.duration, timing.status == Status.OK
+        elif jnp.shape(timing.duration) != jnp.shape(evaluation.feasible):
+            raise ValueError(
+                f"timing: expected one duration per candidate {jnp.shape(evaluation.feasible)}, "
+                f"got {jnp.shape(timing.duration)}"
+            )
+        # A timing of the joint paths alone (timing.retime) times infeasible candidates too.
+        key, usable = timing.duration, (timing.status == Status.OK) & evaluation.feasible
     indices, values = [], []
     held = zip(_processes.local_rows(key), _processes.local_rows(usable), strict=True)
     for (start, value), (_, ok) in held:

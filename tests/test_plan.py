@@ -863,6 +863,30 @@ def test_retime_and_rank_by_duration():
         plan.retime(plan.evaluate(ROBOT, path))
 
 
+def test_best_ranks_only_feasible_candidates_whatever_the_timing():
+    """``best(by="duration")`` with a timing of the joint paths alone (``timing.retime``,
+    which knows nothing of the position limits) leaves out the OUT_OF_LIMITS candidate, as it
+    does with ``plan.retime``'s; ``by="cost"`` too; a timing of another batch is refused."""
+    from jaxkin import timing
+
+    path = paths.path_from_joint_waypoints(scara_waypoints(n=5), JOINT_DT, JOINT_STEPS)
+    v_max, a_max = np.array([12.0, 5.0, 200.0]), np.array([60.0, 25.0, 800.0])
+    limits = plan.Limits.create(3, [-np.inf, 0.0, -np.inf], [np.inf, 2.0, np.inf], v_max, a_max)
+    ev = plan.evaluate(ROBOT, path, limits)
+    feasible = np.asarray(ev.feasible)
+    assert not feasible[3] and np.asarray(ev.status)[3].max() == Status.OUT_OF_LIMITS
+    times = np.broadcast_to(np.arange(path.shape[1]) * JOINT_DT, path.shape[:2])
+    alone = timing.retime(timing.JointPath(times, ev.q.p, ev.q.v, ev.q.a), v_max, a_max)
+    assert np.all(np.asarray(alone.ok))  # candidate 3 is timed, and among the fastest
+    assert np.argsort(np.asarray(alone.duration))[0] == 3
+    for by, given in (("duration", alone), ("duration", None), ("cost", None)):
+        order, values = plan.best(ev, 10, by=by, timing=given)
+        assert len(order) == feasible.sum() and np.all(feasible[order]), (by, order)
+        assert np.all(np.diff(values) >= 0)
+    with pytest.raises(ValueError, match="timing: expected one duration per candidate"):
+        plan.best(ev, 1, by="duration", timing=jax.tree.map(lambda x: x[:2], alone))
+
+
 @pytest.mark.slow
 def test_durations_against_toppra():
     """Joint-space candidates through 4 waypoints (one cubic per joint: toppra's spline
