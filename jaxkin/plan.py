@@ -68,7 +68,8 @@ each window prefixed with the previous window's last sample, so the first step i
 Duration: ``retime`` times every feasible candidate's joint path as fast as the velocity and
 acceleration limits allow (``jaxkin.timing``, batched TOPP-RA, one compiled call), and
 ``best(ev, k, by="duration")`` ranks by that duration; a candidate that is not feasible or
-cannot be timed is ``UNTIMEABLE`` and left out.
+cannot be timed is ``UNTIMEABLE`` and left out. Every joint needs a finite acceleration limit
+for it (a joint without one has no time-optimal motion: ``retime`` names it).
 
 Scale: huge N is processed in chunks of about ``jaxkin._batching.plan_chunk_samples()`` samples,
 so memory stays bounded besides the returned arrays; the chunks run on the host threads. With
@@ -120,6 +121,7 @@ __all__ = [
     "unexplained_steps",
     "unwrapped",
     "unwrapping_turns",
+    "with_context",
     "within_turns",
 ]
 
@@ -226,6 +228,7 @@ class Evaluation(SolverResult):
             (``collision.check``: signed distance, robot-world and self) over the samples
             the solve reached (the others have no joints to place), 0 for a candidate with
             none, ``(N,)``; else None.
+        joint_names: the robot's joint names (static), for messages.
     """
 
     q: Jet
@@ -241,6 +244,7 @@ class Evaluation(SolverResult):
     space: str = dataclasses.field(metadata=dict(static=True), default="task")
     limits: tuple = dataclasses.field(metadata=dict(static=True), default=())
     min_clearance: Array | None = None
+    joint_names: tuple = dataclasses.field(metadata=dict(static=True), default=())
 
     def applied_limits(self) -> Limits:
         """The joint limits this evaluation applied (the robot's and the user's)."""
@@ -737,8 +741,22 @@ def evaluate(
         ev = jax.tree.map(lambda x: x[:0], call(placeholder))
     else:
         ev = _batching.map_candidates(call, path, chunk_size)
+    return with_context(ev, robot, limits, dt, space)
+
+
+def with_context(
+    evaluation: Evaluation, robot: Robot, limits: Limits, dt: float, space: str
+) -> Evaluation:
+    """``evaluation`` carrying what ``retime`` and ``best`` read besides its arrays: the
+    sampling period, the space, the limits applied and the robot's joint names."""
     applied = tuple(tuple(float(x) for x in np.asarray(b)) for b in jax.tree.leaves(limits))
-    return dataclasses.replace(ev, dt=dt, space=space, limits=applied)
+    return dataclasses.replace(
+        evaluation,
+        dt=float(dt),
+        space=space,
+        limits=applied,
+        joint_names=tuple(robot.joint_names),
+    )
 
 
 PLAIN_ARRAY_HELP = (
@@ -828,16 +846,34 @@ def retime(
     zero placeholders. ``timing.sample(plan.joint_path(ev), timed, period)`` samples the
     retimed trajectories at a control period.
 
+    Every joint needs a finite acceleration limit (its speed limit may be ``inf``): without
+    one, a joint's time-optimal speed changes within one sample, at an acceleration set by the
+    sample spacing alone, and with no speed limit either it moves in no time (``jaxkin.timing``
+    would report every candidate that moves it ``UNTIMEABLE``). A URDF gives no acceleration
+    limits: give them in ``evaluate``'s ``limits``.
+
     Raises:
-        ValueError: an evaluation without limits or dt (not from ``evaluate``), or limits
-            with no finite velocity or acceleration bound (any duration would do).
+        ValueError: an evaluation without limits or dt (not from ``evaluate``), a joint
+            without a finite acceleration limit (named), or candidates of fewer than 3
+            samples (a rest-to-rest motion over one interval does not exist).
     """
     limits = evaluation.applied_limits()
     v_max, a_max = np.asarray(limits.v_max), np.asarray(limits.a_max)
-    if not np.any(np.isfinite(v_max) | np.isfinite(a_max)):
+    unlimited = np.flatnonzero(~np.isfinite(a_max))
+    if unlimited.size:
+        names = evaluation.joint_names or tuple(f"joint {j}" for j in range(len(a_max)))
+        listed = ", ".join(str(names[j]) for j in unlimited)
         raise ValueError(
-            "retiming needs a finite velocity or acceleration limit: the robot has none; "
-            "give them with limits=plan.Limits.create(n, v_max=..., a_max=...)"
+            f"retiming needs a finite acceleration limit for every joint; {listed} "
+            f"{'has' if unlimited.size == 1 else 'have'} none (its time-optimal speed would "
+            "change within one sample, and with no speed limit either it would move in no "
+            "time): give a_max for every joint (plan.Limits.create(n, a_max=...))"
+        )
+    if evaluation.q.shape[-2] < 3:
+        raise ValueError(
+            f"retiming from rest to rest needs candidates of at least 3 samples, got "
+            f"{evaluation.q.shape[-2]} (a motion over one interval that starts and ends at "
+            "rest does not exist)"
         )
     path = joint_path(evaluation)
     dtype = path.q.dtype

@@ -40,8 +40,10 @@ everywhere.
 
 Statuses per candidate: ``OK``; ``INVALID_INPUT`` (NaN or inf in the path or the limits);
 ``UNTIMEABLE`` (no timing within the limits on this grid: a joint that must move has a zero
-velocity or acceleration limit, the start or end speed is not reachable, or the speed falls to
-zero at two neighbouring grid points, a grid too coarse for a sharp bend).
+velocity or acceleration limit, or no acceleration limit (``inf``: its speed could change
+within one grid interval, and with no speed limit either it would move in no time), the start
+or end speed is not reachable, or the speed falls to zero at two neighbouring grid points, a
+grid too coarse for a sharp bend).
 Failed candidates get finite placeholders: zero times, speeds and duration.
 """
 
@@ -346,6 +348,10 @@ def _time_one(
         & ~jnp.any(jnp.isnan(v_max))
         & ~jnp.any(jnp.isnan(a_max))
     )
+    # A joint that moves with no acceleration limit could change its speed within one grid
+    # interval (and, with no speed limit either, move in no time): no time-optimal timing.
+    moves = jnp.any((q != q[:1]) | (dq != 0), axis=0)
+    unbounded = jnp.any(moves & jnp.isinf(a_max))
     s = jnp.where(finite, s, jnp.arange(s.shape[0], dtype=dtype))
     q = jnp.where(finite, q, 0.0)
     dq = jnp.where(finite, dq, 0.0)
@@ -421,7 +427,7 @@ def _time_one(
     stalled = jnp.any(still[:-1] & still[1:]) | jnp.any(total <= 0)
     steps = 2.0 * delta / jnp.where(total > 0, total, 1.0)
     t = jnp.concatenate([jnp.zeros((1,), dtype), jnp.cumsum(steps)])
-    ok = finite & ~last.empty & start_ok & ~stalled & jnp.isfinite(t[-1])
+    ok = finite & ~last.empty & start_ok & ~stalled & ~unbounded & jnp.isfinite(t[-1])
     status = jnp.where(
         finite, jnp.where(ok, Status.OK, Status.UNTIMEABLE), Status.INVALID_INPUT
     ).astype(STATUS_DTYPE)
@@ -507,7 +513,11 @@ def retime(
             shape ``(...)``, grid ``M``, ``n`` joints.
         v_max: speed limit per joint, shape ``(n,)`` or per candidate ``(..., n)``; ``inf``
             for none; 0 pins the joint (a path that moves it is ``UNTIMEABLE``).
-        a_max: acceleration limit per joint, same shapes.
+        a_max: acceleration limit per joint, same shapes; a path that moves a joint (its
+            ``q`` or ``dq`` not all equal to its start's and zero, exactly) whose limit is
+            ``inf`` is ``UNTIMEABLE``: its speed could change within one grid interval, at
+            an acceleration set by nothing but the grid (and with no speed limit either, in
+            no time at all).
         start_speed, end_speed: path speeds ``s_dot`` at the ends, default 0 (at rest);
             scalars or shape ``(...)``.
         scheme: ``"interpolation"`` (acceleration limits at both ends of every interval,

@@ -107,6 +107,30 @@ def test_invalid_element_does_not_poison_the_batch_nor_recompile(solved):
     np.testing.assert_array_equal(status[keep], np.asarray(result.status)[keep])
 
 
+def test_a_moving_joint_without_an_acceleration_limit_is_untimeable(solved):
+    """A joint that moves with an acceleration limit of inf (and a speed limit, or none) has
+    no time-optimal timing: its candidate is UNTIMEABLE (with neither limit it was timed in
+    about 1e-38 and OK); a joint that does not move needs none (candidate 0's joints 1 and
+    2), and the other candidates' durations are unchanged (no recompilation)."""
+    _, v_max, a_max, start, path, result = solved
+    v_max, a_max = v_max.copy(), a_max.copy()
+    a_max[0, 1:] = np.inf  # candidate 0 moves joint 0 only
+    a_max[2, 1] = np.inf  # with its speed limit
+    v_max[3, 0], a_max[3, 0] = np.inf, np.inf  # with neither
+    with compilations() as count:
+        again = timing.retime(path, v_max, a_max, start_speed=start, speed_bound="interval")
+        jax.block_until_ready(again)
+    assert count.n == 0
+    status = np.asarray(again.status)
+    assert status[2] == status[3] == Status.UNTIMEABLE
+    assert np.all(np.asarray(again.duration)[2:4] == 0.0)
+    keep = [0, 1, 4, 5]
+    np.testing.assert_array_equal(status[keep], np.asarray(result.status)[keep])
+    np.testing.assert_array_equal(
+        np.asarray(again.duration)[keep], np.asarray(result.duration)[keep]
+    )
+
+
 def test_spline_matches_the_host_spline(solved):
     # jaxkin._splines solves the same spline on the host (general knots, its own code).
     way, *_, path, _ = solved
