@@ -867,7 +867,7 @@ def retime(
             f"retiming needs a finite acceleration limit for every joint; {listed} "
             f"{'has' if unlimited.size == 1 else 'have'} none (its time-optimal speed would "
             "change within one sample, and with no speed limit either it would move in no "
-            "time): give a_max for every joint (plan.Limits.create(n, a_max=...))"
+            "time): give every joint an acceleration limit, a_max"
         )
     if evaluation.q.shape[-2] < 3:
         raise ValueError(
