@@ -117,6 +117,22 @@ def _real_scalar(value: Any) -> float | None:
     return float(value)
 
 
+def count(value: Any, name: str, minimum: int = 1) -> int:
+    """A count (of samples, steps, candidates, iterations) ``>= minimum`` as a Python int.
+
+    Python ints, NumPy integer scalars (``np.int64(5)``, as ``len`` of an array or an index
+    gives) and concrete 0-d integer arrays are accepted; bools, floats (even ``3.0``: as
+    ``range`` and ``np.zeros``) and anything else raise a ``ValueError`` naming ``name``.
+    """
+    integer = not isinstance(value, bool | np.bool_) and is_concrete(value)
+    if integer and not isinstance(value, int | np.integer):
+        dtype = getattr(value, "dtype", None)
+        integer = dtype is not None and np.dtype(dtype).kind in "iu" and np.ndim(value) == 0
+    if not integer or int(value) < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
 def positive_number(value: Any, name: str) -> float:
     """A positive finite real number (a time step, a distance, a threshold) as a float.
 

@@ -157,6 +157,7 @@ class Limits:
             ValueError: a bound that does not broadcast to ``(n_joints,)``, is NaN, a negative
                 speed or acceleration bound, or ``q_min > q_max``.
         """
+        n_joints = _validate.count(n_joints, "n_joints")
 
         def bound(x, name, fill):
             arr = np.full(n_joints, fill) if x is None else np.asarray(x, dtype=float)
@@ -716,8 +717,8 @@ def evaluate(
     held = len(robot.branches) if (branch == "best" or space == "joint") else 1
     if chunk_size is None:
         chunk_size = max(1, _batching.plan_chunk_samples() // (t * held))
-    elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    else:
+        chunk_size = _validate.count(chunk_size, "chunk_size")
 
     def call(chunk: Jet) -> Evaluation:
         candidates = chunk.shape[0]
@@ -913,8 +914,7 @@ def best(
         by index) and those values, NumPy; fewer than ``k`` when fewer candidates are
         feasible (and timed).
     """
-    if not (isinstance(k, int) and not isinstance(k, bool) and k >= 1):
-        raise ValueError(f"k must be a positive integer, got {k!r}")
+    k = _validate.count(k, "k")
     _validate.choice(by, "by", RANKINGS)
     if by == "cost":
         key, usable = evaluation.costs.total, evaluation.feasible

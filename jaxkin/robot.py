@@ -208,6 +208,7 @@ class JointLimits(Geometry):
     @classmethod
     def unbounded(cls, n: int) -> JointLimits:
         """No limit on any of ``n`` joints."""
+        n = _validate.count(n, "n")
         return cls(np.full(n, -np.inf), np.full(n, np.inf))
 
     def contains(self, q: ArrayLike) -> Array:

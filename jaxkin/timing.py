@@ -221,8 +221,7 @@ def path_from_waypoints(
         ValueError: a bad shape, a non-finite waypoint (checked when concrete), or a bad
             ``subdivisions`` or ``end``.
     """
-    if isinstance(subdivisions, bool) or not isinstance(subdivisions, int) or subdivisions < 1:
-        raise ValueError(f"subdivisions must be a positive integer, got {subdivisions!r}")
+    subdivisions = _validate.count(subdivisions, "subdivisions")
     _validate.choice(end, "end", _splines.END_CONDITIONS)
     arr = waypoints if isinstance(waypoints, jax.Array) else jnp.asarray(waypoints)
     if arr.ndim < 2 or arr.shape[-2] < 2 or arr.shape[-1] < 1:
@@ -684,8 +683,7 @@ def sample(
         durations = np.asarray(timing.duration)
         longest = float(np.max(durations, initial=0.0))
         num = int(math.floor(longest / period * (1.0 + 1e-12))) + 1
-    if not (isinstance(num, int) and num >= 1):
-        raise ValueError(f"num must be a positive integer, got {num!r}")
+    num = _validate.count(num, "num")
     q = jnp.asarray(path.q)
     if q.shape[-2] != timing.t.shape[-1]:
         raise ValueError(
@@ -705,8 +703,7 @@ def best(timing: Timing, k: int) -> tuple[np.ndarray, np.ndarray]:
         increasing duration (ties by index), and their durations, NumPy; fewer than ``k`` when
         fewer candidates could be timed.
     """
-    if not (isinstance(k, int) and not isinstance(k, bool) and k >= 1):
-        raise ValueError(f"k must be a positive integer, got {k!r}")
+    k = _validate.count(k, "k")
     duration = np.asarray(timing.duration)
     if duration.ndim != 1:
         raise ValueError(f"timing: expected a flat batch (N,), got shape {duration.shape}")

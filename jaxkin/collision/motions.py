@@ -28,6 +28,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from .. import _validate
 from .._validate import positive_number
 from .body import Body
 from .check import _as_q, _check_margin, _check_robot, _check_world, check_kernel, prepare
@@ -170,8 +171,8 @@ def validate_motions(
     q_from, q_to = q_from.astype(dtype), q_to.astype(dtype)
     if samples is None:
         samples = motion_samples(q_from, q_to, resolution)
-    elif not (isinstance(samples, int) and samples >= 2):
-        raise ValueError(f"samples must be an int >= 2, got {samples!r}")
+    else:
+        samples = _validate.count(samples, "samples", minimum=2)
     body, pairs = prepare(robot, self_collision)
     return _validate_jit(
         robot,
