@@ -48,6 +48,16 @@ def as_float(x: ArrayLike) -> jax.Array:
     return arr
 
 
+def owned_float(x: ArrayLike) -> jax.Array:
+    """``as_float(x)`` sharing no memory with the caller: a host (NumPy) array is copied
+    first, since ``jax.device_put`` may alias its buffer on CPU, and an edit of the caller's
+    array would then change a robot built from it. For values kept beyond the call (a
+    geometry's fields, obstacles); the JAX array is read-only."""
+    if isinstance(x, np.ndarray | np.generic):
+        x = np.array(x, copy=True)
+    return as_float(x)
+
+
 def point(x: ArrayLike, name: str, coords: int) -> jax.Array:
     """A floating array of points, shape ``(..., coords)``."""
     arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
