@@ -183,6 +183,26 @@ def test_chain_own_spheres_override():
         chain.with_link_spheres({"nope": (np.zeros((1, 3)), np.array([0.1]))})
 
 
+def test_chain_own_spheres_keep_the_other_links_skeleton():
+    """A URDF without ``<collision>`` elements: spheres for one link replace that link's
+    skeleton capsules only; every other link keeps its own (the body had the user's spheres
+    alone, so a penetration of another link read as clear), and the self pairs are the
+    skeleton's that do not touch at q = 0 (as without the spheres), and the forearm's."""
+    skeleton = serial.from_urdf(UR5, "tool0").with_link_radius(0.04)
+    chain = skeleton.with_link_spheres({"forearm_link": (np.zeros((1, 3)), [0.07])})
+    spheres, capsules = chain.collision_body().per_link()
+    own = skeleton.collision_body().per_link()[1]
+    assert set(spheres) == {"forearm_link"} and set(capsules) == set(own) - {"forearm_link"}
+    for link, arrays in capsules.items():
+        for got, expected in zip(arrays, own[link], strict=True):
+            np.testing.assert_array_equal(got, expected)
+    pairs = chain.self_collision_pairs()
+    forearm = chain.collision_body().links.index("forearm_link")
+    others = {pair for pair in pairs if forearm not in pair}
+    assert others == {p for p in skeleton.self_collision_pairs() if forearm not in p}
+    assert len(others) < len(pairs)  # the forearm's spheres against the others' capsules
+
+
 def test_chain_own_spheres_are_copied_and_checked():
     centers, radii = np.zeros((2, 3)), np.array([0.05, 0.06])
     chain = serial.from_urdf(UR5, "tool0").with_link_spheres({"forearm_link": (centers, radii)})
