@@ -112,6 +112,7 @@ __all__ = [
     "jerk",
     "joint_path",
     "joint_scales",
+    "joint_units",
     "limit_excess",
     "path_ik",
     "range_turns",
@@ -442,8 +443,9 @@ def trajectory_costs(
 
 
 # ------------------------------------------------------------------ the kernel
-def _joint_unit(robot, dtype) -> Array:
-    """The size of each joint, ``(n,)``: 1 rad, or the robot's length for a prismatic one."""
+def joint_units(robot: Robot, dtype: Any) -> Array:
+    """The size of each joint, ``(n,)``: 1 rad, or the robot's length (``length_scale()``)
+    for a prismatic one: the position scale of the costs (``joint_scales``)."""
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     return jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(dtype)
 
@@ -490,7 +492,7 @@ def checked_samples(
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
-    unit = _joint_unit(robot, dtype)
+    unit = joint_units(robot, dtype)
     step = jnp.asarray(dt, dtype)
     step = step[..., None] if step.ndim else step  # per-step dt (N, T - 1) over the joints
     jumped = unexplained_steps(q, step, unit) & solved[..., :-1] & moving[:, None]
@@ -528,7 +530,7 @@ def _checked(
     bad = status != Status.OK
     feasible = ~jnp.any(bad, axis=-1)
     first_failure = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
-    unit = _joint_unit(robot, q.p.dtype)
+    unit = joint_units(robot, q.p.dtype)
     return Evaluation(
         q=q,
         status=status,
@@ -593,7 +595,7 @@ def _evaluate_joint(robot, path: Jet, limits: Limits, dt, weights, collide=None)
     q = path.astype(robot.work_dtype(path.dtype))
     fk = robot.fk_kernel(q, robot.FKOptions(), True)
     revolute = np.array([kind == "R" for kind in robot.joint_types])
-    unit = _joint_unit(robot, q.dtype)
+    unit = joint_units(robot, q.dtype)
     # The IK of the tool path on every branch; the nearest to the given joints is theirs.
     indices = jnp.arange(len(robot.branches), dtype=jnp.int32)
     every = jax.vmap(lambda i: robot.ik_path_kernel(fk.x, i, robot.IKOptions()))(indices)
