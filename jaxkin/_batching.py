@@ -194,9 +194,9 @@ def num_threads() -> int:
 def set_num_threads(n: int | None) -> None:
     """Split large batches across ``n`` host threads (1: never split; None: the default)."""
     global _requested
-    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1):
         raise ValueError(f"n must be a positive int or None, got {n!r}")
-    _requested = n
+    _requested = None if n is None else int(n)
 
 
 def _executor(workers: int) -> ThreadPoolExecutor:

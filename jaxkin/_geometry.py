@@ -14,7 +14,7 @@ scalars and arrays of the declared shape); refused: ``bool``, strings, ``None``,
 values, NaN, and values outside the field's kind (``LENGTH`` > 0, ``NONNEGATIVE`` >= 0,
 ``REAL`` finite, ``BOUND`` finite or +-inf). Python numbers are kept as Python floats (a
 concrete geometry can then be compiled into a kernel as constants), anything else becomes a
-floating JAX array.
+floating JAX array of its own (a copy: editing the caller's array afterwards changes nothing).
 
 JAX rebuilds geometries from tracers, abstract values and cotangents: that path (the pytree
 unflatten) skips ``__init__`` and so skips validation, because those are not user input (a
@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import as_float, is_concrete
+from ._validate import is_concrete, owned_float
 
 LENGTH = "length"
 NONNEGATIVE = "nonnegative"
@@ -138,7 +138,7 @@ def check_number(value: Any, name: str, kind: str = LENGTH, shape: Shape = ()) -
         raise ValueError(f"{name} must be {what}, got {shown}")
     if isinstance(value, numbers.Real) and arr.ndim == 0:
         return float(value)
-    return as_float(value)
+    return owned_float(value)  # the caller's array may change after this returns
 
 
 class Geometry:

@@ -48,6 +48,16 @@ def as_float(x: ArrayLike) -> jax.Array:
     return arr
 
 
+def owned_float(x: ArrayLike) -> jax.Array:
+    """``as_float(x)`` sharing no memory with the caller: a host (NumPy) array is copied
+    first, since ``jax.device_put`` may alias its buffer on CPU, and an edit of the caller's
+    array would then change a robot built from it. For values kept beyond the call (a
+    geometry's fields, obstacles); the JAX array is read-only."""
+    if isinstance(x, np.ndarray | np.generic):
+        x = np.array(x, copy=True)
+    return as_float(x)
+
+
 def point(x: ArrayLike, name: str, coords: int) -> jax.Array:
     """A floating array of points, shape ``(..., coords)``."""
     arr = x if isinstance(x, jax.Array) else jnp.asarray(x)
@@ -115,6 +125,22 @@ def _real_scalar(value: Any) -> float | None:
     if dtype is None or np.dtype(dtype).kind not in "fiu" or np.ndim(value) != 0:
         return None
     return float(value)
+
+
+def count(value: Any, name: str, minimum: int = 1) -> int:
+    """A count (of samples, steps, candidates, iterations) ``>= minimum`` as a Python int.
+
+    Python ints, NumPy integer scalars (``np.int64(5)``, as ``len`` of an array or an index
+    gives) and concrete 0-d integer arrays are accepted; bools, floats (even ``3.0``: as
+    ``range`` and ``np.zeros``) and anything else raise a ``ValueError`` naming ``name``.
+    """
+    integer = not isinstance(value, bool | np.bool_) and is_concrete(value)
+    if integer and not isinstance(value, int | np.integer):
+        dtype = getattr(value, "dtype", None)
+        integer = dtype is not None and np.dtype(dtype).kind in "iu" and np.ndim(value) == 0
+    if not integer or int(value) < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 def positive_number(value: Any, name: str) -> float:

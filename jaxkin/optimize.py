@@ -529,9 +529,10 @@ def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
 
 
 @kernel
-def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array) -> Any:
+def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array, unit: Array) -> Any:
     """``plan.Evaluation`` of joint trajectories ``(N, T, n)`` (continuous by construction):
-    a sample is ``OUT_OF_LIMITS`` where a limit is passed, else its FK status."""
+    a sample is ``OUT_OF_LIMITS`` where a limit is passed, else its FK status; the costs
+    with each joint's ``unit`` (``plan.joint_units``), as the planner's."""
     solved = fk_status == Status.OK
     violated = plan.limit_excess(q, limits) > 0
     status = jnp.where(solved & violated, jnp.int8(Status.OUT_OF_LIMITS), fk_status)
@@ -540,7 +541,7 @@ def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array) 
     feasible = ~jnp.any(bad, axis=-1)
     first = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
     margin = jnp.full(feasible.shape, jnp.inf, q.p.dtype)
-    return q, status, feasible, first, margin, plan.trajectory_costs(q, dt, limits, feasible)
+    return q, status, feasible, first, margin, plan.trajectory_costs(q, dt, limits, feasible, unit)
 
 
 def _evaluation(robot, joint, path, q, status, limits, branch, dt) -> plan.Evaluation:
@@ -550,10 +551,10 @@ def _evaluation(robot, joint, path, q, status, limits, branch, dt) -> plan.Evalu
     if not joint:
         return plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt)
     q, status, feasible, first, margin, scores = _joint_evaluation(
-        q, status, limits, jnp.asarray(dt, q.p.dtype)
+        q, status, limits, jnp.asarray(dt, q.p.dtype), plan.joint_units(robot, q.p.dtype)
     )
     index = robot.branches.index(branch)
-    return plan.Evaluation(
+    evaluation = plan.Evaluation(
         q=q,
         status=status,
         feasible=feasible,
@@ -563,6 +564,7 @@ def _evaluation(robot, joint, path, q, status, limits, branch, dt) -> plan.Evalu
         costs=scores,
         branches=robot.branches,
     )
+    return plan.with_context(evaluation, robot, limits, dt, "joint")  # plan.retime reads it
 
 
 # ------------------------------------------------------------------ the ends

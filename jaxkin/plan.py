@@ -68,7 +68,8 @@ each window prefixed with the previous window's last sample, so the first step i
 Duration: ``retime`` times every feasible candidate's joint path as fast as the velocity and
 acceleration limits allow (``jaxkin.timing``, batched TOPP-RA, one compiled call), and
 ``best(ev, k, by="duration")`` ranks by that duration; a candidate that is not feasible or
-cannot be timed is ``UNTIMEABLE`` and left out.
+cannot be timed is ``UNTIMEABLE`` and left out. Every joint needs a finite acceleration limit
+for it (a joint without one has no time-optimal motion: ``retime`` names it).
 
 Scale: huge N is processed in chunks of about ``jaxkin._batching.plan_chunk_samples()`` samples,
 so memory stays bounded besides the returned arrays; the chunks run on the host threads. With
@@ -112,6 +113,7 @@ __all__ = [
     "jerk",
     "joint_path",
     "joint_scales",
+    "joint_units",
     "limit_excess",
     "path_ik",
     "range_turns",
@@ -121,6 +123,7 @@ __all__ = [
     "unexplained_steps",
     "unwrapped",
     "unwrapping_turns",
+    "with_context",
     "within_turns",
 ]
 
@@ -156,6 +159,7 @@ class Limits:
             ValueError: a bound that does not broadcast to ``(n_joints,)``, is NaN, a negative
                 speed or acceleration bound, or ``q_min > q_max``.
         """
+        n_joints = _validate.count(n_joints, "n_joints")
 
         def bound(x, name, fill):
             arr = np.full(n_joints, fill) if x is None else np.asarray(x, dtype=float)
@@ -227,6 +231,7 @@ class Evaluation(SolverResult):
             (``collision.check``: signed distance, robot-world and self) over the samples
             the solve reached (the others have no joints to place), 0 for a candidate with
             none, ``(N,)``; else None.
+        joint_names: the robot's joint names (static), for messages.
     """
 
     q: Jet
@@ -242,6 +247,7 @@ class Evaluation(SolverResult):
     space: str = dataclasses.field(metadata=dict(static=True), default="task")
     limits: tuple = dataclasses.field(metadata=dict(static=True), default=())
     min_clearance: Array | None = None
+    joint_names: tuple = dataclasses.field(metadata=dict(static=True), default=())
 
     def applied_limits(self) -> Limits:
         """The joint limits this evaluation applied (the robot's and the user's)."""
@@ -438,8 +444,9 @@ def trajectory_costs(
 
 
 # ------------------------------------------------------------------ the kernel
-def _joint_unit(robot, dtype) -> Array:
-    """The size of each joint, ``(n,)``: 1 rad, or the robot's length for a prismatic one."""
+def joint_units(robot: Robot, dtype: Any) -> Array:
+    """The size of each joint, ``(n,)``: 1 rad, or the robot's length (``length_scale()``)
+    for a prismatic one: the position scale of the costs (``joint_scales``)."""
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     return jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(dtype)
 
@@ -486,7 +493,7 @@ def checked_samples(
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
-    unit = _joint_unit(robot, dtype)
+    unit = joint_units(robot, dtype)
     step = jnp.asarray(dt, dtype)
     step = step[..., None] if step.ndim else step  # per-step dt (N, T - 1) over the joints
     jumped = unexplained_steps(q, step, unit) & solved[..., :-1] & moving[:, None]
@@ -524,7 +531,7 @@ def _checked(
     bad = status != Status.OK
     feasible = ~jnp.any(bad, axis=-1)
     first_failure = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
-    unit = _joint_unit(robot, q.p.dtype)
+    unit = joint_units(robot, q.p.dtype)
     return Evaluation(
         q=q,
         status=status,
@@ -589,7 +596,7 @@ def _evaluate_joint(robot, path: Jet, limits: Limits, dt, weights, collide=None)
     q = path.astype(robot.work_dtype(path.dtype))
     fk = robot.fk_kernel(q, robot.FKOptions(), True)
     revolute = np.array([kind == "R" for kind in robot.joint_types])
-    unit = _joint_unit(robot, q.dtype)
+    unit = joint_units(robot, q.dtype)
     # The IK of the tool path on every branch; the nearest to the given joints is theirs.
     indices = jnp.arange(len(robot.branches), dtype=jnp.int32)
     every = jax.vmap(lambda i: robot.ik_path_kernel(fk.x, i, robot.IKOptions()))(indices)
@@ -711,8 +718,8 @@ def evaluate(
     held = len(robot.branches) if (branch == "best" or space == "joint") else 1
     if chunk_size is None:
         chunk_size = max(1, _batching.plan_chunk_samples() // (t * held))
-    elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    else:
+        chunk_size = _validate.count(chunk_size, "chunk_size")
 
     def call(chunk: Jet) -> Evaluation:
         candidates = chunk.shape[0]
@@ -736,8 +743,22 @@ def evaluate(
         ev = jax.tree.map(lambda x: x[:0], call(placeholder))
     else:
         ev = map_candidates(call, path, chunk_size)
+    return with_context(ev, robot, limits, dt, space)
+
+
+def with_context(
+    evaluation: Evaluation, robot: Robot, limits: Limits, dt: float, space: str
+) -> Evaluation:
+    """``evaluation`` carrying what ``retime`` and ``best`` read besides its arrays: the
+    sampling period, the space, the limits applied and the robot's joint names."""
     applied = tuple(tuple(float(x) for x in np.asarray(b)) for b in jax.tree.leaves(limits))
-    return dataclasses.replace(ev, dt=dt, space=space, limits=applied)
+    return dataclasses.replace(
+        evaluation,
+        dt=float(dt),
+        space=space,
+        limits=applied,
+        joint_names=tuple(robot.joint_names),
+    )
 
 
 PLAIN_ARRAY_HELP = (
@@ -827,16 +848,34 @@ def retime(
     zero placeholders. ``timing.sample(plan.joint_path(ev), timed, period)`` samples the
     retimed trajectories at a control period.
 
+    Every joint needs a finite acceleration limit (its speed limit may be ``inf``): without
+    one, a joint's time-optimal speed changes within one sample, at an acceleration set by the
+    sample spacing alone, and with no speed limit either it moves in no time (``jaxkin.timing``
+    would report every candidate that moves it ``UNTIMEABLE``). A URDF gives no acceleration
+    limits: give them in ``evaluate``'s ``limits``.
+
     Raises:
-        ValueError: an evaluation without limits or dt (not from ``evaluate``), or limits
-            with no finite velocity or acceleration bound (any duration would do).
+        ValueError: an evaluation without limits or dt (not from ``evaluate``), a joint
+            without a finite acceleration limit (named), or candidates of fewer than 3
+            samples (a rest-to-rest motion over one interval does not exist).
     """
     limits = evaluation.applied_limits()
     v_max, a_max = np.asarray(limits.v_max), np.asarray(limits.a_max)
-    if not np.any(np.isfinite(v_max) | np.isfinite(a_max)):
+    unlimited = np.flatnonzero(~np.isfinite(a_max))
+    if unlimited.size:
+        names = evaluation.joint_names or tuple(f"joint {j}" for j in range(len(a_max)))
+        listed = ", ".join(str(names[j]) for j in unlimited)
         raise ValueError(
-            "retiming needs a finite velocity or acceleration limit: the robot has none; "
-            "give them with limits=plan.Limits.create(n, v_max=..., a_max=...)"
+            f"retiming needs a finite acceleration limit for every joint; {listed} "
+            f"{'has' if unlimited.size == 1 else 'have'} none (its time-optimal speed would "
+            "change within one sample, and with no speed limit either it would move in no "
+            "time): give every joint an acceleration limit, a_max"
+        )
+    if evaluation.q.shape[-2] < 3:
+        raise ValueError(
+            f"retiming from rest to rest needs candidates of at least 3 samples, got "
+            f"{evaluation.q.shape[-2]} (a motion over one interval that starts and ends at "
+            "rest does not exist)"
         )
     path = joint_path(evaluation)
     dtype = path.q.dtype
@@ -868,15 +907,15 @@ def best(
         by: ``"cost"`` (``costs.total``, the smoothest first) or ``"duration"`` (the
             minimum duration under the joints' velocity and acceleration limits, the fastest
             first: ``retime``; candidates that cannot be timed are left out).
-        timing: ``retime(evaluation)`` when already computed (for ``by="duration"``).
+        timing: ``retime(evaluation)`` when already computed (for ``by="duration"``); any
+            timing of the candidates is ranked over the feasible ones only.
 
     Returns:
         ``(indices, values)``: candidate indices sorted by increasing cost or duration (ties
         by index) and those values, NumPy; fewer than ``k`` when fewer candidates are
         feasible (and timed).
     """
-    if not (isinstance(k, int) and not isinstance(k, bool) and k >= 1):
-        raise ValueError(f"k must be a positive integer, got {k!r}")
+    k = _validate.count(k, "k")
     _validate.choice(by, "by", RANKINGS)
     if by == "cost":
         key, usable = evaluation.costs.total, evaluation.feasible
@@ -885,7 +924,13 @@ def best(
             timing = retime(evaluation)
         elif not isinstance(timing, _timing.Timing):
             raise ValueError(f"timing must be plan.retime's Timing, got {type(timing).__name__}")
-        key, usable = timing.duration, timing.status == Status.OK
+        elif jnp.shape(timing.duration) != jnp.shape(evaluation.feasible):
+            raise ValueError(
+                f"timing: expected one duration per candidate {jnp.shape(evaluation.feasible)}, "
+                f"got {jnp.shape(timing.duration)}"
+            )
+        # A timing of the joint paths alone (timing.retime) times infeasible candidates too.
+        key, usable = timing.duration, (timing.status == Status.OK) & evaluation.feasible
     indices, values = [], []
     held = zip(_processes.local_rows(key), _processes.local_rows(usable), strict=True)
     for (start, value), (_, ok) in held:

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from . import _validate
 from . import files as kio
 from .robot import fk
 from .status import Status
@@ -346,6 +347,7 @@ def workspace_slices(
 ) -> Any:
     """``n_slices`` horizontal slices of a workspace mask (evenly spaced over the z range
     that has reachable voxels), reachable voxels filled."""
+    n_slices = _validate.count(n_slices, "n_slices")
     fig = _figure(figsize, dpi)
     cols = int(np.ceil(n_slices / 2)) if n_slices > 3 else n_slices
     rows = int(np.ceil(n_slices / cols))

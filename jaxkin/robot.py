@@ -56,6 +56,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from . import _validate
 from ._execute import Policy, fk, ik
 from ._geometry import BOUND, LENGTH, REAL, Geometry, geometry, number
 from ._validate import is_concrete
@@ -195,6 +196,7 @@ class JointLimits(Geometry):
     @classmethod
     def unbounded(cls, n: int) -> JointLimits:
         """No limit on any of ``n`` joints."""
+        n = _validate.count(n, "n")
         return cls(np.full(n, -np.inf), np.full(n, np.inf))
 
     def contains(self, q: ArrayLike) -> Array:

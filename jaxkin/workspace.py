@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from . import _batching, _processes
+from . import _batching, _processes, _validate
 from ._execute import as_robot, ik, kernel
 from ._progress import bar
 from .robot import Robot
@@ -146,8 +146,7 @@ def sweep(
             "sweep needs a robot whose targets are points"
         )
     branch = robot.check_branch(branch)
-    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
-        raise ValueError(f"chunk_size must be a positive int, got {chunk_size!r}")
+    chunk_size = _validate.count(chunk_size, "chunk_size")
     bounds, resolution = _check_box(robot, bounds, resolution)
     axes = grid_axes(bounds, resolution)
     shape = tuple(len(a) for a in axes)

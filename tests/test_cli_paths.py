@@ -16,7 +16,7 @@ import json
 import numpy as np
 import pytest
 
-from jaxkin import cli
+from jaxkin import Jet, cli, paths, plan, scara
 from jaxkin import files as kio
 from tests.references import scara as scara_ref
 from tests.test_cli import spiral
@@ -264,6 +264,84 @@ def test_plan_ranks_by_duration_and_writes_the_best_retimed(tmp_path, capsys):
     assert out.splitlines()[1].split()[:2] == ["1", "12"]
 
 
+def joint_candidates(path, q, rates=None):
+    """Joint-space candidates 0, 1, ... of ``q`` ``(N, T, 3)`` at t = 0, 0.1, ..., with
+    ``rates`` ``(q_dot, q_ddot)`` columns when given."""
+    count, samples = q.shape[:2]
+    t = np.arange(samples) * 0.1
+    columns = {"candidate": np.repeat(np.arange(count), samples), "t": np.tile(t, count)}
+    for j, name in enumerate(JOINTS):
+        columns[name] = q[..., j].ravel()
+        if rates is not None:
+            columns[name + "_dot"], columns[name + "_ddot"] = (x[..., j].ravel() for x in rates)
+    return write(path, columns)
+
+
+def test_plan_joint_space_candidates_are_plan_evaluates(tmp_path, capsys):
+    """Joint-space candidates go through ``plan.evaluate``: a 0.4 rad jump of theta1 that
+    the file's rates do not explain is DISCONTINUOUS at its sample and not written (the
+    command's own check called it feasible and wrote it); and ``--by cost`` ranks the same
+    with the column in millimetres or in metres (the command scaled a joint without rate
+    limits by 1 in its own unit, so 1e6 apart: it chose candidate 0 in mm, 1 in m)."""
+    t = np.arange(21) * 0.1
+    q = np.stack([0.3 + 0.2 * t, 1.0 - 0.1 * t, 60.0 + 5 * t], -1)
+    jumped = q.copy()
+    jumped[11:, 0] += 0.4
+    rates = np.broadcast_to([0.2, -0.1, 5.0], (2, 21, 3)), np.zeros((2, 21, 3))
+    src = joint_candidates(tmp_path / "jump.csv", np.stack([q, jumped]), rates)
+    code, _, err = run(
+        capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "b.csv", "-k", 2,
+        "--v-max", "1,1,50", "--a-max", "10,10,500", "--ranking", tmp_path / "r.csv",
+    )  # fmt: skip
+    assert code == 0, err
+    ranking = read(tmp_path / "r.csv", ("rank", "feasible", "first_failure", "failure"))
+    assert ranking["feasible"].tolist() == [1, 0] and ranking["rank"].tolist() == [1, -1]
+    assert ranking["failure"][1] == "DISCONTINUOUS" and ranking["first_failure"][1] == 11
+    assert set(read(tmp_path / "b.csv", ("candidate",))["candidate"]) == {0}
+    limits = plan.Limits.create(3, v_max=[1, 1, 50], a_max=[10, 10, 500])
+    path = paths.Path.from_jet(Jet.of(np.stack([q, jumped]), *rates), 0.1, "joint")
+    own = plan.evaluate(scara.Scara.paper(), path, limits)
+    assert np.asarray(own.first_failure).tolist() == [-1, 11]
+    swing = np.stack([0.3 + 0.5 * np.sin(t), 1.0 + 0 * t, 60.0 + 0 * t], -1)
+    column = np.stack([0.3 + 0 * t, 1.0 + 0 * t, 60.0 + 10 * np.sin(t)], -1)
+    costs = []
+    for unit, robot in ((1.0, PAPER), (1e-3, ["--l-oa", 0.15, "--l-ab", 0.08, "--l-bc", 0.05])):
+        both = np.stack([swing, column]) * [1.0, 1.0, unit]
+        src = joint_candidates(tmp_path / f"units{unit}.csv", both)
+        out, ranked = tmp_path / f"u{unit}.csv", tmp_path / f"ur{unit}.csv"
+        code, _, err = run(
+            capsys, "plan", "scara", *robot, "-i", src, "-o", out, "--by", "cost",
+            "--ranking", ranked,
+        )  # fmt: skip
+        assert code == 0, err
+        assert "not retimed (retiming needs a finite acceleration limit" in err
+        costs.append(read(ranked, ("rank", "cost")))
+    assert costs[0]["rank"].tolist() == costs[1]["rank"].tolist() == [-1, 1]
+    np.testing.assert_allclose(costs[1]["cost"], costs[0]["cost"], rtol=1e-9)
+
+
+def test_plan_two_sample_candidates_are_refused_or_written_at_their_samples(tmp_path, capsys):
+    """Candidates of 2 samples have no rest-to-rest retiming: ``--by duration`` is a one-line
+    error saying so; ``--by cost`` writes the best at the file's samples, with a warning
+    (it wrote a file without rows and said nothing)."""
+    q = np.stack([[[0.3, 1.0, 60.0], [0.4, 1.1, 62.0]], [[0.3, 1.0, 60.0], [0.5, 0.9, 65.0]]])
+    src = joint_candidates(tmp_path / "two.csv", q)
+    limits = ["--v-max", "2,3,40", "--a-max", "6,8,100"]
+    code, _, err = run(capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "d.csv",
+                       *limits)  # fmt: skip
+    assert code == 2 and "needs candidates of at least 3 samples, got 2" in err
+    assert not (tmp_path / "d.csv").exists()
+    code, _, err = run(
+        capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "c.csv", "--by", "cost",
+        *limits,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "not retimed (retiming from rest to rest needs candidates of at least 3" in err
+    written = read(tmp_path / "c.csv", ("rank", "candidate", "t", *JOINTS))
+    assert written["t"].tolist() == [0.0, 0.1] and set(written["candidate"]) == {0}
+    np.testing.assert_allclose(joints_of(written), q[0], rtol=0, atol=1e-12)
+
+
 def scara_xy(q):
     """Planar forward kinematics of the paper SCARA (independent of the library)."""
     th1, th2 = q[:, 0], q[:, 1]
@@ -290,7 +368,7 @@ def test_plan_by_cost_joint_space_and_errors(tmp_path, capsys):
     best = read(tmp_path / "b.csv", ("rank", "candidate", "t"))
     assert set(best["candidate"]) == {11} and best["t"].tolist() == t.tolist()
     code, _, err = run(capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "d.csv")
-    assert code == 2 and "give --v-max and --a-max" in err
+    assert code == 2 and "theta1, theta2, l3 have none" in err and "--a-max" in err
     joints = {"candidate": np.repeat([0, 1], 21), "t": np.r_[t, t]}
     q = np.stack([0.3 + 0.2 * t, 1.0 - 0.1 * t, 60.0 + 5 * t], -1)
     for j, n in enumerate(JOINTS):
@@ -339,7 +417,7 @@ def test_urdf_arm_straight_line_is_continuous(tmp_path, capsys):
     Pinocchio in tests/test_urdf.py) are the file's to 1e-9."""
     from scipy.spatial.transform import Rotation
 
-    from jaxkin import Jet, fk, serial
+    from jaxkin import fk, serial
 
     robots = importlib.metadata.distribution("example-robot-data").locate_file(
         "cmeel.prefix/share/example-robot-data/robots"
@@ -377,7 +455,7 @@ def test_plan_urdf_arm_joint_and_task_space(tmp_path, capsys):
     continuous joint, which has none) to 1e-6 and reach it."""
     from scipy.spatial.transform import Rotation
 
-    from jaxkin import Jet, fk, serial
+    from jaxkin import fk, serial
 
     (tmp_path / "arm.urdf").write_text(URDF_ARM)
     chain = serial.from_urdf(str(tmp_path / "arm.urdf"), "tool")

@@ -132,6 +132,38 @@ def test_arm_body_joins_the_dh_origins(arm):
     assert body.links[0] == "base" and len(body.links) == arm.n_joints + 1
 
 
+def test_links_that_touch_at_home_are_no_self_pair():
+    """The Stanford arm's column and its prismatic rod (radius 0) touch at q = 0: their
+    distance there is round-off (+2.4e-17 on this machine), which ``d > 0`` kept as a pair,
+    and 11 % of random configurations then collided in an empty world (none now: the slow
+    test below checks q = 0 of every arm). A pair within 64 ulp of the robot's size at
+    q = 0 is left out."""
+    pairs = serial.Stanford(d1=0.4, a2=0.3).self_collision_pairs()
+    assert (1, 3) not in pairs and (1, 4) in pairs
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("radius", [0.0, 0.02])
+@pytest.mark.parametrize("arm", serial.ARMS, ids=lambda cls: cls.__name__)
+def test_every_arm_is_clear_of_itself_at_home(arm, radius):
+    """Every analytic arm, with capsules of radius 0 or 2 cm: q = 0 does not collide with
+    itself in an empty world (its self pairs leave out the links in contact there), nor
+    does the Stanford arm with radius 0 anywhere (its links meet only where they touch at
+    home: 11 % of random configurations collided)."""
+    from tests.test_geometry import GEOMETRIES
+
+    robot = GEOMETRIES[arm.__name__][0](**GEOMETRIES[arm.__name__][1], link_radius=radius)
+    q = np.random.default_rng(0).uniform(-np.pi, np.pi, (64, robot.n_joints))
+    q[0] = 0.0
+    if arm is serial.Stanford:
+        q[:, 2] = np.random.default_rng(1).uniform(0.0, 0.5, 64)  # the prismatic joint
+    empty = collision.World.create()
+    verdict, exact = collision.collides(robot, q, empty), collision.check(robot, q, empty)
+    assert not bool(verdict.collides[0]) and not bool(exact.collides[0])
+    if arm is serial.Stanford and radius == 0.0:
+        assert not np.any(np.asarray(verdict.collides))
+
+
 def test_link_radius_is_validated_and_arms_keep_their_lengths():
     with pytest.raises(ValueError, match="link_radius"):
         scara.Scara(150.0, 80.0, 50.0, link_radius=-1.0)
@@ -181,6 +213,26 @@ def test_chain_own_spheres_override():
     assert body.sphere_link == (forearm,) and forearm not in body.capsule_link
     with pytest.raises(ValueError, match="unknown link"):
         chain.with_link_spheres({"nope": (np.zeros((1, 3)), np.array([0.1]))})
+
+
+def test_chain_own_spheres_keep_the_other_links_skeleton():
+    """A URDF without ``<collision>`` elements: spheres for one link replace that link's
+    skeleton capsules only; every other link keeps its own (the body had the user's spheres
+    alone, so a penetration of another link read as clear), and the self pairs are the
+    skeleton's that do not touch at q = 0 (as without the spheres), and the forearm's."""
+    skeleton = serial.from_urdf(UR5, "tool0").with_link_radius(0.04)
+    chain = skeleton.with_link_spheres({"forearm_link": (np.zeros((1, 3)), [0.07])})
+    spheres, capsules = chain.collision_body().per_link()
+    own = skeleton.collision_body().per_link()[1]
+    assert set(spheres) == {"forearm_link"} and set(capsules) == set(own) - {"forearm_link"}
+    for link, arrays in capsules.items():
+        for got, expected in zip(arrays, own[link], strict=True):
+            np.testing.assert_array_equal(got, expected)
+    pairs = chain.self_collision_pairs()
+    forearm = chain.collision_body().links.index("forearm_link")
+    others = {pair for pair in pairs if forearm not in pair}
+    assert others == {p for p in skeleton.self_collision_pairs() if forearm not in p}
+    assert len(others) < len(pairs)  # the forearm's spheres against the others' capsules
 
 
 def test_chain_own_spheres_are_copied_and_checked():

@@ -25,11 +25,12 @@ UR5 = Path(__file__).resolve().parents[1] / "examples" / "ur5.urdf"
 
 def _ur5():
     """Spheres on three links (the Chain's rows placement through link home poses), the
-    skeleton's capsules on the others (the exact capsule distances)."""
+    skeleton's capsules on the others (the exact capsule distances). The wrist's sphere
+    clears the wrist_1 capsule by 0.025 in every configuration (more than a margin)."""
     spheres = {
         "upper_arm_link": (np.array([[0.0, 0.0, 0.1], [0.0, 0.0, 0.3]]), np.array([0.07, 0.06])),
         "forearm_link": (np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.25]]), np.array([0.06, 0.05])),
-        "wrist_3_link": (np.zeros((1, 3)), np.array([0.05])),
+        "wrist_3_link": (np.zeros((1, 3)), np.array([0.03])),
     }
     return serial.from_urdf(UR5, "tool0").with_link_radius(0.04).with_link_spheres(spheres)
 

@@ -483,9 +483,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
         limits = planning.joint_limits(robot, args.v_max, args.a_max)
     except ValueError as exc:
         raise CliError(str(exc)) from None
+    branch = None
     if joint_space:
         jet = Jet.of(*(x[take].astype(dtype) for x in (p, v, a)))
-        evaluation = _checked(planning.evaluate_joints, robot, jet, dt, limits, world=world)
     else:
         branch = "best" if args.branch == "best" else parse_branch(robot, args.branch)
         flat = [x[take].reshape(-1, x.shape[-1]) for x in (p, v, a)]
@@ -494,14 +494,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
         else:
             jet = Jet.of(*(x.astype(dtype) for x in flat))
         jet = jet.map(lambda x: x.reshape(*take.shape, *x.shape[1:]))
-        evaluation = _checked(
-            planning.evaluate_targets, robot, jet, dt, limits, branch, args.chunk_size, world=world
-        )
+    path = paths.Path.from_jet(jet, dt, "joint" if joint_space else "task")
+    evaluation = planning.evaluate(robot, path, limits, branch, args.chunk_size, world=world)
     period = args.period if args.period is not None else dt
     try:
-        ranked = planning.rank(evaluation, dt, limits, args.best, args.by, period)
+        ranked = planning.rank(evaluation, args.best, args.by, period)
     except ValueError as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(str(exc).replace("a_max", "--a-max")) from None
     if not distributed.is_writer():
         return 0
     labels = traj.candidate[take[:, 0]] if traj.candidate is not None else np.zeros(len(take))
@@ -522,14 +521,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 **({} if world is None else {"clearance": np.asarray(evaluation.min_clearance)}),
             },
         )
+    at_samples = []  # chosen candidates not retimed, written at the file's samples
     with files.table_writer(args.output) as write:
         for place, index in enumerate(ranked.order.tolist()):
-            if ranked.retimed is not None:
+            if ranked.retimed is not None and np.isfinite(ranked.duration[index]):
                 count = int(ranked.retimed.count[place])
                 t = np.asarray(ranked.retimed.t)[:count]
                 jet = ranked.retimed.q
                 q = [np.asarray(x)[place, :count] for x in (jet.p, jet.v, jet.a)]
-            else:  # no timing (no finite rate limits): the candidate at the file's samples
+            else:
+                at_samples.append(int(labels[index]))
                 t = traj.t[take[index]]
                 jet = evaluation.q
                 q = [np.asarray(x)[index] for x in (jet.p, jet.v, jet.a)]
@@ -549,6 +550,18 @@ def cmd_plan(args: argparse.Namespace) -> int:
             f"jaxkin: {args.kind} plan, {len(take)} candidates of {take.shape[1]} samples "
             f"({'joint' if joint_space else 'task'} space), {feasible} feasible; the "
             f"{len(ranked.order)} best by {how} -> {args.output}",
+            file=sys.stderr,
+        )
+    if ranked.untimed:
+        print(
+            f"jaxkin: warning: not retimed ({ranked.untimed}): the best are written at the "
+            "file's samples",
+            file=sys.stderr,
+        )
+    elif at_samples:
+        print(
+            f"jaxkin: warning: candidate(s) {', '.join(map(str, at_samples))} could not be "
+            "retimed (UNTIMEABLE): written at the file's samples",
             file=sys.stderr,
         )
     if not len(ranked.order):

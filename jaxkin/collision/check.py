@@ -168,7 +168,8 @@ def chain_self_pairs(
     """Self-collision pairs of a robot whose links form a chain in ``body.links`` order: links
     at least ``apart`` positions apart (or the given ``candidates``), both with geometry, not
     in contact at ``q = 0`` (links that share a joint's centre, as a spherical wrist's do,
-    would always collide)."""
+    would always collide): their distance there more than 64 ulp of the robot's size
+    (``length_scale``), so that links that touch are left out whatever the round-off."""
     body = robot.collision_body()
     geometric = sorted(set(body.sphere_link) | set(body.capsule_link))
     if candidates is None:
@@ -187,7 +188,8 @@ def chain_self_pairs(
             "self_collision=False to differentiate in its link_radius or lengths)"
         )
     distance = np.asarray(distance)
-    return tuple(p for p, d in zip(candidates, distance, strict=True) if d > 0)
+    touching = 64.0 * np.finfo(distance.dtype).eps * float(robot.length_scale())
+    return tuple(p for p, d in zip(candidates, distance, strict=True) if d > touching)
 
 
 def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:

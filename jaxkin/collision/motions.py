@@ -87,9 +87,7 @@ def motion_samples(q_from: ArrayLike, q_to: ArrayLike, resolution: float) -> int
 
 def _samples(samples: Any) -> int:
     """``samples`` as an int >= 2; ``ValueError`` naming it otherwise."""
-    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 2:
-        raise ValueError(f"samples must be an int >= 2, got {samples!r}")
-    return int(samples)
+    return _validate.count(samples, "samples", minimum=2)
 
 
 def validate_motions_kernel(

@@ -23,6 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._validate import owned_float
 from . import distance as sd
 from .primitives import Boxes, Capsules, Cylinders, HalfSpaces, Spheres
 
@@ -38,6 +39,11 @@ __all__ = [
 ]
 
 SPHERE, CAPSULE, BOX, HALFSPACE, CYLINDER = 0, 1, 2, 3, 4
+
+
+def _owned(x: jax.Array, dtype) -> jax.Array:
+    arr = owned_float(x)
+    return arr if arr.dtype == dtype else arr.astype(dtype)
 
 
 @jax.tree_util.register_dataclass
@@ -85,8 +91,10 @@ class World:
         if dtype is None:
             leaves = [leaf for v in given.values() if v is not None for leaf in jax.tree.leaves(v)]
             dtype = jnp.result_type(*leaves) if leaves else jnp.result_type(float)
+        # Copies of host arrays (a primitive built by its plain constructor from NumPy arrays):
+        # an edit of the caller's array must not move an obstacle.
         parts = {
-            name: jax.tree.map(lambda x: x if x.dtype == dtype else x.astype(dtype), value)
+            name: jax.tree.map(lambda x: _owned(x, dtype), value)
             if value is not None
             else kinds[name].empty(dtype)
             for name, value in given.items()

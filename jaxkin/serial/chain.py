@@ -460,7 +460,9 @@ class Chain(Robot):
         from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the projection of
         the previous point on the next axis, as ``reach()``), the last link to the tip; a
         prismatic joint's travel is not covered. A body given by ``with_body`` replaces
-        either; links given spheres by ``with_link_spheres`` have those instead."""
+        either; links given spheres by ``with_link_spheres`` have those instead, the other
+        links keep their own (the URDF's, or the skeleton's when the URDF has no
+        ``<collision>`` elements)."""
         links = self.links
         spheres = dict(links.spheres) if links is not None else {}
         if links is not None and links.body:  # with_body: the user's, in place of any other
@@ -468,12 +470,7 @@ class Chain(Robot):
             body = Body.create(tuple(links.names), given_spheres, given_capsules)
             return body.with_link_spheres(spheres) if spheres else body
         if links is not None and links.source:
-            read = body_from_urdf(links.source, link_spheres=spheres or None)
-            if read.body.links != tuple(links.names):
-                raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
-            if read.body.num_spheres + read.body.num_capsules:
-                return read.body
-            return _urdf_skeleton(links).with_link_spheres(spheres)
+            return _urdf_body(links, spheres)[0]
         screws = np.asarray(self.screws, float)
         current, points = np.zeros(3), [np.zeros(3)]
         for omega, v in zip(screws[:, :3], screws[:, 3:], strict=True):
@@ -494,9 +491,9 @@ class Chain(Robot):
         links = self.links
         if links is None or not links.source:
             return chain_self_pairs(self)
-        body = self.collision_body()
+        body, skeleton = _urdf_body(links, dict(links.spheres))
         pairs = self_collision_link_pairs(body, links.tree, links.disabled)
-        if links.spheres or body.num_spheres or body.capsule_radius.size == 0:
+        if not skeleton and (links.spheres or body.num_spheres or body.capsule_radius.size == 0):
             return pairs
         # a skeleton (no <collision> elements): its short links touch at q = 0
         return chain_self_pairs(self, candidates=pairs)
@@ -559,6 +556,22 @@ class Chain(Robot):
             raise ValueError("with_srdf: the chain was not read from a URDF")
         disabled = tuple((a, b) for a, b, _ in read_srdf_disabled(source))
         return self.replace(links=self.links.replace(disabled=self.links.disabled + disabled))
+
+
+def _urdf_body(links: ChainLinks, spheres: dict) -> tuple[Body, bool]:
+    """The body of a chain read from a URDF, the links of ``spheres`` given the user's own,
+    and whether the others' is the skeleton (the URDF has no ``<collision>`` elements)."""
+    read = body_from_urdf(links.source, link_spheres=spheres or None).body
+    if read.links != tuple(links.names):
+        raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
+
+    def has_own(body: Body, besides: dict) -> bool:  # primitives on a link not in besides
+        return any(body.links[k] not in besides for k in body.sphere_link + body.capsule_link)
+
+    # The URDF's own elements may all be on the user's links: then read it without the user's.
+    if has_own(read, spheres) or (spheres and has_own(body_from_urdf(links.source).body, {})):
+        return read, False
+    return _urdf_skeleton(links).with_link_spheres(spheres), True
 
 
 def _urdf_skeleton(links: ChainLinks) -> Body:

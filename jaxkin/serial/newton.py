@@ -211,8 +211,7 @@ def ik_newton(
     if not isinstance(chain, Chain):
         raise ValueError(f"chain: expected a serial.Chain, got {type(chain).__name__}")
     frame = _validate.choice(frame, "frame", FRAMES)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
-        raise ValueError(f"max_iter must be a non-negative int, got {max_iter!r}")
+    max_iter = _validate.count(max_iter, "max_iter", minimum=0)
     target = jnp.asarray(target)
     q0 = jnp.asarray(q0)
     n = chain.n_joints
