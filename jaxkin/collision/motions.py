@@ -28,6 +28,7 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from .. import _validate
 from .._execute import Handle, Kernel, Policy, builds
 from .._validate import positive_number
 from .body import Body
