@@ -439,11 +439,6 @@ def test_world_verdict_equals_the_check_at_every_scale(data, dtype, far):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=False,
-    reason="the verdict's float32 tolerance scales with the world's largest coordinate: a "
-    "padding obstacle 1e5 robot sizes away flags configurations centimetres clear",
-)
 @SETTINGS
 @given(data=st.data())
 def test_world_verdict_in_float32_with_padding_far_away(data):
