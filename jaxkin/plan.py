@@ -638,6 +638,12 @@ def _evaluate_impl(
 
 # Candidates are padded (the core of a path: its samples and the target's axes, per call).
 _evaluate_jit = Kernel(_evaluate_impl, static=("branch", "space"), policy=Policy(pad=True))
+# With a world: the collision checks' XLA options (their loops over obstacles and pairs)
+_evaluate_world_jit = Kernel(
+    _evaluate_impl,
+    static=("branch", "space"),
+    policy=Policy(pad=True, compiler_options=collision.rows.COMPILER_OPTIONS),
+)
 
 
 # ------------------------------------------------------------------ public API
@@ -712,7 +718,7 @@ def evaluate(
     if world is not None:
         if not isinstance(world, collision.World):
             raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
-        collide = (*collision.prepare(robot), world)
+        collide = (*collision.prepare(robot), world.bucketed())
     n, t = path.shape[:2]
     # "best" holds every branch of a chunk at once; a joint path solves every branch once
     held = len(robot.branches) if (branch == "best" or space == "joint") else 1
@@ -725,7 +731,8 @@ def evaluate(
         candidates = chunk.shape[0]
         samples = _batching.padded_size(candidates) * t * held
         pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
-        return _evaluate_jit(
+        kernel = _evaluate_jit if collide is None else _evaluate_world_jit
+        return kernel(
             robot,
             chunk,
             limits,

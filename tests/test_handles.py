@@ -208,3 +208,29 @@ def test_a_far_padding_obstacle_loosens_no_other_test():
     )
     flagged = np.asarray(collision.collides(robot, q, padded).collides)
     assert not np.any(flagged[clear])
+
+
+def test_new_batch_sizes_and_worlds_within_their_buckets_compile_nothing():
+    """After one call, batches of other sizes (up to the padded size class) and worlds whose
+    obstacle counts stay within their buckets (``collision.OBSTACLE_BUCKET``) compile
+    nothing in ``collides``, ``check`` and ``validate_motions``; the padded obstacles (the
+    last one repeated) change no verdict, clearance or reported obstacle."""
+    robot = _ur5()
+    rng = np.random.default_rng(9)
+    q = rng.uniform(-3.0, 3.0, (30, robot.n_joints))
+    first, other = _world(10, spheres=5), _world(11, spheres=7)
+    assert collision.OBSTACLE_BUCKET >= 7
+    collision.collides(robot, q[:10], first)
+    collision.check(robot, q[:10], first)
+    collision.validate_motions(robot, q[:10], q[15:25], first, 4.0, samples=16)
+    with compilations() as count:
+        for n, world in ((7, other), (13, first), (3, other)):
+            collision.collides(robot, q[:n], world)
+            result = collision.check(robot, q[:n], world)
+            collision.validate_motions(robot, q[:n], q[15 : 15 + n], world, 4.0, samples=16)
+    assert count.n == 0
+    bucketed = other.bucketed()
+    assert len(bucketed.spheres) == collision.OBSTACLE_BUCKET and len(bucketed.boxes) == 8
+    assert bucketed.bucketed().layout() == bucketed.layout()
+    exact = jax.jit(collision.check_kernel)(robot, *collision.prepare(robot), q[:3], other)
+    _equal(result, exact)

@@ -71,6 +71,7 @@ from .world import BOX as BOX
 from .world import CAPSULE as CAPSULE
 from .world import CYLINDER as CYLINDER
 from .world import HALFSPACE as HALFSPACE
+from .world import OBSTACLE_BUCKET as OBSTACLE_BUCKET
 from .world import SPHERE as SPHERE
 from .world import Nearest as Nearest
 from .world import World as World
@@ -81,6 +82,7 @@ __all__ = [
     "CAPSULE",
     "CYLINDER",
     "HALFSPACE",
+    "OBSTACLE_BUCKET",
     "ROBOT_WORLD",
     "SELF",
     "SPHERE",

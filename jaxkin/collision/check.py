@@ -214,13 +214,7 @@ def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
 
 def world_batched(world: World) -> bool:
     """True when the obstacles carry leading batch axes (the rows layout takes one world)."""
-    return (
-        world.spheres.radius.ndim > 1
-        or world.capsules.radius.ndim > 1
-        or world.boxes.half_extents.ndim > 2
-        or world.halfspaces.offset.ndim > 1
-        or world.cylinders.radius.ndim > 1
-    )
+    return world.batched()
 
 
 def check_kernel(
@@ -365,7 +359,12 @@ def _verdict(
     return CheckResult(clearance, collides, status.astype(jnp.int8), world, own)
 
 
-_check_jit = Kernel(check_kernel, policy=Policy(pad=False, compiler_options=COMPILER_OPTIONS))
+# Small batches padded (one compilation per size class), one configuration as it is
+_check_jit = Kernel(
+    check_kernel,
+    batched={"q": 1},
+    policy=Policy(pad=True, compiler_options=COMPILER_OPTIONS),
+)
 
 
 def _check_robot(robot: Any) -> Any:
@@ -388,7 +387,8 @@ def _as_q(robot: Any, q: ArrayLike, name: str = "q") -> Array:
         raise ValueError(f"{name}: expected real joint coordinates, got dtype {q.dtype}")
     if not jnp.issubdtype(q.dtype, jnp.floating):
         q = q.astype(jnp.result_type(float))
-    q = jnp.asarray(q)
+    if isinstance(q, np.ndarray):  # a transfer, not a program per shape (jnp.asarray's)
+        q = jax.device_put(q.astype(jax.dtypes.canonicalize_dtype(q.dtype), copy=False))
     if q.ndim < 1 or q.shape[-1] != robot.n_joints:
         raise ValueError(
             f"{name}: expected shape (..., {robot.n_joints}) for {type(robot).__name__}, "
@@ -442,7 +442,15 @@ def check(
     robot, body, pairs, q, world, margin = checked_arguments(
         robot, q, world, margin, self_collision
     )
-    return _check_jit(robot, body, pairs, q, world, margin)
+    batch = q.shape[:-1]
+    pad = single(batch) and not world.batched()
+    return _check_jit(robot, body, pairs, q, world, margin, batch=batch, pad=pad)
+
+
+def single(batch: tuple[int, ...]) -> bool:
+    """Whether a batch of configurations is padded: not one configuration (the single query
+    runs as it is)."""
+    return math.prod(batch) != 1
 
 
 def checked_arguments(
@@ -454,7 +462,7 @@ def checked_arguments(
     pairs, q, world, margin)``."""
     robot = _check_robot(robot)
     q = _as_q(robot, q)
-    world = _check_world(world)
+    world = _check_world(world).bucketed()  # a world within its buckets: no compilation
     margin = _check_margin(margin)
     body, pairs = prepare(robot, self_collision)
     return robot, body, pairs, q, world, margin
@@ -493,18 +501,18 @@ def handle_setup(
     batch and dtype checked (``ValueError`` naming the argument), the body and self pairs
     prepared, the world packed."""
     robot = _check_robot(robot)
-    world = _check_world(world)
+    world = _check_world(world).bucketed()
     margin = _check_margin(margin)
     body, pairs = prepare(robot, self_collision)
     dtype = handle_dtype(dtype)
     layout = world.layout()
 
     def rebind(other: Any) -> tuple[Array]:
-        other = _check_world(other)
+        other = _check_world(other).bucketed()
         if other.layout() != layout:
             raise ValueError(
-                "world: another layout than the handle's (the same kinds and numbers of "
-                "obstacles; pad a kind with far-away obstacles, or make a new handle)"
+                "world: another layout than the handle's (the same kinds of obstacles, their "
+                "numbers in the same multiples of collision.OBSTACLE_BUCKET; or a new handle)"
             )
         return (jax.device_put(other.packed(dtype)),)
 

@@ -40,6 +40,7 @@ from .check import (
     check_kernel,
     handle_setup,
     prepare,
+    single,
 )
 from .pairs import SelfPairs
 from .rows import COMPILER_OPTIONS
@@ -142,7 +143,8 @@ def validate_motions_kernel(
 _validate_jit = Kernel(
     validate_motions_kernel,
     static=("samples", "clearance"),
-    policy=Policy(pad=False, compiler_options=COMPILER_OPTIONS),
+    batched={"q_from": 1, "q_to": 1},
+    policy=Policy(pad=True, compiler_options=COMPILER_OPTIONS),
 )
 
 
@@ -183,7 +185,7 @@ def validate_motions(
     if q_from.shape != q_to.shape:
         raise ValueError(f"q_from and q_to: shapes differ, {q_from.shape} and {q_to.shape}")
     resolution = positive_number(resolution, "resolution")
-    world = _check_world(world)
+    world = _check_world(world).bucketed()  # a world within its buckets: no compilation
     margin = _check_margin(margin)
     dtype = jnp.result_type(q_from, q_to)
     q_from, q_to = q_from.astype(dtype), q_to.astype(dtype)
@@ -200,6 +202,8 @@ def validate_motions(
         samples=samples,
         margin=margin,
         clearance=clearance,
+        batch=q_from.shape[:-1],
+        pad=single(q_from.shape[:-1]) and not world.batched(),
     )
 
 

@@ -34,6 +34,7 @@ import numpy as np
 from jax import Array
 
 from .body import Body
+from .world import OBSTACLE_BUCKET
 
 __all__ = [
     "CAPSULE_CHUNK",
@@ -58,8 +59,9 @@ PAIR_CHUNK = 256
 # loop bodies' fusions (over obstacles and pairs) 2-5x faster than the newer ones
 COMPILER_OPTIONS: tuple = (("xla_cpu_use_fusion_emitters", False),)
 # Obstacles of one kind per step of a world loop, written out in the step (loop_world): for
-# the spheres' tests; a capsule's exact distances (a few hundred operations each) take one
-OBSTACLE_CHUNK = 8
+# the spheres' tests (a world's kinds come padded to multiples of it: World.bucketed); a
+# capsule's exact distances (a few hundred operations each) take one
+OBSTACLE_CHUNK = OBSTACLE_BUCKET
 CAPSULE_CHUNK = 1
 
 

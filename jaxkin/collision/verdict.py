@@ -58,7 +58,7 @@ from .._numerics import all_finite
 from ..status import Status
 from . import distance as sd
 from .body import Body
-from .check import check_kernel, checked_arguments, handle_setup, world_batched
+from .check import check_kernel, checked_arguments, handle_setup, single, world_batched
 from .pairs import SelfPairs
 from .rows import (
     CAPSULE_CHUNK,
@@ -333,7 +333,7 @@ _collides_jit = Kernel(
     collides_kernel,
     batched={"q": 1},
     policy=Policy(
-        pad=False, threads=True, min_part=VERDICT_MIN_PART, compiler_options=COMPILER_OPTIONS
+        pad=True, threads=True, min_part=VERDICT_MIN_PART, compiler_options=COMPILER_OPTIONS
     ),
 )
 
@@ -353,7 +353,9 @@ def collides(
     robot, body, pairs, q, world, margin = checked_arguments(
         robot, q, world, margin, self_collision
     )
-    return _collides_jit(robot, body, pairs, q, world, margin, batch=q.shape[:-1])
+    batch = q.shape[:-1]
+    pad = single(batch) and not world.batched()
+    return _collides_jit(robot, body, pairs, q, world, margin, batch=batch, pad=pad)
 
 
 @builds(collides)
