@@ -1,6 +1,6 @@
 """Motion generation: from a start to goals among obstacles, inside one compiled program.
 
-- ``plan``: ``plan(robot, start, world, goal=... | target=...)`` -> ``MotionPlan`` (status,
+- ``planner``: ``plan(robot, start, world, goal=... | target=...)`` -> ``MotionPlan`` (status,
   path, simplified path, timed trajectory), many problems per call.
 - ``status``: ``MotionStatus`` codes.
 - ``space``: the joint space (sampling box, continuous joints, metric).
@@ -15,9 +15,9 @@
 
 from .bound import MotionBound as MotionBound
 from .bound import motion_bound as motion_bound
-from .plan import MotionOptions as MotionOptions
-from .plan import MotionPlan as MotionPlan
-from .plan import plan as plan
+from .planner import MotionOptions as MotionOptions
+from .planner import MotionPlan as MotionPlan
+from .planner import plan as plan
 from .scene import read_scene as read_scene
 from .scene import world_from_solids as world_from_solids
 from .space import JointSpace as JointSpace

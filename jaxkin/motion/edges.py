@@ -2,11 +2,10 @@
 
 An edge from ``a`` along the step ``delta`` (``space.step``; the planner caps its length by
 its range, so ``S`` intervals always suffice) has the states ``a + t_j delta``, ``t_j = j / S``.
-They are checked in two stages, each one batch of the collision kernel for every lane's edge
-at once (the states of a motion checked together, vectorised [Thomason, Kingston & Kavraki
-2024]): first the coarse states ``t = k / C`` (``C = S / RAKE``: every ``RAKE``-th state,
-spread over the whole edge), then, only for the edges the coarse states do not settle, the
-others. The caller skips the second batch when no edge needs it.
+They are checked in chunks of ``CHUNK``, coarse to fine (``rake_order``: the ends, the
+middle, the quarters, ...: the first chunk is spread over the whole edge), each chunk one batch
+of the collision kernel for every lane's edge at once (the states of a motion checked
+together, vectorised [Thomason, Kingston & Kavraki 2024]), until every edge is settled.
 
 - ``"discrete"`` (VAMP's and OMPL's motion check): the states are at most ``1 / resolution``
   apart (``S >= range * resolution``) and the edge is valid when every state is free (all or
@@ -36,10 +35,10 @@ from jax import Array
 
 from .bound import MotionBound, part_speeds
 
-__all__ = ["MODES", "RAKE", "ball_radius", "covered_prefix", "edge_check"]
+__all__ = ["CHUNK", "MODES", "ball_radius", "covered_prefix", "edge_check", "rake_order"]
 
 MODES = ("certified", "discrete")
-RAKE = 4  # the coarse stage checks every RAKE-th state
+CHUNK = 11  # states per call of the collision kernel within an edge
 
 
 def ball_radius(parts: tuple[Array, Array, Array], speeds: tuple[Array, Array], tol: Array) -> Array:
@@ -60,16 +59,35 @@ def ball_radius(parts: tuple[Array, Array, Array], speeds: tuple[Array, Array], 
     return jnp.where(free, jnp.minimum(radius, 2.0), 0.0)
 
 
-def covered_prefix(t: Array, radius: Array) -> Array:
+def covered_prefix(t: Array, radius: Array, left: Array | None = None,
+                   free: Array | None = None) -> Array:
     """The certified prefix (module docstring) of states at ``t (T,)`` (increasing, from 0)
-    with free radii ``radius (..., T)`` (``ball_radius``; 0: not free)."""
-    free = radius > 0
+    with free radii ``radius (..., T)`` (``ball_radius``; 0: not free); ``left``: radii to the
+    left where they differ (a ball cut at a boundary), ``free`` where a radius may be 0."""
+    left = radius if left is None else left
+    free = radius > 0 if free is None else free
     reach = jax.lax.cummax(t + radius, axis=radius.ndim - 1)
     # state j + 1 joins the covered prefix when its ball overlaps what is covered before it
-    joins = (t[1:] - radius[..., 1:] < reach[..., :-1]) & free[..., 1:]
+    joins = (t[1:] - left[..., 1:] < reach[..., :-1]) & free[..., 1:]
     broken = ~jnp.concatenate([free[..., :1], joins], -1)
     first = jnp.where(jnp.any(broken, -1), jnp.argmax(broken, -1), t.shape[0])
     return jnp.where(first > 0, t[jnp.maximum(first - 1, 0)], 0.0)
+
+
+def rake_order(slots: int) -> np.ndarray:
+    """The states ``0 ... slots`` coarse to fine: the ends, then the midpoints of ever finer
+    halvings (every state once), so that the first chunk is spread over the whole edge."""
+    order, seen, step = [], set(), slots
+    while True:
+        for j in range(0, slots + 1, max(step, 1)):
+            if j not in seen:
+                seen.add(j)
+                order.append(j)
+        if step <= 1:
+            break
+        step //= 2
+    order += [j for j in range(slots + 1) if j not in seen]
+    return np.asarray(order)
 
 
 def edge_check(
@@ -83,35 +101,49 @@ def edge_check(
 ) -> Array:
     """``t_g (W,)`` of edges ``a + t delta`` (``a, delta (W, n)``), module docstring.
 
-    ``evaluate(states (W, T, n))`` returns ``collider.clearances``' triple in certified mode,
-    ``(None, None, free (W, T))`` in discrete mode.
+    The ``slots + 1`` states go through ``evaluate`` in chunks of ``CHUNK`` in the rake order
+    (``rake_order``), one call site in a loop that ends when every edge is settled: in
+    discrete mode, a colliding state settles an edge; in certified mode, a covered edge.
+    ``evaluate(states (W, CHUNK, n))`` returns ``collider.clearances``' triple in certified
+    mode, ``(None, None, free)`` in discrete mode.
     """
     dtype = a.dtype
-    coarse_j = np.arange(0, slots + 1, RAKE)
-    fine_j = np.setdiff1d(np.arange(slots + 1), coarse_j)
-    t_all = jnp.arange(slots + 1, dtype=dtype) / slots
-    t_coarse, t_fine = t_all[coarse_j], t_all[fine_j]
+    w = a.shape[0]
+    total = slots + 1
+    chunk = min(CHUNK, total)
+    chunks = -(-total // chunk)
+    order = rake_order(slots)
+    order = np.concatenate([order, np.zeros(chunks * chunk - total, int)])  # pad: state 0
+    order_j = jnp.asarray(order.reshape(chunks, chunk), jnp.int32)
+    t_all = jnp.arange(total, dtype=dtype) / slots
+    speeds = part_speeds(bound, delta) if mode != "discrete" else None
 
-    def states(t):
-        return a[:, None, :] + t[:, None] * delta[:, None, :]
+    def settled(known, value):
+        if mode == "discrete":
+            return jnp.any(known & (value <= 0), -1) | jnp.all(known, -1)
+        return (covered_prefix(t_all, jnp.where(known, value, 0.0)) >= 1.0) | jnp.all(known, -1)
 
+    def body(carry):
+        c, known, value = carry
+        j = order_j[c]  # (chunk,)
+        states = a[:, None, :] + t_all[j][:, None] * delta[:, None, :]
+        parts = evaluate(states)
+        if mode == "discrete":
+            v = jnp.where(parts[2], 1.0, 0.0).astype(dtype)
+        else:
+            v = ball_radius(parts, speeds, tol)
+        hit = jnp.arange(total)[None, :] == j[:, None]  # (chunk, total) one-hot
+        new_val = jnp.max(jnp.where(hit[None], v[:, :, None], -jnp.inf), axis=1)
+        cover = jnp.any(hit, 0)[None, :]
+        return c + 1, known | cover, jnp.where(cover, new_val, value)
+
+    def cond(carry):
+        c, known, value = carry
+        return (c < chunks) & ~jnp.all(settled(known, value))
+
+    init = (jnp.int32(0), jnp.zeros((w, total), bool), jnp.zeros((w, total), dtype))
+    _, known, value = jax.lax.while_loop(cond, body, init)
     if mode == "discrete":
-        ok_c = jnp.all(evaluate(states(t_coarse))[2][:, 1:], -1)
-
-        def fine(_):
-            return jnp.all(evaluate(states(t_fine))[2], -1)
-
-        ok = jax.lax.cond(jnp.any(ok_c), fine, lambda _: ok_c, None)
-        return (ok_c & ok).astype(dtype)
-    speeds = part_speeds(bound, delta)
-    r_c = ball_radius(evaluate(states(t_coarse)), speeds, tol)
-    t_c = covered_prefix(t_coarse, r_c)
-    need = t_c < 1.0
-    order = np.argsort(np.concatenate([coarse_j, fine_j]), kind="stable")
-
-    def fine(_):
-        r_f = ball_radius(evaluate(states(t_fine)), speeds, tol)
-        return covered_prefix(t_all, jnp.concatenate([r_c, r_f], -1)[:, order])
-
-    t_f = jax.lax.cond(jnp.any(need), fine, lambda _: t_c, None)
-    return jnp.where(need, jnp.maximum(t_f, t_c), t_c)
+        free = known & (value > 0)
+        return jnp.all(free | (jnp.arange(total) == 0), -1).astype(dtype)
+    return covered_prefix(t_all, jnp.where(known, value, 0.0))

@@ -118,10 +118,11 @@ def _reset(lanes: _Lanes, need: Array, problem: Array, starts, goals, goal_count
         jnp.where(need[:, None], start, lanes.nodes[:, 0, 0]),
         jnp.where(need[:, None, None], goal, lanes.nodes[:, 1, :g]),
     )
-    nodes = jax.lax.dynamic_update_slice(lanes.nodes, roots[0][:, None, None], (0, 0, 0, 0))
-    nodes = jax.lax.dynamic_update_slice(nodes, roots[1][:, None], (0, 1, 0, 0))
+    z = jnp.zeros((), jnp.int32)
+    nodes = jax.lax.dynamic_update_slice(lanes.nodes, roots[0][:, None, None], (z, z, z, z))
+    nodes = jax.lax.dynamic_update_slice(nodes, roots[1][:, None], (z, z + 1, z, z))
     parent = jax.lax.dynamic_update_slice(
-        lanes.parent, jnp.full((need.shape[0], 2, g), -1, jnp.int32), (0, 0, 0)
+        lanes.parent, jnp.full((need.shape[0], 2, g), -1, jnp.int32), (z, z, z)
     )
     count = jnp.stack([jnp.ones_like(problem), goal_count[problem]], -1).astype(jnp.int32)
     pick = (replica % jnp.maximum(goal_count[problem], 1)).astype(jnp.int32)
@@ -170,15 +171,17 @@ def _nearest(nodes: Array, grow: Array, size: Array, target: Array, space: Joint
     """Per lane the nearest node of tree ``grow`` to ``target``: blocks of ``_BLOCK`` nodes
     up to the largest tree (a loop whose length follows the trees, not the capacity)."""
     w, _, cap, n = nodes.shape
-    blocks = (jnp.max(size) + _BLOCK - 1) // _BLOCK
+    size_b = min(_BLOCK, cap)  # the capacity is a multiple of it (MotionOptions)
+    blocks = (jnp.max(size).astype(jnp.int32) + size_b - 1) // size_b
 
     def body(k, best):
         d_best, i_best, q_best = best
-        start = k * _BLOCK
+        start = (k * size_b).astype(jnp.int32)
+        zero = jnp.zeros((), jnp.int32)
         block = jax.vmap(
-            lambda t, g: jax.lax.dynamic_slice(t, (g, start, 0), (1, _BLOCK, n))[0]
-        )(nodes, grow)  # (W, BLOCK, n)
-        index = start + jnp.arange(_BLOCK)
+            lambda t, g: jax.lax.dynamic_slice(t, (g.astype(jnp.int32), start, zero), (1, size_b, n))[0]
+        )(nodes, grow)  # (W, block, n)
+        index = start + jnp.arange(size_b)
         d = space.distance(block, target[:, None, :])
         d = jnp.where(index[None] < size[:, None], d, jnp.inf)
         j = jnp.argmin(d, -1)
@@ -326,7 +329,11 @@ def search_kernel(
         reaches = scale >= 1.0
         t_good = check(lanes.problem, q_near, delta)
         advance = t_good * length * scale
-        added = (t_good > 0) & ((advance >= range_ / 8) | (t_good >= 1.0))
+        # EXTEND keeps a step of at least range / 8 (no crowd of tiny nodes); CONNECT any
+        # step, so that it can close in on a target near an obstacle (its edges shorten,
+        # their states get denser, the certified balls then cover them)
+        least = jnp.where(lanes.mode == _EXTEND, range_ / 8, range_ * 1e-3)
+        added = (t_good > 0) & ((advance >= least) | (t_good >= 1.0))
         reached = added & reaches & (t_good >= 1.0)
         q_new = space.canonical(q_near + t_good[:, None] * delta)
         full = size >= cap
@@ -334,9 +341,13 @@ def search_kernel(
         # write the node (one-hot selects: no scatter in the loop body)
         slot = jnp.minimum(size, cap - 1)
         def put(tree_nodes, tree_parent, t, i, q, par, ok):
-            row = jnp.where(ok, q, jax.lax.dynamic_slice(tree_nodes, (t, i, 0), (1, 1, n))[0, 0])
-            pr = jnp.where(ok, par, jax.lax.dynamic_slice(tree_parent, (t, i), (1, 1))[0, 0])
-            tree_nodes = jax.lax.dynamic_update_slice(tree_nodes, row[None, None], (t, i, 0))
+            zero = jnp.zeros((), jnp.int32)
+            t, i = t.astype(jnp.int32), i.astype(jnp.int32)
+            old_q = jax.lax.dynamic_slice(tree_nodes, (t, i, zero), (1, 1, n))[0, 0]
+            old_p = jax.lax.dynamic_slice(tree_parent, (t, i), (1, 1))[0, 0]
+            row = jnp.where(ok, q, old_q)
+            pr = jnp.where(ok, par, old_p).astype(jnp.int32)
+            tree_nodes = jax.lax.dynamic_update_slice(tree_nodes, row[None, None], (t, i, zero))
             tree_parent = jax.lax.dynamic_update_slice(tree_parent, pr[None, None], (t, i))
             return tree_nodes, tree_parent
 

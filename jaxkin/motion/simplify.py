@@ -72,7 +72,7 @@ def shortcut(evaluate, space: JointSpace, bound: MotionBound, path: Array, count
 
     def body(carry):
         i, keep = carry
-        j = i + 2 + jnp.arange(m)
+        j = i + 2 + jnp.arange(m, dtype=jnp.int32)
         valid_j = j <= count - 1
         a = jnp.broadcast_to(path[i], (m, n))
         b = path[jnp.minimum(j, p - 1)]
@@ -80,7 +80,7 @@ def shortcut(evaluate, space: JointSpace, bound: MotionBound, path: Array, count
         good = good & valid_j
         best = jnp.where(jnp.any(good), jnp.max(jnp.where(good, j, 0)), i + 1)
         skipped = (jnp.arange(p) > i) & (jnp.arange(p) < best)
-        return best, keep & ~skipped
+        return best.astype(jnp.int32), keep & ~skipped
 
     def cond(carry):
         return carry[0] < count - 1
@@ -187,12 +187,18 @@ def spline_check(evaluate, space, bound, knots, s, slopes, count, states, resolu
         y0, y1 = knots[:-1], knots[1:]
         c = jnp.stack([slopes[:-1], 3.0 * (y1 - y0) / h[:, None] - slopes[:-1] - slopes[1:],
                        slopes[1:]])
-        vmax = jnp.max(jnp.where(live[:, None], jnp.max(jnp.abs(c), axis=0), 0.0), axis=0)
+        vmax = jnp.where(live[:, None], jnp.max(jnp.abs(c), axis=0), 0.0)  # (P - 1, n)
         span = jnp.maximum(s[jnp.maximum(count - 1, 0)], 1e-30)
         t = param / span
-        # along the normalised parameter the joints move at most vmax * span per unit
-        radius = ball_radius(parts, part_speeds(bound, vmax * span), tol)
-        good_to = covered_prefix(t, radius)
+        # a state's ball may reach into the pieces beside its own: the speed bound of the
+        # three, the ball cut at their outer ends
+        near = jnp.maximum(jnp.maximum(vmax, jnp.roll(vmax, 1, 0).at[0].set(0.0)),
+                           jnp.roll(vmax, -1, 0).at[-1].set(0.0))
+        radius = ball_radius(parts, part_speeds(bound, near[piece] * span), tol)
+        lo = s[jnp.maximum(piece - 1, 0)] / span
+        hi = s[jnp.minimum(piece + 2, count - 1)] / span
+        good_to = covered_prefix(t, jnp.minimum(radius, hi - t), left=jnp.minimum(radius, t - lo),
+                                 free=radius > 0)
         bad_state = t > good_to
     bad = jnp.any((piece[None, :] == jnp.arange(p - 1)[:, None]) & bad_state[None, :], axis=1)
     return bad | ~enough

@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import time
 from typing import Any
 
 import jax
@@ -102,6 +103,8 @@ class MotionOptions:
             if isinstance(value, bool) or not isinstance(value, int) or value < 2 - (name in (
                     "lanes", "goals_per_target", "max_iterations")):
                 raise ValueError(f"{name} must be a positive integer (>= 2 for sizes), got {value!r}")
+        if self.capacity % min(64, self.capacity):
+            raise ValueError(f"capacity must be below 64 or a multiple of 64, got {self.capacity}")
         if self.period is not None and not (
             isinstance(self.period, int | float) and math.isfinite(self.period) and self.period > 0
         ):
@@ -128,6 +131,9 @@ class MotionPlan:
         trajectory: ``timing.RetimedTrajectory`` sampled every ``period`` (None without a
             period): ``q`` a Jet ``(B, T, n)``, ``valid``, ``count``; ``duration (B,)``.
         timing_status: ``jaxkin.Status`` of the timing ``(B,)`` (``OK``, ``UNTIMEABLE``).
+        seconds: wall time of the stages of this call (``"search"``, ``"simplify"``,
+            ``"timing"``), each program run to completion (compilation included on a first
+            call).
     """
 
     status: np.ndarray
@@ -142,6 +148,7 @@ class MotionPlan:
     trajectory: Any
     duration: np.ndarray
     timing_status: np.ndarray
+    seconds: dict = dataclasses.field(default_factory=dict)
 
     @property
     def solved(self) -> np.ndarray:
@@ -367,6 +374,8 @@ def plan(
     slots = ((slots + 3) // 4) * 4  # a multiple of the coarse stage's rake
     config = SearchConfig(options.lanes, options.capacity, slots, options.path_points,
                           options.mode, shared)
+    seconds = {}
+    clock = time.perf_counter()
     max_loops = int(options.max_iterations) * b // max(1, options.lanes) + 2 * b + 16
     found: SearchResult = _search_jit(
         robot, body, pairs, worlds, space, bound,
@@ -376,6 +385,8 @@ def plan(
         jnp.int32(min(max_loops, 2**31 - 1)), jnp.asarray(tol, dtype), config=config,
     )
     status = np.asarray(found.status)
+    seconds["search"] = time.perf_counter() - clock
+    clock = time.perf_counter()
     path, count = found.path, found.count
     solved = status == MotionStatus.SOLVED
     if options.simplify:
@@ -392,6 +403,9 @@ def plan(
 
         s = jax.vmap(lambda p, c: chord_parameters(p, c, space))(path, count)
         simple = Simplified(path, count, s, jnp.zeros_like(path), jnp.zeros(count.shape, bool))
+    jax.block_until_ready(simple)
+    seconds["simplify"] = time.perf_counter() - clock
+    clock = time.perf_counter()
     path_np = np.asarray(path)
     count_np = np.asarray(count)
     goal_reached = path_np[np.arange(b), np.maximum(count_np - 1, 0)]
@@ -404,6 +418,7 @@ def plan(
         timing_status = np.asarray(timed.status)
         trajectory = timing.sample(jp, timed, options.period,
                                    num=int(np.floor(np.max(duration, initial=0.0) / options.period)) + 1)
+    seconds["timing"] = time.perf_counter() - clock
     return MotionPlan(
         status=status.astype(np.int8),
         path=path_np,
@@ -417,6 +432,7 @@ def plan(
         trajectory=trajectory,
         duration=duration,
         timing_status=timing_status,
+        seconds=seconds,
     )
 
 
