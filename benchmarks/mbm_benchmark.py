@@ -123,8 +123,9 @@ def main(argv=None) -> int:
     worlds = [world_from_solids(p.solids, "float32") for p in chosen]
     stacked = collider.stack_worlds(worlds)
     padded = [jax.tree.map(lambda x, i=i: x[i], stacked) for i in range(len(chosen))]
-    options = dict(mode=args.mode, range=mbm_problems.RANGES[args.robot], lanes=args.lanes,
-                   period=None)
+    options = dict(
+        mode=args.mode, range=mbm_problems.RANGES[args.robot], lanes=args.lanes, period=None
+    )
     body, pairs = collider.prepare(robot)
     names = [(body.links[a], body.links[b]) for a, b in pairs.link_pairs]
     ref = Reference(args.robot, names, robot.joint_names)
@@ -136,14 +137,19 @@ def main(argv=None) -> int:
         compile_s = time.perf_counter() - t0
         print(f"first call (compiles): {compile_s:.1f} s, {status_names(first.status)}", flush=True)
     rows = []
-    for k, (p, world) in enumerate(zip(chosen, padded, strict=True)):
+    for p, world in zip(chosen, padded, strict=True):
         if args.batch_only:
             break
         r = plan(robot, p.start, world, goal=p.goal, **options)
         st = int(r.status[0])
-        row = {"scene": p.scene, "index": p.index, "status": status_names(st),
-               "search": r.seconds["search"], "simplify": r.seconds["simplify"],
-               "iterations": int(r.iterations[0])}
+        row = {
+            "scene": p.scene,
+            "index": p.index,
+            "status": status_names(st),
+            "search": r.seconds["search"],
+            "simplify": r.seconds["simplify"],
+            "iterations": int(r.iterations[0]),
+        }
         if st == MotionStatus.SOLVED:
             row["length"] = _length(r.path[0], int(r.path_count[0]))
             row["simple_length"] = _length(r.simplified[0], int(r.simplified_count[0]))
@@ -165,15 +171,22 @@ def main(argv=None) -> int:
         batch_compile = time.perf_counter() - t0
         t0 = time.perf_counter()
         rb = plan(robot, starts, worlds, goal=goals, **bopts)
-        batch = {"problems": len(chosen), "seconds": time.perf_counter() - t0,
-                 "solved": int(np.sum(rb.solved)), "search": rb.seconds["search"],
-                 "simplify": rb.seconds["simplify"], "lanes": args.batch_lanes,
-                 "first_call": batch_compile}
+        batch = {
+            "problems": len(chosen),
+            "seconds": time.perf_counter() - t0,
+            "solved": int(np.sum(rb.solved)),
+            "search": rb.seconds["search"],
+            "simplify": rb.seconds["simplify"],
+            "lanes": args.batch_lanes,
+            "first_call": batch_compile,
+        }
         print(json.dumps(batch), flush=True)
     ompl_rows = []
     if args.ompl:
         for s in mbm_problems.SCENES:
-            for p, world in [(p, w) for p, w in zip(chosen, padded, strict=True) if p.scene == s][: args.ompl]:
+            for p, world in [(p, w) for p, w in zip(chosen, padded, strict=True) if p.scene == s][
+                : args.ompl
+            ]:
                 ok, sec = run_ompl(robot, world, p.start, p.goal, mbm_problems.RANGES[args.robot])
                 ompl_rows.append({"scene": s, "index": p.index, "solved": ok, "seconds": sec})
                 print(json.dumps(ompl_rows[-1]), flush=True)
@@ -210,15 +223,21 @@ def _report(args, rows, batch, ompl_rows, compile_s) -> None:
             f"{sum(r['smooth'] for r in ok)} | {fails if not args.no_recheck else '-'} |"
         )
     if batch:
-        lines += ["", f"All {batch['problems']} problems in one call ({batch['lanes']} lanes): "
-                  f"{batch['seconds']:.1f} s (search {batch['search']:.1f} s, simplification "
-                  f"{batch['simplify']:.1f} s), {batch['solved']} solved (first call, compiling: "
-                  f"{batch['first_call']:.0f} s)."]
+        lines += [
+            "",
+            f"All {batch['problems']} problems in one call ({batch['lanes']} lanes): "
+            f"{batch['seconds']:.1f} s (search {batch['search']:.1f} s, simplification "
+            f"{batch['simplify']:.1f} s), {batch['solved']} solved (first call, compiling: "
+            f"{batch['first_call']:.0f} s).",
+        ]
     if ompl_rows:
         ok = [r for r in ompl_rows if r["solved"]]
-        lines += ["", f"OMPL RRT-Connect with jaxkin's checks, {len(ompl_rows)} problems "
-                  f"(the first of each scene): {len(ok)} solved, planning "
-                  f"{_stats([1e3 * r['seconds'] for r in ok])} ms."]
+        lines += [
+            "",
+            f"OMPL RRT-Connect with jaxkin's checks, {len(ompl_rows)} problems "
+            f"(the first of each scene): {len(ok)} solved, planning "
+            f"{_stats([1e3 * r['seconds'] for r in ok])} ms.",
+        ]
     text = "\n".join(lines) + "\n\n"
     with open(args.output, "a", encoding="utf-8") as f:
         f.write(text)

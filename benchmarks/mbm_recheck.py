@@ -22,7 +22,6 @@ jaxkin's) at parameter steps that bound the joint step the same way.
 from __future__ import annotations
 
 import numpy as np
-
 from mbm_problems import HERE, TIPS  # noqa: F401
 
 

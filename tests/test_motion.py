@@ -18,8 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxkin import collision, delta, scara, serial
-from jaxkin import motion
+from jaxkin import collision, delta, motion, scara, serial
 from jaxkin.motion import bound as mbound
 from jaxkin.motion import collider, edges
 from jaxkin.motion.space import joint_space
@@ -71,7 +70,10 @@ def _displacement(robot, body, q0, dq, steps=257):
         serial.Planar3R(1.0, 0.7, 0.4, link_radius=0.05),
         serial.Anthropomorphic(0.3, 0.25, 0.2, link_radius=0.02),
         scara.Scara(
-            150.0, 80.0, 50.0, link_radius=4.0,
+            150.0,
+            80.0,
+            50.0,
+            link_radius=4.0,
             limits=scara.JointLimits(np.array([-2.0, -2.0, 0.0]), np.array([2.0, 2.0, 120.0])),
         ),
     ],
@@ -149,7 +151,9 @@ def test_a_grazing_edge_slips_between_discrete_states_and_is_caught_certified():
     out = {}
     for mode in edges.MODES:
         _, _, evaluate = _evaluators(robot, world, mode)
-        check = jax.jit(lambda a, d, e=evaluate, m=mode: edges.edge_check(e, bound, a, d, 16, m, tol))
+        check = jax.jit(
+            lambda a, d, e=evaluate, m=mode: edges.edge_check(e, bound, a, d, 16, m, tol)
+        )
         out[mode] = float(check(jnp.asarray(a[None]), jnp.asarray(d[None]))[0])
     assert out["discrete"] == 1.0  # the 17 states miss the ball
     assert out["certified"] < 0.53  # certified only up to before the contact
@@ -164,8 +168,9 @@ def test_certified_prefixes_are_free_under_a_dense_check():
     ok = ~np.asarray(collision.check(robot, a, world).collides)
     a = a[ok]
     d = rng.normal(size=a.shape) * 0.8
-    check = jax.jit(lambda a, d: edges.edge_check(evaluate, bound, a, d, 32, "certified",
-                                                  jnp.asarray(1e-12)))
+    check = jax.jit(
+        lambda a, d: edges.edge_check(evaluate, bound, a, d, 32, "certified", jnp.asarray(1e-12))
+    )
     t_good = np.asarray(check(jnp.asarray(a), jnp.asarray(d)))
     assert np.any(t_good >= 1.0) and np.any(t_good < 1.0)
     s = np.linspace(0.0, 1.0, 2001)
@@ -231,13 +236,16 @@ def test_a_moveit_scene_reads_as_solids_and_a_world():
     # the cylinder's axis (local z) turned by 90 degrees about x: along -y
     assert np.allclose(solids.cylinder_center, [[0.1, 0.0, 1.0]])
     assert np.allclose(solids.cylinder_axis, [[0.0, -1.0, 0.0]], atol=1e-12)
-    assert np.allclose(solids.cylinder_half_height, [0.1]) and np.allclose(solids.cylinder_radius, [0.05])
+    assert np.allclose(solids.cylinder_half_height, [0.1]) and np.allclose(
+        solids.cylinder_radius, [0.05]
+    )
     world = motion.world_from_solids(solids)
     assert len(world.boxes) == 1 and len(world.spheres) == 1 and len(world.capsules) == 1
     # the capsule holds the cylinder: points of the cylinder's rim are inside it
     rim = np.array([0.1, 0.1, 1.05])  # an end cap's rim point (y = +h, z = +r)
-    d = collision.distance.sphere_capsule(rim, 0.0, world.capsules.a[0], world.capsules.b[0],
-                                          world.capsules.radius[0])
+    d = collision.distance.sphere_capsule(
+        rim, 0.0, world.capsules.a[0], world.capsules.b[0], world.capsules.radius[0]
+    )
     assert float(d) <= 1e-12
 
 
@@ -249,7 +257,9 @@ def test_a_scene_with_a_bad_primitive_names_it():
 
 
 def _mbm_module():
-    spec = importlib.util.spec_from_file_location("mbm_problems", ROOT / "benchmarks/mbm_problems.py")
+    spec = importlib.util.spec_from_file_location(
+        "mbm_problems", ROOT / "benchmarks/mbm_problems.py"
+    )
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # its dataclasses look their module up
     spec.loader.exec_module(module)
@@ -354,7 +364,17 @@ def test_invalid_problems_get_their_status():
     inside = np.array([0.6, 0.0])  # the forearm in the first ball
     starts = np.array([[0.0, 0.3], inside, [np.nan, 0.0], [0.0, 0.3]])
     goals = np.array([[2.5, 0.4], [2.5, 0.4], [2.5, 0.4], inside])
-    result = motion.plan(robot, starts, world, goal=goals, lanes=2, capacity=256, path_points=32,
-                         spline_states=256, grid=64, period=None)
+    result = motion.plan(
+        robot,
+        starts,
+        world,
+        goal=goals,
+        lanes=2,
+        capacity=256,
+        path_points=32,
+        spline_states=256,
+        grid=64,
+        period=None,
+    )
     names = motion.status_names(result.status).tolist()
     assert names == ["SOLVED", "INVALID_START", "INVALID_INPUT", "INVALID_GOAL"]

@@ -75,8 +75,9 @@ class MotionBound:
         return jnp.concatenate([self.prims, self.pairs])
 
     def astype(self, dtype: Any) -> MotionBound:
-        return MotionBound(jnp.asarray(self.prims, dtype), jnp.asarray(self.pairs, dtype),
-                           self.proved)
+        return MotionBound(
+            jnp.asarray(self.prims, dtype), jnp.asarray(self.pairs, dtype), self.proved
+        )
 
 
 def speed_bound(bound: MotionBound, dq: Array) -> Array:
@@ -205,8 +206,9 @@ def motion_bound(robot: Any, body: Any, link_pairs: Any) -> MotionBound:
         rows, moves = _sampled_rows(robot, body, space)
     pair_rows = _pair_rows(rows, moves, link_pairs, proved)
     prim_link = np.asarray(tuple(body.sphere_link) + tuple(body.capsule_link), int)
-    return MotionBound(jnp.asarray(rows[prim_link].reshape(-1, rows.shape[1])),
-                       jnp.asarray(pair_rows), proved)
+    return MotionBound(
+        jnp.asarray(rows[prim_link].reshape(-1, rows.shape[1])), jnp.asarray(pair_rows), proved
+    )
 
 
 def _sampled_rows(robot: Any, body: Any, space: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -89,7 +89,9 @@ def _pad_kind(kind: str, items: Any, count: int, world: World, far: np.ndarray) 
     if have == count:
         return fields
     if have:
-        return {f: np.concatenate([v, np.repeat(v[:1], count - have, 0)]) for f, v in fields.items()}
+        return {
+            f: np.concatenate([v, np.repeat(v[:1], count - have, 0)]) for f, v in fields.items()
+        }
     inside = far
     for other in ("boxes", "spheres", "capsules"):
         rows = getattr(world, other)
@@ -99,12 +101,17 @@ def _pad_kind(kind: str, items: Any, count: int, world: World, far: np.ndarray) 
     if kind == "spheres":
         return {"center": np.tile(inside, (count, 1)), "radius": np.zeros(count)}
     if kind == "capsules":
-        return {"a": np.tile(inside, (count, 1)), "b": np.tile(inside, (count, 1)),
-                "radius": np.zeros(count)}
+        return {
+            "a": np.tile(inside, (count, 1)),
+            "b": np.tile(inside, (count, 1)),
+            "radius": np.zeros(count),
+        }
     if kind == "boxes":
-        return {"center": np.tile(inside, (count, 1)),
-                "rotation": np.tile(np.eye(3), (count, 1, 1)),
-                "half_extents": np.zeros((count, 3))}
+        return {
+            "center": np.tile(inside, (count, 1)),
+            "rotation": np.tile(np.eye(3), (count, 1, 1)),
+            "half_extents": np.zeros((count, 3)),
+        }
     raise ValueError("world: a half-space cannot be padded into a world that has none")
 
 
@@ -120,8 +127,11 @@ def stack_worlds(worlds: list[World], far: float = 100.0) -> World:
     if counts["halfspaces"] and any(not len(w.halfspaces) for w in worlds):
         # a half-space no obstacle contains: the far one below everything
         worlds = [
-            w if len(w.halfspaces) else dataclasses.replace(w, halfspaces=collision.HalfSpaces.create(
-                [[0.0, 0.0, 1.0]], [-far]))
+            w
+            if len(w.halfspaces)
+            else dataclasses.replace(
+                w, halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [-far])
+            )
             for w in worlds
         ]
     point = np.array([0.0, 0.0, -far])
@@ -135,6 +145,7 @@ def stack_worlds(worlds: list[World], far: float = 100.0) -> World:
         stacked[kind] = cls(**{f: jnp.asarray(np.stack([r[f] for r in rows])) for f in rows[0]})
     empty = [k for k in _KINDS if not counts[k]]
     for k in empty:  # an empty kind gets the leading axis too
-        stacked[k] = jax.tree.map(lambda x: jnp.broadcast_to(x, (len(worlds), *x.shape)),
-                                  stacked[k])
+        stacked[k] = jax.tree.map(
+            lambda x: jnp.broadcast_to(x, (len(worlds), *x.shape)), stacked[k]
+        )
     return World(**stacked)

@@ -26,7 +26,6 @@ mode).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -41,7 +40,9 @@ MODES = ("certified", "discrete")
 CHUNK = 11  # states per call of the collision kernel within an edge
 
 
-def ball_radius(parts: tuple[Array, Array, Array], speeds: tuple[Array, Array], tol: Array) -> Array:
+def ball_radius(
+    parts: tuple[Array, Array, Array], speeds: tuple[Array, Array], tol: Array
+) -> Array:
     """Per state ``(..., T)`` the free radius along the step, in units of its parameter:
     ``min(min_p (d_p - tol) / B_p, min_k (d_k - tol) / B_k)`` over the primitives' world
     clearances and the self pairs' (``collider.clearances``), each with its own speed bound
@@ -59,8 +60,9 @@ def ball_radius(parts: tuple[Array, Array, Array], speeds: tuple[Array, Array], 
     return jnp.where(free, jnp.minimum(radius, 2.0), 0.0)
 
 
-def covered_prefix(t: Array, radius: Array, left: Array | None = None,
-                   free: Array | None = None) -> Array:
+def covered_prefix(
+    t: Array, radius: Array, left: Array | None = None, free: Array | None = None
+) -> Array:
     """The certified prefix (module docstring) of states at ``t (T,)`` (increasing, from 0)
     with free radii ``radius (..., T)`` (``ball_radius``; 0: not free); ``left``: radii to the
     left where they differ (a ball cut at a boundary), ``free`` where a radius may be 0."""

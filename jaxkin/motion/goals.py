@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from typing import Any
 
-
 import jax.numpy as jnp
 import numpy as np
 
@@ -56,5 +55,3 @@ def ik_goals(
         pad = np.repeat(chosen[:, -1:], keep - chosen.shape[1], 1)
         chosen = np.concatenate([chosen, pad], 1)
     return chosen, count.astype(np.int32)
-
-

@@ -37,7 +37,7 @@ from jax import Array
 from .. import timing
 from ..collision import World
 from . import collider
-from .bound import MotionBound, motion_bound
+from .bound import motion_bound
 from .edges import MODES
 from .goals import ik_goals
 from .search import SearchConfig, SearchResult, search_kernel
@@ -97,12 +97,24 @@ class MotionOptions:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        for name in ("lanes", "capacity", "max_iterations", "path_points", "spline_states",
-                     "grid", "goals_per_target"):
+        for name in (
+            "lanes",
+            "capacity",
+            "max_iterations",
+            "path_points",
+            "spline_states",
+            "grid",
+            "goals_per_target",
+        ):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 2 - (name in (
-                    "lanes", "goals_per_target", "max_iterations")):
-                raise ValueError(f"{name} must be a positive integer (>= 2 for sizes), got {value!r}")
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int)
+                or value < 2 - (name in ("lanes", "goals_per_target", "max_iterations"))
+            ):
+                raise ValueError(
+                    f"{name} must be a positive integer (>= 2 for sizes), got {value!r}"
+                )
         if self.capacity % min(64, self.capacity):
             raise ValueError(f"capacity must be below 64 or a multiple of 64, got {self.capacity}")
         if self.period is not None and not (
@@ -165,8 +177,22 @@ def _evaluate(robot, body, pairs, world, mode, dtype):
     return run
 
 
-def _simplify_all(robot, body, pairs, world, space, bound, path, count, tol, resolution,
-                  slots, mode, states, shared_world):
+def _simplify_all(
+    robot,
+    body,
+    pairs,
+    world,
+    space,
+    bound,
+    path,
+    count,
+    tol,
+    resolution,
+    slots,
+    mode,
+    states,
+    shared_world,
+):
     """``simplify_kernel`` for every problem ``(B, P, n)``."""
 
     def one(wd, p, c):
@@ -178,9 +204,7 @@ def _simplify_all(robot, body, pairs, world, space, bound, path, count, tol, res
 
 
 _search_jit = jax.jit(search_kernel, static_argnames=("config",))
-_simplify_jit = jax.jit(
-    _simplify_all, static_argnames=("slots", "mode", "states", "shared_world")
-)
+_simplify_jit = jax.jit(_simplify_all, static_argnames=("slots", "mode", "states", "shared_world"))
 
 
 def plan_kernels():
@@ -204,16 +228,22 @@ def _worlds(world: Any, b: int) -> tuple[Any, bool]:
         if len(world) != b:
             raise ValueError(f"world: {len(world)} worlds for {b} problems")
         return collider.stack_worlds(list(world)), False
-    raise ValueError(f"world: expected a collision.World or one per problem, got {type(world).__name__}")
+    raise ValueError(
+        f"world: expected a collision.World or one per problem, got {type(world).__name__}"
+    )
 
 
-def _limits(robot: Any, options: MotionOptions, space: JointSpace, n: int) -> tuple[np.ndarray, np.ndarray]:
+def _limits(
+    robot: Any, options: MotionOptions, space: JointSpace, n: int
+) -> tuple[np.ndarray, np.ndarray]:
     limits = robot.joint_limits()
     v = np.asarray(limits.velocity if options.velocity is None else options.velocity, float)
     v = np.broadcast_to(v, (n,)).copy()
     scale = 1.0 / np.asarray(space.weight, float)
     v = np.where(np.isfinite(v), v, scale)
-    a = np.asarray(limits.acceleration if options.acceleration is None else options.acceleration, float)
+    a = np.asarray(
+        limits.acceleration if options.acceleration is None else options.acceleration, float
+    )
     a = np.broadcast_to(a, (n,)).copy()
     a = np.where(np.isfinite(a), a, 4.0 * v)
     if np.any(v <= 0) or np.any(a <= 0):
@@ -222,7 +252,9 @@ def _limits(robot: Any, options: MotionOptions, space: JointSpace, n: int) -> tu
 
 
 @functools.partial(jax.jit, static_argnames=("grid",))
-def _joint_paths(knots: Array, s: Array, slopes: Array, count: Array, grid: int) -> timing.JointPath:
+def _joint_paths(
+    knots: Array, s: Array, slopes: Array, count: Array, grid: int
+) -> timing.JointPath:
     """The ``JointPath`` grid ``(B, grid)`` of each spline (every knot a grid point, the
     other points shared among the pieces in proportion to their parameter length)."""
 
@@ -245,7 +277,12 @@ def _joint_paths(knots: Array, s: Array, slopes: Array, count: Array, grid: int)
         m0, m1 = slopes[piece], slopes[piece + 1]
         t = tau[:, None]
         t2, t3 = t * t, t * t * t
-        q = (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * hp * m0 + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * hp * m1
+        q = (
+            (2 * t3 - 3 * t2 + 1) * y0
+            + (t3 - 2 * t2 + t) * hp * m0
+            + (-2 * t3 + 3 * t2) * y1
+            + (t3 - t2) * hp * m1
+        )
         dq = ((6 * t2 - 6 * t) * (y0 - y1)) / hp + (3 * t2 - 4 * t + 1) * m0 + (3 * t2 - 2 * t) * m1
         ddq = ((12 * t - 6) * (y0 - y1)) / (hp * hp) + ((6 * t - 4) * m0 + (6 * t - 2) * m1) / hp
         param = s[piece] + tau * jnp.where(live[piece], h[piece], 0.0)
@@ -307,7 +344,9 @@ def plan(
         raise ValueError(f"options: expected MotionOptions, got {type(options).__name__}")
     for method in ("collision_body", "link_poses", "joint_limits"):
         if not callable(getattr(robot, method, None)):
-            raise ValueError(f"robot: expected a jaxkin robot with {method}(), got {type(robot).__name__}")
+            raise ValueError(
+                f"robot: expected a jaxkin robot with {method}(), got {type(robot).__name__}"
+            )
     if (goal is None) == (target is None):
         raise ValueError("give exactly one of goal (joint configurations) and target (IK targets)")
     n = robot.n_joints
@@ -342,8 +381,14 @@ def plan(
         if t.shape != (b, *shape):
             raise ValueError(f"target: expected shape {shape} or ({b}, *{shape}), got {t.shape}")
         finite_goal = np.all(np.isfinite(t.reshape(b, -1)), -1)
-        goals, goal_count = ik_goals(robot, np.where(np.isfinite(t), t, 0.0), starts_safe, space,
-                                     free_fn, options.goals_per_target)
+        goals, goal_count = ik_goals(
+            robot,
+            np.where(np.isfinite(t), t, 0.0),
+            starts_safe,
+            space,
+            free_fn,
+            options.goals_per_target,
+        )
         no_goal = MotionStatus.UNREACHABLE_GOAL
     else:
         g = _as_array(goal, "goal")
@@ -352,7 +397,10 @@ def plan(
         elif g.ndim == 2 and g.shape == (b, n):
             g = g[:, None]
         if g.ndim != 3 or g.shape[0] != b or g.shape[2] != n:
-            raise ValueError(f"goal: expected shape (n,), (B, n) or (B, G, n) with B = {b}, n = {n}, got {g.shape}")
+            raise ValueError(
+                f"goal: expected shape (n,), (B, n) or (B, G, n) with B = {b}, n = {n}, "
+                f"got {g.shape}"
+            )
         finite_goal = np.all(np.isfinite(g), (-1, -2))
         g = np.where(np.isfinite(g), g, 0.0)
         good = np.asarray(limits.contains(g), bool) & np.asarray(free_fn(g), bool)
@@ -372,17 +420,30 @@ def plan(
     tol = 64.0 * float(jnp.finfo(dtype).eps) * (1.0 + scale)
     slots = max(2, math.ceil(options.range * options.resolution))
     slots = ((slots + 3) // 4) * 4  # a multiple of the coarse stage's rake
-    config = SearchConfig(options.lanes, options.capacity, slots, options.path_points,
-                          options.mode, shared)
+    config = SearchConfig(
+        options.lanes, options.capacity, slots, options.path_points, options.mode, shared
+    )
     seconds = {}
     clock = time.perf_counter()
     max_loops = int(options.max_iterations) * b // max(1, options.lanes) + 2 * b + 16
     found: SearchResult = _search_jit(
-        robot, body, pairs, worlds, space, bound,
-        jnp.asarray(starts_safe, dtype), jnp.asarray(goals, dtype), jnp.asarray(goal_count),
-        jnp.asarray(status), jnp.asarray(queue), jax.random.PRNGKey(options.seed),
-        jnp.asarray(options.range, dtype), jnp.int32(options.max_iterations),
-        jnp.int32(min(max_loops, 2**31 - 1)), jnp.asarray(tol, dtype), config=config,
+        robot,
+        body,
+        pairs,
+        worlds,
+        space,
+        bound,
+        jnp.asarray(starts_safe, dtype),
+        jnp.asarray(goals, dtype),
+        jnp.asarray(goal_count),
+        jnp.asarray(status),
+        jnp.asarray(queue),
+        jax.random.PRNGKey(options.seed),
+        jnp.asarray(options.range, dtype),
+        jnp.int32(options.max_iterations),
+        jnp.int32(min(max_loops, 2**31 - 1)),
+        jnp.asarray(tol, dtype),
+        config=config,
     )
     status = np.asarray(found.status)
     seconds["search"] = time.perf_counter() - clock
@@ -393,9 +454,19 @@ def plan(
         from .simplify import SHORTCUTS
 
         simple: Simplified = _simplify_jit(
-            robot, body, pairs, worlds, space, bound, path, count,
-            jnp.asarray(tol, dtype), jnp.asarray(options.resolution, dtype),
-            slots=(SHORTCUTS + 1) * slots, mode=options.mode, states=options.spline_states,
+            robot,
+            body,
+            pairs,
+            worlds,
+            space,
+            bound,
+            path,
+            count,
+            jnp.asarray(tol, dtype),
+            jnp.asarray(options.resolution, dtype),
+            slots=(SHORTCUTS + 1) * slots,
+            mode=options.mode,
+            states=options.spline_states,
             shared_world=shared,
         )
     else:
@@ -416,8 +487,12 @@ def plan(
         timed = timing.retime(jp, jnp.asarray(v, dtype), jnp.asarray(a, dtype))
         duration = np.where(solved, np.asarray(timed.duration), 0.0)
         timing_status = np.asarray(timed.status)
-        trajectory = timing.sample(jp, timed, options.period,
-                                   num=int(np.floor(np.max(duration, initial=0.0) / options.period)) + 1)
+        trajectory = timing.sample(
+            jp,
+            timed,
+            options.period,
+            num=int(np.floor(np.max(duration, initial=0.0) / options.period)) + 1,
+        )
     seconds["timing"] = time.perf_counter() - clock
     return MotionPlan(
         status=status.astype(np.int8),

@@ -71,7 +71,9 @@ def _pose(entry: Any, where: str) -> np.ndarray:
         position = np.asarray(entry.get("position", [0, 0, 0]), float).reshape(3)
         orientation = np.asarray(entry.get("orientation", [0, 0, 0, 1]), float).reshape(4)
     except (AttributeError, TypeError, ValueError) as error:
-        raise ValueError(f"{where}: expected position [x, y, z] and orientation [x, y, z, w]") from error
+        raise ValueError(
+            f"{where}: expected position [x, y, z] and orientation [x, y, z, w]"
+        ) from error
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(orientation))):
         raise ValueError(f"{where}: the pose must be finite")
     if np.linalg.norm(orientation) == 0:
@@ -92,15 +94,18 @@ def read_scene(source: Any) -> SceneSolids:
     """
     where = "scene"
     data = source
-    if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source
-                                    and source.endswith((".yaml", ".yml"))):
+    if isinstance(source, Path) or (
+        isinstance(source, str) and "\n" not in source and source.endswith((".yaml", ".yml"))
+    ):
         where = str(source)
         data = Path(source).read_text(encoding="utf-8")
     if isinstance(data, str | bytes):
         try:
             import yaml
         except ImportError as error:  # pragma: no cover - the extra is installed for tests
-            raise ImportError("reading YAML scenes needs PyYAML: pip install 'jaxkin[motion]'") from error
+            raise ImportError(
+                "reading YAML scenes needs PyYAML: pip install 'jaxkin[motion]'"
+            ) from error
         data = yaml.safe_load(data)
     if not isinstance(data, dict):
         raise ValueError(f"{where}: expected a planning scene mapping")
@@ -140,10 +145,16 @@ def read_scene(source: Any) -> SceneSolids:
         return np.array([it[k] for it in items], float).reshape((len(items), *shape))
 
     return SceneSolids(
-        rows(boxes, 0, (3,)), rows(boxes, 1, (3, 3)), rows(boxes, 2, (3,)),
-        rows(spheres, 0, (3,)), rows(spheres, 1, ()),
-        rows(cylinders, 0, (3,)), rows(cylinders, 1, (3,)), rows(cylinders, 2, ()),
-        rows(cylinders, 3, ()), tuple(names),
+        rows(boxes, 0, (3,)),
+        rows(boxes, 1, (3, 3)),
+        rows(boxes, 2, (3,)),
+        rows(spheres, 0, (3,)),
+        rows(spheres, 1, ()),
+        rows(cylinders, 0, (3,)),
+        rows(cylinders, 1, (3,)),
+        rows(cylinders, 2, ()),
+        rows(cylinders, 3, ()),
+        tuple(names),
     )
 
 

@@ -36,8 +36,8 @@ import jax
 import jax.numpy as jnp
 from jax import Array
 
-from .bound import MotionBound
 from . import collider
+from .bound import MotionBound
 from .edges import edge_check
 from .space import JointSpace
 from .status import MotionStatus
@@ -145,7 +145,6 @@ def _reset(lanes: _Lanes, need: Array, problem: Array, starts, goals, goal_count
 
 def _assign(lanes: _Lanes, probs: _Problems, queue: Array, starts, goals, goal_count, replica):
     """Lanes whose problem is closed take the next queued one, or join an open one."""
-    b = probs.done.shape[0]
     need = (lanes.problem < 0) | probs.done[jnp.maximum(lanes.problem, 0)]
     rank = jnp.cumsum(need) - 1
     queued = probs.head + rank
@@ -179,7 +178,9 @@ def _nearest(nodes: Array, grow: Array, size: Array, target: Array, space: Joint
         start = (k * size_b).astype(jnp.int32)
         zero = jnp.zeros((), jnp.int32)
         block = jax.vmap(
-            lambda t, g: jax.lax.dynamic_slice(t, (g.astype(jnp.int32), start, zero), (1, size_b, n))[0]
+            lambda t, g: jax.lax.dynamic_slice(
+                t, (g.astype(jnp.int32), start, zero), (1, size_b, n)
+            )[0]
         )(nodes, grow)  # (W, block, n)
         index = start + jnp.arange(size_b)
         d = space.distance(block, target[:, None, :])
@@ -340,6 +341,7 @@ def search_kernel(
         added = added & ~full
         # write the node (one-hot selects: no scatter in the loop body)
         slot = jnp.minimum(size, cap - 1)
+
         def put(tree_nodes, tree_parent, t, i, q, par, ok):
             zero = jnp.zeros((), jnp.int32)
             t, i = t.astype(jnp.int32), i.astype(jnp.int32)
@@ -352,25 +354,37 @@ def search_kernel(
             return tree_nodes, tree_parent
 
         nodes, parent = jax.vmap(put)(lanes.nodes, lanes.parent, grow, slot, q_new, near, added)
-        count = lanes.count + (
-            (jnp.arange(2)[None, :] == grow[:, None]) & added[:, None]
-        ).astype(jnp.int32)
+        count = lanes.count + ((jnp.arange(2)[None, :] == grow[:, None]) & added[:, None]).astype(
+            jnp.int32
+        )
         extend = lanes.mode == _EXTEND
         a_before = lanes.a
         solved = ~extend & reached & ~probs.done[lanes.problem]
         # EXTEND: added -> CONNECT toward the new node; else swap. CONNECT: keep going while
         # it advances; trapped -> EXTEND on the swapped trees.
-        mode = jnp.where(extend, jnp.where(added, _CONNECT, _EXTEND),
-                         jnp.where(added & ~reached, _CONNECT, _EXTEND)).astype(jnp.int32)
+        mode = jnp.where(
+            extend,
+            jnp.where(added, _CONNECT, _EXTEND),
+            jnp.where(added & ~reached, _CONNECT, _EXTEND),
+        ).astype(jnp.int32)
         a = jnp.where(extend & added, lanes.a, jnp.where(mode == _EXTEND, 1 - lanes.a, lanes.a))
         new_target = jnp.where((extend & added)[:, None], q_new, lanes.target)
         new_index = jnp.where(extend & added, slot, lanes.target_index)
-        lanes = _Lanes(lanes.problem, nodes, parent, count, mode, a.astype(jnp.int32),
-                       new_target, new_index.astype(jnp.int32))
+        lanes = _Lanes(
+            lanes.problem,
+            nodes,
+            parent,
+            count,
+            mode,
+            a.astype(jnp.int32),
+            new_target,
+            new_index.astype(jnp.int32),
+        )
 
         def record(probs):
-            paths, totals = jax.vmap(lambda nd, pa, aa, ia, ib: _join(nd, pa, aa, ia, ib, space, p))(
-                lanes.nodes, lanes.parent, a_before, lanes.target_index, slot)
+            paths, totals = jax.vmap(
+                lambda nd, pa, aa, ia, ib: _join(nd, pa, aa, ia, ib, space, p)
+            )(lanes.nodes, lanes.parent, a_before, lanes.target_index, slot)
             ok = solved & (totals <= p)
             same = lanes.problem[:, None] == lanes.problem[None, :]
             earlier = jnp.tril(jnp.ones((w, w), bool), -1)
@@ -394,8 +408,7 @@ def search_kernel(
         probs = dataclasses.replace(probs, iterations=iters, done=probs.done | spent)
         # a full tree, or a solved path too long for P, restarts the lane's problem
         restart = (full | (solved & ~ok)) & ~probs.done[lanes.problem]
-        lanes = _reset(lanes, restart, lanes.problem, starts, goals, goal_count,
-                       replica + loop)
+        lanes = _reset(lanes, restart, lanes.problem, starts, goals, goal_count, replica + loop)
         return loop + 1, lanes, probs
 
     def cond(carry):

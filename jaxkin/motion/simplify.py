@@ -22,11 +22,9 @@ Both stages work on fixed buffers ``(P, n)`` with a count, one problem per ``vma
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jax import Array
 
 from .bound import MotionBound, part_speeds
@@ -63,8 +61,16 @@ def _compact(path: Array, keep: Array) -> tuple[Array, Array]:
     return jnp.where((jnp.arange(p) < count)[:, None], out, last), count
 
 
-def shortcut(evaluate, space: JointSpace, bound: MotionBound, path: Array, count: Array,
-             slots: int, mode: str, tol: Array) -> tuple[Array, Array]:
+def shortcut(
+    evaluate,
+    space: JointSpace,
+    bound: MotionBound,
+    path: Array,
+    count: Array,
+    slots: int,
+    mode: str,
+    tol: Array,
+) -> tuple[Array, Array]:
     """Vertex reduction (module docstring) of one path ``(P, n)`` with ``count`` waypoints.
     ``slots``: intervals for the longest candidate edge (``SHORTCUTS + 1`` path edges)."""
     p, n = path.shape
@@ -131,10 +137,14 @@ def hermite(y0, m0, y1, m1, h, tau):
     """Cubic Hermite on ``[0, h]`` at ``tau`` in [0, 1]: value and ``d/ds``."""
     t2, t3 = tau * tau, tau * tau * tau
     value = (
-        (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + tau) * h * m0
-        + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * h * m1
+        (2 * t3 - 3 * t2 + 1) * y0
+        + (t3 - 2 * t2 + tau) * h * m0
+        + (-2 * t3 + 3 * t2) * y1
+        + (t3 - t2) * h * m1
     )
-    slope = ((6 * t2 - 6 * tau) * (y0 - y1)) / h + (3 * t2 - 4 * tau + 1) * m0 + (3 * t2 - 2 * tau) * m1
+    slope = (
+        ((6 * t2 - 6 * tau) * (y0 - y1)) / h + (3 * t2 - 4 * tau + 1) * m0 + (3 * t2 - 2 * tau) * m1
+    )
     return value, slope
 
 
@@ -153,10 +163,19 @@ def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode
     want = jnp.where(live, jnp.maximum(jnp.ceil(poly * resolution), 1.0), 0.0)
     if mode != "discrete":  # states in proportion to length (the balls decide)
         total_len = jnp.maximum(jnp.sum(poly), 1e-30)
-        want = jnp.where(live, jnp.maximum(jnp.floor(poly / total_len * (states - count)), 1.0), 0.0)
+        want = jnp.where(
+            live, jnp.maximum(jnp.floor(poly / total_len * (states - count)), 1.0), 0.0
+        )
     enough = jnp.sum(want) + 1 <= states
-    want = jnp.where(enough, want, jnp.where(live, jnp.maximum(
-        jnp.floor(want * (states - count) / jnp.maximum(jnp.sum(want), 1.0)), 1.0), 0.0))
+    want = jnp.where(
+        enough,
+        want,
+        jnp.where(
+            live,
+            jnp.maximum(jnp.floor(want * (states - count) / jnp.maximum(jnp.sum(want), 1.0)), 1.0),
+            0.0,
+        ),
+    )
     ends = jnp.cumsum(want)  # state index where each piece ends
     k = jnp.arange(states)
     piece = jnp.clip(jnp.searchsorted(ends, k, side="right"), 0, p - 2)
@@ -165,8 +184,9 @@ def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode
     total = ends[jnp.maximum(count - 2, 0)]
     tau = jnp.where(k >= total, 1.0, tau)
     piece = jnp.where(k >= total, jnp.maximum(count - 2, 0), piece)
-    q, _ = hermite(y0[piece], slopes[piece], y1[piece], slopes[piece + 1],
-                   h[piece][:, None], tau[:, None])
+    q, _ = hermite(
+        y0[piece], slopes[piece], y1[piece], slopes[piece + 1], h[piece][:, None], tau[:, None]
+    )
     param = s[piece] + tau * h[piece]
     return q, param, piece, enough
 
@@ -174,9 +194,12 @@ def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode
 def spline_check(evaluate, space, bound, knots, s, slopes, count, states, resolution, mode, tol):
     """Per spline piece ``(P - 1,)``: bad (a state of it collides or is not covered)."""
     p, n = knots.shape
-    q, param, piece, enough = _spline_states(knots, s, slopes, count, states, space, resolution, mode)
-    parts = jax.tree.map(lambda x: None if x is None else x[0], evaluate(q[None]),
-                         is_leaf=lambda x: x is None)
+    q, param, piece, enough = _spline_states(
+        knots, s, slopes, count, states, space, resolution, mode
+    )
+    parts = jax.tree.map(
+        lambda x: None if x is None else x[0], evaluate(q[None]), is_leaf=lambda x: x is None
+    )
     if mode == "discrete":
         bad_state = ~parts[2]
     else:
@@ -185,20 +208,24 @@ def spline_check(evaluate, space, bound, knots, s, slopes, count, states, resolu
         h = jnp.where(live, jnp.diff(s), 1.0)
         # the Bezier control points of dq/ds bound it on each piece (convex hull)
         y0, y1 = knots[:-1], knots[1:]
-        c = jnp.stack([slopes[:-1], 3.0 * (y1 - y0) / h[:, None] - slopes[:-1] - slopes[1:],
-                       slopes[1:]])
+        c = jnp.stack(
+            [slopes[:-1], 3.0 * (y1 - y0) / h[:, None] - slopes[:-1] - slopes[1:], slopes[1:]]
+        )
         vmax = jnp.where(live[:, None], jnp.max(jnp.abs(c), axis=0), 0.0)  # (P - 1, n)
         span = jnp.maximum(s[jnp.maximum(count - 1, 0)], 1e-30)
         t = param / span
         # a state's ball may reach into the pieces beside its own: the speed bound of the
         # three, the ball cut at their outer ends
-        near = jnp.maximum(jnp.maximum(vmax, jnp.roll(vmax, 1, 0).at[0].set(0.0)),
-                           jnp.roll(vmax, -1, 0).at[-1].set(0.0))
+        near = jnp.maximum(
+            jnp.maximum(vmax, jnp.roll(vmax, 1, 0).at[0].set(0.0)),
+            jnp.roll(vmax, -1, 0).at[-1].set(0.0),
+        )
         radius = ball_radius(parts, part_speeds(bound, near[piece] * span), tol)
         lo = s[jnp.maximum(piece - 1, 0)] / span
         hi = s[jnp.minimum(piece + 2, count - 1)] / span
-        good_to = covered_prefix(t, jnp.minimum(radius, hi - t), left=jnp.minimum(radius, t - lo),
-                                 free=radius > 0)
+        good_to = covered_prefix(
+            t, jnp.minimum(radius, hi - t), left=jnp.minimum(radius, t - lo), free=radius > 0
+        )
         bad_state = t > good_to
     bad = jnp.any((piece[None, :] == jnp.arange(p - 1)[:, None]) & bad_state[None, :], axis=1)
     return bad | ~enough
@@ -234,8 +261,18 @@ def chord_parameters(path: Array, count: Array, space: JointSpace) -> Array:
     return jnp.concatenate([jnp.zeros((1,), path.dtype), jnp.cumsum(step)])
 
 
-def simplify_kernel(evaluate, space: JointSpace, bound: MotionBound, path: Array, count: Array,
-                    slots: int, mode: str, tol: Array, resolution: Array, states: int) -> Simplified:
+def simplify_kernel(
+    evaluate,
+    space: JointSpace,
+    bound: MotionBound,
+    path: Array,
+    count: Array,
+    slots: int,
+    mode: str,
+    tol: Array,
+    resolution: Array,
+    states: int,
+) -> Simplified:
     """Shortcuts, then the spline (module docstring), for one path ``(P, n)``."""
     path, count = shortcut(evaluate, space, bound, path, count, slots, mode, tol)
     path = space.unwrap(path)
@@ -244,7 +281,9 @@ def simplify_kernel(evaluate, space: JointSpace, bound: MotionBound, path: Array
         knots, k, done = carry
         s = chord_parameters(knots, k, space)
         slopes = spline_slopes(knots, s, k)
-        bad = spline_check(evaluate, space, bound, knots, s, slopes, k, states, resolution, mode, tol)
+        bad = spline_check(
+            evaluate, space, bound, knots, s, slopes, k, states, resolution, mode, tol
+        )
         ok = ~jnp.any(bad)
         new, new_k, fits = _insert_midpoints(knots, k, bad, space)
         keep = done | ok | ~fits
@@ -252,11 +291,15 @@ def simplify_kernel(evaluate, space: JointSpace, bound: MotionBound, path: Array
         k2 = jnp.where(keep, k, new_k)
         return (knots2, k2, done | ok), (ok | done)
 
-    (knots, k, done), _ = jax.lax.scan(round_, (path, count, jnp.bool_(False)), None, SPLINE_ROUNDS + 1)
+    (knots, k, done), _ = jax.lax.scan(
+        round_, (path, count, jnp.bool_(False)), None, SPLINE_ROUNDS + 1
+    )
     s = chord_parameters(knots, k, space)
     slopes = spline_slopes(knots, s, k)
     return Simplified(
-        jnp.where(done, knots, path), jnp.where(done, k, count),
+        jnp.where(done, knots, path),
+        jnp.where(done, k, count),
         jnp.where(done, s, chord_parameters(path, count, space)),
-        jnp.where(done, slopes, 0.0), done,
+        jnp.where(done, slopes, 0.0),
+        done,
     )
