@@ -14,17 +14,9 @@ from .robots import CliError
 __all__ = ["add_parser", "cmd_motion"]
 
 
-def _joints(text: str) -> list[float]:
-    try:
-        return [float(x) for x in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected comma-separated joint values, got {text!r}"
-        ) from None
-
-
-def add_parser(sub: Any, add_robot_options: Any) -> None:
-    """The ``motion`` subcommand on ``sub`` (``add_robot_options`` the robot's options)."""
+def add_parser(sub: Any, add_robot_options: Any, numbers: Any) -> None:
+    """The ``motion`` subcommand on ``sub`` (``add_robot_options`` the robot's options,
+    ``numbers`` the parser of comma-separated numbers)."""
     p = sub.add_parser(
         "motion",
         help="plan a collision-free motion among a scene's obstacles; write it timed",
@@ -37,8 +29,8 @@ def add_parser(sub: Any, add_robot_options: Any) -> None:
         "--from 0,0.3 --to 2.5,0.4 --world scene.yaml -o motion.csv",
     )
     add_robot_options(p, with_branch=False)
-    p.add_argument("--from", dest="start", type=_joints, required=True, metavar="Q[,Q...]")
-    p.add_argument("--to", dest="goal", type=_joints, required=True, metavar="Q[,Q...]")
+    p.add_argument("--from", dest="start", type=numbers, required=True, metavar="Q[,Q...]")
+    p.add_argument("--to", dest="goal", type=numbers, required=True, metavar="Q[,Q...]")
     p.add_argument("--world", required=True, metavar="FILE.yaml", help="MoveIt planning scene")
     p.add_argument("-o", "--output", required=True, metavar="FILE.csv", help="written atomically")
     p.add_argument(

@@ -231,7 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
         )
     pl.set_defaults(func=commands.cmd_plan)
 
-    motion_command.add_parser(sub, _add_robot_options)
+    motion_command.add_parser(sub, _add_robot_options, _numbers)
 
     ws = sub.add_parser(
         "workspace",

@@ -35,13 +35,14 @@ import numpy as np
 from jax import Array
 
 from .. import timing
+from .._splines import hermite
 from ..collision import World
 from . import collider
 from .bound import motion_bound
 from .edges import MODES
 from .goals import ik_goals
 from .search import SearchConfig, SearchResult, search_kernel
-from .simplify import Simplified, simplify_kernel
+from .simplify import Checker, Simplified, simplify_kernel
 from .space import JointSpace, joint_space
 from .status import MotionStatus
 
@@ -197,7 +198,8 @@ def _simplify_all(
 
     def one(wd, p, c):
         evaluate = _evaluate(robot, body, pairs, wd, mode, p.dtype)
-        return simplify_kernel(evaluate, space, bound, p, c, slots, mode, tol, resolution, states)
+        check = Checker(evaluate, space, bound, mode, tol)
+        return simplify_kernel(check, p, c, slots, resolution, states)
 
     axes = (None if shared_world else 0, 0, 0)
     return jax.vmap(one, in_axes=axes)(world, path, count)
@@ -275,16 +277,7 @@ def _joint_paths(
         hp = jnp.where(h[piece] > 0, h[piece], 1.0)[:, None]
         y0, y1 = knots[piece], knots[piece + 1]
         m0, m1 = slopes[piece], slopes[piece + 1]
-        t = tau[:, None]
-        t2, t3 = t * t, t * t * t
-        q = (
-            (2 * t3 - 3 * t2 + 1) * y0
-            + (t3 - 2 * t2 + t) * hp * m0
-            + (-2 * t3 + 3 * t2) * y1
-            + (t3 - t2) * hp * m1
-        )
-        dq = ((6 * t2 - 6 * t) * (y0 - y1)) / hp + (3 * t2 - 4 * t + 1) * m0 + (3 * t2 - 2 * t) * m1
-        ddq = ((12 * t - 6) * (y0 - y1)) / (hp * hp) + ((6 * t - 4) * m0 + (6 * t - 2) * m1) / hp
+        q, dq, ddq = hermite(y0, m0, y1, m1, hp, tau[:, None])
         param = s[piece] + tau * jnp.where(live[piece], h[piece], 0.0)
         # a path of one point (start = goal): a strictly increasing grid at rest
         param = jnp.where(count > 1, param, k.astype(param.dtype))
@@ -426,13 +419,9 @@ def plan(
     seconds = {}
     clock = time.perf_counter()
     max_loops = int(options.max_iterations) * b // max(1, options.lanes) + 2 * b + 16
+    common = (robot, body, pairs, worlds, space, bound)
     found: SearchResult = _search_jit(
-        robot,
-        body,
-        pairs,
-        worlds,
-        space,
-        bound,
+        *common,
         jnp.asarray(starts_safe, dtype),
         jnp.asarray(goals, dtype),
         jnp.asarray(goal_count),
@@ -454,12 +443,7 @@ def plan(
         from .simplify import SHORTCUTS
 
         simple: Simplified = _simplify_jit(
-            robot,
-            body,
-            pairs,
-            worlds,
-            space,
-            bound,
+            *common,
             path,
             count,
             jnp.asarray(tol, dtype),

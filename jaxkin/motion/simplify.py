@@ -22,16 +22,25 @@ Both stages work on fixed buffers ``(P, n)`` with a count, one problem per ``vma
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 from jax import Array
 
+from .._splines import hermite
 from .bound import MotionBound, part_speeds
 from .edges import ball_radius, covered_prefix, edge_check
 from .space import JointSpace
 
-__all__ = ["SHORTCUTS", "SPLINE_ROUNDS", "Simplified", "spline_slopes", "simplify_kernel"]
+__all__ = [
+    "SHORTCUTS",
+    "SPLINE_ROUNDS",
+    "Checker",
+    "Simplified",
+    "simplify_kernel",
+    "spline_slopes",
+]
 
 SHORTCUTS = 4  # candidate shortcuts checked together from a waypoint
 SPLINE_ROUNDS = 3  # midpoint insertions before the spline is given up
@@ -61,18 +70,21 @@ def _compact(path: Array, keep: Array) -> tuple[Array, Array]:
     return jnp.where((jnp.arange(p) < count)[:, None], out, last), count
 
 
-def shortcut(
-    evaluate,
-    space: JointSpace,
-    bound: MotionBound,
-    path: Array,
-    count: Array,
-    slots: int,
-    mode: str,
-    tol: Array,
-) -> tuple[Array, Array]:
+class Checker(NamedTuple):
+    """What checks a path: ``evaluate(states) ->`` ``edges.edge_check``'s triple, the joint
+    space, the speed bound, the mode and the rounding tolerance."""
+
+    evaluate: Any
+    space: JointSpace
+    bound: MotionBound
+    mode: str
+    tol: Array
+
+
+def shortcut(check: Checker, path: Array, count: Array, slots: int) -> tuple[Array, Array]:
     """Vertex reduction (module docstring) of one path ``(P, n)`` with ``count`` waypoints.
     ``slots``: intervals for the longest candidate edge (``SHORTCUTS + 1`` path edges)."""
+    evaluate, space, bound, mode, tol = check
     p, n = path.shape
     m = SHORTCUTS
 
@@ -133,21 +145,6 @@ def spline_slopes(knots: Array, s: Array, count: Array) -> Array:
     return jnp.where(count <= 2, jnp.broadcast_to(d[0], slopes.shape), slopes)
 
 
-def hermite(y0, m0, y1, m1, h, tau):
-    """Cubic Hermite on ``[0, h]`` at ``tau`` in [0, 1]: value and ``d/ds``."""
-    t2, t3 = tau * tau, tau * tau * tau
-    value = (
-        (2 * t3 - 3 * t2 + 1) * y0
-        + (t3 - 2 * t2 + tau) * h * m0
-        + (-2 * t3 + 3 * t2) * y1
-        + (t3 - t2) * h * m1
-    )
-    slope = (
-        ((6 * t2 - 6 * tau) * (y0 - y1)) / h + (3 * t2 - 4 * tau + 1) * m0 + (3 * t2 - 2 * tau) * m1
-    )
-    return value, slope
-
-
 def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode):
     """States along the spline ``(T, n)``, their parameters ``(T,)`` and whether their
     spacing meets the resolution (discrete mode) (module docstring)."""
@@ -184,7 +181,7 @@ def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode
     total = ends[jnp.maximum(count - 2, 0)]
     tau = jnp.where(k >= total, 1.0, tau)
     piece = jnp.where(k >= total, jnp.maximum(count - 2, 0), piece)
-    q, _ = hermite(
+    q, _, _ = hermite(
         y0[piece], slopes[piece], y1[piece], slopes[piece + 1], h[piece][:, None], tau[:, None]
     )
     param = s[piece] + tau * h[piece]
@@ -262,19 +259,11 @@ def chord_parameters(path: Array, count: Array, space: JointSpace) -> Array:
 
 
 def simplify_kernel(
-    evaluate,
-    space: JointSpace,
-    bound: MotionBound,
-    path: Array,
-    count: Array,
-    slots: int,
-    mode: str,
-    tol: Array,
-    resolution: Array,
-    states: int,
+    check: Checker, path: Array, count: Array, slots: int, resolution: Array, states: int
 ) -> Simplified:
     """Shortcuts, then the spline (module docstring), for one path ``(P, n)``."""
-    path, count = shortcut(evaluate, space, bound, path, count, slots, mode, tol)
+    evaluate, space, bound, mode, tol = check
+    path, count = shortcut(check, path, count, slots)
     path = space.unwrap(path)
 
     def round_(carry, _):
