@@ -17,7 +17,10 @@ together, vectorised [Thomason, Kingston & Kavraki 2024]), until every edge is s
   bound along ``delta`` (``bound.part_speeds``; ``tol``: rounding, a few ``eps`` times the
   robot's size). The edge is good up to its *certified prefix*, the last state before the first gap
   between the balls: every point of it lies in some state's free ball, so nothing slipped
-  through. The coarse balls alone settle an edge they cover (far from obstacles).
+  through. The coarse balls alone settle an edge they cover (far from obstacles). Near an
+  obstacle the balls shrink until states ``1 / S`` apart no longer overlap: there the edge is
+  first cut to ``1.8 S r_0`` of its length (``r_0`` the ball of its first state, checked alone
+  first), so that the extension advances as far as ``S`` states can certify.
 
 ``edge_check`` returns ``t_g``, the fraction of the edge that is good (0 or 1 in discrete
 mode).
@@ -119,6 +122,15 @@ def edge_check(
     order_j = jnp.asarray(order.reshape(chunks, chunk), jnp.int32)
     t_all = jnp.arange(total, dtype=dtype) / slots
     speeds = part_speeds(bound, delta) if mode != "discrete" else None
+    scale = jnp.ones((w,), dtype)
+    if mode != "discrete":
+        # the balls of states 1 / slots apart overlap only if they are large enough: an edge
+        # starting close to an obstacle is shortened to the length its states can certify
+        # (its first state's ball, of radius r0, is checked first)
+        r0 = ball_radius(evaluate(a[:, None, :]), speeds, tol)[:, 0]
+        scale = jnp.clip(1.8 * slots * r0, 1.0 / slots, 1.0)
+        delta = delta * scale[:, None]
+        speeds = tuple(x * scale[:, None] for x in speeds)
 
     def settled(known, value):
         if mode == "discrete":
@@ -148,4 +160,4 @@ def edge_check(
     if mode == "discrete":
         free = known & (value > 0)
         return jnp.all(free | (jnp.arange(total) == 0), -1).astype(dtype)
-    return covered_prefix(t_all, jnp.where(known, value, 0.0))
+    return scale * covered_prefix(t_all, jnp.where(known, value, 0.0))
