@@ -349,7 +349,8 @@ def test_a_planar_arm_plans_around_obstacles(mode):
     n_valid = int(traj.count[0])
     q = np.asarray(traj.q.p[0, :n_valid])
     assert np.allclose(q[0], start, atol=1e-9)
-    assert float(space.distance(jnp.asarray(q[-1]), jnp.asarray(goal))) < 1e-6
+    # the last sample is within one period of the end, where the arm comes to rest
+    assert float(space.distance(jnp.asarray(q[-1]), jnp.asarray(goal))) < 1e-3
     # the timed trajectory is free too (densely along its samples)
     assert float(np.min(np.asarray(collision.check(robot, q, world).clearance))) > 0
     # the same shapes again: nothing compiles
