@@ -3,7 +3,7 @@
 Written apart from jaxkin's collision layer: Pinocchio reads the spherised URDF's kinematics
 and its ``<collision>`` spheres (``buildModelFromUrdf``, ``buildGeomFromUrdf``) and places
 them (``updateGeometryPlacements``); the signed distances are written here in NumPy, with the
-scene's cylinders exact (``jaxkin`` represents them by enclosing capsules):
+scene's cylinders exact (``jaxkin`` holds them in enclosing boxes):
 
 - sphere (centre ``p``, radius ``r``) to box: ``u = R^T (p - c)``, ``e = |u| - h``,
   ``|max(e, 0)| + min(max_i e_i, 0) - r``;

@@ -240,13 +240,20 @@ def test_a_moveit_scene_reads_as_solids_and_a_world():
         solids.cylinder_radius, [0.05]
     )
     world = motion.world_from_solids(solids)
-    assert len(world.boxes) == 1 and len(world.spheres) == 1 and len(world.capsules) == 1
-    # the capsule holds the cylinder: points of the cylinder's rim are inside it
-    rim = np.array([0.1, 0.1, 1.05])  # an end cap's rim point (y = +h, z = +r)
-    d = collision.distance.sphere_capsule(
-        rim, 0.0, world.capsules.a[0], world.capsules.b[0], world.capsules.radius[0]
+    assert len(world.boxes) == 2 and len(world.spheres) == 1 and len(world.capsules) == 0
+    # the cylinder's box holds it: points on its rims and its axis' ends are inside, and it
+    # reaches no further along the axis than the cylinder
+    box = world.boxes
+    axis, centre = solids.cylinder_axis[0], solids.cylinder_center[0]
+    radial = np.cross(axis, [0.0, 0.0, 1.0])
+    radial /= np.linalg.norm(radial)
+    inside = [centre + s * 0.1 * axis + 0.05 * radial for s in (-1, 1)]
+    inside += [centre + s * 0.1 * axis for s in (-1, 1)]
+    beyond = centre + 0.1001 * axis
+    d = collision.distance.sphere_box(
+        np.array(inside + [beyond]), 0.0, box.center[1], box.rotation[1], box.half_extents[1]
     )
-    assert float(d) <= 1e-12
+    assert np.all(np.asarray(d)[:4] <= 1e-12) and float(d[4]) > 0
 
 
 def test_a_scene_with_a_bad_primitive_names_it():
@@ -379,3 +386,41 @@ def test_invalid_problems_get_their_status():
     )
     names = motion.status_names(result.status).tolist()
     assert names == ["SOLVED", "INVALID_START", "INVALID_INPUT", "INVALID_GOAL"]
+
+
+@pytest.mark.slow
+def test_a_target_point_becomes_collision_free_ik_goals():
+    """Both elbow solutions of the planar arm are candidate goals; the plan reaches one whose
+    tip is on the target."""
+    import jaxkin
+
+    robot, world = _planar_scene()
+    target = np.array([-0.9, 0.9])
+    result = motion.plan(
+        robot,
+        np.array([0.0, 0.3]),
+        world,
+        target=target,
+        lanes=2,
+        capacity=256,
+        path_points=32,
+        spline_states=256,
+        grid=64,
+        period=None,
+    )
+    assert result.status[0] == motion.MotionStatus.SOLVED
+    tip = np.asarray(jaxkin.fk(robot, result.goal[0]).x.p)
+    assert np.allclose(tip[:2], target, atol=1e-9)
+    unreachable = motion.plan(
+        robot,
+        np.array([0.0, 0.3]),
+        world,
+        target=np.array([3.0, 0.0]),
+        lanes=2,
+        capacity=256,
+        path_points=32,
+        spline_states=256,
+        grid=64,
+        period=None,
+    )
+    assert unreachable.status[0] == motion.MotionStatus.UNREACHABLE_GOAL
