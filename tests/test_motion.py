@@ -424,3 +424,44 @@ def test_a_target_point_becomes_collision_free_ik_goals():
         period=None,
     )
     assert unreachable.status[0] == motion.MotionStatus.UNREACHABLE_GOAL
+
+
+@pytest.mark.slow
+def test_the_motion_command_writes_a_timed_trajectory(tmp_path):
+    pytest.importorskip("yaml")
+    from jaxkin import cli
+
+    scene_file = tmp_path / "scene.yaml"
+    scene_file.write_text(
+        "world:\n  collision_objects:\n    - id: ball\n"
+        "      primitives: [{type: sphere, dimensions: [0.25]}]\n"
+        "      primitive_poses: [{position: [1.2, 0.6, 0.0], orientation: [0, 0, 0, 1]}]\n"
+    )
+    out = tmp_path / "motion.csv"
+    argv = [
+        "motion",
+        "planar-2r",
+        "--l1",
+        "1",
+        "--l2",
+        "0.8",
+        "--link-radius",
+        "0.05",
+        "--from",
+        "0,0.3",
+        "--to",
+        "2.5,0.4",
+        "--world",
+        str(scene_file),
+        "-o",
+        str(out),
+    ]
+    assert cli.main(argv) == 0
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[:3] == ["t", "q1", "q2"] and table.shape[1] == 7
+    assert np.allclose(table[0, 1:3], [0.0, 0.3]) and np.all(np.diff(table[:, 0]) > 0)
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.05)
+    world = motion.world_from_solids(motion.read_scene(scene_file))
+    assert not np.any(np.asarray(collision.check(robot, table[:, 1:3], world).collides))
+    assert cli.main([*argv[:-6], "--to", "2.5", "--world", str(scene_file), "-o", str(out)]) == 2
