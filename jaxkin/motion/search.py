@@ -121,8 +121,10 @@ def _reset(lanes: _Lanes, need: Array, problem: Array, starts, goals, goal_count
     z = jnp.zeros((), jnp.int32)
     nodes = jax.lax.dynamic_update_slice(lanes.nodes, roots[0][:, None, None], (z, z, z, z))
     nodes = jax.lax.dynamic_update_slice(nodes, roots[1][:, None], (z, z + 1, z, z))
+    # the roots' parents (-1), for the lanes that start over only
+    old_roots = lanes.parent[:, :, :g]
     parent = jax.lax.dynamic_update_slice(
-        lanes.parent, jnp.full((need.shape[0], 2, g), -1, jnp.int32), (z, z, z)
+        lanes.parent, jnp.where(need[:, None, None], -1, old_roots).astype(jnp.int32), (z, z, z)
     )
     count = jnp.stack([jnp.ones_like(problem), goal_count[problem]], -1).astype(jnp.int32)
     pick = (replica % jnp.maximum(goal_count[problem], 1)).astype(jnp.int32)
