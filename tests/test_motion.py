@@ -24,6 +24,8 @@ from jaxkin.motion import collider, edges
 from jaxkin.motion.space import joint_space
 
 ROOT = Path(__file__).resolve().parents[1]
+# the planner's sizes in the tests: small programs
+SMALL = dict(lanes=2, capacity=256, path_points=32, spline_states=256, grid=64)
 
 
 # ----------------------------------------------------------------------------- joint space
@@ -340,7 +342,7 @@ def _dense_free(robot, world, knots, steps=64):
 def test_a_planar_arm_plans_around_obstacles(mode):
     robot, world = _planar_scene()
     start, goal = np.array([0.0, 0.3]), np.array([2.5, 0.4])
-    small = dict(lanes=2, capacity=256, path_points=32, spline_states=256, grid=64, mode=mode)
+    small = dict(SMALL, mode=mode)
     result = motion.plan(robot, start, world, goal=goal, **small)
     assert result.status[0] == motion.MotionStatus.SOLVED
     k = int(result.path_count[0])
@@ -372,18 +374,7 @@ def test_invalid_problems_get_their_status():
     inside = np.array([0.6, 0.0])  # the forearm in the first ball
     starts = np.array([[0.0, 0.3], inside, [np.nan, 0.0], [0.0, 0.3]])
     goals = np.array([[2.5, 0.4], [2.5, 0.4], [2.5, 0.4], inside])
-    result = motion.plan(
-        robot,
-        starts,
-        world,
-        goal=goals,
-        lanes=2,
-        capacity=256,
-        path_points=32,
-        spline_states=256,
-        grid=64,
-        period=None,
-    )
+    result = motion.plan(robot, starts, world, goal=goals, **SMALL, period=None)
     names = motion.status_names(result.status).tolist()
     assert names == ["SOLVED", "INVALID_START", "INVALID_INPUT", "INVALID_GOAL"]
 
@@ -396,33 +387,13 @@ def test_a_target_point_becomes_collision_free_ik_goals():
 
     robot, world = _planar_scene()
     target = np.array([-0.9, 0.9])
-    result = motion.plan(
-        robot,
-        np.array([0.0, 0.3]),
-        world,
-        target=target,
-        lanes=2,
-        capacity=256,
-        path_points=32,
-        spline_states=256,
-        grid=64,
-        period=None,
-    )
+    start = np.array([0.0, 0.3])
+    result = motion.plan(robot, start, world, target=target, **SMALL, period=None)
     assert result.status[0] == motion.MotionStatus.SOLVED
     tip = np.asarray(jaxkin.fk(robot, result.goal[0]).x.p)
     assert np.allclose(tip[:2], target, atol=1e-9)
-    unreachable = motion.plan(
-        robot,
-        np.array([0.0, 0.3]),
-        world,
-        target=np.array([3.0, 0.0]),
-        lanes=2,
-        capacity=256,
-        path_points=32,
-        spline_states=256,
-        grid=64,
-        period=None,
-    )
+    far = np.array([3.0, 0.0])
+    unreachable = motion.plan(robot, start, world, target=far, **SMALL, period=None)
     assert unreachable.status[0] == motion.MotionStatus.UNREACHABLE_GOAL
 
 
