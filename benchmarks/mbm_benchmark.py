@@ -204,11 +204,14 @@ def _report(args, rows, batch, ompl_rows, compile_s) -> None:
         f"Machine load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (2 cores, shared); "
         f"first call (compilation) {compile_s:.1f} s. Times in ms, median / mean / p95. VAMP "
         f"(Ryzen 9 7950X, one thread): {VAMP[args.robot]}.",
-        "",
-        "| scene | solved / valid | planning (ms) | simplification (ms) | lane iterations "
-        "(median) | path length raw / simplified (median) | smooth | re-check failures |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
+    if rows:
+        lines += [
+            "",
+            "| scene | solved / valid | planning (ms) | simplification (ms) | lane iterations "
+            "(median) | path length raw / simplified (median) | smooth | re-check failures |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- |",
+        ]
     for s in [*mbm_problems.SCENES, "all"] if rows else []:
         sel = [r for r in rows if s in ("all", r["scene"])]
         valid = [r for r in sel if r["status"] not in ("INVALID_START", "INVALID_GOAL")]
