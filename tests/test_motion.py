@@ -319,6 +319,8 @@ def test_options_name_what_is_wrong():
     robot, world = _planar_scene()
     with pytest.raises(ValueError, match="mode"):
         motion.MotionOptions(mode="fast")
+    with pytest.raises(ValueError, match="grid"):
+        motion.MotionOptions(grid=16, path_points=32)
     with pytest.raises(ValueError, match="exactly one"):
         motion.plan(robot, [0.0, 0.0], world)
     with pytest.raises(ValueError, match="start"):

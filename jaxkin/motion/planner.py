@@ -116,6 +116,11 @@ class MotionOptions:
                 raise ValueError(
                     f"{name} must be a positive integer (>= 2 for sizes), got {value!r}"
                 )
+        if self.grid < self.path_points:
+            # every knot is a grid point of the timing
+            raise ValueError(
+                f"grid ({self.grid}) must be at least path_points ({self.path_points})"
+            )
         if self.capacity % min(64, self.capacity):
             raise ValueError(f"capacity must be below 64 or a multiple of 64, got {self.capacity}")
         if self.period is not None and not (
