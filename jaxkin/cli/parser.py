@@ -108,6 +108,7 @@ _FILE_HELP = (
 def build_parser() -> argparse.ArgumentParser:
     """The ``jaxkin`` argument parser."""
     from . import commands, demo, distributed
+    from . import motion as motion_command
 
     parser = _Parser(
         prog="jaxkin",
@@ -236,6 +237,8 @@ def build_parser() -> argparse.ArgumentParser:
             "robot's own)",
         )
     pl.set_defaults(func=commands.cmd_plan)
+
+    motion_command.add_parser(sub, _add_robot_options, _numbers)
 
     ws = sub.add_parser(
         "workspace",
