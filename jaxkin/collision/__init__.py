@@ -33,6 +33,7 @@ from .check import SELF as SELF
 from .check import CheckResult as CheckResult
 from .check import check as check
 from .check import check_kernel as check_kernel
+from .check import clearances_kernel as clearances_kernel
 from .check import prepare as prepare
 from .cover import MeshCover as MeshCover
 from .cover import SphereCover as SphereCover
@@ -108,6 +109,7 @@ __all__ = [
     "box_capsules",
     "check",
     "check_kernel",
+    "clearances_kernel",
     "clearance",
     "collides",
     "collides_kernel",

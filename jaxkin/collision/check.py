@@ -59,6 +59,7 @@ __all__ = [
     "chain_self_pairs",
     "check",
     "check_kernel",
+    "clearances_kernel",
     "prepare",
 ]
 
@@ -267,6 +268,31 @@ def check_kernel(
             jnp.where(own, -1, jnp.asarray(link_pairs[:, 1])[safe]),
         )
         return _verdict(valid, placed, world_contact, self_contact, margin)
+
+    flat = q.reshape((-1, q.shape[-1]))
+    out = map_chunks(one, flat, flat.shape[:-1], CHECK_CHUNK)
+    return jax.tree.map(lambda x: x.reshape((*batch, *x.shape[1:])), out)
+
+
+def clearances_kernel(
+    robot: Any, body: Body, pairs: SelfPairs, q: Array, world: World
+) -> tuple[Array, Array, Array]:
+    """Per configuration ``q (..., n)``: each robot primitive's signed distance to the world
+    ``(..., S + C)`` (spheres, then capsules; the dtype's largest finite value with no
+    obstacle), each checked link pair's smallest self distance ``(..., len(link_pairs))``,
+    and whether ``q`` is finite and the robot assembles there ``(...)`` (where it is not, the
+    distances are a placeholder's): the pure kernel conservative advancement reads
+    (``fused.primitive_clearances``, chunk by chunk)."""
+    dtype = q.dtype
+    batch = q.shape[:-1]
+    body, world = body.astype(dtype), world.astype(dtype)
+    self_pairs = pairs if pairs.link_pairs else None
+
+    def one(q: Array) -> tuple[Array, Array, Array]:
+        valid = all_finite(q)
+        q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
+        prims, own = fused.primitive_clearances(place(robot, body, q_safe), world, self_pairs)
+        return prims.T, own.T, valid & robot.placeable(q_safe)
 
     flat = q.reshape((-1, q.shape[-1]))
     out = map_chunks(one, flat, flat.shape[:-1], CHECK_CHUNK)
