@@ -15,6 +15,7 @@
   itself (clearance, collision flag, which pair), batched.
 - ``motions``: ``validate_motions(robot, q_from, q_to, world, resolution)``, M joint-space
   edges in one compiled call.
+- ``protocol``: ``CollisionRobot``, what the checks ask of a robot (a ``typing.Protocol``).
 - ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
   (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
 """
@@ -49,6 +50,7 @@ from .primitives import Capsules as Capsules
 from .primitives import HalfSpaces as HalfSpaces
 from .primitives import Spheres as Spheres
 from .primitives import point_cloud_spheres as point_cloud_spheres
+from .protocol import CollisionRobot as CollisionRobot
 from .urdf import UrdfBody as UrdfBody
 from .urdf import body_from_urdf as body_from_urdf
 from .verdict import Verdict as Verdict
@@ -71,6 +73,7 @@ __all__ = [
     "SPHERE",
     "Body",
     "Boxes",
+    "CollisionRobot",
     "Capsules",
     "CheckResult",
     "Clearance",

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -33,6 +32,8 @@ from .._validate import positive_number
 from .body import Body
 from .check import _as_q, _check_margin, _check_robot, _check_world, check_kernel, prepare
 from .pairs import SelfPairs
+from .protocol import CollisionRobot
+from .verdict import collides_kernel
 from .world import World
 
 __all__ = ["MotionResult", "motion_samples", "validate_motions", "validate_motions_kernel"]
@@ -76,7 +77,7 @@ def motion_samples(q_from: ArrayLike, q_to: ArrayLike, resolution: float) -> int
 
 
 def validate_motions_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q_from: Array,
@@ -103,8 +104,6 @@ def validate_motions_kernel(
         result = check_kernel(robot, body, pairs, states, world, margin)
         hit, smallest = result.collides, jnp.min(result.clearance, axis=-1)
     else:
-        from .verdict import collides_kernel
-
         hit = collides_kernel(robot, body, pairs, states, world, margin).collides
         smallest = jnp.full(hit.shape[:-1], jnp.nan, dtype)
     free = ~jnp.any(hit, axis=-1)
@@ -129,7 +128,7 @@ _validate_jit = Kernel(validate_motions_kernel, static=("samples", "clearance"))
 
 
 def validate_motions(
-    robot: Any,
+    robot: CollisionRobot,
     q_from: ArrayLike,
     q_to: ArrayLike,
     world: World,
@@ -142,7 +141,7 @@ def validate_motions(
     """Validate M joint-space edges at once (module docstring).
 
     Args:
-        robot: a robot with ``collision_body`` and ``link_poses``.
+        robot: any robot of the collision protocol (``CollisionRobot``: every jaxkin robot).
         q_from, q_to: the edges' ends, ``(M, n_joints)`` (or any common leading axes).
         world: the obstacles.
         resolution: states per unit of joint distance (a number > 0; NumPy scalars too).

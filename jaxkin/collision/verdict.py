@@ -59,6 +59,7 @@ from . import distance as sd
 from .body import Body
 from .check import check_kernel, checked_arguments, world_batched
 from .pairs import SelfPairs
+from .protocol import CollisionRobot
 from .rows import CAPSULE_CHUNK, Placed, loop_pairs, loop_world, place, tree_min
 from .world import World
 
@@ -265,7 +266,7 @@ def _self_verdict(
 
 
 def collides_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q: Array,
@@ -309,7 +310,7 @@ _collides_jit = Kernel(
 
 
 def collides(
-    robot: Any,
+    robot: CollisionRobot,
     q: ArrayLike,
     world: World,
     margin: float = 0.0,
