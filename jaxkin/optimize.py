@@ -62,7 +62,6 @@ from jax.typing import ArrayLike
 
 from . import _processes, _validate, paths, plan
 from ._execute import as_robot, fk, ik, kernel, map_candidates
-from ._progress import bar, is_active
 from .costs import DEFAULT_COST, CostTerm, TrajectorySample, bind
 from .jet import Jet
 from .robot import Robot
@@ -70,7 +69,7 @@ from .status import STATUS_DTYPE, Status
 
 __all__ = ["DIVERGED_SIZES", "LBFGS", "Adam", "LoopState", "OptimizationResult", "Stop", "optimize"]
 
-PROGRESS_BLOCK = 50  # optimiser steps per compiled call when a progress bar is shown
+PROGRESS_BLOCK = 50  # optimiser steps per compiled call when progress is reported
 DIVERGED_SIZES = 10.0  # control points this many robot sizes (or radians) out have diverged
 BLOWN_UP = 1000.0  # a final cost this many times the initial one has diverged
 
@@ -702,7 +701,7 @@ def optimize(
     space: str = "task",
     gtol: float | None = None,
     ftol: float | None = None,
-    progress: bool | None = None,
+    progress: _validate.Progress | None = None,
     controls: str | None = None,
 ) -> OptimizationResult:
     """Optimise B trajectories from ``start`` to ``goal`` at once, each guess on its own.
@@ -736,7 +735,8 @@ def optimize(
             change ``<= ftol`` in one step; None for ``max(1e-7, 1000 eps)`` and
             ``max(1e-10, 8 eps)`` (float64: 1e-7 and 1e-10, which reach the optimum of the
             benchmark problems to 1e-8 relative; float32: 1.2e-4 and 9.5e-7).
-        progress: show a progress bar (default: only when stderr is a terminal).
+        progress: None, or a callback ``progress(done, total)`` told the steps of the
+            furthest guess (of ``steps``) every ``PROGRESS_BLOCK`` steps.
         controls: where the control points live, ``"task"`` or ``"joint"`` (module
             docstring); None: ``"task"`` for robots whose targets are points, else ``"joint"``.
 
@@ -745,8 +745,8 @@ def optimize(
 
     Raises:
         ValueError: task-space controls for a robot whose targets are not points, shapes that
-            do not match, non-finite or unsolvable ends, no guesses or non-finite ones, or bad
-            numeric options (each named).
+            do not match, non-finite or unsolvable ends, no guesses or non-finite ones, bad
+            numeric options or a progress that is not callable (each named).
     """
     robot = as_robot(robot)
     branch = robot.check_branch(branch)
@@ -765,6 +765,7 @@ def optimize(
             raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
     n_samples, steps = int(n_samples), int(steps)
     duration = _validate.positive_number(duration, "duration")
+    report = _validate.progress(progress)
     dims = robot.n_joints if joint else robot.target.shape[0]
     interior = jnp.asarray(interior, float)
     if interior.ndim == 2:
@@ -838,19 +839,17 @@ def optimize(
         # loop iterations: one step each for optax methods, one evaluation each for LBFGS
         tries = 2 * method.linesearch_steps + 1 if isinstance(method, LBFGS) else 1
         limit = steps * tries + 1
-        block = PROGRESS_BLOCK if is_active(progress) else limit
-        with bar(steps, "optimize", enabled=progress) as meter:
-            shown = reached = 0
-            while reached < limit:
-                target = min(reached + block, limit)
-                loop = _run(loop, data, jnp.int32(target), static)
-                reached = int(loop.step)
-                if block < limit:  # a bar is shown: the furthest guess's steps
-                    now = int(jnp.max(loop.iterations))
-                    meter.update(now - shown)
-                    shown = now
-                if reached < target:  # every guess has stopped
-                    break
+        block = PROGRESS_BLOCK if progress is not None else limit
+        report(0, steps)
+        reached = 0
+        while reached < limit:
+            target = min(reached + block, limit)
+            loop = _run(loop, data, jnp.int32(target), static)
+            reached = int(loop.step)
+            if block < limit:  # progress is reported: the furthest guess's steps
+                report(int(jnp.max(loop.iterations)), steps)
+            if reached < target:  # every guess has stopped
+                break
         out = _outcome(loop, f0, data, static)
         return (*out, loop.iterations)
 

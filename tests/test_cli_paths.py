@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from jaxkin import cli
-from jaxkin import files as kio
+from jaxkin.cli import files as kio
 from tests.references import scara as scara_ref
 from tests.test_cli import spiral
 

@@ -12,11 +12,12 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching, _processes, files, paths
+from .. import _batching, _processes, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
 from ..status import Status, status_names
-from . import distributed, planning
+from . import distributed, files, planning
+from .progress import reporting
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
 __all__ = ["cmd_fk", "cmd_ik", "cmd_plan", "cmd_workspace", "robot_from_args", "set_dtype"]
@@ -357,16 +358,16 @@ def cmd_workspace(args: argparse.Namespace) -> int:
             f"{' x '.join(map(str, counts))} voxels is too many (at most {MAX_VOXELS:.0e}): "
             "use a coarser --resolution or smaller --bounds"
         )
-    progress = False if args.quiet else None
-    result = workspace.sweep(
-        robot,
-        bounds,
-        resolution,
-        branch=branch,
-        chunk_size=args.chunk_size or _batching.SWEEP_CHUNK,
-        dtype=dtype,
-        progress=progress,
-    )
+    with reporting("workspace", enabled=False if args.quiet else None) as progress:
+        result = workspace.sweep(
+            robot,
+            bounds,
+            resolution,
+            branch=branch,
+            chunk_size=args.chunk_size or _batching.SWEEP_CHUNK,
+            dtype=dtype,
+            progress=progress,
+        )
     if not _processes.fetchable(result.mask):  # every process takes part in the gather
         result = dataclasses.replace(result, mask=_processes.to_host(result.mask))
     if not distributed.is_writer():
