@@ -100,15 +100,13 @@ Progress = Callable[[int, int], object]
 finished (a long call reports ``(0, total)`` first, then after every part of its work)."""
 
 
-def _no_progress(done: int, total: int) -> None:
-    pass
+def no_progress(done: int, total: int) -> None:
+    """The progress callback of a call given none: it does nothing."""
 
 
-def progress(value: Any, name: str = "progress") -> Progress:
-    """A progress callback (``Progress``); one that does nothing for None."""
-    if value is None:
-        return _no_progress
-    if not callable(value):
+def progress(value: Any, name: str = "progress") -> Progress | None:
+    """A progress callback (``Progress``) or None, checked."""
+    if value is not None and not callable(value):
         raise ValueError(
             f"{name} must be None or a callable progress(done, total) (the command line "
             f"passes its progress bar), got {value!r}"

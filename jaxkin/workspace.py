@@ -148,7 +148,7 @@ def sweep(
     branch = robot.check_branch(branch)
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
         raise ValueError(f"chunk_size must be a positive int, got {chunk_size!r}")
-    report = _validate.progress(progress)
+    report = _validate.progress(progress) or _validate.no_progress
     bounds, resolution = _check_box(robot, bounds, resolution)
     axes = grid_axes(bounds, resolution)
     shape = tuple(len(a) for a in axes)
@@ -169,6 +169,7 @@ def sweep(
             z = coords[-1][: stop - start][inside[: stop - start]]
             slice_counts += np.bincount(z, minlength=shape[-1])
         report(stop, last - first)
+    mask: np.ndarray | Array
     if _processes.process_count() == 1:
         mask = flat.reshape(shape)
         n_reachable = int(mask.sum())
