@@ -126,7 +126,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
     """
     path = given(path)
     target = output_target(path)
-    kwargs = {"newline": "", "encoding": "utf-8"} if "b" not in mode else {}
+    kwargs: dict[str, Any] = {"newline": "", "encoding": "utf-8"} if "b" not in mode else {}
     if target.exists() and _streams_in_place(os.stat(target).st_mode):
         with open(target, mode, **kwargs) as f:
             yield f

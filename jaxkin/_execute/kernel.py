@@ -116,7 +116,7 @@ class Kernel:
         self.jitted = jax.jit(fn, static_argnames=statics, compiler_options=options)
         # inside a caller's jit the enclosing program's compilation settings apply
         self._nested = jax.jit(fn, static_argnames=statics) if options else self.jitted
-        self._part = None
+        self._part: Any = None
         if policy.threads:
             self._part = jax.jit(
                 self._part_impl,
@@ -161,7 +161,7 @@ class Kernel:
                 )
         out = self.whole(bound.args, bound.kwargs, (padded,))
         leaves, tree = jax.tree_util.tree_flatten_with_path(out)
-        axes = tuple(self.axes.get(_field(path), 0) for path, _ in leaves)
+        axes = tuple(self.axes.get(_field(path) or "", 0) for path, _ in leaves)
         return jax.tree.unflatten(tree, _cut([leaf for _, leaf in leaves], axes, batch, size))
 
     def direct(self, *args: Any, **kwargs: Any) -> Any:

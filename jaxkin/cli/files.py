@@ -548,7 +548,8 @@ def table_writer(
         output_target(path)  # fail before the work, as the CSV writer does
         yield keep
         with atomic_write(path, "wb") as f:
-            np.savez(f, **{k: np.concatenate(v) for k, v in parts.items()})
+            columns: dict[str, Any] = {k: np.concatenate(v) for k, v in parts.items()}
+            np.savez(f, **columns)
         return
     with atomic_write(path, "w") as f:
         yield csv_part(f)
@@ -592,16 +593,19 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
 def check_times(traj: Trajectory, valid: np.ndarray, why: str, hint: str = "") -> None:
     """Raise ``InputError`` at the first valid row of a candidate whose ``t`` does not
     increase strictly over the previous valid row of that candidate (``why``: what needs it)."""
-    group = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
+    t = traj.t
+    if t is None:  # rows at rest, no times
+        return
+    group = traj.candidate if traj.candidate is not None else np.zeros(len(t), np.int64)
     for label in np.unique(group[valid]):
         rows = np.flatnonzero(valid & (group == label))
-        bad = np.flatnonzero(np.diff(traj.t[rows]) <= 0)
+        bad = np.flatnonzero(np.diff(t[rows]) <= 0)
         if bad.size:
             row = rows[bad[0] + 1]
             name = f"candidate {label}: " if traj.candidate is not None else ""
             raise InputError(
                 f"{traj.table.where(row)}: {name}t must increase strictly {why} "
-                f"(t = {traj.t[row]:g} after {traj.t[rows[bad[0]]]:g}){hint}"
+                f"(t = {t[row]:g} after {t[rows[bad[0]]]:g}){hint}"
             )
 
 
@@ -711,21 +715,21 @@ class NotContiguous(Exception):
     """A candidate's rows are not one block of the file: it cannot be streamed."""
 
 
-def _joined(parts: Sequence[Trajectory]) -> Trajectory:
-    """Consecutive parts of one file as one ``Trajectory``."""
-    parts = [part for part in parts if part is not None]
-    if len(parts) == 1:
-        return parts[0]
-    first = parts[0]
+def _joined(parts: Sequence[Trajectory | None]) -> Trajectory:
+    """Consecutive parts of one file as one ``Trajectory`` (None parts left out)."""
+    given = [part for part in parts if part is not None]
+    if len(given) == 1:
+        return given[0]
+    first = given[0]
 
     def cat(name: str) -> np.ndarray | None:
-        values = [getattr(part, name) for part in parts]
+        values = [getattr(part, name) for part in given]
         return None if values[0] is None else np.concatenate(values)
 
-    lines = None if first.table.lines is None else np.concatenate([x.table.lines for x in parts])
+    lines = None if first.table.lines is None else np.concatenate([x.table.lines for x in given])
     table = dataclasses.replace(first.table, lines=lines)
-    fields = {name: cat(name) for name in ("t", "candidate", "p", "v", "a")}
-    return Trajectory(table, first.names, **fields)
+    p = np.concatenate([part.p for part in given])
+    return Trajectory(table, first.names, cat("t"), cat("candidate"), p, cat("v"), cat("a"))
 
 
 def _rows_of(traj: Trajectory, rows: slice) -> Trajectory:

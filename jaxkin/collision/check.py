@@ -187,8 +187,8 @@ def chain_self_pairs(
             "contact at q = 0, so they need its geometry as values, not traced (pass "
             "self_collision=False to differentiate in its link_radius or lengths)"
         )
-    distance = np.asarray(distance)
-    return tuple(p for p, d in zip(candidates, distance, strict=True) if d > 0)
+    distances = np.asarray(distance)
+    return tuple(p for p, d in zip(candidates, distances, strict=True) if d > 0)
 
 
 def prepare(robot: CollisionRobot, self_collision: bool = True) -> tuple[Body, SelfPairs]:
@@ -445,7 +445,7 @@ def check(
 
 def checked_arguments(
     robot: Any, q: ArrayLike, world: Any, margin: Any, self_collision: bool
-) -> tuple:
+) -> tuple[CollisionRobot, Body, SelfPairs, Array, World, Any]:
     """The boundary of the public checks: the robot checked, ``q`` as an array of its joint
     count, the world and a concrete margin checked, the robot's body and self pairs
     (``prepare``); ``ValueError`` naming the argument otherwise. Returns ``(robot, body,

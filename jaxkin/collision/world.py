@@ -15,6 +15,7 @@ and ``kind = index = -1``.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -48,7 +49,12 @@ class World:
         dtype=None,
     ) -> World:
         given = {"spheres": spheres, "capsules": capsules, "boxes": boxes, "halfspaces": halfspaces}
-        kinds = {"spheres": Spheres, "capsules": Capsules, "boxes": Boxes, "halfspaces": HalfSpaces}
+        kinds: dict[str, Any] = {
+            "spheres": Spheres,
+            "capsules": Capsules,
+            "boxes": Boxes,
+            "halfspaces": HalfSpaces,
+        }
         for name, value in given.items():
             if value is not None and not isinstance(value, kinds[name]):
                 raise ValueError(
@@ -85,7 +91,7 @@ def _obstacle_args(world: World) -> list[tuple[int, tuple[jax.Array, ...]]]:
     """Each non-empty kind of obstacle with its arrays, given a new axis for the robot
     primitives: ``(kind, arrays (..., 1, m_kind, ...))``."""
     w = world
-    kinds = [
+    kinds: list[tuple[int, Any, tuple[jax.Array, ...]]] = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
