@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from jaxkin import Jet, cli, paths, plan, scara
-from jaxkin import files as kio
+from jaxkin.cli import files as kio
 from tests.references import scara as scara_ref
 from tests.test_cli import spiral
 

@@ -89,15 +89,15 @@ class WorldAndSelf:
 def obstacle_kinds(world: World) -> list[tuple[int, int, tuple[jax.Array, ...]]]:
     """``(kind, first code, arrays (m, ...))`` of each non-empty obstacle kind, in kind
     order."""
-    w, out, offset = world, [], 0
-    for kind, prims, arrays in [
+    w, c, out, offset = world, world.cylinders, [], 0
+    kinds: list[tuple[int, Any, tuple[jax.Array, ...]]] = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
         (HALFSPACE, w.halfspaces, (w.halfspaces.normal, w.halfspaces.offset)),
-        (CYLINDER, w.cylinders, (w.cylinders.center, w.cylinders.axis, w.cylinders.radius,
-                                 w.cylinders.half_length)),
-    ]:  # fmt: skip
+        (CYLINDER, c, (c.center, c.axis, c.radius, c.half_length)),
+    ]
+    for kind, prims, arrays in kinds:
         if len(prims):
             out.append((kind, offset, arrays))
             offset += len(prims)
@@ -187,7 +187,8 @@ def world_and_self(
     kinds = obstacle_kinds(world.astype(dtype))
     n_obstacles = sum(len(arrays[0]) for _, _, arrays in kinds)
     ns = placed.spheres.shape[1]
-    rows = []  # (first code, count, obstacles per step, the rows' distances to an obstacle)
+    rows: list[tuple[int, int, int, tuple[jax.Array, ...], Any]] = []
+    # (first code, count, obstacles per step, the rows' distances to an obstacle)
     if ns:
         spheres = (placed.spheres, placed.sphere_radius)
         rows.append((0, ns, OBSTACLE_CHUNK, spheres, _sphere_rows))
@@ -201,7 +202,7 @@ def world_and_self(
         carry = jnp.full((count, size), big, dtype)
         for kind, _, arrays in kinds:
             carry = loop_world(
-                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(
+                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(  # type: ignore[misc]  # defaults
                     kind, prims, obstacle
                 ),
                 arrays,

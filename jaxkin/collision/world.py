@@ -81,7 +81,7 @@ class World:
             "halfspaces": halfspaces,
             "cylinders": cylinders,
         }
-        kinds = {
+        kinds: dict[str, Any] = {
             "spheres": Spheres,
             "capsules": Capsules,
             "boxes": Boxes,
