@@ -19,9 +19,12 @@ def cmd_motion(args: argparse.Namespace) -> int:
     set_dtype(args.dtype)
     robot = robot_from_args(args)
     if args.srdf:
+        with_srdf = getattr(robot, "with_srdf", None)
+        if with_srdf is None:
+            raise CliError(f"--srdf is an option of URDF arms, not of {args.kind}")
         try:
-            robot = robot.with_srdf(args.srdf)
-        except (AttributeError, ValueError) as exc:
+            robot = with_srdf(args.srdf)
+        except ValueError as exc:
             raise CliError(f"--srdf {args.srdf}: {exc}") from None
     if args.link_radius is not None:
         if "link_radius" not in getattr(robot, "__dataclass_fields__", {}):
