@@ -653,7 +653,9 @@ def test_plan_with_a_world_file(tmp_path, capsys):
     cylinder = {"center": [-90.0, 0.0, 0.0], "radius": 3, "half_length": 500, "axis": [0, 0, 1]}
     cyl = {"units": "mm", "boxes": [], "cylinders": [cylinder]}
     (tmp_path / "cyl.json").write_text(json.dumps(cyl))
-    code, _, err = run(capsys, *argv[:-1], tmp_path / "cyl_rank.csv", "--world", tmp_path / "cyl.json")
+    code, _, err = run(
+        capsys, *argv[:-1], tmp_path / "cyl_rank.csv", "--world", tmp_path / "cyl.json"
+    )
     assert code == 0, err
     by_cylinder = read(tmp_path / "cyl_rank.csv", names)
     assert by_cylinder["failure"].tolist() == ["COLLISION", "UNREACHABLE", "", "COLLISION"]

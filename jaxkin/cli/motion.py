@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import motion
 from . import files
-from .commands import robot_from_args, set_dtype
+from .commands import _world, robot_from_args, set_dtype
 from .robots import CliError
 
 __all__ = ["cmd_motion"]
@@ -30,10 +30,7 @@ def cmd_motion(args: argparse.Namespace) -> int:
         if "link_radius" not in getattr(robot, "__dataclass_fields__", {}):
             raise CliError(f"--link-radius is not an option of {args.kind}")
         robot = robot.replace(link_radius=args.link_radius)
-    try:
-        world = motion.world_from_solids(motion.read_scene(args.world))
-    except (OSError, ValueError) as exc:
-        raise CliError(f"--world {args.world}: {exc}") from None
+    world = _world(args.world)
     n = robot.n_joints
     for flag, q in (("--from", args.start), ("--to", args.goal)):
         if len(q) != n:
