@@ -148,7 +148,7 @@ def test_collision_handles_equal_the_public_checks_and_rebind_worlds():
     a, b = q, rng.uniform(-3.0, 3.0, (8, robot.n_joints))
     _equal(edges(a, b), collision.validate_motions(robot, a, b, world, 6.0, samples=16))
     with pytest.raises(ValueError, match="world: another layout"):
-        verdict.rebound(_world(5, spheres=6))
+        verdict.rebound(_world(5, spheres=collision.OBSTACLE_BUCKET + 1))
 
 
 def test_programs_do_not_grow_with_obstacles_primitives_or_pairs():
@@ -194,8 +194,9 @@ def test_a_far_padding_obstacle_loosens_no_other_test():
     robot = _ur5()
     near = _world(7)
     q = np.random.default_rng(8).uniform(-3.0, 3.0, (400, robot.n_joints)).astype(np.float32)
-    clearance = np.asarray(collision.check(robot, q, near.astype(np.float32)).clearance)
-    clear = (clearance > 0.01) & (clearance < 0.1)
+    result = collision.check(robot, q, near.astype(np.float32))
+    clearance = np.asarray(result.world.clearance)  # the wrist's self pair stays 4.65 mm apart
+    clear = (clearance > 0.01) & (clearance < 0.1) & ~np.asarray(result.collides)
     assert np.sum(clear) >= 10
     padded = collision.World.create(
         spheres=collision.Spheres.create(
@@ -208,3 +209,29 @@ def test_a_far_padding_obstacle_loosens_no_other_test():
     )
     flagged = np.asarray(collision.collides(robot, q, padded).collides)
     assert not np.any(flagged[clear])
+
+
+def test_new_batch_sizes_and_worlds_within_their_buckets_compile_nothing():
+    """After one call, batches of other sizes (up to the padded size class) and worlds whose
+    obstacle counts stay within their buckets (``collision.OBSTACLE_BUCKET``) compile
+    nothing in ``collides``, ``check`` and ``validate_motions``; the padded obstacles (the
+    last one repeated) change no verdict, clearance or reported obstacle."""
+    robot = _ur5()
+    rng = np.random.default_rng(9)
+    q = rng.uniform(-3.0, 3.0, (30, robot.n_joints))
+    first, other = _world(10, spheres=5), _world(11, spheres=7)
+    assert collision.OBSTACLE_BUCKET >= 7
+    collision.collides(robot, q[:10], first)
+    collision.check(robot, q[:10], first)
+    collision.validate_motions(robot, q[:10], q[15:25], first, 4.0, samples=16)
+    with compilations() as count:
+        for n, world in ((7, other), (13, first), (3, other)):
+            collision.collides(robot, q[:n], world)
+            result = collision.check(robot, q[:n], world)
+            collision.validate_motions(robot, q[:n], q[15 : 15 + n], world, 4.0, samples=16)
+    assert count.n == 0
+    bucketed = other.bucketed()
+    assert len(bucketed.spheres) == collision.OBSTACLE_BUCKET and len(bucketed.boxes) == 8
+    assert bucketed.bucketed().layout() == bucketed.layout()
+    exact = jax.jit(collision.check_kernel)(robot, *collision.prepare(robot), q[:3], other)
+    _equal(result, exact)

@@ -9,7 +9,7 @@ how a concrete call runs:
 * **padded** (``Policy.pad``): a batch of at most ``_batching.PAD_MAX`` elements, any shape,
   is flattened and padded to ``_batching.padded_size`` by repeating its last element (a real
   input, computed and dropped), so batch sizes share one compilation per size class; the
-  outputs are cut back by one small program per output structure and batch shape;
+  outputs are cut back on the host (so a new batch shape compiles nothing);
 * **host threads** (``Policy.threads``): a large batch is split into one part per host thread
   (``_batching.num_threads``), each part slicing its inputs inside the kernel, and joined:
   XLA on the CPU runs a ``while_loop``'s body on one core, two programs on two threads run at
@@ -34,6 +34,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .. import _batching
 from .._validate import is_concrete
@@ -116,7 +117,7 @@ class Kernel:
         self.jitted = jax.jit(fn, static_argnames=statics, compiler_options=options)
         # inside a caller's jit the enclosing program's compilation settings apply
         self._nested = jax.jit(fn, static_argnames=statics) if options else self.jitted
-        self._part = None
+        self._part: Any = None
         if policy.threads:
             self._part = jax.jit(
                 self._part_impl,
@@ -161,8 +162,9 @@ class Kernel:
                 )
         out = self.whole(bound.args, bound.kwargs, (padded,))
         leaves, tree = jax.tree_util.tree_flatten_with_path(out)
-        axes = tuple(self.axes.get(_field(path), 0) for path, _ in leaves)
-        return jax.tree.unflatten(tree, _cut([leaf for _, leaf in leaves], axes, batch, size))
+        axes = [self.axes.get(_field(path) or "", 0) for path, _ in leaves]
+        cut = [_cut(leaf, axis, batch, size) for (_, leaf), axis in zip(leaves, axes, strict=True)]
+        return jax.tree.unflatten(tree, cut)
 
     def direct(self, *args: Any, **kwargs: Any) -> Any:
         """One call of the jitted function (the nested one for tracers)."""
@@ -238,17 +240,13 @@ def join(parts: list[Any], batch: tuple[int, ...], overlap: int) -> Any:
     return jax.tree.map(join_leaf, *parts)
 
 
-@functools.partial(jax.jit, static_argnames=("axes", "batch", "size"))
-def _cut(leaves: list, axes: tuple[int, ...], batch: tuple[int, ...], size: int) -> list:
-    """Each output leaf's first ``size`` rows on its batch axis, that axis reshaped to
-    ``batch``: one small program per output structure and batch shape, compiled in
-    milliseconds (a transfer through the host would cost about 20 us per leaf and call)."""
-
-    def cut(leaf, axis):
-        rows = jax.lax.slice_in_dim(leaf, 0, size, axis=axis)
-        return rows.reshape((*rows.shape[:axis], *batch, *rows.shape[axis + 1 :]))
-
-    return [cut(leaf, axis) for leaf, axis in zip(leaves, axes, strict=True)]
+def _cut(leaf: Any, axis: int, batch: tuple[int, ...], size: int) -> Any:
+    """An output leaf's first ``size`` rows on its batch axis, that axis reshaped to
+    ``batch``: on the host (a padded batch holds at most ``_batching.PAD_MAX`` elements), so
+    a new batch shape compiles nothing."""
+    host = np.asarray(leaf)
+    rows = np.take(host, np.arange(size), axis=axis)
+    return jax.device_put(rows.reshape((*rows.shape[:axis], *batch, *rows.shape[axis + 1 :])))
 
 
 def _field(path: tuple) -> str | None:

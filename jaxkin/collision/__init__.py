@@ -20,6 +20,7 @@
   itself (clearance, collision flag, which pair), batched.
 - ``motions``: ``validate_motions(robot, q_from, q_to, world, resolution)``, M joint-space
   edges in one compiled call.
+- ``protocol``: ``CollisionRobot``, what the checks ask of a robot (a ``typing.Protocol``).
 - ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
   (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
 """
@@ -33,6 +34,7 @@ from .check import SELF as SELF
 from .check import CheckResult as CheckResult
 from .check import check as check
 from .check import check_kernel as check_kernel
+from .check import clearances_kernel as clearances_kernel
 from .check import prepare as prepare
 from .cover import MeshCover as MeshCover
 from .cover import SphereCover as SphereCover
@@ -60,6 +62,7 @@ from .primitives import Cylinders as Cylinders
 from .primitives import HalfSpaces as HalfSpaces
 from .primitives import Spheres as Spheres
 from .primitives import point_cloud_spheres as point_cloud_spheres
+from .protocol import CollisionRobot as CollisionRobot
 from .scene import read_world as read_world
 from .scene import write_world as write_world
 from .urdf import UrdfBody as UrdfBody
@@ -71,6 +74,7 @@ from .world import BOX as BOX
 from .world import CAPSULE as CAPSULE
 from .world import CYLINDER as CYLINDER
 from .world import HALFSPACE as HALFSPACE
+from .world import OBSTACLE_BUCKET as OBSTACLE_BUCKET
 from .world import SPHERE as SPHERE
 from .world import Nearest as Nearest
 from .world import World as World
@@ -81,11 +85,13 @@ __all__ = [
     "CAPSULE",
     "CYLINDER",
     "HALFSPACE",
+    "OBSTACLE_BUCKET",
     "ROBOT_WORLD",
     "SELF",
     "SPHERE",
     "Body",
     "Boxes",
+    "CollisionRobot",
     "Capsules",
     "CheckResult",
     "Clearance",
@@ -106,6 +112,7 @@ __all__ = [
     "box_capsules",
     "check",
     "check_kernel",
+    "clearances_kernel",
     "clearance",
     "collides",
     "collides_kernel",

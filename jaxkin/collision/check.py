@@ -47,6 +47,7 @@ from ..status import Status
 from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
+from .protocol import CollisionRobot, conforms
 from .rows import COMPILER_OPTIONS, place
 from .world import World, nearest_obstacles
 
@@ -59,6 +60,7 @@ __all__ = [
     "chain_self_pairs",
     "check",
     "check_kernel",
+    "clearances_kernel",
     "prepare",
 ]
 
@@ -187,12 +189,12 @@ def chain_self_pairs(
             "contact at q = 0, so they need its geometry as values, not traced (pass "
             "self_collision=False to differentiate in its link_radius or lengths)"
         )
-    distance = np.asarray(distance)
-    touching = 64.0 * np.finfo(distance.dtype).eps * float(robot.length_scale())
-    return tuple(p for p, d in zip(candidates, distance, strict=True) if d > touching)
+    distances = np.asarray(distance)
+    touching = 64.0 * np.finfo(distances.dtype).eps * float(robot.length_scale())
+    return tuple(p for p, d in zip(candidates, distances, strict=True) if d > touching)
 
 
-def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
+def prepare(robot: CollisionRobot, self_collision: bool = True) -> tuple[Body, SelfPairs]:
     """Host side, once per robot: its body and the primitive pairs of its self-collision
     link pairs (none when ``self_collision`` is False)."""
     cached = robot.__dict__.get("_collision_prepared", {})
@@ -214,17 +216,11 @@ def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
 
 def world_batched(world: World) -> bool:
     """True when the obstacles carry leading batch axes (the rows layout takes one world)."""
-    return (
-        world.spheres.radius.ndim > 1
-        or world.capsules.radius.ndim > 1
-        or world.boxes.half_extents.ndim > 2
-        or world.halfspaces.offset.ndim > 1
-        or world.cylinders.radius.ndim > 1
-    )
+    return world.batched()
 
 
 def check_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q: Array,
@@ -279,8 +275,33 @@ def check_kernel(
     return jax.tree.map(lambda x: x.reshape((*batch, *x.shape[1:])), out)
 
 
+def clearances_kernel(
+    robot: Any, body: Body, pairs: SelfPairs, q: Array, world: World
+) -> tuple[Array, Array, Array]:
+    """Per configuration ``q (..., n)``: each robot primitive's signed distance to the world
+    ``(..., S + C)`` (spheres, then capsules; the dtype's largest finite value with no
+    obstacle), each checked link pair's smallest self distance ``(..., len(link_pairs))``,
+    and whether ``q`` is finite and the robot assembles there ``(...)`` (where it is not, the
+    distances are a placeholder's): the pure kernel conservative advancement reads
+    (``fused.primitive_clearances``, chunk by chunk)."""
+    dtype = q.dtype
+    batch = q.shape[:-1]
+    body, world = body.astype(dtype), world.astype(dtype)
+    self_pairs = pairs if pairs.link_pairs else None
+
+    def one(q: Array) -> tuple[Array, Array, Array]:
+        valid = all_finite(q)
+        q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
+        prims, own = fused.primitive_clearances(place(robot, body, q_safe), world, self_pairs)
+        return prims.T, own.T, valid & robot.placeable(q_safe)
+
+    flat = q.reshape((-1, q.shape[-1]))
+    out = map_chunks(one, flat, flat.shape[:-1], CHECK_CHUNK)
+    return jax.tree.map(lambda x: x.reshape((*batch, *x.shape[1:])), out)
+
+
 def _check_per_primitive(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q: Array,
@@ -365,22 +386,27 @@ def _verdict(
     return CheckResult(clearance, collides, status.astype(jnp.int8), world, own)
 
 
-_check_jit = Kernel(check_kernel, policy=Policy(pad=False, compiler_options=COMPILER_OPTIONS))
+# Small batches padded (one compilation per size class), one configuration as it is
+_check_jit = Kernel(
+    check_kernel,
+    batched={"q": 1},
+    policy=Policy(pad=True, compiler_options=COMPILER_OPTIONS),
+)
 
 
-def _check_robot(robot: Any) -> Any:
-    """``robot`` if it has the collision protocol's ``n_joints``, ``collision_body``,
-    ``link_poses`` and ``placeable`` (``prepare`` checks the body it returns)."""
-    methods = ("collision_body", "link_poses", "placeable")
-    if not (hasattr(robot, "n_joints") and all(callable(getattr(robot, m, None)) for m in methods)):
+def _check_robot(robot: Any) -> CollisionRobot:
+    """``robot`` if it has the members of the collision protocol (``CollisionRobot``;
+    ``prepare`` checks the body it returns)."""
+    if not conforms(robot):
         raise ValueError(
-            f"robot: expected a robot with n_joints, collision_body(), link_poses() and "
-            f"placeable() (a jaxkin robot), got {type(robot).__name__}"
+            "robot: expected a robot with the collision protocol's n_joints, "
+            "collision_body(), link_poses(), link_frame_rows(), placeable() and "
+            f"self_collision_pairs() (every jaxkin robot), got {type(robot).__name__}"
         )
     return robot
 
 
-def _as_q(robot: Any, q: ArrayLike, name: str = "q") -> Array:
+def _as_q(robot: CollisionRobot, q: Any, name: str = "q") -> Array:
     if not isinstance(q, jax.Array):
         q = np.asarray(q)
     # complex q would lose its imaginary part, boolean q is no joint coordinate
@@ -388,7 +414,8 @@ def _as_q(robot: Any, q: ArrayLike, name: str = "q") -> Array:
         raise ValueError(f"{name}: expected real joint coordinates, got dtype {q.dtype}")
     if not jnp.issubdtype(q.dtype, jnp.floating):
         q = q.astype(jnp.result_type(float))
-    q = jnp.asarray(q)
+    if isinstance(q, np.ndarray):  # a transfer, not a program per shape (jnp.asarray's)
+        q = jax.device_put(q.astype(jax.dtypes.canonicalize_dtype(q.dtype), copy=False))
     if q.ndim < 1 or q.shape[-1] != robot.n_joints:
         raise ValueError(
             f"{name}: expected shape (..., {robot.n_joints}) for {type(robot).__name__}, "
@@ -413,7 +440,7 @@ def _check_margin(margin: Any) -> Any:
 
 
 def check(
-    robot: Any,
+    robot: CollisionRobot,
     q: ArrayLike,
     world: World,
     margin: float = 0.0,
@@ -423,7 +450,7 @@ def check(
     itself (module docstring).
 
     Args:
-        robot: any robot of the protocol with ``collision_body`` and ``link_poses``.
+        robot: any robot of the collision protocol (``CollisionRobot``: every jaxkin robot).
         q: joint coordinates, any leading batch axes (may be traced: ``check`` works under
             ``jit`` and ``vmap``).
         world: a ``collision.World`` (array data: moving obstacles does not recompile).
@@ -442,19 +469,27 @@ def check(
     robot, body, pairs, q, world, margin = checked_arguments(
         robot, q, world, margin, self_collision
     )
-    return _check_jit(robot, body, pairs, q, world, margin)
+    batch = q.shape[:-1]
+    pad = single(batch) and not world.batched()
+    return _check_jit(robot, body, pairs, q, world, margin, batch=batch, pad=pad)
+
+
+def single(batch: tuple[int, ...]) -> bool:
+    """Whether a batch of configurations is padded: not one configuration (the single query
+    runs as it is)."""
+    return math.prod(batch) != 1
 
 
 def checked_arguments(
     robot: Any, q: ArrayLike, world: Any, margin: Any, self_collision: bool
-) -> tuple:
+) -> tuple[CollisionRobot, Body, SelfPairs, Array, World, Any]:
     """The boundary of the public checks: the robot checked, ``q`` as an array of its joint
     count, the world and a concrete margin checked, the robot's body and self pairs
     (``prepare``); ``ValueError`` naming the argument otherwise. Returns ``(robot, body,
     pairs, q, world, margin)``."""
     robot = _check_robot(robot)
     q = _as_q(robot, q)
-    world = _check_world(world)
+    world = _check_world(world).bucketed()  # a world within its buckets: no compilation
     margin = _check_margin(margin)
     body, pairs = prepare(robot, self_collision)
     return robot, body, pairs, q, world, margin
@@ -493,18 +528,18 @@ def handle_setup(
     batch and dtype checked (``ValueError`` naming the argument), the body and self pairs
     prepared, the world packed."""
     robot = _check_robot(robot)
-    world = _check_world(world)
+    world = _check_world(world).bucketed()
     margin = _check_margin(margin)
     body, pairs = prepare(robot, self_collision)
     dtype = handle_dtype(dtype)
     layout = world.layout()
 
     def rebind(other: Any) -> tuple[Array]:
-        other = _check_world(other)
+        other = _check_world(other).bucketed()
         if other.layout() != layout:
             raise ValueError(
-                "world: another layout than the handle's (the same kinds and numbers of "
-                "obstacles; pad a kind with far-away obstacles, or make a new handle)"
+                "world: another layout than the handle's (the same kinds of obstacles, their "
+                "numbers in the same multiples of collision.OBSTACLE_BUCKET; or a new handle)"
             )
         return (jax.device_put(other.packed(dtype)),)
 

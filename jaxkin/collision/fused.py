@@ -21,6 +21,7 @@ World obstacles are taken unbatched (arrays ``(m, ...)``): for a world per confi
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -44,6 +45,7 @@ from .world import BOX, CAPSULE, CYLINDER, HALFSPACE, SPHERE, World
 
 __all__ = [
     "Clearance",
+    "primitive_clearances",
     "WorldAndSelf",
     "clearance",
     "min_clearance",
@@ -88,15 +90,15 @@ class WorldAndSelf:
 def obstacle_kinds(world: World) -> list[tuple[int, int, tuple[jax.Array, ...]]]:
     """``(kind, first code, arrays (m, ...))`` of each non-empty obstacle kind, in kind
     order."""
-    w, out, offset = world, [], 0
-    for kind, prims, arrays in [
+    w, c, out, offset = world, world.cylinders, [], 0
+    kinds: list[tuple[int, Any, tuple[jax.Array, ...]]] = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
         (HALFSPACE, w.halfspaces, (w.halfspaces.normal, w.halfspaces.offset)),
-        (CYLINDER, w.cylinders, (w.cylinders.center, w.cylinders.axis, w.cylinders.radius,
-                                 w.cylinders.half_length)),
-    ]:  # fmt: skip
+        (CYLINDER, c, (c.center, c.axis, c.radius, c.half_length)),
+    ]
+    for kind, prims, arrays in kinds:
         if len(prims):
             out.append((kind, offset, arrays))
             offset += len(prims)
@@ -186,7 +188,8 @@ def world_and_self(
     kinds = obstacle_kinds(world.astype(dtype))
     n_obstacles = sum(len(arrays[0]) for _, _, arrays in kinds)
     ns = placed.spheres.shape[1]
-    rows = []  # (first code, count, obstacles per step, the rows' distances to an obstacle)
+    rows: list[tuple[int, int, int, tuple[jax.Array, ...], Any]] = []
+    # (first code, count, obstacles per step, the rows' distances to an obstacle)
     if ns:
         spheres = (placed.spheres, placed.sphere_radius)
         rows.append((0, ns, OBSTACLE_CHUNK, spheres, _sphere_rows))
@@ -200,7 +203,7 @@ def world_and_self(
         carry = jnp.full((count, size), big, dtype)
         for kind, _, arrays in kinds:
             carry = loop_world(
-                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(
+                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(  # type: ignore[misc]  # defaults
                     kind, prims, obstacle
                 ),
                 arrays,
@@ -229,6 +232,51 @@ def world_and_self(
     return WorldAndSelf(world_value, world_code, own_value, own_code)
 
 
+def _world_test(distance: Any, kind: int, prims: tuple, obstacle: tuple, j: Any) -> jax.Array:
+    """``distance(kind, prims, obstacle)``: one obstacle's test in ``loop_world``'s shape."""
+    return distance(kind, prims, obstacle)
+
+
+def primitive_clearances(
+    placed: Placed, world: World, pairs: SelfPairs | None
+) -> tuple[jax.Array, jax.Array]:
+    """Per robot primitive its smallest signed distance to the world, ``(S + C, B)``
+    (spheres, then capsules; the dtype's largest finite value with no obstacle), and per
+    checked link pair (``pairs.link_pairs``) its smallest self distance, ``(len(link_pairs),
+    B)``: what conservative advancement bounds, one speed per link (``jaxkin.motion``)."""
+    size = placed.size
+    dtype = placed.spheres.dtype
+    big = jnp.finfo(dtype).max
+    kinds = obstacle_kinds(world.astype(dtype))
+    parts = []
+    rows = [
+        ((placed.spheres, placed.sphere_radius), _sphere_rows, OBSTACLE_CHUNK),
+        ((placed.capsule_a, placed.capsule_b, placed.capsule_radius), _capsule_rows, CAPSULE_CHUNK),
+    ]
+    for prims, distance, chunk in rows:
+        carry = jnp.full((prims[-1].shape[0], size), big, dtype)
+        for kind, _, arrays in kinds:
+            carry = loop_world(
+                functools.partial(_world_test, distance, kind, prims),
+                arrays,
+                carry,
+                jnp.minimum,
+                chunk=chunk,
+            )
+        parts.append(carry)
+    link_pairs = len(pairs.link_pairs) if pairs is not None else 0
+    own = jnp.full((link_pairs, size), big, dtype)
+    if pairs is not None and link_pairs:
+        tests = _self_tests(placed)
+        lists = ((pairs.ss, pairs.ss_pair), (pairs.sc, pairs.sc_pair), (pairs.cc, pairs.cc_pair))
+        for test, ((first, second), of_pair) in zip(tests, lists, strict=True):
+            own = loop_pairs(
+                test, first, second, own, lambda c, tags, block: c.at[tags].min(block),
+                tags=of_pair,
+            )  # fmt: skip
+    return jnp.concatenate(parts), own
+
+
 def self_order(pairs: SelfPairs) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
     """The self pairs' codes: each pair's rank in the order of its link pair (then ``ss``,
     ``sc``, ``cc``), so that the smallest code among tied pairs names the first link pair;
@@ -253,10 +301,9 @@ def self_order(pairs: SelfPairs) -> tuple[list[np.ndarray], np.ndarray, np.ndarr
     return ranks, by_rank[:, 3], by_rank[:, 4], by_rank[:, 0]
 
 
-def _self(placed: Placed, pairs: SelfPairs | None, carry: Any, update: Any, codes: bool) -> Any:
-    """The smallest self-pair distance (and code: ``self_order``) of a placed chunk."""
-    if pairs is None or not pairs.link_pairs:
-        return carry if codes else (carry, jnp.full(carry.shape, -1, jnp.int32))
+def _self_tests(placed: Placed) -> tuple[Any, Any, Any]:
+    """The signed distances ``(Q, B)`` of sphere-sphere, sphere-capsule and capsule-capsule
+    self pairs ``(i, j)`` (index arrays ``(Q,)``) of a placed chunk."""
     s_c, s_r = placed.spheres, placed.sphere_radius
     c_a, c_b, c_r = placed.capsule_a, placed.capsule_b, placed.capsule_radius
 
@@ -271,8 +318,15 @@ def _self(placed: Placed, pairs: SelfPairs | None, carry: Any, update: Any, code
         a, b = _points(c_a[:, i]), _points(c_b[:, i])
         return sd.capsule_capsule(a, b, c_r[i], _points(c_a[:, j]), _points(c_b[:, j]), c_r[j])
 
+    return ss, sc, cc
+
+
+def _self(placed: Placed, pairs: SelfPairs | None, carry: Any, update: Any, codes: bool) -> Any:
+    """The smallest self-pair distance (and code: ``self_order``) of a placed chunk."""
+    if pairs is None or not pairs.link_pairs:
+        return carry if codes else (carry, jnp.full(carry.shape, -1, jnp.int32))
     ranks = self_order(pairs)[0]
-    tests = zip((ss, sc, cc), (pairs.ss, pairs.sc, pairs.cc), ranks, strict=True)
+    tests = zip(_self_tests(placed), (pairs.ss, pairs.sc, pairs.cc), ranks, strict=True)
     for test, (first, second), rank in tests:
         carry = loop_pairs(
             test, first, second, carry, lambda c, tags, block: update(c, 0, block, tags[:, None]),

@@ -40,8 +40,10 @@ from .check import (
     check_kernel,
     handle_setup,
     prepare,
+    single,
 )
 from .pairs import SelfPairs
+from .protocol import CollisionRobot
 from .rows import COMPILER_OPTIONS
 from .verdict import collides_kernel
 from .world import World
@@ -92,7 +94,7 @@ def _samples(samples: Any) -> int:
 
 
 def validate_motions_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q_from: Array,
@@ -142,12 +144,13 @@ def validate_motions_kernel(
 _validate_jit = Kernel(
     validate_motions_kernel,
     static=("samples", "clearance"),
-    policy=Policy(pad=False, compiler_options=COMPILER_OPTIONS),
+    batched={"q_from": 1, "q_to": 1},
+    policy=Policy(pad=True, compiler_options=COMPILER_OPTIONS),
 )
 
 
 def validate_motions(
-    robot: Any,
+    robot: CollisionRobot,
     q_from: ArrayLike,
     q_to: ArrayLike,
     world: World,
@@ -160,7 +163,7 @@ def validate_motions(
     """Validate M joint-space edges at once (module docstring).
 
     Args:
-        robot: a robot with ``collision_body`` and ``link_poses``.
+        robot: any robot of the collision protocol (``CollisionRobot``: every jaxkin robot).
         q_from, q_to: the edges' ends, ``(M, n_joints)`` (or any common leading axes).
         world: the obstacles.
         resolution: states per unit of joint distance (a number > 0; NumPy scalars too).
@@ -183,7 +186,7 @@ def validate_motions(
     if q_from.shape != q_to.shape:
         raise ValueError(f"q_from and q_to: shapes differ, {q_from.shape} and {q_to.shape}")
     resolution = positive_number(resolution, "resolution")
-    world = _check_world(world)
+    world = _check_world(world).bucketed()  # a world within its buckets: no compilation
     margin = _check_margin(margin)
     dtype = jnp.result_type(q_from, q_to)
     q_from, q_to = q_from.astype(dtype), q_to.astype(dtype)
@@ -200,6 +203,8 @@ def validate_motions(
         samples=samples,
         margin=margin,
         clearance=clearance,
+        batch=q_from.shape[:-1],
+        pad=single(q_from.shape[:-1]) and not world.batched(),
     )
 
 

@@ -34,6 +34,8 @@ import numpy as np
 from jax import Array
 
 from .body import Body
+from .protocol import CollisionRobot
+from .world import OBSTACLE_BUCKET
 
 __all__ = [
     "CAPSULE_CHUNK",
@@ -58,8 +60,9 @@ PAIR_CHUNK = 256
 # loop bodies' fusions (over obstacles and pairs) 2-5x faster than the newer ones
 COMPILER_OPTIONS: tuple = (("xla_cpu_use_fusion_emitters", False),)
 # Obstacles of one kind per step of a world loop, written out in the step (loop_world): for
-# the spheres' tests; a capsule's exact distances (a few hundred operations each) take one
-OBSTACLE_CHUNK = 8
+# the spheres' tests (a world's kinds come padded to multiples of it: World.bucketed); a
+# capsule's exact distances (a few hundred operations each) take one
+OBSTACLE_CHUNK = OBSTACLE_BUCKET
 CAPSULE_CHUNK = 1
 
 
@@ -97,7 +100,7 @@ class Placed:
 Frames = tuple[Array, Array]
 
 
-def frames_of(robot: Any, q: Array) -> tuple[Frames, tuple[int, ...], Array | None]:
+def frames_of(robot: CollisionRobot, q: Array) -> tuple[Frames, tuple[int, ...], Array | None]:
     """``robot.link_frame_rows(q)`` for configurations ``q`` ``(B, n)``: the frames'
     rotations ``(F, 3, 3, B)`` and translations ``(F, 3, B)`` in the dtype of ``q``, the
     frame of each link, each link's pose in it (or None)."""
@@ -130,7 +133,7 @@ def place_points(
     return jnp.stack(rows)
 
 
-def place(robot: Any, body: Body, q: Array) -> Placed:
+def place(robot: CollisionRobot, body: Body, q: Array) -> Placed:
     """``body`` placed at configurations ``q`` ``(B, n)`` (rows layout)."""
     frames, of_link, homes = frames_of(robot, q)
     dtype = q.dtype

@@ -28,6 +28,7 @@ from . import distance as sd
 from .primitives import Boxes, Capsules, Cylinders, HalfSpaces, Spheres
 
 __all__ = [
+    "OBSTACLE_BUCKET",
     "BOX",
     "CAPSULE",
     "CYLINDER",
@@ -39,6 +40,10 @@ __all__ = [
 ]
 
 SPHERE, CAPSULE, BOX, HALFSPACE, CYLINDER = 0, 1, 2, 3, 4
+
+# Obstacles of a kind are padded to a multiple of this (``World.bucketed``): the checks' loops
+# take them in groups of as many (``rows.OBSTACLE_CHUNK``), so the padding costs nothing.
+OBSTACLE_BUCKET = 8
 
 
 def _owned(x: jax.Array, dtype) -> jax.Array:
@@ -76,7 +81,7 @@ class World:
             "halfspaces": halfspaces,
             "cylinders": cylinders,
         }
-        kinds = {
+        kinds: dict[str, Any] = {
             "spheres": Spheres,
             "capsules": Capsules,
             "boxes": Boxes,
@@ -103,6 +108,34 @@ class World:
 
     def astype(self, dtype) -> World:
         return jax.tree.map(lambda x: x.astype(dtype), self)
+
+    def bucketed(self) -> World:
+        """This world with each kind's obstacles padded to a multiple of ``OBSTACLE_BUCKET``
+        by repeating the kind's last obstacle: a repeated obstacle repeats a test, so no
+        verdict, clearance or reported obstacle changes (a tie goes to the first), and a
+        world whose counts stay within their buckets reuses a compiled check. A kind with no
+        obstacle, and a world with leading batch axes, are left as they are."""
+        if self.batched():
+            return self
+
+        def padded(kind: Any) -> Any:
+            count = len(kind)
+            pad = -count % OBSTACLE_BUCKET
+            if not count or not pad:
+                return kind
+            return jax.tree.map(lambda x: _repeat_last(x, pad), kind)
+
+        return World(**{f.name: padded(getattr(self, f.name)) for f in dataclasses.fields(self)})
+
+    def batched(self) -> bool:
+        """True when the obstacles carry leading batch axes (a world per configuration)."""
+        return (
+            self.spheres.radius.ndim > 1
+            or self.capsules.radius.ndim > 1
+            or self.boxes.half_extents.ndim > 2
+            or self.halfspaces.offset.ndim > 1
+            or self.cylinders.radius.ndim > 1
+        )
 
     def layout(self) -> tuple:
         """The world's structure: its tree and every array's shape (``packed``/``unpacked``;
@@ -151,7 +184,7 @@ def _obstacle_args(world: World) -> list[tuple[int, tuple[jax.Array, ...]]]:
     """Each non-empty kind of obstacle with its arrays, given a new axis for the robot
     primitives: ``(kind, arrays (..., 1, m_kind, ...))``."""
     w, c = world, world.cylinders
-    kinds = [
+    kinds: list[tuple[int, Any, tuple[jax.Array, ...]]] = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
@@ -238,3 +271,12 @@ def nearest_obstacles(
     robot_capsules = (capsules.a, capsules.b, capsules.radius)
     c = _reduce(_pairs(_CAPSULE_TO, robot_capsules, (1, 1, 0), world), capsules.radius.shape, dtype)
     return s, c
+
+
+def _repeat_last(x: Any, pad: int) -> Any:
+    """``x`` with its last row repeated ``pad`` times: on the host for a concrete array (no
+    program per shape), else traced."""
+    if isinstance(x, jax.core.Tracer):
+        return jnp.concatenate([x, jnp.repeat(x[-1:], pad, axis=0)])
+    host = np.asarray(x)
+    return jax.device_put(np.concatenate([host, np.repeat(host[-1:], pad, axis=0)]))
