@@ -702,8 +702,8 @@ def segment_cylinder(
     nearest point is inside the segment, the normal there is perpendicular to it and the
     distance is the line's, ``-min h_M`` over that family: the stadium's straight side (the
     line's distance from the axis minus ``r``) or ``-arc``. Every candidate is an attained
-    support value, so minus each bounds the distance from below, and the value taken is the
-    largest of ``-arc``, ``-caps`` and ``-side`` (``-side``, the segment's own distance from
+    support value, so minus each bounds the distance from below, and the value taken is minus
+    the smallest candidate, as where they overlap (``-side``, the segment's own distance from
     the axis minus ``r``, is at least the line's and needs no frame): exact where the frame
     is well defined, and where it is mostly rounding (a segment nearly along the axis) the
     arc's problem and its normal are posed in the same frame, in which the projected rims are
@@ -750,8 +750,9 @@ def segment_cylinder(
     valid = _vdot(m_, m_) > 0.0  # a segment of length > 0, not along the axis
     arc = _arc_support(v0, d, ax, radius, half, tau)
 
-    depth = jnp.minimum(jnp.minimum(caps, side), jnp.where(valid, arc, jnp.inf))
-    # apart: an end, or the line's distance when the nearest point is inside the segment
+    # the smallest support value: the depth, and apart, when the nearest point is inside the
+    # segment, minus the distance
+    least = jnp.minimum(jnp.minimum(caps, side), jnp.where(valid, arc, jnp.inf))
     dz, w0s, wds = sg(z1 - z0), [sg(x) for x in w0], [sg(x) for x in wd]
     r_, h_ = sg(radius), sg(half)
     slope_a = _end_slope(sg(z0), w0s, wds, dz, r_, h_)
@@ -759,9 +760,7 @@ def segment_cylinder(
     first, end = slope_a >= 0.0, (slope_a >= 0.0) | (slope_b <= 0.0)
     nearest = _point_cylinder([jnp.where(first, x, y) for x, y in zip(v0, v1, strict=True)],
                               ax, radius, half)  # fmt: skip
-    across = jnp.maximum(-jnp.minimum(caps, side), jnp.where(valid, -arc, -jnp.inf))
-    apart = jnp.where(end, nearest, across)
-    return jnp.broadcast_to(jnp.where(depth > 0.0, -depth, apart), shape)
+    return jnp.broadcast_to(jnp.where(end & (least <= 0.0), nearest, -least), shape)
 
 
 def sphere_cylinder(c: jax.Array, r: jax.Array, *cylinder: jax.Array) -> jax.Array:
