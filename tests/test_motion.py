@@ -122,7 +122,7 @@ def _evaluators(robot, world, mode):
 
     def evaluate(q):
         if mode == "discrete":
-            return None, None, collider.free(robot, body, pairs, q, world)
+            return collider.free(robot, body, pairs, q, world)
         return collider.clearances(robot, body, pairs, q, world)
 
     return body, pairs, evaluate
@@ -149,12 +149,16 @@ def test_a_grazing_edge_slips_between_discrete_states_and_is_caught_certified():
     dense = np.linspace(0.0, 1.0, 4001)[:, None] * d + a
     assert np.any(np.asarray(collision.check(robot, dense, world).collides))
     bound = mbound.motion_bound(robot, body, pairs.link_pairs)
-    tol = jnp.asarray(1e-12)
+    rows = mbound.speed_rows(bound, body)
+    space = joint_space(robot)
+    tol, resolution = jnp.asarray(1e-12), jnp.asarray(16.0)
     out = {}
     for mode in edges.MODES:
         _, _, evaluate = _evaluators(robot, world, mode)
         check = jax.jit(
-            lambda a, d, e=evaluate, m=mode: edges.edge_check(e, bound, a, d, 16, m, tol)
+            lambda a, d, e=evaluate, m=mode: edges.edge_check(
+                e, rows, a, d, 16, 8, m, tol, resolution, space
+            )
         )
         out[mode] = float(check(jnp.asarray(a[None]), jnp.asarray(d[None]))[0])
     assert out["discrete"] == 1.0  # the 17 states miss the ball
@@ -165,13 +169,18 @@ def test_certified_prefixes_are_free_under_a_dense_check():
     robot, world = _planar_scene()
     body, pairs, evaluate = _evaluators(robot, world, "certified")
     bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    rows = mbound.speed_rows(bound, body)
+    space = joint_space(robot)
+    tol, resolution = jnp.asarray(1e-12), jnp.asarray(32.0)
     rng = np.random.default_rng(1)
     a = rng.uniform(-np.pi, np.pi, (64, 2))
     ok = ~np.asarray(collision.check(robot, a, world).collides)
     a = a[ok]
     d = rng.normal(size=a.shape) * 0.8
     check = jax.jit(
-        lambda a, d: edges.edge_check(evaluate, bound, a, d, 32, "certified", jnp.asarray(1e-12))
+        lambda a, d: edges.edge_check(
+            evaluate, rows, a, d, 32, 8, "certified", tol, resolution, space
+        )
     )
     t_good = np.asarray(check(jnp.asarray(a), jnp.asarray(d)))
     assert np.any(t_good >= 1.0) and np.any(t_good < 1.0)

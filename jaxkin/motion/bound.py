@@ -42,9 +42,10 @@ import numpy as np
 from jax import Array
 
 from .._execute import Kernel
+from . import collider
 from .space import joint_space
 
-__all__ = ["MotionBound", "motion_bound", "part_speeds", "speed_bound"]
+__all__ = ["MotionBound", "motion_bound", "part_speeds", "speed_bound", "speed_rows"]
 
 SAMPLES = 4096  # configurations of the sampled bound (closed chains)
 SAFETY = 1.5  # factor on the sampled bound
@@ -93,6 +94,13 @@ def part_speeds(bound: MotionBound, dq: Array) -> tuple[Array, Array]:
     prims = jnp.einsum("...j,rj->...r", a, bound.prims.astype(dq.dtype))
     pairs = jnp.einsum("...j,rj->...r", a, bound.pairs.astype(dq.dtype))
     return prims, pairs
+
+
+def speed_rows(bound: MotionBound, body: Any) -> Array:
+    """The rows ``(L + Q, n)`` of ``collider.clearances``' distances: each link with geometry
+    (``collider.link_groups``: its primitives share its row), then each self pair."""
+    first = collider.link_groups(body)[:, 0]
+    return jnp.concatenate([jnp.asarray(bound.prims)[first], jnp.asarray(bound.pairs)])
 
 
 def _twists(robot: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
