@@ -34,7 +34,7 @@ import os
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, TypeVar
 
 import jax
 import jax.numpy as jnp
@@ -240,7 +240,10 @@ def in_worker() -> bool:
     return getattr(_in_worker, "active", False)
 
 
-def run_parts(run: Callable[[int], Any], starts: list[int]) -> list[Any]:
+_Start = TypeVar("_Start")
+
+
+def run_parts(run: Callable[[_Start], Any], starts: list[_Start]) -> list[Any]:
     """``[run(start) for start in starts]``, on the worker threads when there are several.
 
     ``run`` should return computed (not merely dispatched) arrays: a part's work happens on the
@@ -250,7 +253,7 @@ def run_parts(run: Callable[[int], Any], starts: list[int]) -> list[Any]:
     if threads < 2 or len(starts) < 2 or getattr(_in_worker, "active", False):
         return [run(start) for start in starts]
 
-    def in_worker(start: int) -> Any:
+    def in_worker(start: _Start) -> Any:
         _in_worker.active = True
         try:
             return jax.block_until_ready(run(start))

@@ -7,6 +7,7 @@ only shape checks apply (per-element problems then surface as statuses).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -101,6 +102,25 @@ def choice(value: Any, name: str, allowed: tuple[Any, ...]) -> Any:
     """A discrete option (mode, method, branch): one of ``allowed``."""
     if isinstance(value, bool) or value not in allowed:
         raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
+    return value
+
+
+Progress = Callable[[int, int], object]
+"""A progress callback ``progress(done, total)``: ``done`` of ``total`` units of work are
+finished (a long call reports ``(0, total)`` first, then after every part of its work)."""
+
+
+def no_progress(done: int, total: int) -> None:
+    """The progress callback of a call given none: it does nothing."""
+
+
+def progress(value: Any, name: str = "progress") -> Progress | None:
+    """A progress callback (``Progress``) or None, checked."""
+    if value is not None and not callable(value):
+        raise ValueError(
+            f"{name} must be None or a callable progress(done, total) (the command line "
+            f"passes its progress bar), got {value!r}"
+        )
     return value
 
 

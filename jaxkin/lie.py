@@ -33,6 +33,7 @@ stays in float64 whatever JAX's x64 setting. The formula is written once for bot
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import jax.numpy as jnp
@@ -88,7 +89,7 @@ def hat(omega: ArrayLike) -> Array:
     )
 
 
-def vee(mat: ArrayLike, *, xp: Any = jnp, skew: bool = False) -> Array:
+def vee(mat: XArray, *, xp: Any = jnp, skew: bool = False) -> XArray:
     """Inverse of ``hat``: ``(..., 3, 3) -> (..., 3)``.
 
     Reads the antisymmetric part ``(M - M^T) / 2``; with ``skew`` it reads ``(M_21, M_02,
@@ -191,11 +192,13 @@ def from_rotation_translation(rot: ArrayLike, p: ArrayLike) -> Array:
 # list of batch arrays (``None`` marks an entry known to be zero), a vector a list of three.
 # All arithmetic is then elementwise, which XLA on CPU fuses into a few loops.
 
-Rot = list[list[Array | None]]
-Vec = list[Array]
+XArray = Any  # an array of the namespace ``xp`` of a function (NumPy or jax.numpy)
+Rot = Sequence[Sequence[Array | None]]
+FullRot = Sequence[Sequence[Array]]  # a rotation without structural zeros
+Vec = Sequence[Array]
 
 
-def unpack(transform: Array) -> tuple[Rot, Vec]:
+def unpack(transform: Array) -> tuple[FullRot, Vec]:
     """``(..., 4, 4)`` -> rotation and translation in the list representation."""
     rot = [[transform[..., r, c] for c in range(3)] for r in range(3)]
     return rot, [transform[..., r, 3] for r in range(3)]
@@ -205,19 +208,16 @@ def compose_soa(first: tuple[Rot, Vec], second: tuple[Rot, Vec]) -> tuple[Rot, V
     """``(R1, p1) (R2, p2) = (R1 R2, R1 p2 + p1)`` on the list representation."""
     rot1, p1 = first
     rot2, p2 = second
-    rot: Rot = []
+    rot: list[list[Array | None]] = []
     for r in range(3):
         row: list[Array | None] = []
         for c in range(3):
-            terms = [
-                rot1[r][k] * rot2[k][c]
-                for k in range(3)
-                if rot1[r][k] is not None and rot2[k][c] is not None
-            ]
+            pairs = ((rot1[r][k], rot2[k][c]) for k in range(3))
+            terms = [a * b for a, b in pairs if a is not None and b is not None]
             row.append(sum(terms[1:], terms[0]) if terms else None)
         rot.append(row)
     p = [
-        p1[r] + sum(rot1[r][k] * p2[k] for k in range(3) if rot1[r][k] is not None)
+        p1[r] + sum(a * b for a, b in zip(rot1[r], p2, strict=True) if a is not None)
         for r in range(3)
     ]
     return rot, p
@@ -231,12 +231,11 @@ def computed_once_soa(pose: tuple[Rot, Vec], batch: tuple[int, ...]) -> tuple[Ro
     recomputed. Storing a partial product cuts the trees.
     """
     rot, p = pose
-    flat = [x for row in rot for x in row] + list(p)
-    stored = iter(
-        computed_once(jnp.stack([jnp.broadcast_to(x, batch) for x in flat if x is not None]))
-    )
-    flat = [None if x is None else next(stored) for x in flat]
-    return [flat[0:3], flat[3:6], flat[6:9]], flat[9:12]
+    entries = [x for row in rot for x in row]
+    given = [x for x in (*entries, *p) if x is not None]
+    stored = iter(computed_once(jnp.stack([jnp.broadcast_to(x, batch) for x in given])))
+    kept = [None if x is None else next(stored) for x in entries]
+    return [kept[0:3], kept[3:6], kept[6:9]], [next(stored) for _ in p]
 
 
 def rotate_soa(rot: Rot, x: Vec, transpose: bool = False) -> Vec:
@@ -271,7 +270,7 @@ def to_matrix_soa(pose: tuple[Rot, Vec], batch: tuple[int, ...], dtype) -> Array
     return jnp.stack(rows, axis=-2)
 
 
-def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
+def so3_log_soa(rot: FullRot) -> tuple[Vec, Array, Array, Array]:
     """Rotation vector of ``R`` (module docstring), with ``t``, ``sin t``, ``cos t``.
 
     One transcendental call (``atan2``, an output): ``sin t`` and ``cos t`` are read
@@ -320,7 +319,7 @@ def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
     return omega, theta, sin_t, cos_t
 
 
-def se3_log_soa(rot: Rot, p: Vec) -> Vec:
+def se3_log_soa(rot: FullRot, p: Vec) -> Vec:
     """Twist ``(omega, v)`` of ``(R, p)``: ``v = p - omega x p / 2 + D omega x (omega x p)``.
 
     ``D = (1 - (t/2) cot(t/2)) / t^2`` with ``cot(t/2) = sin t / (1 - cos t)`` (finite at
@@ -387,7 +386,7 @@ def adjoint(transform: ArrayLike) -> Array:
 # Quaternions (w, x, y, z); ``xp`` is jax.numpy or numpy (module docstring).
 
 
-def quaternion_bilinear(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
+def quaternion_bilinear(a: XArray, b: XArray, *, xp: Any = jnp) -> XArray:
     """The symmetric bilinear form with ``Q(s) = quaternion_bilinear(s, s)``: ``(..., 4)``
     twice -> ``(..., 3, 3)``; ``Q(s) / |s|^2`` is the rotation of ``s``, and being quadratic
     its derivatives along ``s(t)`` are exact (``rotation_rates_of_quaternion``)."""
@@ -404,14 +403,14 @@ def quaternion_bilinear(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
     return xp.stack([xp.stack(r, -1) for r in rows], -2)
 
 
-def quaternion_to_matrix(quat: ArrayLike, *, xp: Any = jnp) -> Array:
+def quaternion_to_matrix(quat: XArray, *, xp: Any = jnp) -> XArray:
     """Rotation matrix ``Q(s) / |s|^2`` of quaternions ``(..., 4)`` of any non-zero length:
     ``(..., 3, 3)``."""
     return rotation_rates_of_quaternion(quat, None, None, xp=xp)[0]
 
 
 def rotation_rates_of_quaternion(
-    s: ArrayLike, ds: ArrayLike | None, dds: ArrayLike | None, *, xp: Any = jnp
+    s: XArray, ds: XArray | None, dds: XArray | None, *, xp: Any = jnp
 ) -> tuple[Array, Array | None, Array | None]:
     """``R``, ``R_dot``, ``R_ddot`` of ``R(s) = Q(s) / |s|^2`` along a quaternion curve ``s(t)``
     (``s`` any non-zero quaternion ``(..., 4)``, rates ``ds``, ``dds``; ``Q`` quadratic, so the
@@ -429,14 +428,14 @@ def rotation_rates_of_quaternion(
     return rot, d_rot, dd_rot
 
 
-def quaternion_product(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
+def quaternion_product(a: XArray, b: XArray, *, xp: Any = jnp) -> XArray:
     """Hamilton product of quaternions ``(..., 4)``."""
     aw, av, bw, bv = a[..., :1], a[..., 1:], b[..., :1], b[..., 1:]
     return xp.concatenate([aw * bw - xp.sum(av * bv, -1, keepdims=True),
                            aw * bv + bw * av + xp.cross(av, bv)], -1)  # fmt: skip
 
 
-def matrix_to_quaternion(rot: ArrayLike, *, xp: Any = jnp) -> Array:
+def matrix_to_quaternion(rot: XArray, *, xp: Any = jnp) -> XArray:
     """Unit quaternion ``(..., 4)`` of rotation matrices ``(..., 3, 3)`` by Shepperd's method,
     ``w >= 0`` (module docstring)."""
     trace = xp.trace(rot, axis1=-2, axis2=-1)[..., None]
@@ -465,8 +464,8 @@ def matrix_to_quaternion(rot: ArrayLike, *, xp: Any = jnp) -> Array:
 
 
 def quaternion_rates_of_rotation(
-    rot: ArrayLike, d_rot: ArrayLike, dd_rot: ArrayLike, *, xp: Any = jnp
-) -> tuple[Array, Array, Array]:
+    rot: XArray, d_rot: XArray, dd_rot: XArray, *, xp: Any = jnp
+) -> tuple[XArray, XArray, XArray]:
     """Unit quaternion of ``R`` (``matrix_to_quaternion``) and its rates along ``R(t)``.
 
     From the angular velocity ``[omega]_x = R_dot R^T`` and acceleration ``[alpha]_x = R_ddot
@@ -486,7 +485,7 @@ def quaternion_rates_of_rotation(
     return quat, d_quat, dd_quat
 
 
-def hemisphere_signs(quaternions: ArrayLike, *, xp: Any = jnp) -> Array:
+def hemisphere_signs(quaternions: XArray, *, xp: Any = jnp) -> XArray:
     """Signs ``(..., T)`` (+-1) that put consecutive quaternions ``(..., T, 4)`` in one
     hemisphere (``q`` and ``-q`` are one rotation; a spline through them needs one sign); the
     first sample keeps its own."""

@@ -126,6 +126,7 @@ def _solve_components(
     bound_sq = functools.reduce(
         operator.mul, [functools.reduce(operator.add, [v * v for v in row]) for row in m]
     )
+    adj_b: tuple[Array, ...] | None
     if n == 1:
         det, adj_b = m[0][0], (b[0],)
     elif n == 2:

@@ -134,7 +134,8 @@ def path_from_samples(
     positions = np.asarray(positions, dtype=float)
     _check_samples(positions, "positions", None, dt)
     _validate.choice(space, "space", SPACES)
-    return _path(*_splined(positions, dt, end), dt, space)
+    p, v, a = _splined(positions, dt, end)
+    return _path(p, v, a, dt, space)
 
 
 def path_from_joint_waypoints(
@@ -315,7 +316,7 @@ def bezier_controls(interior: Array, start: Array, goal: Array, rest_to_rest: bo
     return jnp.concatenate([ends[0], interior, ends[1]], axis=-2)
 
 
-def bezier_path(controls: Array, basis: Array, duration: float) -> Jet:
+def bezier_path(controls: Array, basis: Array, duration: ArrayLike) -> Jet:
     """Jet of the Bezier path, shape ``(..., T, d)``, from controls ``(..., K, d)``."""
     p = jnp.einsum("tk,...kc->...tc", basis[0], controls)
     v = jnp.einsum("tk,...kc->...tc", basis[1], controls) / duration

@@ -97,7 +97,7 @@ from ._execute import Kernel, Policy, as_robot, kernel, map_candidates
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
 from .paths import Path
-from .result import SolverResult
+from .result import IKResult, SolverResult
 from .robot import Robot
 from .status import STATUS_DTYPE, Status
 
@@ -388,7 +388,7 @@ def limit_excess(q: Jet, limits: Limits, scales: Any = (1.0, 1.0, 1.0)) -> Array
     return jnp.sum(excess, axis=-1)
 
 
-def jerk(q: Jet, dt: float) -> Array:
+def jerk(q: Jet, dt: ArrayLike) -> Array:
     """Jerk by a forward difference of the exact accelerations, shape ``(..., T - 1, n)``."""
     return (q.a[..., 1:, :] - q.a[..., :-1, :]) / dt
 
@@ -412,7 +412,7 @@ def joint_scales(limits: Limits, unit: Any, weights: Any) -> tuple[Array, Array,
 
 
 def trajectory_costs(
-    q: Jet, dt: float, limits: Limits, feasible: Array, unit: Any = 1.0, weights: Any = 1.0
+    q: Jet, dt: ArrayLike, limits: Limits, feasible: Array, unit: Any = 1.0, weights: Any = 1.0
 ) -> Costs:
     """All per-candidate costs of joint trajectories ``q`` of shape ``(..., T, n)``, each
     joint in its own units divided by its scale (``joint_scales``)."""
@@ -504,7 +504,8 @@ def checked_samples(
     ]
     min_clearance = None
     if collide is not None:  # collision.check of every sample: the body against world and self
-        checked = collision.check_kernel(robot, *collide[:2], q.p, collide[2])
+        body, pairs, world = collide
+        checked = collision.check_kernel(robot, body, pairs, q.p, world)
         checks.append((checked.collides, Status.COLLISION))
         # an unsolved sample's joints are a placeholder: its clearance says nothing
         clearance = jnp.where(solved, checked.clearance, jnp.inf)
@@ -550,7 +551,7 @@ def _moving(path: Jet) -> Array:
     return jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))
 
 
-def path_ik(robot, path: Jet, branch_index: Any, *, seed: Any = None) -> SolverResult:
+def path_ik(robot, path: Jet, branch_index: Any, *, seed: Any = None) -> IKResult:
     """The IK along sampled paths ``(N, T, *target)`` on branch ``robot.branches[branch_index]``
     (an int or a traced ``int32``), in the robot's work dtype: its ``ik_path_kernel`` (an
     iterative IK warm-starts every sample from the previous solution; the branch is held).

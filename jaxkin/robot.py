@@ -47,8 +47,8 @@ import abc
 import dataclasses
 import functools
 import math
-from collections.abc import Mapping
-from typing import Any, ClassVar
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar, TypeVar, dataclass_transform, overload
 
 import jax
 import jax.numpy as jnp
@@ -58,7 +58,7 @@ from jax.typing import ArrayLike
 
 from . import _validate
 from ._execute import Policy, fk, ik
-from ._geometry import BOUND, LENGTH, REAL, Geometry, geometry, number
+from ._geometry import BOUND, LENGTH, REAL, Geometry, Numeric, geometry, number
 from ._validate import is_concrete
 from .jet import Jet
 from .result import FKResult, IKResult
@@ -125,10 +125,10 @@ class JointLimits(Geometry):
         acceleration: acceleration bounds, likewise (rad/s^2 or length/s^2); default none.
     """
 
-    lower: Array = number(BOUND, (-1,))
-    upper: Array = number(BOUND, (-1,))
-    velocity: Array = number(BOUND, (-1,), default=math.inf)
-    acceleration: Array = number(BOUND, (-1,), default=math.inf)
+    lower: Numeric = number(BOUND, (-1,))
+    upper: Numeric = number(BOUND, (-1,))
+    velocity: Numeric = number(BOUND, (-1,), default=math.inf)
+    acceleration: Numeric = number(BOUND, (-1,), default=math.inf)
 
     def _validate(self) -> None:
         for name in ("velocity", "acceleration"):  # a scalar bound is every joint's
@@ -209,6 +209,20 @@ class JointLimits(Geometry):
 # ------------------------------------------------------------------------------- options
 
 
+_Options = TypeVar("_Options", bound=type)
+
+
+@overload
+def options(cls: _Options, *, dynamic: tuple[str, ...] = ()) -> _Options: ...
+
+
+@overload
+def options(
+    cls: None = None, *, dynamic: tuple[str, ...] = ()
+) -> Callable[[_Options], _Options]: ...
+
+
+@dataclass_transform(frozen_default=True)
 def options(cls: type | None = None, *, dynamic: tuple[str, ...] = ()) -> Any:
     """Class decorator of a robot's ``IKOptions`` / ``FKOptions``: a frozen, hashable
     dataclass with defaults. Fields named in ``dynamic`` (tolerances) reach the kernel as traced

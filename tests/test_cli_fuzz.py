@@ -37,8 +37,8 @@ from hypothesis import strategies as st
 
 import jaxkin
 from jaxkin import cli, paths, serial
-from jaxkin import files as kio
 from jaxkin.cli import commands
+from jaxkin.cli import files as kio
 
 pytestmark = pytest.mark.slow
 

@@ -9,7 +9,9 @@ The URDF chain's link poses against Pinocchio's frame placements are in the slow
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -390,6 +392,76 @@ def test_check_arguments_name_the_argument():
     np.testing.assert_array_equal(same.collides, exact.collides)
     traced = jax.jit(lambda m: collision.check(SCARA, q, world, margin=m).collides)(1.0)
     np.testing.assert_array_equal(traced, exact.collides)
+
+
+_PROTOCOL = (
+    "n_joints",
+    "collision_body",
+    "link_poses",
+    "link_frame_rows",
+    "placeable",
+    "self_collision_pairs",
+)
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class _Checkable:
+    """No ``jaxkin.Robot``: the collision protocol's members alone, delegated to a robot."""
+
+    robot: Any
+
+    @property
+    def n_joints(self):
+        return self.robot.n_joints
+
+    def collision_body(self):
+        return self.robot.collision_body()
+
+    def link_poses(self, q):
+        return self.robot.link_poses(q)
+
+    def link_frame_rows(self, q):
+        return self.robot.link_frame_rows(q)
+
+    def placeable(self, q):
+        return self.robot.placeable(q)
+
+    def self_collision_pairs(self):
+        return self.robot.self_collision_pairs()
+
+
+class _Members:
+    """The protocol's members as instance attributes, all or all but ``missing``."""
+
+    def __init__(self, robot, missing=()):
+        for name in _PROTOCOL:
+            if name not in missing:
+                setattr(self, name, getattr(robot, name))
+
+
+def test_checks_take_any_robot_of_the_collision_protocol():
+    """``check`` and ``collides`` take their robot through ``collision.CollisionRobot``: every
+    jaxkin robot is one; an object with its members and no ``jaxkin.Robot`` gets the robot's
+    own results; one without a member is refused naming ``robot``, also after another
+    instance of its class had them all."""
+    for robot in (SCARA, delta.Delta.paper(), serial.Puma560(), serial.from_urdf(UR5, "tool0")):
+        assert isinstance(robot, collision.CollisionRobot)
+    world = scara_world([[130.0, 0.0, 150.0]], [10.0], -1000.0)
+    q = np.array([[0.0, 0.0, 10.0], [3.0, 0.0, 10.0], [1.0, -2.0, 150.0]])
+    own, duck = collision.check(SCARA, q, world), collision.check(_Checkable(SCARA), q, world)
+    np.testing.assert_array_equal(duck.clearance, own.clearance)
+    np.testing.assert_array_equal(duck.status, own.status)
+    verdict = collision.collides(_Checkable(SCARA), q, world)
+    np.testing.assert_array_equal(verdict.collides, own.collides)
+    assert collision.protocol.conforms(_Members(SCARA))
+    for name in _PROTOCOL:
+        partial = _Members(SCARA, missing=(name,))
+        assert not isinstance(partial, collision.CollisionRobot)
+        with pytest.raises(ValueError, match="robot: expected a robot with the collision"):
+            collision.check(partial, q, world)
+        with pytest.raises(ValueError, match="robot: expected a robot with the collision"):
+            collision.validate_motions(partial, q, q, world, 2.0)
 
 
 # ------------------------------------------------------------------ motions

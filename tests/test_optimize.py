@@ -204,6 +204,22 @@ def test_second_call_compiles_nothing(problem):
     assert count.n == 0
 
 
+def test_progress_hears_the_steps_and_changes_nothing(problem):
+    """``progress(done, total)`` hears the furthest guess's steps every ``PROGRESS_BLOCK``
+    loop iterations (the loop then runs in blocks): the result is the one run without it."""
+    guesses, result = problem
+    calls = []
+    report = lambda done, total: calls.append((done, total))  # noqa: E731
+    again = optimize.optimize(
+        ROBOT, START, GOAL, guesses, cost=costs.acceleration, progress=report, **KWARGS
+    )
+    np.testing.assert_array_equal(again.history, result.history)
+    np.testing.assert_array_equal(again.controls, result.controls)
+    done, totals = zip(*calls, strict=True)
+    assert set(totals) == {500} and done[0] == 0 and len(calls) > 2
+    assert list(done) == sorted(done) and done[-1] == int(np.max(result.iterations))
+
+
 def test_converged_only_where_the_stopping_rule_held_near_the_workspace(problem):
     """A guess 100 robot sizes away (every sample unreachable: its cost, the acceleration,
     is flat there) meets the gradient rule where it starts, far outside the workspace box:
@@ -361,6 +377,8 @@ def test_bad_arguments():
         optimize.optimize(serial.Puma560(), START, GOAL, guesses, controls="task")
     with pytest.raises(ValueError, match="controls"):
         optimize.optimize(ROBOT, START, GOAL, guesses, controls="cartesian")
+    with pytest.raises(ValueError, match="progress must be None or a callable"):
+        optimize.optimize(ROBOT, START, GOAL, guesses, progress=True)
     # Pose ends: a 4x4 matrix whose rotation is not orthonormal, a zero quaternion.
     puma, pose = serial.Puma560(), np.eye(4)
     joints = np.zeros((1, 2, 6))

@@ -85,8 +85,9 @@ def enable_for_command() -> Path | None:
     setting = os.environ.get(ENV_VAR, "").strip()
     if setting.lower() in _OFF:
         return None
-    if jax.config.jax_compilation_cache_dir:
-        return Path(jax.config.jax_compilation_cache_dir)
+    configured = jax.config.jax_compilation_cache_dir  # type: ignore[attr-defined]  # jax's Config types no options
+    if configured:
+        return Path(configured)
     try:
         # Every program, however quick to compile: a second run then compiles nothing.
         return enable_compilation_cache(setting or None, min_compile_time_secs=0.0)

@@ -80,7 +80,10 @@ class Handle:
         moving = [i for i, m in enumerate(dependent) if m]
         if len(moving) == len(dependent) or not moving:
             self.compiled = traced.lower().compile()
-            self._run, self._tree, self._moving, self._constants = self.compiled, None, (), ()
+            self._run: Any = self.compiled
+            self._tree: Any = None
+            self._moving: tuple[int, ...] = ()
+            self._constants: tuple[Any, ...] = ()
             return
 
         def outputs(*args: Any) -> list:
@@ -237,7 +240,7 @@ def shared_by_value(table: HotQueries, robot: Any, key: tuple, build: Callable[[
     values = tuple(
         (np.asarray(leaf).dtype.str, np.shape(leaf), np.asarray(leaf).tobytes()) for leaf in leaves
     )
-    whole = (tree, values, *key, jax.config.jax_enable_x64)
+    whole = (tree, values, *key, jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # jax's Config types no options
     try:
         handle = table.by_value.get(whole)
     except TypeError:  # a key that cannot be hashed: not shared

@@ -117,7 +117,7 @@ class Kernel:
         self.jitted = jax.jit(fn, static_argnames=statics, compiler_options=options)
         # inside a caller's jit the enclosing program's compilation settings apply
         self._nested = jax.jit(fn, static_argnames=statics) if options else self.jitted
-        self._part = None
+        self._part: Any = None
         if policy.threads:
             self._part = jax.jit(
                 self._part_impl,
@@ -162,7 +162,8 @@ class Kernel:
                 )
         out = self.whole(bound.args, bound.kwargs, (padded,))
         leaves, tree = jax.tree_util.tree_flatten_with_path(out)
-        cut = [_cut(leaf, self.axes.get(_field(path), 0), batch, size) for path, leaf in leaves]
+        axes = [self.axes.get(_field(path) or "", 0) for path, _ in leaves]
+        cut = [_cut(leaf, axis, batch, size) for (_, leaf), axis in zip(leaves, axes, strict=True)]
         return jax.tree.unflatten(tree, cut)
 
     def direct(self, *args: Any, **kwargs: Any) -> Any:

@@ -96,7 +96,7 @@ def _float_dtype(dtypes: tuple, canonical: bool) -> Any:
     ``canonical``: the inputs are JAX arrays, whose dtypes already are)."""
     if canonical and len(dtypes) == 1 and dtypes[0] in _FLOATS:
         return dtypes[0]
-    key = (dtypes, jax.config.jax_enable_x64)
+    key = (dtypes, jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # jax's Config types no options
     found = _FLOAT_DTYPES.get(key)
     if found is None:
         canonical_dtypes = (jax.dtypes.canonicalize_dtype(d) for d in dtypes)
@@ -174,7 +174,8 @@ def _as_target(robot: Any, p: Array, v: Any, a: Any, core: int) -> Jet:
     extra = robot.batch_shape()
     if extra:
         shape = (*jnp.broadcast_shapes(p.shape[: p.ndim - core], extra), *p.shape[p.ndim - core :])
-        p, v, a = (None if x is None else jnp.broadcast_to(x, shape) for x in (p, v, a))
+        p = jnp.broadcast_to(p, shape)
+        v, a = (None if x is None else jnp.broadcast_to(x, shape) for x in (v, a))
     if v is None:
         zeros = jnp.zeros_like(p)
         return Jet(p, zeros, zeros)
@@ -196,7 +197,7 @@ def _fk_impl(rates: bool, outside: bool, robot: Any, p, v, a, index, options) ->
     if rates:
         return result
     # At rest the zero rates are written once: here, or by the caller for a large batch.
-    x = Jet(result.x.p, None, None) if outside else Jet.constant(result.x.p)
+    x = Jet.positions(result.x.p) if outside else Jet.constant(result.x.p)
     return dataclasses.replace(result, x=x)
 
 
@@ -262,7 +263,8 @@ def _bucketed(program: _Program, robot: Any, p, v, a, index, options, batch: tup
     through the one program of that block size (tracers run as they are)."""
     if not all(is_concrete(x) for x in jax.tree.leaves((robot, p, v, a, options))):
         return program(robot, p, v, a, index, options, batch=batch, pad=False)
-    size, block = math.prod(batch), program.policy.bucket
+    size = math.prod(batch)
+    block: int = program.policy.bucket  # type: ignore[assignment]  # a bucketed policy's
     core = p.ndim - len(batch)
 
     def run(p, v, a) -> Any:
@@ -279,16 +281,16 @@ def _bucketed(program: _Program, robot: Any, p, v, a, index, options, batch: tup
         return jax.tree.map(
             lambda x: jax.device_put(np.asarray(x)[rows].reshape((*batch, *x.shape[1:]))), result
         )
-    rows = [
+    given = [
         None if x is None else np.broadcast_to(np.asarray(x), (*batch, *p.shape[len(batch) :]))
         for x in (p, v, a)
     ]
-    rows = [None if x is None else x.reshape(size, *x.shape[len(batch) :]) for x in rows]
+    host_rows = [None if x is None else x.reshape(size, *x.shape[len(batch) :]) for x in given]
     count = -(-size // block)
     starts = [k * block for k in range(count - 1)] + [size - block]
 
     def part(start: int) -> Any:
-        return run(*(None if x is None else x[start : start + block] for x in rows))
+        return run(*(None if x is None else x[start : start + block] for x in host_rows))
 
     parts = _batching.run_parts(part, starts)
     overlap = count * block - size
@@ -321,7 +323,7 @@ def _hot_query(robot: Any, kind: str, branch: Any, options: Any, x: Any) -> Any:
     else:
         return None  # a Jet, a tracer, a list: the usual path
     try:
-        key = (id(robot), kind, branch, options, kx, shape, dtype, jax.config.jax_enable_x64)
+        key = (id(robot), kind, branch, options, kx, shape, dtype, jax.config.jax_enable_x64)  # type: ignore[attr-defined]  # jax's Config types no options
         entry = HOT.programs.get(key)
     except TypeError:  # options or a branch that cannot be hashed: the usual path
         return None
@@ -512,4 +514,4 @@ def _example(robot: Any, batch: Any, core: tuple, dtype: Any, rates: bool, name:
     a handle is compiled for; ``ValueError`` naming ``batch`` or ``dtype``."""
     batch = batch_shape(batch)
     zeros = np.zeros((*batch, *core), handle_dtype(dtype))
-    return Jet(zeros, zeros, zeros) if rates else zeros
+    return Jet(zeros, zeros, zeros) if rates else zeros  # type: ignore[arg-type]  # host data

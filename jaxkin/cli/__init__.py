@@ -14,7 +14,7 @@ joint and target columns, default workspace box) comes from the robot protocol.
 Errors: bad input prints one line ``jaxkin: error: ...`` on stderr and exits with status 2,
 never a traceback (``--traceback`` shows it). Rows with NaN/inf get status
 ``INVALID_INPUT`` and the rest is solved. Every output path is checked before any work
-(``jaxkin.files.check_outputs``): one naming an input file (``-i``, ``--robot``) or another
+(``jaxkin.cli.files.check_outputs``): one naming an input file (``-i``, ``--robot``) or another
 output is refused, as are read-only files and unwritable directories; a symlink writes its
 target, a named pipe or ``/dev/null`` is written into. Regular files are written atomically:
 a failed or interrupted run leaves an existing output file untouched. Ctrl-C exits with

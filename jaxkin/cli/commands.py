@@ -12,11 +12,12 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching, _processes, files, paths
+from .. import _batching, _processes, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
 from ..status import Status, status_names
-from . import distributed, planning
+from . import distributed, files, planning
+from .progress import reporting
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
 __all__ = ["cmd_fk", "cmd_ik", "cmd_plan", "cmd_workspace", "robot_from_args", "set_dtype"]
@@ -124,11 +125,14 @@ def _parts(args: argparse.Namespace, names: tuple[str, ...], quaternions: bool, 
     # times, or with --each-row, each on its own.
     as_path = inverse and first.t is not None and not args.each_row
     if streamed and not (args.output == "-" and first.candidate is not None):
-        why = ("along a path", "; or give --each-row") if as_path else ()
-        streamed_parts = files.completed_parts(
-            itertools.chain([first], parts), args.spline, chunk, quaternions, False, *why,
-            ordered=as_path,
-        )  # fmt: skip
+        chained = itertools.chain([first], parts)
+        if as_path:
+            streamed_parts = files.completed_parts(
+                chained, args.spline, chunk, quaternions, False, "along a path",
+                "; or give --each-row", ordered=True,
+            )  # fmt: skip
+        else:
+            streamed_parts = files.completed_parts(chained, args.spline, chunk, quaternions)
         return as_path, streamed_parts
     traj = files.read_trajectory(args.input, names, timed=False)
     return as_path, _whole(traj, args.spline, quaternions, as_path)
@@ -357,16 +361,16 @@ def cmd_workspace(args: argparse.Namespace) -> int:
             f"{' x '.join(map(str, counts))} voxels is too many (at most {MAX_VOXELS:.0e}): "
             "use a coarser --resolution or smaller --bounds"
         )
-    progress = False if args.quiet else None
-    result = workspace.sweep(
-        robot,
-        bounds,
-        resolution,
-        branch=branch,
-        chunk_size=args.chunk_size or _batching.SWEEP_CHUNK,
-        dtype=dtype,
-        progress=progress,
-    )
+    with reporting("workspace", enabled=False if args.quiet else None) as progress:
+        result = workspace.sweep(
+            robot,
+            bounds,
+            resolution,
+            branch=branch,
+            chunk_size=args.chunk_size or _batching.SWEEP_CHUNK,
+            dtype=dtype,
+            progress=progress,
+        )
     if not _processes.fetchable(result.mask):  # every process takes part in the gather
         result = dataclasses.replace(result, mask=_processes.to_host(result.mask))
     if not distributed.is_writer():
@@ -375,19 +379,19 @@ def cmd_workspace(args: argparse.Namespace) -> int:
         entry = ROBOTS[args.kind]
         geometry = {f"geometry_{k}": float(np.asarray(getattr(robot, k))) for k in entry.fields}
         axes = dict(zip("xyz", result.axes, strict=False))
+        saved: dict[str, Any] = dict(
+            mask=result.mask,
+            **axes,
+            resolution=result.resolution,
+            volume=result.volume,
+            n_reachable=result.n_reachable,
+            n_evaluated=result.n_evaluated,
+            slice_areas=result.slice_areas,
+            robot=args.kind,
+            **geometry,
+        )
         with files.atomic_write(args.output, "wb") as f:
-            np.savez(
-                f,
-                mask=result.mask,
-                **axes,
-                resolution=result.resolution,
-                volume=result.volume,
-                n_reachable=result.n_reachable,
-                n_evaluated=result.n_evaluated,
-                slice_areas=result.slice_areas,
-                robot=args.kind,
-                **geometry,
-            )
+            np.savez(f, **saved)
     if args.plot:
         from .. import plot
 
@@ -506,13 +510,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
     labels = traj.candidate[take[:, 0]] if traj.candidate is not None else np.zeros(len(take))
     labels = labels.astype(np.int64)
     if args.ranking is not None:
-        place = np.full(len(take), -1)
-        place[ranked.order] = np.arange(1, len(ranked.order) + 1)
+        rank_of = np.full(len(take), -1)
+        rank_of[ranked.order] = np.arange(1, len(ranked.order) + 1)
         files.write_table(
             args.ranking,
             {
                 "candidate": labels,
-                "rank": place,
+                "rank": rank_of,
                 "feasible": ranked.feasible,
                 "first_failure": ranked.first_failure,
                 "failure": ranked.failure.astype(str),
@@ -531,12 +535,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 q = [np.asarray(x)[place, :count] for x in (jet.p, jet.v, jet.a)]
             else:
                 at_samples.append(int(labels[index]))
-                t = traj.t[take[index]]
+                t = np.asarray(traj.t)[take[index]]
                 jet = evaluation.q
                 q = [np.asarray(x)[index] for x in (jet.p, jet.v, jet.a)]
-            columns = {"rank": np.full(len(t), place + 1)}
-            columns |= files.trajectory_columns(t, np.full(len(t), labels[index]), joints, *q)
-            write(columns)
+            written = {"rank": np.full(len(t), place + 1)}
+            labelled = np.full(len(t), labels[index])
+            written |= files.trajectory_columns(t, labelled, joints, q[0], q[1], q[2])
+            write(written)
     if not args.quiet:
         print(f"{'rank':>4} {'candidate':>9} {'cost':>12} {'duration':>10}")
         for place, index in enumerate(ranked.order.tolist()):

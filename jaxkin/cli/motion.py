@@ -1,67 +1,30 @@
 """``jaxkin motion``: plan a robot from joints to joints among the obstacles of a scene file,
-write the timed trajectory (``jaxkin.motion.plan``)."""
+write the timed trajectory (``jaxkin.motion.plan``; the options in ``jaxkin.cli.parser``)."""
 
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 import numpy as np
 
-from .. import files, motion
+from .. import motion
+from . import files
+from .commands import _world, robot_from_args, set_dtype
 from .robots import CliError
 
-__all__ = ["add_parser", "cmd_motion"]
-
-
-def add_parser(sub: Any, add_robot_options: Any, numbers: Any) -> None:
-    """The ``motion`` subcommand on ``sub`` (``add_robot_options`` the robot's options,
-    ``numbers`` the parser of comma-separated numbers)."""
-    p = sub.add_parser(
-        "motion",
-        help="plan a collision-free motion among a scene's obstacles; write it timed",
-        description="Plan a motion of the robot from joints --from to joints --to among the "
-        "obstacles of a world file or a MoveIt planning scene (YAML: boxes, spheres, "
-        "cylinders; --world), "
-        "shorten and smooth it, time it within the joints' speed and acceleration limits and "
-        "write it sampled every --period: columns t, the joints, their rates and "
-        "accelerations. A YAML file needs PyYAML (the yaml extra).",
-        epilog="example: jaxkin motion planar-2r --l1 1 --l2 0.8 --link-radius 0.05 "
-        "--from 0,0.3 --to 2.5,0.4 --world scene.yaml -o motion.csv",
-    )
-    add_robot_options(p, with_branch=False)
-    p.add_argument("--from", dest="start", type=numbers, required=True, metavar="Q[,Q...]")
-    p.add_argument("--to", dest="goal", type=numbers, required=True, metavar="Q[,Q...]")
-    p.add_argument(
-        "--world",
-        required=True,
-        metavar="FILE",
-        help="a world file (.json, .yaml) or a MoveIt planning scene (.yaml)",
-    )
-    p.add_argument("-o", "--output", required=True, metavar="FILE.csv", help="written atomically")
-    p.add_argument(
-        "--srdf", metavar="FILE", help="urdf: pairs the SRDF leaves out of self-collision"
-    )
-    p.add_argument("--link-radius", type=float, metavar="R", help="arms: the links' radius")
-    p.add_argument(
-        "--mode",
-        choices=("certified", "discrete"),
-        default="certified",
-        help="edge checks: certified (default: nothing slips through) or discrete",
-    )
-    p.add_argument("--period", type=float, default=0.01, metavar="DT", help="default 0.01")
-    p.set_defaults(func=cmd_motion, branch=None)
+__all__ = ["cmd_motion"]
 
 
 def cmd_motion(args: argparse.Namespace) -> int:
-    from .commands import _world, robot_from_args, set_dtype
-
     set_dtype(args.dtype)
     robot = robot_from_args(args)
     if args.srdf:
+        with_srdf = getattr(robot, "with_srdf", None)
+        if with_srdf is None:
+            raise CliError(f"--srdf is an option of URDF arms, not of {args.kind}")
         try:
-            robot = robot.with_srdf(args.srdf)
-        except (AttributeError, ValueError) as exc:
+            robot = with_srdf(args.srdf)
+        except ValueError as exc:
             raise CliError(f"--srdf {args.srdf}: {exc}") from None
     if args.link_radius is not None:
         if "link_radius" not in getattr(robot, "__dataclass_fields__", {}):

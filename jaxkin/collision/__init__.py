@@ -20,6 +20,7 @@
   itself (clearance, collision flag, which pair), batched.
 - ``motions``: ``validate_motions(robot, q_from, q_to, world, resolution)``, M joint-space
   edges in one compiled call.
+- ``protocol``: ``CollisionRobot``, what the checks ask of a robot (a ``typing.Protocol``).
 - ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
   (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
 """
@@ -61,6 +62,7 @@ from .primitives import Cylinders as Cylinders
 from .primitives import HalfSpaces as HalfSpaces
 from .primitives import Spheres as Spheres
 from .primitives import point_cloud_spheres as point_cloud_spheres
+from .protocol import CollisionRobot as CollisionRobot
 from .scene import read_world as read_world
 from .scene import write_world as write_world
 from .urdf import UrdfBody as UrdfBody
@@ -89,6 +91,7 @@ __all__ = [
     "SPHERE",
     "Body",
     "Boxes",
+    "CollisionRobot",
     "Capsules",
     "CheckResult",
     "Clearance",

@@ -47,6 +47,7 @@ from ..status import Status
 from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
+from .protocol import CollisionRobot, conforms
 from .rows import COMPILER_OPTIONS, place
 from .world import World, nearest_obstacles
 
@@ -188,12 +189,12 @@ def chain_self_pairs(
             "contact at q = 0, so they need its geometry as values, not traced (pass "
             "self_collision=False to differentiate in its link_radius or lengths)"
         )
-    distance = np.asarray(distance)
-    touching = 64.0 * np.finfo(distance.dtype).eps * float(robot.length_scale())
-    return tuple(p for p, d in zip(candidates, distance, strict=True) if d > touching)
+    distances = np.asarray(distance)
+    touching = 64.0 * np.finfo(distances.dtype).eps * float(robot.length_scale())
+    return tuple(p for p, d in zip(candidates, distances, strict=True) if d > touching)
 
 
-def prepare(robot: Any, self_collision: bool = True) -> tuple[Body, SelfPairs]:
+def prepare(robot: CollisionRobot, self_collision: bool = True) -> tuple[Body, SelfPairs]:
     """Host side, once per robot: its body and the primitive pairs of its self-collision
     link pairs (none when ``self_collision`` is False)."""
     cached = robot.__dict__.get("_collision_prepared", {})
@@ -219,7 +220,7 @@ def world_batched(world: World) -> bool:
 
 
 def check_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q: Array,
@@ -300,7 +301,7 @@ def clearances_kernel(
 
 
 def _check_per_primitive(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q: Array,
@@ -393,19 +394,19 @@ _check_jit = Kernel(
 )
 
 
-def _check_robot(robot: Any) -> Any:
-    """``robot`` if it has the collision protocol's ``n_joints``, ``collision_body``,
-    ``link_poses`` and ``placeable`` (``prepare`` checks the body it returns)."""
-    methods = ("collision_body", "link_poses", "placeable")
-    if not (hasattr(robot, "n_joints") and all(callable(getattr(robot, m, None)) for m in methods)):
+def _check_robot(robot: Any) -> CollisionRobot:
+    """``robot`` if it has the members of the collision protocol (``CollisionRobot``;
+    ``prepare`` checks the body it returns)."""
+    if not conforms(robot):
         raise ValueError(
-            f"robot: expected a robot with n_joints, collision_body(), link_poses() and "
-            f"placeable() (a jaxkin robot), got {type(robot).__name__}"
+            "robot: expected a robot with the collision protocol's n_joints, "
+            "collision_body(), link_poses(), link_frame_rows(), placeable() and "
+            f"self_collision_pairs() (every jaxkin robot), got {type(robot).__name__}"
         )
     return robot
 
 
-def _as_q(robot: Any, q: ArrayLike, name: str = "q") -> Array:
+def _as_q(robot: CollisionRobot, q: Any, name: str = "q") -> Array:
     if not isinstance(q, jax.Array):
         q = np.asarray(q)
     # complex q would lose its imaginary part, boolean q is no joint coordinate
@@ -439,7 +440,7 @@ def _check_margin(margin: Any) -> Any:
 
 
 def check(
-    robot: Any,
+    robot: CollisionRobot,
     q: ArrayLike,
     world: World,
     margin: float = 0.0,
@@ -449,7 +450,7 @@ def check(
     itself (module docstring).
 
     Args:
-        robot: any robot of the protocol with ``collision_body`` and ``link_poses``.
+        robot: any robot of the collision protocol (``CollisionRobot``: every jaxkin robot).
         q: joint coordinates, any leading batch axes (may be traced: ``check`` works under
             ``jit`` and ``vmap``).
         world: a ``collision.World`` (array data: moving obstacles does not recompile).
@@ -481,7 +482,7 @@ def single(batch: tuple[int, ...]) -> bool:
 
 def checked_arguments(
     robot: Any, q: ArrayLike, world: Any, margin: Any, self_collision: bool
-) -> tuple:
+) -> tuple[CollisionRobot, Body, SelfPairs, Array, World, Any]:
     """The boundary of the public checks: the robot checked, ``q`` as an array of its joint
     count, the world and a concrete margin checked, the robot's body and self pairs
     (``prepare``); ``ValueError`` naming the argument otherwise. Returns ``(robot, body,

@@ -54,8 +54,12 @@ subgradients or zero.
 
 from __future__ import annotations
 
+import functools
+from typing import Any
+
 import jax
 import jax.numpy as jnp
+from jax.typing import ArrayLike
 
 __all__ = [
     "capsule_box",
@@ -93,7 +97,7 @@ def _norm(x: jax.Array) -> jax.Array:
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, sq, 1.0)), 0.0)
 
 
-def _safe_ratio(num: jax.Array, den: jax.Array) -> jax.Array:
+def _safe_ratio(num: ArrayLike, den: ArrayLike) -> jax.Array:
     """``num / den`` where ``den != 0``, else 0 (a degenerate segment's parameter)."""
     nonzero = den != 0.0
     return jnp.where(nonzero, num / jnp.where(nonzero, den, 1.0), 0.0)
@@ -142,15 +146,13 @@ def segment_segment(a0: jax.Array, a1: jax.Array, b0: jax.Array, b1: jax.Array) 
     rx, ry, rz = _coords(r)
     ax, ay, az = _coords(da)
     bx, by, bz = _coords(db)
-    best = None
-    for k, (s, t) in enumerate(candidates):
+    squares = []
+    for s, t in candidates:
         # the parameters are stopped: the min's gradient is the partial one at the closest pair
         s, t = jax.lax.stop_gradient(s), jax.lax.stop_gradient(t)
         sq = (rx + s * ax - t * bx) ** 2 + (ry + s * ay - t * by) ** 2 + (rz + s * az - t * bz) ** 2
-        if k == 0:
-            best = jnp.where(inside, sq, jnp.inf)
-        else:
-            best = jnp.minimum(best, sq)
+        squares.append(sq)
+    best = functools.reduce(jnp.minimum, squares[1:], jnp.where(inside, squares[0], jnp.inf))
     positive = best > 0.0
     return jnp.where(positive, jnp.sqrt(jnp.where(positive, best, 1.0)), 0.0)
 
@@ -165,7 +167,10 @@ def _to_box(p: jax.Array, center: jax.Array, rotation: jax.Array | None) -> list
     x = [p[..., j] - center[..., j] for j in range(p.shape[-1])]  # split: no (..., 3) temporary
     if rotation is None:  # axis-aligned, any dimension
         return x
-    return [sum(rotation[..., j, i] * x[j] for j in range(3)) for i in range(3)]
+    return [
+        rotation[..., 0, i] * x[0] + rotation[..., 1, i] * x[1] + rotation[..., 2, i] * x[2]
+        for i in range(3)
+    ]
 
 
 def _coords(x: jax.Array) -> list[jax.Array]:
@@ -566,7 +571,9 @@ def _arc_depth(taus: tuple, frame: tuple, shapes: tuple) -> jax.Array:
     big_a, big_b, cos_psi, ex, ey = frame
     p0, v0, d, c, axis, radius, half = shapes
     sg = jax.lax.stop_gradient
-    best = pick = up = None
+    best: Any = None  # the first side's values, then the better side's
+    pick: Any = None
+    up: Any = None
     for side, tau in zip((1.0, -1.0), taus, strict=True):
         tau = sg(tau)
         # the ellipse (A xi, +-B s)'s outward normal (B xi, +-A s), times (1 + tau^2) / 2

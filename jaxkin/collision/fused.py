@@ -21,6 +21,7 @@ World obstacles are taken unbatched (arrays ``(m, ...)``): for a world per confi
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -89,15 +90,15 @@ class WorldAndSelf:
 def obstacle_kinds(world: World) -> list[tuple[int, int, tuple[jax.Array, ...]]]:
     """``(kind, first code, arrays (m, ...))`` of each non-empty obstacle kind, in kind
     order."""
-    w, out, offset = world, [], 0
-    for kind, prims, arrays in [
+    w, c, out, offset = world, world.cylinders, [], 0
+    kinds: list[tuple[int, Any, tuple[jax.Array, ...]]] = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
         (HALFSPACE, w.halfspaces, (w.halfspaces.normal, w.halfspaces.offset)),
-        (CYLINDER, w.cylinders, (w.cylinders.center, w.cylinders.axis, w.cylinders.radius,
-                                 w.cylinders.half_length)),
-    ]:  # fmt: skip
+        (CYLINDER, c, (c.center, c.axis, c.radius, c.half_length)),
+    ]
+    for kind, prims, arrays in kinds:
         if len(prims):
             out.append((kind, offset, arrays))
             offset += len(prims)
@@ -187,7 +188,8 @@ def world_and_self(
     kinds = obstacle_kinds(world.astype(dtype))
     n_obstacles = sum(len(arrays[0]) for _, _, arrays in kinds)
     ns = placed.spheres.shape[1]
-    rows = []  # (first code, count, obstacles per step, the rows' distances to an obstacle)
+    rows: list[tuple[int, int, int, tuple[jax.Array, ...], Any]] = []
+    # (first code, count, obstacles per step, the rows' distances to an obstacle)
     if ns:
         spheres = (placed.spheres, placed.sphere_radius)
         rows.append((0, ns, OBSTACLE_CHUNK, spheres, _sphere_rows))
@@ -201,7 +203,7 @@ def world_and_self(
         carry = jnp.full((count, size), big, dtype)
         for kind, _, arrays in kinds:
             carry = loop_world(
-                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(
+                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(  # type: ignore[misc]  # defaults
                     kind, prims, obstacle
                 ),
                 arrays,
@@ -230,6 +232,11 @@ def world_and_self(
     return WorldAndSelf(world_value, world_code, own_value, own_code)
 
 
+def _world_test(distance: Any, kind: int, prims: tuple, obstacle: tuple, j: Any) -> jax.Array:
+    """``distance(kind, prims, obstacle)``: one obstacle's test in ``loop_world``'s shape."""
+    return distance(kind, prims, obstacle)
+
+
 def primitive_clearances(
     placed: Placed, world: World, pairs: SelfPairs | None
 ) -> tuple[jax.Array, jax.Array]:
@@ -250,9 +257,7 @@ def primitive_clearances(
         carry = jnp.full((prims[-1].shape[0], size), big, dtype)
         for kind, _, arrays in kinds:
             carry = loop_world(
-                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(
-                    kind, prims, obstacle
-                ),
+                functools.partial(_world_test, distance, kind, prims),
                 arrays,
                 carry,
                 jnp.minimum,
@@ -261,7 +266,7 @@ def primitive_clearances(
         parts.append(carry)
     link_pairs = len(pairs.link_pairs) if pairs is not None else 0
     own = jnp.full((link_pairs, size), big, dtype)
-    if link_pairs:
+    if pairs is not None and link_pairs:
         tests = _self_tests(placed)
         lists = ((pairs.ss, pairs.ss_pair), (pairs.sc, pairs.sc_pair), (pairs.cc, pairs.cc_pair))
         for test, ((first, second), of_pair) in zip(tests, lists, strict=True):

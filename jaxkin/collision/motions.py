@@ -43,6 +43,7 @@ from .check import (
     single,
 )
 from .pairs import SelfPairs
+from .protocol import CollisionRobot
 from .rows import COMPILER_OPTIONS
 from .verdict import collides_kernel
 from .world import World
@@ -93,7 +94,7 @@ def _samples(samples: Any) -> int:
 
 
 def validate_motions_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q_from: Array,
@@ -149,7 +150,7 @@ _validate_jit = Kernel(
 
 
 def validate_motions(
-    robot: Any,
+    robot: CollisionRobot,
     q_from: ArrayLike,
     q_to: ArrayLike,
     world: World,
@@ -162,7 +163,7 @@ def validate_motions(
     """Validate M joint-space edges at once (module docstring).
 
     Args:
-        robot: a robot with ``collision_body`` and ``link_poses``.
+        robot: any robot of the collision protocol (``CollisionRobot``: every jaxkin robot).
         q_from, q_to: the edges' ends, ``(M, n_joints)`` (or any common leading axes).
         world: the obstacles.
         resolution: states per unit of joint distance (a number > 0; NumPy scalars too).

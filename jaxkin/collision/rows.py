@@ -34,6 +34,7 @@ import numpy as np
 from jax import Array
 
 from .body import Body
+from .protocol import CollisionRobot
 from .world import OBSTACLE_BUCKET
 
 __all__ = [
@@ -99,7 +100,7 @@ class Placed:
 Frames = tuple[Array, Array]
 
 
-def frames_of(robot: Any, q: Array) -> tuple[Frames, tuple[int, ...], Array | None]:
+def frames_of(robot: CollisionRobot, q: Array) -> tuple[Frames, tuple[int, ...], Array | None]:
     """``robot.link_frame_rows(q)`` for configurations ``q`` ``(B, n)``: the frames'
     rotations ``(F, 3, 3, B)`` and translations ``(F, 3, B)`` in the dtype of ``q``, the
     frame of each link, each link's pose in it (or None)."""
@@ -132,7 +133,7 @@ def place_points(
     return jnp.stack(rows)
 
 
-def place(robot: Any, body: Body, q: Array) -> Placed:
+def place(robot: CollisionRobot, body: Body, q: Array) -> Placed:
     """``body`` placed at configurations ``q`` ``(B, n)`` (rows layout)."""
     frames, of_link, homes = frames_of(robot, q)
     dtype = q.dtype

@@ -60,6 +60,7 @@ from . import distance as sd
 from .body import Body
 from .check import check_kernel, checked_arguments, handle_setup, single, world_batched
 from .pairs import SelfPairs
+from .protocol import CollisionRobot
 from .rows import (
     CAPSULE_CHUNK,
     COMPILER_OPTIONS,
@@ -123,13 +124,12 @@ def _box_test(x: list[Array], r: Array, margin: Array, c, rot, h) -> Array:
     # u_k = x . R_k - c . R_k: the rows are read directly, each e_k is used once
     big = r + margin
     shift = jnp.minimum(big, 0.0)
-    out = None
+    terms = []
     for k in range(3):
         ck = c[0] * rot[0, k] + c[1] * rot[1, k] + c[2] * rot[2, k]
         u = x[0] * rot[0, k] + x[1] * rot[1, k] + x[2] * rot[2, k] - ck
-        term = jnp.maximum(jnp.abs(u) - h[k] - shift, 0.0) ** 2
-        out = term if out is None else out + term
-    return out - jnp.where(big >= 0, big * big, 0.0)
+        terms.append(jnp.maximum(jnp.abs(u) - h[k] - shift, 0.0) ** 2)
+    return terms[0] + terms[1] + terms[2] - jnp.where(big >= 0, big * big, 0.0)
 
 
 def _halfspace_test(x: list[Array], r: Array, margin: Array, n, o) -> Array:
@@ -286,14 +286,14 @@ def _self_verdict(
             first,
             second,
             hit,
-            lambda hit, tags, value, bound=bound: hit | (value <= bound),
+            lambda hit, tags, value, bound=bound: hit | (value <= bound),  # type: ignore[misc]
             settled,
         )
     return hit
 
 
 def collides_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q: Array,
@@ -339,7 +339,7 @@ _collides_jit = Kernel(
 
 
 def collides(
-    robot: Any,
+    robot: CollisionRobot,
     q: ArrayLike,
     world: World,
     margin: float = 0.0,

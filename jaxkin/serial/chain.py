@@ -50,7 +50,7 @@ from jax.typing import ArrayLike
 
 from .. import _validate
 from .._execute import Kernel, Policy
-from .._geometry import BOUND, REAL, Geometry, geometry, label, number, static
+from .._geometry import BOUND, REAL, Geometry, Numeric, geometry, label, number, static
 from .._numerics import eps, safe_norm
 from ..collision.body import Body, link_spheres
 from ..collision.check import chain_self_pairs
@@ -141,13 +141,13 @@ class Chain(Robot):
             ``k`` joints).
     """
 
-    screws: Array = number(REAL, (-1, 6))
-    home: Array = number(REAL, (4, 4))
-    multiplier: Array = number(REAL, (-1,))
-    offset: Array = number(REAL, (-1,))
-    lower: Array = number(BOUND, (-1,))
-    upper: Array = number(BOUND, (-1,))
-    velocity: Array = number(BOUND, (-1,))
+    screws: Numeric = number(REAL, (-1, 6))
+    home: Numeric = number(REAL, (4, 4))
+    multiplier: Numeric = number(REAL, (-1,))
+    offset: Numeric = number(REAL, (-1,))
+    lower: Numeric = number(BOUND, (-1,))
+    upper: Numeric = number(BOUND, (-1,))
+    velocity: Numeric = number(BOUND, (-1,))
     follows: tuple[int, ...] = static()
     joint_kinds: tuple[str, ...] = static()
     joint_names: tuple[str, ...] = label(default=())
@@ -168,7 +168,7 @@ class Chain(Robot):
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
     @property
-    def target(self) -> Target:
+    def target(self) -> Target:  # type: ignore[override]  # a class attribute of other robots
         """``POSE`` (4x4 poses) or ``POINT`` (the tip's origin), after ``target_kind``."""
         return POINT if self.target_kind == "point" else POSE
 
@@ -298,16 +298,18 @@ class Chain(Robot):
         if joint_kinds is None and m and screws.shape[1:] == (6,):
             rotating = np.linalg.norm(screws[own, :3], axis=1) > 0.5
             joint_kinds = tuple("revolute" if r else "prismatic" for r in rotating)
-        bounds = [
+        low, high, speed = (
             np.full(n, fill) if x is None else np.asarray(x, dtype=float)
             for x, fill in ((lower, -np.inf), (upper, np.inf), (velocity, np.inf))
-        ]
+        )
         return cls(
             screws,
             home,
             multiplier,
             offset,
-            *bounds,
+            low,
+            high,
+            speed,
             follows=follows,
             joint_kinds=tuple(joint_kinds or ()),
             joint_names=tuple(joint_names or ()),
@@ -616,7 +618,7 @@ class ChainLinks(Geometry):
             the links they carry there.
     """
 
-    homes: Array = number(REAL, (-1, 4, 4))
+    homes: Numeric = number(REAL, (-1, 4, 4))
     moved_by: tuple[int, ...] = static()
     names: tuple[str, ...] = label()
     source: str = label(default="")

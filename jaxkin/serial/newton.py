@@ -234,12 +234,12 @@ def ik_newton(
         upper = jnp.full((n,), jnp.inf, dtype)
     else:
         try:
-            lower, upper = limits
+            given_lower, given_upper = limits
         except (TypeError, ValueError):
             raise ValueError("limits: expected a pair (lower, upper) of (n,) arrays") from None
         try:
-            lower = jnp.broadcast_to(jnp.asarray(lower, dtype), (n,))
-            upper = jnp.broadcast_to(jnp.asarray(upper, dtype), (n,))
+            lower = jnp.broadcast_to(jnp.asarray(given_lower, dtype), (n,))
+            upper = jnp.broadcast_to(jnp.asarray(given_upper, dtype), (n,))
         except ValueError:
             raise ValueError(
                 f"limits: lower and upper must broadcast to ({n},), got "

@@ -157,9 +157,10 @@ def _joint(element) -> _Joint:
     )
 
 
-def _load(source: str | os.PathLike) -> _Robot:
+def _load(source: str | bytes | os.PathLike) -> _Robot:
     """The links and joints of a path or XML text (strict XML: no silent recovery), read by the
     standard library's XML parser: the kinematics need no mesh or scene-graph library."""
+    data: bytes
     if isinstance(source, bytes) and source.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         data, where = source, "source (URDF text)"  # bytes: the parser reads BOM and encoding
     elif isinstance(source, str) and source.lstrip("\ufeff \t\r\n").startswith("<"):

@@ -43,6 +43,7 @@ class Arm(Robot, abstract=True):
     """
 
     joint_types: ClassVar[str]
+    link_radius: Any  # every arm's field (a bare annotation here: no field of Arm's own)
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
     # Every branch is solved anyway: the branch is picked by a traced index, one program,
     # compiled with the chain search's XLA options (a first call in about half the time).
