@@ -134,7 +134,10 @@ def stack_worlds(worlds: list[World], far: float = 100.0) -> World:
             w
             if len(w.halfspaces)
             else dataclasses.replace(
-                w, halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [-far])
+                w,
+                halfspaces=collision.HalfSpaces.create(
+                    np.array([[0.0, 0.0, 1.0]]), np.array([-far])
+                ),
             )
             for w in worlds
         ]

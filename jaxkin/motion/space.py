@@ -54,12 +54,14 @@ class JointSpace:
             prismatic ones).
         continuous: 1.0 for a continuous joint (wrapped), 0.0 otherwise.
         wraps: static, the robot has a continuous joint (without one nothing is wrapped).
+
+    ``joint_space`` gives float64 NumPy arrays (host side), ``astype`` JAX arrays of a dtype.
     """
 
-    lower: Array
-    upper: Array
-    weight: Array
-    continuous: Array
+    lower: Array | np.ndarray
+    upper: Array | np.ndarray
+    weight: Array | np.ndarray
+    continuous: Array | np.ndarray
     wraps: bool = dataclasses.field(metadata=dict(static=True), default=True)
 
     def astype(self, dtype: Any) -> JointSpace:
@@ -91,11 +93,6 @@ class JointSpace:
         """``q`` with continuous joints wrapped into ``[-pi, pi)`` (tree nodes are stored so)."""
         return jnp.where(self.continuous > 0, self.wrap(q), q)
 
-    def sample(self, key: Array, shape: tuple[int, ...]) -> Array:
-        """Uniform configurations in the box, ``(*shape, n)``."""
-        u = jax.random.uniform(key, (*shape, self.lower.shape[0]), self.lower.dtype)
-        return self.lower + u * (self.upper - self.lower)
-
     def sample_hashed(self, stream: Array, counter: Array, count: int) -> Array:
         """``count`` configurations in the box ``(count, n)``, the ``counter``-th draw of
         ``stream`` (``hashed_uniform``: a few integer operations, no loop)."""
@@ -103,8 +100,9 @@ class JointSpace:
         index = counter.astype(jnp.uint32) * jnp.uint32(count * n) + jnp.arange(
             count * n, dtype=jnp.uint32
         )
-        u = hashed_uniform(stream, index, self.lower.dtype).reshape(count, n)
-        return self.lower + u * (self.upper - self.lower)
+        lower, upper = jnp.asarray(self.lower), jnp.asarray(self.upper)
+        u = hashed_uniform(stream, index, lower.dtype).reshape(count, n)
+        return lower + u * (upper - lower)
 
     def unwrap(self, path: Array) -> Array:
         """A path ``(..., K, n)`` of wrapped waypoints as a continuous one: each waypoint the
