@@ -39,6 +39,31 @@ def test_continuous_joints_take_the_short_way_round():
     assert np.allclose(unwrapped[1], [3.0 + 2 * np.pi - 6.0, 0.5], atol=1e-12)
 
 
+def test_the_nearest_node_is_the_brute_force_one_for_every_tree_size():
+    """The search's nearest neighbour (coordinate-major trees, a scan compiled per size
+    class, wrapped joints) against NumPy's brute force over the live nodes, for trees in
+    each size class and lanes that need no answer."""
+    from jaxkin.motion import search
+
+    space = joint_space(serial.Planar2R(1.0, 0.8)).astype(jnp.float64)  # both joints wrap
+    rng = np.random.default_rng(3)
+    cap, w = 512, 4
+    nodes = rng.uniform(-np.pi, np.pi, (2, 2, 2, cap))  # (teams, trees, n, N)
+    team, grow = np.array([0, 0, 1, 1]), np.array([0, 1, 1, 0])
+    target = rng.uniform(-np.pi, np.pi, (w, 2))
+    nearest = jax.jit(lambda *args: search._nearest(args[0], team, *args[1:]))
+    for sizes in ([5, 40, 1, 64], [65, 3, 200, 10], [300, 512, 2, 7]):
+        size = np.array(sizes)
+        need = np.array([True, True, False, True])
+        near, q = nearest(jnp.asarray(nodes), grow, size, target, space, need)
+        for i in np.flatnonzero(need):
+            tree = nodes[team[i], grow[i], :, : size[i]].T
+            step = np.mod(tree - target[i] + np.pi, 2 * np.pi) - np.pi
+            want = int(np.argmin(np.sum(step * step, -1)))
+            assert int(near[i]) == want
+            assert np.allclose(np.asarray(q[i]), tree[want], atol=0)
+
+
 def test_prismatic_joints_count_in_units_of_the_robots_size():
     limits = scara.JointLimits(np.array([-2.0, -2.0, 0.0]), np.array([2.0, 2.0, 150.0]))
     robot = scara.Scara(150.0, 80.0, 50.0, limits=limits)

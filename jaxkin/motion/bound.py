@@ -104,12 +104,17 @@ def speed_rows(bound: MotionBound, body: Any) -> Array:
 
 
 def _twists(robot: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Link poses ``(L, 4, 4)`` and twists ``(L, n, 6)`` (``omega, v`` of ``dT/dq_j T^-1``)."""
+    """Per configuration ``q (K, n)`` the link poses ``(K, L, 4, 4)`` and twists ``(K, L, n,
+    6)`` (``omega, v`` of ``dT/dq_j T^-1``), in one compiled program."""
+
+    def poses_and_jacobian(x: Array) -> tuple[Array, Array]:
+        return robot.link_poses(x), jax.jacfwd(robot.link_poses)(x)
+
     q_jax = jnp.asarray(q, jnp.result_type(float))  # float64 when x64 is on
-    poses = np.asarray(robot.link_poses(q_jax), float)
-    jac = np.asarray(jax.jacfwd(robot.link_poses)(q_jax), float)  # (L, 4, 4, n)
+    poses, jac = Kernel(jax.vmap(poses_and_jacobian))(q_jax)  # (K, L, 4, 4), (K, L, 4, 4, n)
+    poses, jac = np.asarray(poses, float), np.asarray(jac, float)
     inv = np.linalg.inv(poses)
-    xi = np.einsum("lijn,ljk->lnik", jac, inv)
+    xi = np.einsum("klijn,kljm->klnim", jac, inv)
     omega = np.stack([xi[..., 2, 1], xi[..., 0, 2], xi[..., 1, 0]], -1)
     v = xi[..., :3, 3]
     return poses, np.concatenate([omega, v], -1)
@@ -200,8 +205,8 @@ def _proved_rows(
     """``_tree_rows``' largest rows and moved links over the probe configurations, or None
     when one of them is not a tree of rigid motions."""
     rows, moves = None, None
-    for q in probes:
-        found = _tree_rows(robot, body, *_twists(robot, q), space, scale)
+    for poses, twists in zip(*_twists(robot, probes), strict=True):
+        found = _tree_rows(robot, body, poses, twists, space, scale)
         if found is None:
             return None
         rows = found[0] if rows is None else np.maximum(rows, found[0])

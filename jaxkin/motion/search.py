@@ -143,30 +143,49 @@ class _Problems:
 
 
 def _argmin_last(x: Array) -> Array:
-    """The index of the smallest entry along the last axis (its first, for ties), by halving:
-    elementwise minimums of the two halves that XLA fuses into vectorised loops (a reduce
-    with the index carried is a scalar loop on the CPU)."""
-    index = jnp.broadcast_to(jnp.arange(x.shape[-1], dtype=jnp.int32), x.shape)
-    while x.shape[-1] > 1:
-        h = (x.shape[-1] + 1) // 2
-        a, b = x[..., :h], x[..., x.shape[-1] - h :]
-        ia, ib = index[..., :h], index[..., x.shape[-1] - h :]
-        later = (b < a) | ((b == a) & (ib < ia))
-        x, index = jnp.where(later, b, a), jnp.where(later, ib, ia)
-    return index[..., 0]
+    """The index of the smallest entry along the last axis (its first, for ties) as two plain
+    minimums, of the values and of the indices where the smallest sits: reduces XLA
+    vectorises on the CPU (a reduce that carries the index is a scalar loop there)."""
+    m = jnp.min(x, axis=-1, keepdims=True)
+    index = jnp.arange(x.shape[-1], dtype=jnp.int32)
+    return jnp.min(jnp.where(x == m, index, jnp.int32(x.shape[-1] - 1)), axis=-1)
 
 
-def _nearest(nodes: Array, team: np.ndarray, grow: Array, size: Array, target: Array, space):
+# tree sizes the nearest-neighbour scan is compiled for (each a branch; the smallest that
+# holds every tree searched runs): young trees, the usual ones, full capacity
+_SCAN_SIZES = (64, 256)
+
+
+def _nearest(
+    nodes: Array, team: np.ndarray, grow: Array, size: Array, target: Array, space, need: Array
+):
     """Per lane the nearest node ``(W,)`` of its team's tree ``grow`` (nodes coordinate-major,
     ``(T, 2, n, N)``: every distance one vectorised pass over the nodes) to ``target (W,
-    n)``, and its configuration ``(W, n)``."""
-    trees = nodes[jnp.asarray(team, jnp.int32), grow]  # (W, n, N)
-    cap = trees.shape[-1]
-    step = space.wrap(trees - target[:, :, None], axis=-2) * space.weight[:, None]
-    d2 = sum(step[:, j] * step[:, j] for j in range(step.shape[1]))  # (W, N)
-    d2 = jnp.where(jnp.arange(cap)[None, :] < size[:, None], d2, jnp.inf)
-    near = _argmin_last(d2)
-    return near, jnp.take_along_axis(trees, near[:, None, None], 2)[..., 0]
+    n)``, and its configuration ``(W, n)``. Only lanes ``need`` are answered (the others get
+    node 0); the scan covers the first ``K`` nodes of the smallest of ``_SCAN_SIZES`` and
+    ``N`` that holds their trees (none when no lane needs it)."""
+    cap = nodes.shape[-1]
+    tj = jnp.asarray(team, jnp.int32)
+    sizes = sorted({k for k in _SCAN_SIZES if k < cap} | {cap})
+
+    def scan(k: int):
+        def run() -> Array:
+            trees = nodes[..., :k][tj, grow]  # (W, n, K)
+            step = space.wrap(trees - target[:, :, None], axis=-2) * space.weight[:, None]
+            d2 = sum(step[:, j] * step[:, j] for j in range(step.shape[1]))  # (W, K)
+            d2 = jnp.where(jnp.arange(k)[None, :] < size[:, None], d2, jnp.inf)
+            return _argmin_last(d2)
+
+        return run
+
+    largest = jnp.max(jnp.where(need, size, 0))
+    branch = jnp.where(jnp.any(need), 1 + jnp.searchsorted(jnp.asarray(sizes), largest), 0)
+
+    def skip() -> Array:
+        return jnp.zeros(grow.shape, jnp.int32)
+
+    near = jax.lax.switch(branch, [skip, *(scan(k) for k in sizes)])
+    return near, nodes[tj, grow, :, near]
 
 
 def _walk(parent: Array, start: Array, points: int) -> tuple[Array, Array]:
@@ -399,7 +418,7 @@ def search_kernel(
         grow = jnp.where(extend, lanes.a, 1 - lanes.a)
         target = jnp.where(extend[:, None], sample, lanes.target)
         size = teams.count[team_of, grow]
-        near, q_near = _nearest(teams.nodes, team_of, grow, size, target, space)
+        near, q_near = _nearest(teams.nodes, team_of, grow, size, target, space, lanes.fresh)
         delta = space.step(q_near, target)
         length = space.norm(delta)
         scale = jnp.minimum(1.0, range_ / jnp.maximum(length, 1e-30))
