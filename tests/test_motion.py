@@ -382,6 +382,27 @@ def test_a_planar_arm_plans_around_obstacles(mode):
 
 
 @pytest.mark.slow
+def test_many_problems_each_keep_their_own_simplified_path():
+    """More problems than a simplification group (sorted by waypoint count, simplified in
+    groups, put back): each problem's simplified path runs from its own start to its own
+    goal, free under a dense check."""
+    robot, world = _planar_scene()
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-np.pi, np.pi, (200, 2))
+    q = q[~np.asarray(collision.check(robot, q, world).collides)]
+    b = motion.planner.SIMPLIFY_GROUP + 3
+    starts, goals = q[:b], q[b : 2 * b]
+    result = motion.plan(robot, starts, world, goal=goals, **SMALL, period=None)
+    space = joint_space(robot)
+    for i in range(b):
+        assert result.status[i] == motion.MotionStatus.SOLVED
+        simple = result.simplified[i, : int(result.simplified_count[i])]
+        assert float(space.distance(jnp.asarray(simple[0]), jnp.asarray(starts[i]))) < 1e-9
+        assert float(space.distance(jnp.asarray(simple[-1]), jnp.asarray(goals[i]))) < 1e-9
+        assert _dense_free(robot, world, simple) > 0
+
+
+@pytest.mark.slow
 def test_invalid_problems_get_their_status():
     robot, world = _planar_scene()
     inside = np.array([0.6, 0.0])  # the forearm in the first ball

@@ -43,7 +43,7 @@ from .bound import motion_bound, speed_rows
 from .edges import MODES
 from .goals import ik_goals
 from .search import SearchConfig, SearchResult, search_kernel
-from .simplify import Checker, Simplified, chord_parameters, simplify_kernel
+from .simplify import SHORTCUTS, Checker, Simplified, chord_parameters, simplify_kernel
 from .space import JointSpace, joint_space
 from .status import MotionStatus
 
@@ -229,16 +229,24 @@ def _simplify_all(
     mode,
     states,
     shared_world,
+    group,
 ):
-    """``simplify_kernel`` for every problem ``(B, P, n)``."""
+    """``simplify_kernel`` for every problem ``(B, P, n)``, ``group`` problems at a time (a
+    ``vmap`` within a group, a loop over the groups): the loops of a ``vmap`` run as long as
+    its longest element, so a group of similar paths (``plan`` sorts them by waypoint count)
+    wastes little, where one ``vmap`` of every problem runs each as long as the hardest."""
 
     def one(wd, p, c):
         evaluate = _evaluator(robot, body, pairs, wd, mode)
         check = Checker(evaluate, space, rows, mode, tol, resolution, chunk)
         return simplify_kernel(check, p, c, slots, states)
 
-    axes = (None if shared_world else 0, 0, 0)
-    return jax.vmap(one, in_axes=axes)(world, path, count)
+    if shared_world:
+        return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
+    return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
+
+
+SIMPLIFY_GROUP = 8  # problems simplified together (_simplify_all)
 
 
 # the collision loops inside the search and the simplification run their bodies 2-5x faster
@@ -247,7 +255,9 @@ _POLICY = Policy(pad=False, compiler_options=collider.COMPILER_OPTIONS)
 _search_jit = Kernel(search_kernel, static=("config",), policy=_POLICY)
 _roots_jit = Kernel(_roots_kernel, static=("mode", "shared_world"), policy=_POLICY)
 _simplify_jit = Kernel(
-    _simplify_all, static=("slots", "chunk", "mode", "states", "shared_world"), policy=_POLICY
+    _simplify_all,
+    static=("slots", "chunk", "mode", "states", "shared_world", "group"),
+    policy=_POLICY,
 )
 
 
@@ -521,12 +531,20 @@ def plan(
     path, count = found.path, found.count
     solved = status == MotionStatus.SOLVED
     if options.simplify:
-        from .simplify import SHORTCUTS
-
-        simple: Simplified = _simplify_jit(
-            *common,
-            path,
-            count,
+        # similar paths together (_simplify_all): the problems by waypoint count
+        order = np.argsort(np.asarray(count), kind="stable")
+        back = np.argsort(order)
+        pick = jnp.asarray(order)
+        sorted_worlds = worlds if shared else jax.tree.map(lambda x: x[pick], worlds)
+        simple_sorted: Simplified = _simplify_jit(
+            robot,
+            body,
+            pairs,
+            sorted_worlds,
+            space,
+            prep.rows,
+            path[pick],
+            count[pick],
             put(tol),
             put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
@@ -534,7 +552,9 @@ def plan(
             mode=mode,
             states=options.spline_states,
             shared_world=shared,
+            group=min(SIMPLIFY_GROUP, b),
         )
+        simple = jax.tree.map(lambda x: x[jnp.asarray(back)], simple_sorted)
     else:
         simple = _polygon_jit(path, count, space)
     jax.block_until_ready(simple)
