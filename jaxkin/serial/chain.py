@@ -54,7 +54,6 @@ from .._numerics import eps, safe_norm
 from ..collision.body import Body, link_spheres
 from ..collision.check import chain_self_pairs
 from ..collision.pairs import read_srdf_disabled, self_collision_link_pairs
-from ..collision.urdf import body_from_urdf
 from ..jet import Jet
 from ..result import FKResult, IKResult, forward_result
 from ..robot import POINT, POSE, CompilePolicy, JointLimits, Robot, Target, promoted
@@ -454,21 +453,25 @@ class Chain(Robot):
         return frames, list(chain.links.moved_by), chain.links.homes
 
     def collision_body(self) -> Body:
-        """The body: from the URDF's ``<collision>`` elements for a chain read from a URDF
-        (``collision.body_from_urdf``), else a skeleton of capsules of radius 0: link ``k``
-        from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the projection of
-        the previous point on the next axis, as ``reach()``), the last link to the tip; a
-        prismatic joint's travel is not covered. Links given spheres by
+        """The body: one given by ``with_collision_body``; else, for a chain read from a
+        URDF, its ``<collision>`` elements as read with it (``collision.read_collision``,
+        covered on the first call and kept: ``collision.body_from_urdf``'s defaults), or
+        without them a skeleton of capsules; else a skeleton of capsules of radius 0: link
+        ``k`` from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the
+        projection of the previous point on the next axis, as ``reach()``), the last link to
+        the tip; a prismatic joint's travel is not covered. Links given spheres by
         ``with_link_spheres`` have those instead."""
         links = self.links
         spheres = dict(links.spheres) if links is not None else {}
-        if links is not None and links.source:
-            read = body_from_urdf(links.source, link_spheres=spheres or None)
-            if read.body.links != tuple(links.names):
+        if links is not None and links.body is not None:
+            return links.body.with_link_spheres(spheres) if spheres else links.body
+        if links is not None and links.collision is not None:
+            body = links.collision.body().body
+            if body.links != tuple(links.names):
                 raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
-            if read.body.num_spheres + read.body.num_capsules:
-                return read.body
-            return _urdf_skeleton(links).with_link_spheres(spheres)
+            if body.num_spheres + body.num_capsules == 0:
+                body = _urdf_skeleton(links)
+            return body.with_link_spheres(spheres) if spheres else body
         screws = np.asarray(self.screws, float)
         current, points = np.zeros(3), [np.zeros(3)]
         for omega, v in zip(screws[:, :3], screws[:, 3:], strict=True):
@@ -480,6 +483,29 @@ class Chain(Robot):
         names = _default_link_names(len(screws))
         capsules = {name: ([points[k]], [points[k + 1]], [0.0]) for k, name in enumerate(names)}
         return Body.create(names, capsules=capsules).with_link_spheres(spheres)
+
+    def with_collision_body(self, body: Body) -> Chain:
+        """This chain with ``body`` as its collision body (e.g. ``collision.Body.load`` of a
+        body saved once, or ``collision.body_from_urdf`` with other cover options): a
+        ``collision.Body`` whose ``links`` are the chain's (``collision_body().links``);
+        spheres given by ``with_link_spheres`` still replace their links' primitives."""
+        if not isinstance(body, Body):
+            raise ValueError(f"body: expected a collision.Body, got {type(body).__name__}")
+        links = self._links()
+        if tuple(body.links) != tuple(links.names):
+            raise ValueError(
+                f"body: its links {body.links} are not the chain's {tuple(links.names)}"
+            )
+        return self.replace(links=links.replace(body=body))
+
+    def _links(self) -> ChainLinks:
+        """``links``, or the default links ``base, link1, ..., linkm`` carried by the first
+        ``k`` joints."""
+        if self.links is not None:
+            return self.links
+        m = self.n_path_joints
+        homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
+        return ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
 
     def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
         """A URDF chain: every pair of links with geometry but adjacent ones (parent and child,
@@ -501,11 +527,7 @@ class Chain(Robot):
         spheres: ``{link: (centers (k, 3), radii (k,) or one radius)}`` in that link's frame,
         finite, radii ``>= 0`` (a ``ValueError`` names the link otherwise). The chain keeps
         copies: editing the arrays afterwards does not change it."""
-        links = self.links
-        if links is None:
-            m = self.n_path_joints
-            homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
-            links = ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
+        links = self._links()
         own = link_spheres(spheres, tuple(links.names))
         merged = tuple({**dict(links.spheres), **own}.items())
         return self.replace(links=links.replace(spheres=merged))
@@ -558,11 +580,14 @@ class ChainLinks(Geometry):
         homes: each link's pose in the chain's base frame at ``theta = 0``, ``(L, 4, 4)``.
         moved_by: static, per link the number ``k`` of path joints that carry it (0 ... m).
         names: label, the link names (the order of ``collision_body().links``).
-        source: label, the URDF (path or text) whose ``<collision>`` elements make the body.
+        source: label, the URDF (its resolved path, or its text) the chain was read from.
         tree: label, the URDF's joints ``(parent, child, type)`` (adjacency).
         spheres: label, the user's own spheres per link, ``((name, (centers, radii)), ...)``.
         disabled: label, link name pairs left out of self-collision (an SRDF's).
         radius: label, the skeleton's capsule radius for a URDF without ``<collision>``.
+        collision: label, the URDF's collision geometry as read with the chain
+            (``collision.UrdfCollision``: covered once, on the first ``collision_body()``).
+        body: label, a body given by ``with_collision_body``, used instead.
     """
 
     homes: Array = number(REAL, (-1, 4, 4))
@@ -573,6 +598,8 @@ class ChainLinks(Geometry):
     spheres: tuple = label(default=())
     disabled: tuple = label(default=())
     radius: float = label(default=0.0)
+    collision: Any = label(default=None)
+    body: Any = label(default=None)
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
