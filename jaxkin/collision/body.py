@@ -33,7 +33,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.typing import ArrayLike
+from numpy.typing import ArrayLike  # host data: lists too
 
 from .primitives import Capsules, Spheres, _sphere_arrays
 
@@ -231,7 +231,9 @@ class Body:
         s_c, s_r, s_link = spheres
         c_a, c_b, c_r, c_link = capsules
         s_of, c_of = np.asarray(s_link, np.int64), np.asarray(c_link, np.int64)
-        b_c, b_r, b_link = [], [], []
+        b_c: list[np.ndarray] = []
+        b_r: list[float] = []
+        b_link: list[int] = []
         s_bound, c_bound = np.zeros(len(s_of), np.int64), np.zeros(len(c_of), np.int64)
         for k in sorted(set(s_link) | set(c_link)):
             s_idx, c_idx = np.flatnonzero(s_of == k), np.flatnonzero(c_of == k)
@@ -414,7 +416,7 @@ class Body:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
         try:
             with os.fdopen(fd, "wb") as f:
-                np.savez(f, **arrays)
+                np.savez(f, allow_pickle=False, **arrays)
             os.replace(tmp, target)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
@@ -444,7 +446,7 @@ class Body:
     def _checked(cls, arrays: dict) -> Body:
         """A body from the archive's arrays, each checked (``load``)."""
         links = tuple(str(x) for x in arrays["links"].reshape(-1))
-        statics = {}
+        statics: dict[str, Any] = {}
         for field in dataclasses.fields(cls):
             if field.metadata.get("static") and field.name != "links":
                 values = arrays[field.name]
@@ -495,5 +497,5 @@ class Body:
                 reach = np.linalg.norm(data[end] - g, axis=-1) + data[f"{kind}_radius"]
                 if np.any(reach > r * (1 + 1e-5)):
                     raise ValueError(f"{kind}_bound: a primitive outside its bounding sphere")
-        fields = {name: jnp.asarray(value) for name, value in data.items()}
+        fields: dict[str, Any] = {name: jnp.asarray(value) for name, value in data.items()}
         return cls(**fields, **statics, links=links)

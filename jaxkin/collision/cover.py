@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import numpy as np
 
@@ -160,7 +161,7 @@ def _greedy(cand: np.ndarray, elem: np.ndarray, n_cand: int, n_elem: int) -> np.
     cand_start = np.searchsorted(cand, np.arange(n_cand + 1))
     gain = np.bincount(cand, minlength=n_cand)
     held = np.zeros(n_elem, bool)
-    chosen = []
+    chosen: list[int] = []
     while True:
         best = int(np.argmax(gain))
         if gain[best] == 0:
@@ -199,9 +200,9 @@ def _cover_at(parts: list[tri_ops.Part], delta: float) -> tuple[np.ndarray, ...]
     solid (module docstring): ``(centres (k, 3), radii (k,), reach (k,))``, radii not yet
     grown by the rounding margin."""
     rng = np.random.default_rng(0)
-    pieces = [tri_ops.subdivide(part.triangles, _EDGE * delta) for part in parts]
-    owner = np.concatenate([np.full(len(x), k) for k, x in enumerate(pieces)])
-    pieces = np.concatenate(pieces)
+    per_part = [tri_ops.subdivide(part.triangles, _EDGE * delta) for part in parts]
+    owner = np.concatenate([np.full(len(x), k) for k, x in enumerate(per_part)])
+    pieces = np.concatenate(per_part)
     middle = pieces.mean(axis=1)
     rho = np.sqrt(np.einsum("kvj,kvj->kv", pieces - middle[:, None], pieces - middle[:, None]))
     rho = rho.max(axis=1)
@@ -333,6 +334,8 @@ def _sphere_cover(
         return _cover_at(parts, max(delta, floor) - margin)
 
     if bound is None:
+        if budget is None:
+            raise ValueError("a sphere cover needs a bound or a budget")
         # from a bound one sphere meets, halve while the budget holds, then bisect
         delta, best = max(size, floor), None
         while True:
@@ -567,17 +570,16 @@ def _fit(
     """
     center, radius = _enclosing_ball(points)
     reach = radius + margin + _signed_distance(surface, solid, center[None])[0]
-    best = (reach, ("sphere", center, radius + margin))
-    if not capsules:
-        return best
-    a, b, r = _enclosing_capsule(points, margin)
-    length = float(np.linalg.norm(b - a))
-    if length > 0:
-        n = int(np.ceil(length / max(0.25 * r, 1e-12))) + 1
-        samples = a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
-        reach = r + _signed_distance(surface, solid, samples).max() + 0.5 * length / (n - 1)
-        if reach < best[0]:
-            best = (reach, ("capsule", a, b, r))
+    best: tuple[float, tuple[Any, ...]] = (reach, ("sphere", center, radius + margin))
+    if capsules:
+        a, b, r = _enclosing_capsule(points, margin)
+        length = float(np.linalg.norm(b - a))
+        if length > 0:
+            n = int(np.ceil(length / max(0.25 * r, 1e-12))) + 1
+            samples = a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+            reach = r + _signed_distance(surface, solid, samples).max() + 0.5 * length / (n - 1)
+            if reach < best[0]:
+                best = (reach, ("capsule", a, b, r))
     return best
 
 
@@ -666,21 +668,21 @@ def mesh_cover(
         capsules: allow capsules (else spheres only).
     """
     vertices, faces = _checked_mesh(vertices, faces)
-    max_primitives = _budget(max_primitives, "max_primitives")
-    if max_primitives is None:
+    budget = _budget(max_primitives, "max_primitives")
+    if budget is None:
         raise ValueError("max_primitives must be an integer >= 1, got None")
     max_overshoot = _bound(max_overshoot)
     size = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
     margin = _ROUNDING_MARGIN * max(size, float(np.abs(vertices).max()))
     # triangles much smaller than the smallest primitive wanted, so groups can be tight
-    edge = size / (4.0 * np.sqrt(max_primitives)) if size > 0 else 1.0
+    edge = size / (4.0 * np.sqrt(budget)) if size > 0 else 1.0
     pieces = tri_ops.subdivide(vertices[faces], edge)
     return _split_cover(
         pieces,
         vertices[faces],
         _closed_bodies(vertices, faces),
         margin,
-        max_primitives,
+        budget,
         max_overshoot,
         capsules,
     )

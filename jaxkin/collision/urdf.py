@@ -45,7 +45,7 @@ from xml.etree import ElementTree
 import numpy as np
 
 from .body import Body
-from .cover import box_sphere_cover, mesh_cover, mesh_sphere_cover
+from .cover import MeshCover, SphereCover, box_sphere_cover, mesh_cover, mesh_sphere_cover
 from .stl import read_stl
 
 __all__ = [
@@ -275,6 +275,7 @@ def read_collision(
     naming the link and the file; an unreadable URDF raises at once."""
     if root is None:
         root, where, folder = read_xml(source)
+    folder = Path.cwd() if folder is None else folder
     dirs = _package_dirs(package_dirs)
     links, elements, problem = [], [], ""
     for link in root.findall("link"):
@@ -347,6 +348,7 @@ def _cover(
             capsules.setdefault(link, []).append((found.a, found.b, found.capsule_radii))
         overshoot[link] = max(overshoot[link], reach)
 
+    found: MeshCover | SphereCover
     for element in read.elements:
         pose, link = element.pose, element.link
         if element.kind == "sphere":
@@ -375,7 +377,11 @@ def _cover(
         for name, parts in spheres.items()
     }
     capsule_data = {
-        name: tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
+        name: (
+            np.concatenate([a for a, _, _ in parts]),
+            np.concatenate([b for _, b, _ in parts]),
+            np.concatenate([r for _, _, r in parts]),
+        )
         for name, parts in capsules.items()
     }
     body = Body.create(read.links, sphere_data, capsule_data)

@@ -48,8 +48,9 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
-from .._geometry import BOUND, REAL, Geometry, geometry, label, number, static
+from .. import _validate
+from .._execute import Kernel, Policy
+from .._geometry import BOUND, REAL, Geometry, Numeric, geometry, label, number, static
 from .._numerics import eps, safe_norm
 from ..collision.body import Body, link_spheres
 from ..collision.check import chain_self_pairs
@@ -139,13 +140,13 @@ class Chain(Robot):
             ``k`` joints).
     """
 
-    screws: Array = number(REAL, (-1, 6))
-    home: Array = number(REAL, (4, 4))
-    multiplier: Array = number(REAL, (-1,))
-    offset: Array = number(REAL, (-1,))
-    lower: Array = number(BOUND, (-1,))
-    upper: Array = number(BOUND, (-1,))
-    velocity: Array = number(BOUND, (-1,))
+    screws: Numeric = number(REAL, (-1, 6))
+    home: Numeric = number(REAL, (4, 4))
+    multiplier: Numeric = number(REAL, (-1,))
+    offset: Numeric = number(REAL, (-1,))
+    lower: Numeric = number(BOUND, (-1,))
+    upper: Numeric = number(BOUND, (-1,))
+    velocity: Numeric = number(BOUND, (-1,))
     follows: tuple[int, ...] = static()
     joint_kinds: tuple[str, ...] = static()
     joint_names: tuple[str, ...] = label(default=())
@@ -166,7 +167,7 @@ class Chain(Robot):
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
     @property
-    def target(self) -> Target:
+    def target(self) -> Target:  # type: ignore[override]  # a class attribute of other robots
         """``POSE`` (4x4 poses) or ``POINT`` (the tip's origin), after ``target_kind``."""
         return POINT if self.target_kind == "point" else POSE
 
@@ -296,16 +297,18 @@ class Chain(Robot):
         if joint_kinds is None and m and screws.shape[1:] == (6,):
             rotating = np.linalg.norm(screws[own, :3], axis=1) > 0.5
             joint_kinds = tuple("revolute" if r else "prismatic" for r in rotating)
-        bounds = [
+        low, high, speed = (
             np.full(n, fill) if x is None else np.asarray(x, dtype=float)
             for x, fill in ((lower, -np.inf), (upper, np.inf), (velocity, np.inf))
-        ]
+        )
         return cls(
             screws,
             home,
             multiplier,
             offset,
-            *bounds,
+            low,
+            high,
+            speed,
             follows=follows,
             joint_kinds=tuple(joint_kinds or ()),
             joint_names=tuple(joint_names or ()),
@@ -442,36 +445,34 @@ class Chain(Robot):
         carried = prefix[..., np.asarray(chain.links.moved_by, dtype=np.int32), :, :]
         return jnp.einsum("...lij,ljk->...lik", carried, chain.links.homes)
 
-    def link_frame_rows(self, q: Array) -> tuple[list, list[int], Array | None]:
+    def link_frame_rows(self, q: Array) -> tuple[tuple[Array, Array], tuple[int, ...], Any]:
         """``Robot.link_frame_rows``: the joint-prefix poses ``exp([S_1] theta_1) ...
-        exp([S_k] theta_k)``, ``k = 0 ... n``, entry by entry (``_kinematics.joint_prefix_rows``),
-        each link carried by its prefix at its home pose ``M_l`` (``links``)."""
+        exp([S_k] theta_k)``, ``k = 0 ... n`` (``_kinematics.joint_prefix_frames``), each link
+        carried by its prefix at its home pose ``M_l`` (``links``)."""
         chain = _validate.cast_leaves(self, q.dtype)
-        frames = _kinematics.joint_prefix_rows(chain, q)
+        frames = _kinematics.joint_prefix_frames(chain, q)
         if chain.links is None:
-            return frames, list(range(len(frames))), None
-        return frames, list(chain.links.moved_by), chain.links.homes
+            return frames, tuple(range(frames[0].shape[0])), None
+        return frames, tuple(chain.links.moved_by), chain.links.homes
 
     def collision_body(self) -> Body:
-        """The body: one given by ``with_collision_body``; else, for a chain read from a
-        URDF, its ``<collision>`` elements as read with it (``collision.read_collision``,
-        covered on the first call and kept: ``collision.body_from_urdf``'s defaults), or
-        without them a skeleton of capsules; else a skeleton of capsules of radius 0: link
+        """The body: from the URDF's ``<collision>`` elements for a chain read from a URDF
+        (``collision.read_collision``: read with the chain, covered on the first call and kept,
+        ``collision.body_from_urdf``'s defaults), else a skeleton of capsules of radius 0: link
         ``k`` from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the
         projection of the previous point on the next axis, as ``reach()``), the last link to
-        the tip; a prismatic joint's travel is not covered. Links given spheres by
-        ``with_link_spheres`` have those instead."""
+        the tip; a prismatic joint's travel is not covered. A body given by ``with_body``
+        (e.g. ``collision.Body.load`` of one saved once) replaces either; links given spheres
+        by ``with_link_spheres`` have those instead, the other links keep their own (the
+        URDF's, or the skeleton's when the URDF has no ``<collision>`` elements)."""
         links = self.links
         spheres = dict(links.spheres) if links is not None else {}
-        if links is not None and links.body is not None:
-            return links.body.with_link_spheres(spheres) if spheres else links.body
-        if links is not None and links.collision is not None:
-            body = links.collision.body().body
-            if body.links != tuple(links.names):
-                raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
-            if body.num_spheres + body.num_capsules == 0:
-                body = _urdf_skeleton(links)
+        if links is not None and links.body:  # with_body: the user's, in place of any other
+            given_spheres, given_capsules = (dict(part) for part in links.body)
+            body = Body.create(tuple(links.names), given_spheres, given_capsules)
             return body.with_link_spheres(spheres) if spheres else body
+        if links is not None and links.collision is not None:
+            return _urdf_body(links, spheres)[0]
         screws = np.asarray(self.screws, float)
         current, points = np.zeros(3), [np.zeros(3)]
         for omega, v in zip(screws[:, :3], screws[:, 3:], strict=True):
@@ -483,20 +484,6 @@ class Chain(Robot):
         names = _default_link_names(len(screws))
         capsules = {name: ([points[k]], [points[k + 1]], [0.0]) for k, name in enumerate(names)}
         return Body.create(names, capsules=capsules).with_link_spheres(spheres)
-
-    def with_collision_body(self, body: Body) -> Chain:
-        """This chain with ``body`` as its collision body (e.g. ``collision.Body.load`` of a
-        body saved once, or ``collision.body_from_urdf`` with other cover options): a
-        ``collision.Body`` whose ``links`` are the chain's (``collision_body().links``);
-        spheres given by ``with_link_spheres`` still replace their links' primitives."""
-        if not isinstance(body, Body):
-            raise ValueError(f"body: expected a collision.Body, got {type(body).__name__}")
-        links = self._links()
-        if tuple(body.links) != tuple(links.names):
-            raise ValueError(
-                f"body: its links {body.links} are not the chain's {tuple(links.names)}"
-            )
-        return self.replace(links=links.replace(body=body))
 
     def _links(self) -> ChainLinks:
         """``links``, or the default links ``base, link1, ..., linkm`` carried by the first
@@ -513,11 +500,14 @@ class Chain(Robot):
         for a skeleton body, those not in contact at ``q = 0`` either. Otherwise links at
         least two apart, not in contact at ``q = 0``."""
         links = self.links
-        if links is None or not links.source:
+        if links is None or links.collision is None:
             return chain_self_pairs(self)
-        body = self.collision_body()
+        if links.body:
+            body, skeleton = self.collision_body(), False
+        else:
+            body, skeleton = _urdf_body(links, dict(links.spheres))
         pairs = self_collision_link_pairs(body, links.tree, links.disabled)
-        if links.spheres or body.num_spheres or body.capsule_radius.size == 0:
+        if not skeleton and (links.spheres or body.num_spheres or body.capsule_radius.size == 0):
             return pairs
         # a skeleton (no <collision> elements): its short links touch at q = 0
         return chain_self_pairs(self, candidates=pairs)
@@ -531,6 +521,30 @@ class Chain(Robot):
         own = link_spheres(spheres, tuple(links.names))
         merged = tuple({**dict(links.spheres), **own}.items())
         return self.replace(links=links.replace(spheres=merged))
+
+    def with_body(self, body: Body) -> Chain:
+        """This chain with ``body`` as its whole collision body (a spherised URDF's, cuRobo's
+        spheres through ``Body.create``, or any other), in place of the URDF's
+        ``<collision>`` elements, which are then not covered. ``body.links`` must be the chain's
+        links in order (``collision_body().links``). The chain keeps host copies."""
+        if not isinstance(body, Body):
+            raise ValueError(f"body: expected a collision.Body, got {type(body).__name__}")
+        links = self._links()
+        if tuple(body.links) != tuple(links.names):
+            raise ValueError(
+                f"body: its links {tuple(body.links)} are not the chain's {tuple(links.names)}"
+            )
+        spheres, capsules = body.per_link()
+
+        def frozen(parts: dict) -> tuple:
+            copies = {name: tuple(np.array(x, dtype=np.float64) for x in arrays)
+                      for name, arrays in parts.items()}  # fmt: skip
+            for arrays in copies.values():
+                for arr in arrays:
+                    arr.setflags(write=False)
+            return tuple(copies.items())
+
+        return self.replace(links=links.replace(body=(frozen(spheres), frozen(capsules))))
 
     def with_link_radius(self, radius: float) -> Chain:
         """This chain (read from a URDF without ``<collision>`` elements) with the capsules of
@@ -548,6 +562,17 @@ class Chain(Robot):
             raise ValueError("with_srdf: the chain was not read from a URDF")
         disabled = tuple((a, b) for a, b, _ in read_srdf_disabled(source))
         return self.replace(links=self.links.replace(disabled=self.links.disabled + disabled))
+
+
+def _urdf_body(links: ChainLinks, spheres: dict) -> tuple[Body, bool]:
+    """The body of a chain read from a URDF, the links of ``spheres`` given the user's own,
+    and whether the others' is the skeleton (the URDF has no ``<collision>`` elements)."""
+    read = links.collision.body().body
+    if read.links != tuple(links.names):
+        raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
+    if read.num_spheres + read.num_capsules == 0:
+        return _urdf_skeleton(links).with_link_spheres(spheres), True
+    return (read.with_link_spheres(spheres) if spheres else read), False
 
 
 def _urdf_skeleton(links: ChainLinks) -> Body:
@@ -587,10 +612,14 @@ class ChainLinks(Geometry):
         radius: label, the skeleton's capsule radius for a URDF without ``<collision>``.
         collision: label, the URDF's collision geometry as read with the chain
             (``collision.UrdfCollision``: covered once, on the first ``collision_body()``).
-        body: label, a body given by ``with_collision_body``, used instead.
+        body: label, a whole body given by ``with_body``: ``(spheres, capsules)``, each
+            ``((link, arrays), ...)`` as ``Body.per_link`` gives them; empty for none.
+        held: label, the joints off the path not at 0, ``((name, position), ...)``
+            (``from_urdf(..., fixed=...)`` and the joints that mimic those): ``homes`` places
+            the links they carry there.
     """
 
-    homes: Array = number(REAL, (-1, 4, 4))
+    homes: Numeric = number(REAL, (-1, 4, 4))
     moved_by: tuple[int, ...] = static()
     names: tuple[str, ...] = label()
     source: str = label(default="")
@@ -599,7 +628,8 @@ class ChainLinks(Geometry):
     disabled: tuple = label(default=())
     radius: float = label(default=0.0)
     collision: Any = label(default=None)
-    body: Any = label(default=None)
+    body: tuple = label(default=())
+    held: tuple = label(default=())
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
@@ -611,9 +641,8 @@ def _jacobian_impl(chain: Chain, q: Array, which: str) -> Array:
 
 
 # Large batches split across host threads (memory-bound: 36-42 outputs per element).
-_jacobian_jit = _batching.PaddedJit(
-    _batching.PartsJit(_jacobian_impl, static_argnames=("which",), batched_argnames=("q",)),
-    {"q": 1},
+_jacobian_jit = Kernel(
+    _jacobian_impl, static=("which",), batched={"q": 1}, policy=Policy(pad=True, threads=True)
 )
 
 

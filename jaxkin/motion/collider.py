@@ -1,0 +1,138 @@
+"""The one door from the motion planner to the collision layer.
+
+Every question the planner asks about collisions goes through this module, so that a change
+of the collision kernels is one edit here:
+
+- ``COMPILER_OPTIONS``: the XLA options of the checks' programs (``collision.rows``), for every
+  program of the planner that runs them.
+- ``prepare(robot)``: host side, once per robot: the body and the self-collision pairs
+  (``collision.prepare``).
+- ``free(robot, body, pairs, q, world)``: per configuration ``q (..., n)``, is the robot clear
+  of the world and itself (``collision.collides_kernel``, the verdict alone)?
+- ``clearances(robot, body, pairs, q, world)``: per configuration the signed distance of each
+  body primitive to the world and of each checked self link pair
+  (``collision.clearances_kernel``), for conservative advancement with one speed bound per
+  link and per pair (``bound``).
+- ``stack_worlds(worlds)``: one world per problem as one ``World`` with a leading problem axis
+  (every kind padded to a common count, a multiple of ``collision.OBSTACLE_BUCKET``, without
+  changing any distance).
+
+All but ``prepare`` and ``stack_worlds`` are pure and traceable (any leading batch axes of
+``q``; the world without batch axes: under ``vmap`` over problems it is one world per lane).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from .. import collision
+from ..collision import World
+
+__all__ = ["COMPILER_OPTIONS", "clearances", "free", "prepare", "stack_worlds"]
+
+# XLA options of every program that runs the checks (the CPU's older fusion emitters)
+COMPILER_OPTIONS = collision.rows.COMPILER_OPTIONS
+
+
+def prepare(robot: Any, self_collision: bool = True) -> tuple[Any, Any]:
+    """The robot's body and self pairs (host side; cached on the robot)."""
+    return collision.prepare(robot, self_collision)
+
+
+def free(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> Array:
+    """``(...)`` True where ``q (..., n)`` touches neither the world nor the robot itself."""
+    return ~collision.collides_kernel(robot, body, pairs, q, world, 0.0).collides
+
+
+def clearances(
+    robot: Any, body: Any, pairs: Any, q: Array, world: World
+) -> tuple[Array, Array, Array]:
+    """``(primitives (..., S + C), self_pairs (..., len(pairs.link_pairs)), placed (...))``:
+    each primitive's signed distance to the world (spheres then capsules; the dtype's largest
+    value without obstacles), each link pair's smallest signed distance, and whether ``q`` is
+    finite and the robot assembles there (where it is not, the distances are placeholders):
+    ``collision.clearances_kernel``."""
+    return collision.clearances_kernel(robot, body, pairs, q, world)
+
+
+_KINDS = tuple(f.name for f in dataclasses.fields(World))
+
+
+def _pad_kind(kind: str, items: Any, count: int, world: World, far: np.ndarray) -> dict:
+    """The arrays of one obstacle kind of one world padded to ``count`` rows by obstacles that
+    change no distance: copies of its last row (as ``World.bucketed``); for a kind it lacks, a
+    point (no extent) at an interior point of another of its obstacles (anything touching it
+    touches that obstacle, and its distance is never smaller), or at ``far`` in an empty
+    world."""
+    fields = {f: np.asarray(getattr(items, f)) for f in items.__dataclass_fields__}
+    have = next(iter(fields.values())).shape[0]
+    if have == count:
+        return fields
+    if have:
+        return {
+            f: np.concatenate([v, np.repeat(v[-1:], count - have, 0)]) for f, v in fields.items()
+        }
+    inside = far
+    for other in ("boxes", "spheres", "cylinders", "capsules"):
+        rows = getattr(world, other)
+        if len(rows):
+            inside = np.asarray(rows.center if other != "capsules" else rows.a)[0]
+            break
+    point = np.tile(inside, (count, 1))
+    zero = np.zeros(count)
+    if kind == "spheres":
+        return {"center": point, "radius": zero}
+    if kind == "capsules":
+        return {"a": point, "b": point, "radius": zero}
+    if kind == "boxes":
+        rotation = np.tile(np.eye(3), (count, 1, 1))
+        return {"center": point, "rotation": rotation, "half_extents": np.zeros((count, 3))}
+    if kind == "cylinders":
+        axis = np.tile([0.0, 0.0, 1.0], (count, 1))
+        return {"center": point, "axis": axis, "radius": zero, "half_length": zero}
+    raise ValueError("world: a half-space cannot be padded into a world that has none")
+
+
+def stack_worlds(worlds: list[World], far: float = 100.0) -> World:
+    """Host side: the worlds of ``B`` problems as one ``World`` whose arrays have a leading
+    axis ``B``, each kind padded to the largest count rounded up to a multiple of
+    ``collision.OBSTACLE_BUCKET`` (``_pad_kind``: worlds within the same buckets share a
+    compiled program); ``far`` places the padding of an empty world."""
+    if not worlds:
+        raise ValueError("worlds: expected at least one collision.World")
+    for i, w in enumerate(worlds):
+        if not isinstance(w, World):
+            raise ValueError(f"worlds[{i}]: expected a collision.World, got {type(w).__name__}")
+        if w.batched():
+            raise ValueError(f"worlds[{i}]: expected a world without batch axes")
+    bucket = collision.OBSTACLE_BUCKET
+    counts = {k: max(len(getattr(w, k)) for w in worlds) for k in _KINDS}
+    counts = {k: -(-c // bucket) * bucket for k, c in counts.items()}
+    if counts["halfspaces"] and any(not len(w.halfspaces) for w in worlds):
+        # a half-space no obstacle contains: the far one below everything
+        worlds = [
+            w
+            if len(w.halfspaces)
+            else dataclasses.replace(
+                w, halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [-far])
+            )
+            for w in worlds
+        ]
+    point = np.array([0.0, 0.0, -far])
+    stacked = {}
+    for kind in _KINDS:
+        if not counts[kind]:  # an empty kind gets the leading axis too
+            stacked[kind] = jax.tree.map(
+                lambda x: jnp.broadcast_to(x, (len(worlds), *x.shape)), getattr(worlds[0], kind)
+            )
+            continue
+        rows = [_pad_kind(kind, getattr(w, kind), counts[kind], w, point) for w in worlds]
+        cls = type(getattr(worlds[0], kind))
+        stacked[kind] = cls(**{f: jnp.asarray(np.stack([r[f] for r in rows])) for f in rows[0]})
+    return World(**stacked)
