@@ -193,7 +193,12 @@ def main() -> None:
                     d_self = col.self_distances(spheres, capsules, pairs)
                     return d_world.min(axis=-1) <= 0, d_self.min(axis=-1) <= 0
 
-                in_world, in_self = map(np.asarray, jax.jit(verdicts)(poses, body, world))
+                # a few configurations at a time: the per-primitive queries hold every pair
+                run = jax.jit(verdicts)
+                chunks = [run(poses[k : k + 20], body, world) for k in range(0, len(poses), 20)]
+                in_world, in_self = (
+                    np.concatenate([np.asarray(c[i]) for c in chunks]) for i in (0, 1)
+                )
                 hits.append(in_world | in_self)
                 self_hits.append(in_self)
                 world_hits.append(in_world)

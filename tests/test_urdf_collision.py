@@ -82,7 +82,8 @@ def test_a_thin_box_is_a_few_spheres(tmp_path):
     path = tmp_path / "plate.urdf"
     path.write_text(_urdf({"l2": '<box size="1.0 1.0 0.002"/>'}))
     read = col.body_from_urdf(path)
-    assert 1 <= read.body.num_spheres <= 32 and read.body.num_capsules == 0
+    assert read.body.num_spheres + read.body.num_capsules <= 32
+    assert read.body.num_spheres >= 1 and read.body.num_capsules == 0
     assert read.overshoot["l2"] > 0.01
     chain = serial.from_urdf(path, "tool")
     assert chain.collision_body().num_spheres == read.body.num_spheres
@@ -168,7 +169,7 @@ def test_package_dirs_as_one_folder(tmp_path):
     path.write_text(_urdf({"l1": '<mesh filename="package://arm_pkg/meshes/link.stl"/>'}))
     folder = tmp_path / "ws" / "src"
     reference = col.body_from_urdf(path, package_dirs=[folder]).body
-    assert reference.num_spheres >= 1
+    assert reference.num_spheres + reference.num_capsules >= 1
     for given in (str(folder), folder):
         _same_body(col.body_from_urdf(path, package_dirs=given).body, reference)
     _same_body(serial.from_urdf(path, "tool", package_dirs=str(folder)).collision_body(), reference)
@@ -179,18 +180,25 @@ def test_package_dirs_as_one_folder(tmp_path):
 
 
 def test_urdf_text_with_an_encoding_declaration(tmp_path):
-    """The URDF as text with ``<?xml ... encoding="utf-8"?>`` gives the body the same file
-    gives, for ``body_from_urdf`` and for a chain's collision check (it failed the check)."""
-    text = '<?xml version="1.0" encoding="utf-8"?>\n' + _urdf(PRIMITIVES)
-    path = tmp_path / "robot.urdf"
-    path.write_text(text, encoding="utf-8")
-    _same_body(col.body_from_urdf(text).body, col.body_from_urdf(path).body)
+    """The URDF as text with ``<?xml ... encoding=...?>`` gives the body the same file gives,
+    for ``body_from_urdf`` and for a chain's collision check: UTF-8, and ISO-8859-1 with a
+    link named ``"bras_\u00e9"`` (the text is already decoded: its declaration names the
+    file's encoding, not the text's; read as UTF-8 bytes declared Latin-1, the name came
+    back as ``"bras_\u00c3\u00a9"`` and the body's links differed from the chain's)."""
     world = col.World.create(spheres=col.Spheres.create([[0.0, 0.0, 0.45]], 0.05))
     q = np.array([[0.0, 0.0], [1.5, 0.0]])
-    from_text = col.check(serial.from_urdf(text, "tool"), q, world)
-    from_file = col.check(serial.from_urdf(path, "tool"), q, world)
-    np.testing.assert_array_equal(from_text.clearance, from_file.clearance)
-    assert list(np.asarray(from_text.collides)) == [True, False]
+    for encoding in ("utf-8", "ISO-8859-1"):
+        body = _urdf(PRIMITIVES).replace('"l2"', '"bras_\u00e9"')
+        text = f'<?xml version="1.0" encoding="{encoding}"?>\n' + body
+        path = tmp_path / f"robot_{encoding}.urdf"
+        path.write_text(text, encoding=encoding)
+        from_path = col.body_from_urdf(path).body
+        assert "bras_\u00e9" in from_path.links
+        _same_body(col.body_from_urdf(text).body, from_path)
+        from_text = col.check(serial.from_urdf(text, "tool"), q, world)
+        from_file = col.check(serial.from_urdf(path, "tool"), q, world)
+        np.testing.assert_array_equal(from_text.clearance, from_file.clearance)
+        assert list(np.asarray(from_text.collides)) == [True, False]
 
 
 def test_primitives_need_no_trimesh_and_meshes_name_the_extra(tmp_path, monkeypatch):

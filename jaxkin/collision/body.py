@@ -9,7 +9,8 @@ the robot that owns the body supplies those poses.
 
 The coarse level: a few bounding spheres per link (``bound_*``), each containing a static group
 of that link's primitives (``sphere_bound``, ``capsule_bound``), for a pass that rules out
-most pairs before the primitives are tested (``place_bounds``). A link's primitives form one
+most pairs before the primitives are tested (``place_bounds``; the batched checks do not run
+it yet). A link's primitives form one
 group, split in two at the median along the principal axis of their centres while the two
 halves' bounding volumes together are at most half the whole's (a long link gets a few, a
 compact one a single sphere), at most ``MAX_BOUNDS`` per link. A bounding sphere's centre is
