@@ -352,9 +352,9 @@ def test_mesh_covers_hold_the_meshes_within_their_bounds(robots, urdf):
     rng = np.random.default_rng(30)
     counts, measured = {}, {}
     for link, mesh in _mesh_links(robots, path):
-        surface = np.concatenate(
-            [mesh.vertices, trimesh.sample.sample_surface(mesh, 3000, seed=31)[0]]
-        )
+        # trimesh's surface samples, its random generator's key (31) given by position
+        samples = trimesh.sample.sample_surface(mesh, 3000, None, False, 31)[0]
+        surface = np.concatenate([mesh.vertices, samples])
         for read, budget in ((default, 256), (few, 16)):
             centers, radii = read.body.per_link()[0][link]
             assert len(radii) <= budget

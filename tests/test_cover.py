@@ -36,9 +36,15 @@ def _sphere_gaps(centers: np.ndarray, radii: np.ndarray, points: np.ndarray) -> 
     return (np.linalg.norm(points[:, None] - centers[None], axis=-1) - radii[None]).min(axis=1)
 
 
-def _in_spheres(centers: np.ndarray, radii: np.ndarray, per: int, seed: int) -> np.ndarray:
+def _surface(mesh, count: int, key: int) -> np.ndarray:
+    """``count`` random points of the mesh's surface (trimesh's ``sample_surface``, its random
+    generator's key given by position after ``face_weight`` and ``sample_color``)."""
+    return trimesh.sample.sample_surface(mesh, count, None, False, key)[0]
+
+
+def _in_spheres(centers: np.ndarray, radii: np.ndarray, per: int, key: int) -> np.ndarray:
     """Points of every sphere: ``per`` on its boundary and ``per`` inside (uniform)."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(key)
     dirs = rng.normal(size=(len(radii), 2 * per, 3))
     dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
     scale = np.concatenate([np.ones(per), rng.uniform(0.0, 1.0, per) ** (1 / 3)])
@@ -51,10 +57,10 @@ def _distance_to_solid(parts: list, points: np.ndarray) -> np.ndarray:
     return np.maximum(-inside, 0.0)
 
 
-def _check_sphere_cover(found: col.SphereCover, parts: list, surface: np.ndarray, seed: int):
+def _check_sphere_cover(found: col.SphereCover, parts: list, surface: np.ndarray, key: int):
     """Every surface point inside; sampled points of the spheres within ``overshoot``."""
     assert np.all(_sphere_gaps(found.centers, found.radii, surface) <= 0.0)
-    points = _in_spheres(found.centers, found.radii, 40, seed)
+    points = _in_spheres(found.centers, found.radii, 40, key)
     assert _distance_to_solid(parts, points).max() <= found.overshoot + 1e-9
 
 
@@ -84,8 +90,8 @@ def test_sphere_cover_holds_the_surface_and_meets_its_bound(shape):
     found = col.mesh_sphere_cover(mesh.vertices, mesh.faces, max_overshoot=0.02)
     assert 1 <= len(found.radii) <= 200
     assert found.overshoot <= 0.02
-    samples = trimesh.sample.sample_surface(mesh, 4000, seed=1)[0]
-    _check_sphere_cover(found, parts, np.concatenate([mesh.vertices, samples]), seed=2)
+    samples = _surface(mesh, 4000, 1)
+    _check_sphere_cover(found, parts, np.concatenate([mesh.vertices, samples]), key=2)
     again = col.mesh_sphere_cover(mesh.vertices, mesh.faces, max_overshoot=0.02)
     np.testing.assert_array_equal(again.centers, found.centers)  # deterministic
     np.testing.assert_array_equal(again.radii, found.radii)
@@ -98,9 +104,9 @@ def test_an_open_mesh_is_covered_within_the_bound_of_its_surface():
     faces = box.faces[box.face_normals[:, 2] < 0.5]
     found = col.mesh_sphere_cover(box.vertices, faces, max_overshoot=0.02)
     opened = trimesh.Trimesh(box.vertices, faces, process=False)
-    samples = trimesh.sample.sample_surface(opened, 3000, seed=3)[0]
+    samples = _surface(opened, 3000, 3)
     assert np.all(_sphere_gaps(found.centers, found.radii, samples) <= 0.0)
-    points = _in_spheres(found.centers, found.radii, 30, seed=4)
+    points = _in_spheres(found.centers, found.radii, 30, key=4)
     distance = trimesh.proximity.closest_point(opened, points)[1]
     assert distance.max() <= found.overshoot + 1e-9 and found.overshoot <= 0.02
 
@@ -111,14 +117,14 @@ def test_a_budget_relaxes_the_bound_and_none_finds_the_smallest():
     spheres of the 1 cm cover needs a looser bound)."""
     mesh = trimesh.creation.box([0.2, 0.1, 0.05])
     parts = [mesh]
-    surface = np.concatenate([mesh.vertices, trimesh.sample.sample_surface(mesh, 3000, seed=5)[0]])
+    surface = np.concatenate([mesh.vertices, _surface(mesh, 3000, 5)])
     fine = col.mesh_sphere_cover(mesh.vertices, mesh.faces, max_overshoot=0.01)
     few = col.mesh_sphere_cover(mesh.vertices, mesh.faces, max_spheres=6, max_overshoot=0.01)
     best = col.mesh_sphere_cover(mesh.vertices, mesh.faces, max_spheres=6, max_overshoot=None)
     assert len(fine.radii) > 6 and fine.overshoot <= 0.01
     for found in (few, best):
         assert len(found.radii) <= 6 and found.overshoot > 0.01
-        _check_sphere_cover(found, parts, surface, seed=6)
+        _check_sphere_cover(found, parts, surface, key=6)
     assert best.overshoot <= few.overshoot * 1.1
     with pytest.raises(ValueError, match="max_spheres"):
         col.mesh_sphere_cover(mesh.vertices, mesh.faces, max_spheres=0)
@@ -136,7 +142,7 @@ def test_thin_and_flat_boxes_stay_within_the_budget(half):
     assert len(found.radii) <= 32
     box = trimesh.creation.box(2 * np.maximum(half, 1e-9))
     corners = np.array(np.meshgrid(*[[-h, h] for h in half])).reshape(3, -1).T
-    surface = np.concatenate([corners, trimesh.sample.sample_surface(box, 3000, seed=7)[0]])
+    surface = np.concatenate([corners, _surface(box, 3000, 7)])
     surface = np.clip(surface, -np.array(half), np.array(half))
     assert np.all(_sphere_gaps(found.centers, found.radii, surface) <= 0.0)
 
@@ -178,7 +184,7 @@ def test_mesh_cover_of_a_tube_uses_capsules_and_bounds_its_overshoot():
     mesh = trimesh.util.concatenate([tube, lug])
     c = col.mesh_cover(mesh.vertices, mesh.faces, max_primitives=8)
     assert c.num_primitives <= 8 and len(c.capsule_radii) >= 1
-    surface = np.concatenate([mesh.vertices, trimesh.sample.sample_surface(mesh, 4000, seed=0)[0]])
+    surface = np.concatenate([mesh.vertices, _surface(mesh, 4000, 0)])
     assert np.all(_surface_gaps(c, surface) <= 0.0)
     rng = np.random.default_rng(1)
     dirs = rng.normal(size=(200, 3))
@@ -241,10 +247,10 @@ def _robot_mesh(relative: str):
     pytest.skip("example-robot-data's meshes not found")
 
 
-def _barycentric_samples(vertices: np.ndarray, faces: np.ndarray, n: int, seed: int):
+def _barycentric_samples(vertices: np.ndarray, faces: np.ndarray, n: int, key: int):
     """``n`` points uniform on the surface (triangles by area, then uniform barycentric
     coordinates), with NumPy alone, and the midpoints of every edge."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(key)
     tri = vertices[faces]
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     pick = rng.choice(len(tri), n, p=area / area.sum())
@@ -274,7 +280,7 @@ def test_default_cover_of_a_robot_mesh_holds_sampled_surface_points(mesh):
     vertices, faces = np.asarray(loaded.vertices, float), np.asarray(loaded.faces)
     found = col.mesh_sphere_cover(vertices, faces)
     assert 0 < found.overshoot <= 0.01
-    points = np.concatenate([vertices, _barycentric_samples(vertices, faces, 20_000, seed=40)])
+    points = np.concatenate([vertices, _barycentric_samples(vertices, faces, 20_000, key=40)])
     gaps = _sphere_gaps(found.centers, found.radii, points)
     assert gaps.max() <= 0.0, gaps.max()
     k = np.arange(32) + 0.5  # Fibonacci directions on the unit sphere
