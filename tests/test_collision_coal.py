@@ -353,7 +353,7 @@ def test_mesh_covers_hold_the_meshes_within_their_bounds(robots, urdf):
     counts, measured = {}, {}
     for link, mesh in _mesh_links(robots, path):
         # trimesh's surface samples, its random generator's key (31) given by position
-        samples = trimesh.sample.sample_surface(mesh, 3000, None, False, 31)[0]
+        samples = trimesh.sample.sample_surface(mesh, 3000, None, False, False, 31)[0]
         surface = np.concatenate([mesh.vertices, samples])
         for read, budget in ((default, 256), (few, 16)):
             centers, radii = read.body.per_link()[0][link]

@@ -38,8 +38,9 @@ def _sphere_gaps(centers: np.ndarray, radii: np.ndarray, points: np.ndarray) -> 
 
 def _surface(mesh, count: int, key: int) -> np.ndarray:
     """``count`` random points of the mesh's surface (trimesh's ``sample_surface``, its random
-    generator's key given by position after ``face_weight`` and ``sample_color``)."""
-    return trimesh.sample.sample_surface(mesh, count, None, False, key)[0]
+    generator's key given by position after ``face_weight``, ``sample_color`` and
+    ``return_barycentric``)."""
+    return trimesh.sample.sample_surface(mesh, count, None, False, False, key)[0]
 
 
 def _in_spheres(centers: np.ndarray, radii: np.ndarray, per: int, key: int) -> np.ndarray:
