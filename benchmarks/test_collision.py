@@ -168,10 +168,11 @@ def _robots_folder():
 
 @pytest.fixture(scope="module")
 def panda():
-    """The Panda as spheres: mesh covers of 5 spheres per mesh (``body_from_urdf``), each
-    finger box capsule replaced by its bounding sphere; the SRDF's self pairs; the URDF's
-    joints for the forward kinematics; a world of 12 spheres and 6 boxes (VAMP's scene
-    size) around the arm."""
+    """The Panda as spheres: mesh covers of at most 5 spheres per mesh (``body_from_urdf``;
+    65 spheres with the former covers, whose finger boxes were capsules, each replaced here
+    by its bounding sphere; 59 with the 1 cm covers, whose boxes are spheres); the SRDF's
+    self pairs; the URDF's joints for the forward kinematics; a world of 12 spheres and 6
+    boxes (VAMP's scene size) around the arm."""
     yourdfpy = pytest.importorskip("yourdfpy")
     root = _robots_folder()
     urdf = root / "panda_description/urdf/panda.urdf"
@@ -327,7 +328,7 @@ def test_panda_edges(measure, benchmark, panda, dtype):
 @pytest.fixture(scope="module")
 def panda_chain(panda):
     """The Panda as a public robot: ``serial.from_urdf`` to the hand, the SRDF, and the
-    benchmark body's spheres on every link (``with_link_spheres``): the same 65 spheres and
+    benchmark body's spheres on every link (``with_link_spheres``): the same spheres and
     20 link pairs as ``panda``."""
     from jaxkin import serial
 
