@@ -335,3 +335,48 @@ def test_a_body_saves_and_loads(tmp_path):
     np.savez(tmp_path / "other.npz", links=np.array([{"a": 1}], dtype=object))
     with pytest.raises(ValueError, match=r"other\.npz"):
         col.Body.load(tmp_path / "other.npz")
+
+
+@pytest.fixture
+def cover_store(tmp_path):
+    """JAX's compilation cache directory set to a fresh folder for the test, then restored."""
+    before = jax.config.jax_compilation_cache_dir
+    jax.config.update("jax_compilation_cache_dir", str(tmp_path / "cache"))
+    try:
+        yield tmp_path / "cache" / "covers"
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
+
+
+def test_covers_are_stored_for_later_processes(tmp_path, cover_store, monkeypatch):
+    """With the compilation cache on, a mesh's cover is written once and read back by a later
+    reader (another chain of the same file: what a second process does) equal to the array,
+    without covering again; another bound is another entry; a damaged entry is covered again
+    and gives the same body; with the cache off nothing is written."""
+    _box_stl(tmp_path / "link.stl", half=(0.05, 0.03, 0.12))
+    path = tmp_path / "robot.urdf"
+    path.write_text(_urdf({**PRIMITIVES, "l1": '<mesh filename="link.stl"/>'}))
+    calls = []
+    original = urdf_module.mesh_sphere_cover
+
+    def mesh_sphere_cover(*args, **kwargs):
+        calls.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(urdf_module, "mesh_sphere_cover", mesh_sphere_cover)
+    first = serial.from_urdf(path, "tool").collision_body()
+    assert len(calls) == 1 and len(list(cover_store.glob("*.npz"))) == 1
+    again = serial.from_urdf(path, "tool").collision_body()
+    assert len(calls) == 1
+    _same_body(again, first)
+    col.body_from_urdf(path, max_overshoot=0.02)
+    assert len(calls) == 2 and len(list(cover_store.glob("*.npz"))) == 2
+    for entry in cover_store.glob("*.npz"):
+        entry.write_bytes(b"not a cover")
+    _same_body(serial.from_urdf(path, "tool").collision_body(), first)
+    assert len(calls) == 3
+    jax.config.update("jax_compilation_cache_dir", None)
+    for entry in cover_store.glob("*.npz"):
+        entry.unlink()
+    _same_body(serial.from_urdf(path, "tool").collision_body(), first)
+    assert len(calls) == 4 and not list(cover_store.glob("*.npz"))

@@ -46,6 +46,7 @@ import numpy as np
 
 from .body import Body
 from .cover import MeshCover, SphereCover, box_sphere_cover, mesh_cover, mesh_sphere_cover
+from .cover_store import cached_cover
 from .stl import read_stl
 
 __all__ = [
@@ -368,9 +369,14 @@ def _cover(
         else:
             vertices, faces = _mesh(element, read.where)
             if max_primitives_per_mesh is not None:
-                found = mesh_cover(vertices, faces, max_primitives_per_mesh, max_overshoot)
+                found = cached_cover(
+                    mesh_cover, MeshCover, vertices, faces, max_primitives_per_mesh, max_overshoot
+                )
             else:
-                found = mesh_sphere_cover(vertices, faces, max_spheres_per_mesh, max_overshoot)
+                found = cached_cover(
+                    mesh_sphere_cover, SphereCover, vertices, faces, max_spheres_per_mesh,
+                    max_overshoot,
+                )  # fmt: skip
             add(link, found, found.overshoot)
     sphere_data = {
         name: (np.concatenate([c for c, _ in parts]), np.concatenate([r for _, r in parts]))
