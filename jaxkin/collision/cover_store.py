@@ -75,8 +75,9 @@ def _write(path: Path, found: Any) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         # written whole, then renamed: a reader never sees half a file
         handle, name = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        arrays: dict[str, Any] = {k: np.asarray(v) for k, v in dataclasses.asdict(found).items()}
         with os.fdopen(handle, "wb") as f:
-            np.savez(f, **{k: np.asarray(v) for k, v in dataclasses.asdict(found).items()})
+            np.savez(f, **arrays)
         os.replace(name, path)
     except OSError:
         pass
