@@ -128,8 +128,11 @@ class ChainIKOptions:
     Attributes:
         restarts: runs per element at most (>= 1), before the unbounded run.
         max_iter: updates per run (>= 1).
-        warm_iter: updates of a later path sample's run from the previous solution (the
-            planner's warm-started IK along paths).
+        warm_iter: updates of a path sample's Newton iterations from the prediction, and of
+            its retry along intermediate targets (the planner's IK along paths,
+            ``serial.track``).
+        path_lanes: solutions of a path's first sample followed along it side by side, the
+            best kept (``serial.track``).
         position_tol: length units; None for ``max(1e-10, 1000 eps) * chain.length_scale()``.
             A new value compiles nothing new.
         orientation_tol: rad; None for ``max(1e-10, 1000 eps)``.
@@ -139,12 +142,13 @@ class ChainIKOptions:
     restarts: int = 64
     max_iter: int = 12
     warm_iter: int = 20
+    path_lanes: int = 16
     position_tol: float | None = None
     orientation_tol: float | None = None
     use_limits: bool = True
 
     def __post_init__(self) -> None:
-        for name in ("restarts", "max_iter", "warm_iter"):
+        for name in ("restarts", "max_iter", "warm_iter", "path_lanes"):
             _count(getattr(self, name), name)
         for name in ("position_tol", "orientation_tol"):
             object.__setattr__(self, name, _tolerance(getattr(self, name), name))
@@ -159,15 +163,17 @@ class Budget:
     Attributes:
         max_iter: updates per run.
         runs: runs per element at most, before the unbounded run.
-        warm_iter: updates of a warm-started run along a path (``solve_paths``).
+        warm_iter: updates per attempt of a path sample (``track.solve_paths``).
         slots: lanes of the work queue (``QUEUE_SLOTS``); a batch of at most this many
             elements iterates in step.
+        lanes: solutions of a path's first sample followed along it (``track.solve_paths``).
     """
 
     max_iter: int
     runs: int
     warm_iter: int
     slots: int = QUEUE_SLOTS
+    lanes: int = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -606,7 +612,9 @@ def _solution_jvp(primals: tuple, tangents: tuple) -> tuple[Array, Array]:
     return q, jnp.where(ok[..., None], dq_dot, 0.0)
 
 
-def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool) -> IKResult:
+def _finish(
+    prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool, column_scale=None
+) -> IKResult:
     """Joint rates, margins and implicit derivatives at the solutions (module docstring)."""
     unit, g, scale, target = prep.unit, prep.g, prep.scale, prep.safe
     dtype = q_unit.dtype
@@ -627,10 +635,14 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
         velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
         rows = rows[3:] if point else rows
-        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
+        weighted = column_scale is not None and jac.shape[-1] > jac.shape[-2]
+        jac_w = jac * column_scale[..., None, :] if weighted else jac
+        q_dot = _step.damped_step_looped(jac_w, velocity * rows, zero, floor)
+        q_dot = q_dot * column_scale if weighted else q_dot
         jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
         drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
+        q_ddot = _step.damped_step_looped(jac_w, acceleration * rows - drift, zero, floor)
+        q_ddot = q_ddot * column_scale if weighted else q_ddot
         okc = ok[..., None]
     q = q_unit / g
     # Back in the chain's units a joint at its limit may pass it by an ulp: moved back (values

@@ -1,0 +1,420 @@
+"""The chain IK along sampled paths (``Chain.ik_path_kernel``): several solutions of the
+first sample followed along the path at once, the best kept.
+
+In units of the chain's size (``search._prepare``), for targets ``G_t``, ``t = 0 ... T - 1``,
+with body twists ``V_t`` and their rates ``A_t`` (``search._body_twists``; a point target: the
+tip origin's velocity and acceleration in the base frame):
+
+* **Lanes.** ``K = ChainIKOptions.path_lanes`` joint vectors per path follow it side by side:
+  the first sample's solution of the IK search (``search.solve``'s, lane 0), then the other
+  starts of ``_starts.first_starts`` and the search's seeds, which the first sample's Newton
+  iterations below take onto ``G_0`` (with the sub-step homotopy of a retry from their own
+  pose). With ``seed`` (a path solved in windows) one lane starts at it.
+* **Rates.** At joints ``q`` the rates are those of the weighted least-norm solution
+  [Chan and Dubey 1995]: ``q_dot = W^-1/2 (J W^-1/2)^+ V``, ``q_ddot = W^-1/2 (J W^-1/2)^+ (A -
+  J_dot q_dot)``, with ``J`` the body Jacobian (a point: the tip origin's, base frame) and
+  ``W = diag(w_j)``, ``w_j = (u_j - l_j)^2 / (4 (u_j - q_j)(q_j - l_j))`` (1 at the middle of
+  the limits ``[l_j, u_j]``, growing without bound towards them: a joint near a limit moves
+  less; 1 for a joint without limits or a revolute one whose range is a turn or more). For a
+  chain with no more joints than target rows the weights change nothing (``J`` square or the
+  least-squares solution unique). The returned rates are these (``search._finish``).
+* **Time.** The kernel is given no sampling period: each step's ``dt`` is estimated from the
+  targets, ``dt = <xi, M> / <M, M>`` with ``xi = log(G_prev^-1 G_t)`` (the step's body twist)
+  and ``M = (V_prev + V_t) / 2`` (0 at rest).
+* **Prediction and correction** (``_follow``): from the last accepted sample ``(q, q_dot,
+  q_ddot)``, Newton's iterations (damped as the search's, ``search.LM_WEIGHT``; weighted as the
+  rates; each revolute step at most ``MAX_STEP``) start at ``q + dt q_dot + dt^2 q_ddot / 2``.
+  A redundant chain's iterate is also pulled, in the null space of ``J``, towards the step the
+  rates predict (the planner's, below): ``dq <- y + (J W^-1/2)^+ ... (V - J y)``, ``y = E - (q -
+  q_prev)`` [collocation: the trapezoid rule with its end correction, Hairer, Norsett and
+  Wanner 1993, II.7], until ``|dq_j| <= SETTLE_RTOL reach_j`` or for ``SETTLE_ITER`` updates.
+* **Continuity.** A solution is accepted unless its step is one the rates do not explain, the
+  test of ``plan.unexplained_steps`` with ``JUMP_RTOL`` (stricter than the planner's 0.5)::
+
+      E = dt (q_dot_prev + q_dot) / 2 + dt^2 (q_ddot_prev - q_ddot) / 12
+      |q - q_prev - E|_j > JUMP_RTOL reach_j + sqrt(eps) (|q_j| + |q_prev_j| + 1)
+
+  with ``reach_j = dt (|q_dot_prev| + |q_dot|)_j / 2 + dt^2 (|q_ddot_prev| + |q_ddot|)_j / 12``.
+  A step that jumps, or Newton's that does not converge within ``warm_iter`` updates, is tried
+  again from ``q_prev`` along ``SUBSTEPS`` intermediate targets ``G_prev exp(h(s))``, ``h`` the
+  cubic Hermite curve in the twist coordinates of the step with end slopes ``dt V_prev``,
+  ``dt V_t`` (a homotopy along the target's own motion), ``SUBSTEP_ITER`` updates each.
+* **Choice.** A lane fails at the first sample it does not solve, whose step jumps, where its
+  joints leave their limits (its range over the path, after the whole turns of revolute
+  joints that fit it best: ``_room``; the planner moves a path by whole turns likewise) or
+  where a speed exceeds the chain's velocity limit. Per path the lane that fails last wins,
+  among those the one with the most room to the limits; its joints come back turned into the
+  limits sample by sample (``search._turned``), ``OK`` where they meet the tolerances within
+  the limits, ``OUT_OF_LIMITS`` where they meet them outside, ``NOT_CONVERGED`` where Newton's
+  iterations did not (the joints of the lane's last solution).
+
+Every lane iterates in step with the others (a ``lax.while_loop`` per sample inside a
+``lax.scan`` over the samples): one compiled program for every path length of a shape.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from .. import lie
+from .._numerics import eps, safe_sqrt
+from ..jet import Jet
+from ..result import IKResult
+from ..status import STATUS_DTYPE, Status
+from . import _kinematics, _starts, _step, search
+
+__all__ = [
+    "JUMP_RTOL",
+    "MAX_STEP",
+    "SETTLE_ITER",
+    "SETTLE_RTOL",
+    "SUBSTEPS",
+    "SUBSTEP_ITER",
+    "solve_paths",
+]
+
+# A step is a jump when it misses the rates' prediction by this fraction of their reach
+# (the planner's test with a margin below its 0.5, so that an accepted step passes it).
+JUMP_RTOL = 0.4
+# A retried step: this many intermediate targets, this many updates each.
+SUBSTEPS = 8
+SUBSTEP_ITER = 2
+# The largest move of a revolute joint in one update (rad).
+MAX_STEP = 0.5
+# A redundant chain's null-space pull settles within this fraction of the reach, or stops
+# after this many updates (then Newton's alone).
+SETTLE_RTOL = 0.05
+SETTLE_ITER = 10
+
+_TWO_PI = 2.0 * np.pi
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class _Lanes:
+    """Every lane's state at its last accepted sample, ``(..., K, ...)``.
+
+    Attributes:
+        q, q_dot, q_ddot: joints and rates ``(..., K, n)`` (units of the chain).
+        reached: the tip pose at ``q`` ``(..., K, 4, 4)``.
+        vel, acc: that sample's target twist and rate ``(..., K, r)``.
+        low, high: the joints' range over the accepted samples ``(..., K, n)``.
+        fail: the first failing sample (int32; ``_NEVER`` for none), ``(..., K)``.
+    """
+
+    q: Array
+    q_dot: Array
+    q_ddot: Array
+    reached: Array
+    vel: Array
+    acc: Array
+    low: Array
+    high: Array
+    fail: Array
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class _Newton:
+    """The ``lax.while_loop`` state of one sample's updates, ``(..., K, ...)``.
+
+    Attributes:
+        q: the iterate.
+        k: updates so far in this attempt (int32).
+        retried: on the sub-step attempt.
+        reached, q_dot, q_ddot: at the accepted iterate (its pose and rates).
+        done, converged, jumped: ended; met the tolerances; its step jumps.
+        steps: updates so far (int32 scalar).
+    """
+
+    q: Array
+    k: Array
+    retried: Array
+    reached: Array
+    q_dot: Array
+    q_ddot: Array
+    done: Array
+    converged: Array
+    jumped: Array
+    steps: Array
+
+
+_NEVER = np.iinfo(np.int32).max
+
+
+def _weights_scale(q: Array, box: Any) -> Array:
+    """``W^-1/2`` ``(..., n)`` of the weighted least-norm rates (module docstring)."""
+    finite = jnp.isfinite(box.lower) & jnp.isfinite(box.upper)
+    span = jnp.where(finite, box.upper - box.lower, 1.0)
+    weighted = finite & ~(box.revolute & (span >= _TWO_PI))
+    lower = jnp.where(weighted, box.lower, -1.0)
+    upper = jnp.where(weighted, box.upper, 1.0)
+    # At or beyond a limit the weight is capped (1e12: the joint all but stops).
+    inside = jnp.maximum((upper - q) * (q - lower), 1e-12 * span * span)
+    return jnp.where(weighted, jax.lax.rsqrt(span * span / (4.0 * inside)), 1.0)
+
+
+def _weighted_step(jac: Array, rhs: Array, damping: Array, floor: float, scale: Array) -> Array:
+    """``_step.damped_step_looped`` of the columns scaled by ``scale`` (``W^-1/2``), scaled
+    back: the damped weighted least-norm step (unweighted when ``n <= r``)."""
+    if jac.shape[-1] <= jac.shape[-2]:
+        return _step.damped_step_looped(jac, rhs, damping, floor)
+    return scale * _step.damped_step_looped(jac * scale[..., None, :], rhs, damping, floor)
+
+
+def _room(low: Array, high: Array, box: Any) -> Array:
+    """Per lane ``(...)``: the least distance over joints from the range ``[low, high]``
+    ``(..., n)`` to the limits, after the whole turns of each revolute joint that centre it;
+    negative where it does not fit, ``inf`` without limits or samples."""
+    finite = jnp.isfinite(box.lower) & jnp.isfinite(box.upper)
+    middle = jnp.where(finite, 0.5 * (box.lower + box.upper), 0.0)
+    some = high >= low
+    centre = jnp.where(some, 0.5 * (low + high), 0.0)
+    turns = jnp.where(finite & box.revolute, jnp.round((middle - centre) / _TWO_PI), 0.0)
+    shift = _TWO_PI * turns
+    room = jnp.minimum(low + shift - box.lower, box.upper - high - shift)
+    return jnp.min(jnp.where(some, room, jnp.inf), axis=-1)
+
+
+def _rate_rows(unit: Any, rot: Array, jac_theta: Array, vel: Array, acc: Array, q_dot: Array):
+    """The right-hand sides ``(V, A - J_dot q_dot)`` whose solutions with the residual's
+    Jacobian are the rates: a pose's body twists as they are; a point's base-frame velocity
+    and acceleration turned into the tip frame (the residual's rows, ``R^T J_p``)."""
+    rate = search._task_jacobian_rate(unit, rot, jac_theta, q_dot)
+    rest = acc - jnp.einsum("...ij,...j->...i", rate, q_dot)
+    if unit.target_kind != "point":
+        return vel, rest
+    rot_t = jnp.swapaxes(rot, -1, -2)
+    turn = lambda x: jnp.einsum("...ij,...j->...i", rot_t, x)  # noqa: E731
+    return turn(vel), turn(rest)
+
+
+def _step_time(xi: Array, v_prev: Array, vel: Array) -> Array:
+    """The estimated time of a step ``(...)``: ``<xi, M> / <M, M>``, ``M`` the mean twist
+    (module docstring), 0 at rest."""
+    mean = 0.5 * (v_prev + vel)
+    norm = jnp.sum(mean * mean, -1)
+    tiny = jnp.finfo(xi.dtype).tiny
+    return jnp.maximum(jnp.sum(xi * mean, -1) / jnp.maximum(norm, tiny), 0.0)
+
+
+def _follow(runs: Any, targets: tuple, lanes: _Lanes, warm_iter: int, v_max: Array):
+    """Every lane along the samples (module docstring). ``targets``: ``(goal, vel, acc,
+    valid)``, each time first ``(T, ..., ...)``. Returns the lanes at the end and, per sample,
+    each lane's joints and status ``((T, ..., K, n), (T, ..., K))``."""
+    box, unit = runs.box, runs.unit
+    dtype = lanes.q.dtype
+    point = unit.target_kind == "point"
+    redundant = unit.n_joints > (3 if point else 6)
+    floor_rel = float(np.sqrt(eps(dtype)))
+    substeps = SUBSTEPS * SUBSTEP_ITER
+    max_step = jnp.asarray(MAX_STEP, dtype)
+
+    def sample(lanes: _Lanes, xs):
+        goal, vel, acc, valid, t = xs
+        shape = lanes.fail.shape
+        goal = jnp.broadcast_to(goal[..., None, :, :], (*shape, 4, 4))
+        vel = jnp.broadcast_to(vel[..., None, :], lanes.vel.shape)
+        acc = jnp.broadcast_to(acc[..., None, :], lanes.acc.shape)
+        valid = jnp.broadcast_to(valid[..., None], shape)
+        q_prev, prev = lanes.q, lanes.reached
+        if point:  # the step of the tip origin, base frame
+            xi = goal[..., :3, 3] - prev[..., :3, 3]
+        else:
+            xi = lie.se3_log(lie.se3_inverse(prev) @ goal)
+        dt = jnp.where(t == 0, 0.0, _step_time(xi, lanes.vel, vel))[..., None]
+        guess = q_prev + dt * lanes.q_dot + 0.5 * dt * dt * lanes.q_ddot
+        alive = lanes.fail == _NEVER
+        v0, v1 = dt * lanes.vel, dt * vel
+
+        def substep_target(s: Array) -> Array:
+            """The target at fraction ``s`` ``(..., K, 1)`` of the step (Hermite curve)."""
+            h = (s**3 - 2 * s**2 + s) * v0 + (3 - 2 * s) * s**2 * xi + (s**3 - s**2) * v1
+            if point:
+                return goal.at[..., :3, 3].set(prev[..., :3, 3] + h)
+            return prev @ lie.se3_exp(h)
+
+        def body(state: _Newton) -> _Newton:
+            s = jnp.where(state.retried, (state.k // SUBSTEP_ITER + 1) / SUBSTEPS, 1.0)
+            last = s >= 1
+            s = jnp.minimum(s, 1.0).astype(dtype)[..., None]
+            target = jnp.where(last[..., None, None], goal, substep_target(s))
+            angles = _kinematics.angles(unit, state.q)
+            rot, p, jac_theta = _kinematics.screws_fk_and_jacobian(
+                unit.screws, unit.home, angles, "body", looped=True
+            )
+            jac = _kinematics.couple(unit, jac_theta)
+            twist, jac_res, err_rot, err_pos = search._residual(
+                unit, state.q, target, (rot, p, jac)
+            )
+            scale = _weights_scale(state.q, box)
+            zero = jnp.zeros(shape, dtype)
+            v_rhs, _ = _rate_rows(unit, rot, jac_theta, vel, acc, jnp.zeros_like(state.q))
+            q_dot = _weighted_step(jac_res, v_rhs, zero, eps(dtype), scale)
+            _, a_rhs = _rate_rows(unit, rot, jac_theta, vel, acc, q_dot)
+            q_ddot = _weighted_step(jac_res, a_rhs, zero, eps(dtype), scale)
+            moved = state.q - q_prev
+            predicted = dt * (lanes.q_dot + q_dot) / 2 + dt * dt * (lanes.q_ddot - q_ddot) / 12
+            reach = dt * (jnp.abs(lanes.q_dot) + jnp.abs(q_dot)) / 2
+            reach = reach + dt * dt * (jnp.abs(lanes.q_ddot) + jnp.abs(q_ddot)) / 12
+            floor = floor_rel * (jnp.abs(state.q) + jnp.abs(q_prev) + 1.0)
+            # A redundant chain: pulled in the null space towards the predicted step.
+            settling = state.k < jnp.where(state.retried, substeps, 0) + SETTLE_ITER
+            pulled = last & settling & (t > 0) if redundant else jnp.zeros_like(last)
+            pull = jnp.where(pulled[..., None], predicted - moved, 0.0)
+            rest = twist - jnp.einsum("...ij,...j->...i", jac_res, pull)
+            damping = safe_sqrt(search.LM_WEIGHT * jnp.sum(twist * twist, -1))
+            step = pull + _weighted_step(jac_res, rest, damping, 16 * eps(dtype), scale)
+            met = (err_rot <= runs.tol_rot) & (err_pos <= runs.tol_pos) & last
+            settled = jnp.all(jnp.abs(step) <= SETTLE_RTOL * reach + floor, axis=-1)
+            hit = met & (settled | ~pulled)
+            off = jnp.abs(moved - predicted) > JUMP_RTOL * reach + floor
+            jump = jnp.any(off, axis=-1) & (t > 0)
+            active = ~state.done
+            spent = state.k >= jnp.where(state.retried, substeps + warm_iter, warm_iter)
+            # A lane that has failed already is not tried again.
+            retry = active & alive & ~state.retried & ((hit & jump) | (~hit & spent))
+            end = active & ~retry & (hit | spent)
+            moved_q = state.q + _step.limited(step, box.revolute, max_step)
+            q = jnp.where((hit | state.done)[..., None], state.q, moved_q)
+            q = jnp.where(retry[..., None], q_prev, q)
+            keep = end & hit
+            reached = lie.from_rotation_translation(rot, p)
+            return _Newton(
+                q=q,
+                k=jnp.where(retry, 0, state.k + 1),
+                retried=state.retried | retry,
+                reached=jnp.where(keep[..., None, None], reached, state.reached),
+                q_dot=jnp.where(keep[..., None], q_dot, state.q_dot),
+                q_ddot=jnp.where(keep[..., None], q_ddot, state.q_ddot),
+                done=state.done | end,
+                converged=jnp.where(end, hit, state.converged),
+                jumped=jnp.where(end, hit & jump, state.jumped),
+                steps=state.steps + 1,
+            )
+
+        def cond(state: _Newton) -> Array:
+            return jnp.any(~state.done) & (state.steps < 2 * warm_iter + substeps + 2)
+
+        false = jnp.zeros(shape, bool)
+        zeros = jnp.zeros(shape, jnp.int32)
+        init = _Newton(
+            guess, zeros, false, prev, lanes.q_dot, lanes.q_ddot, ~valid, false, false, 0
+        )
+        final = jax.lax.while_loop(cond, body, init)
+        ok = final.converged & valid
+        okn = ok[..., None]
+        q = jnp.where(okn, final.q, q_prev)
+        low = jnp.where(okn, jnp.minimum(lanes.low, final.q), lanes.low)
+        high = jnp.where(okn, jnp.maximum(lanes.high, final.q), lanes.high)
+        fits = _room(low, high, box) >= 0
+        fast = jnp.any(jnp.abs(final.q_dot) > v_max, axis=-1)
+        failed = valid & (~final.converged | final.jumped | ~fits | fast)
+        lanes = _Lanes(
+            q=q,
+            q_dot=jnp.where(okn, final.q_dot, lanes.q_dot),
+            q_ddot=jnp.where(okn, final.q_ddot, lanes.q_ddot),
+            reached=jnp.where(ok[..., None, None], final.reached, prev),
+            vel=jnp.where(okn, vel, lanes.vel),
+            acc=jnp.where(okn, acc, lanes.acc),
+            low=low,
+            high=high,
+            fail=jnp.where(failed & alive, t, lanes.fail),
+        )
+        code = jnp.where(final.converged, Status.OK, Status.NOT_CONVERGED)
+        return lanes, (q, code.astype(STATUS_DTYPE))
+
+    goal, vel, acc, valid = targets
+    index = jnp.arange(goal.shape[0], dtype=jnp.int32)
+    return jax.lax.scan(sample, lanes, (goal, vel, acc, valid, index))
+
+
+def _first_lanes(prep: Any, runs: Any, budget: Any, count: int) -> Array:
+    """``(..., K, n)`` starts of the lanes: the first sample's solution of the search, then
+    the other starts of ``_starts.first_starts`` and the seeds, projected onto the limits."""
+    first = prep.goal[..., 0, :, :]
+    near = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
+    solved, _ = search._search(
+        runs, first, near, prep.done[..., 0], prep.status[..., 0], budget.slots
+    )
+    batch = first.shape[:-2]
+    seeds = jnp.broadcast_to(prep.seeds[1:], (*batch, *prep.seeds[1:].shape))
+    pool = jnp.concatenate([solved[..., None, :], near[..., 1:, :], seeds], -2)
+    return search._project(pool[..., :count, :], prep.box)
+
+
+def solve_paths(
+    chain: Any,
+    path: Jet,
+    tols: tuple[Array, Array],
+    budget: Any,
+    use_limits: bool,
+    seed: Array | None = None,
+) -> IKResult:
+    """The IK along sampled paths ``(..., T, 4, 4)`` (module docstring), with rates.
+
+    ``budget``: ``search.Budget`` (``lanes`` lanes, ``warm_iter`` updates per sample and
+    attempt; the first sample's search ``max_iter`` and ``runs``). ``seed`` ``(..., n)``: the
+    joints (the chain's units) of the last solved sample before the first, for a path solved
+    in windows: one lane then starts there (None: ``budget.lanes`` lanes from the first
+    sample's solutions)."""
+    prep = search._prepare(chain, path, tols, use_limits, budget.runs)
+    runs = search._runs(prep, budget.max_iter, budget.runs)
+    box, dtype, n = prep.box, prep.g.dtype, chain.n_joints
+    batch = prep.goal.shape[:-3]
+    if seed is None:
+        q0 = _first_lanes(prep, runs, budget, budget.lanes)
+    else:
+        q0 = jnp.broadcast_to(jnp.asarray(seed, dtype) * prep.g, (*batch, n))[..., None, :]
+    count = q0.shape[-2]
+    rot, p = _kinematics.fk_rp(prep.unit, q0, looped=True)
+    point = chain.target_kind == "point"
+    big = jnp.asarray(jnp.finfo(dtype).max, dtype)
+    zeros = jnp.zeros((*batch, count, 3 if point else 6), dtype)
+    start = _Lanes(
+        q=q0,
+        q_dot=jnp.zeros_like(q0),
+        q_ddot=jnp.zeros_like(q0),
+        reached=lie.from_rotation_translation(rot, p),
+        vel=zeros,
+        acc=zeros,
+        low=jnp.full_like(q0, big),
+        high=jnp.full_like(q0, -big),
+        fail=jnp.full((*batch, count), _NEVER, jnp.int32),
+    )
+    vel, acc = search._body_twists(prep.safe)
+    rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / prep.scale, dtype)])
+    vel, acc = vel * rows, acc * rows
+    if point:  # (0, p_dot) of an identity rotation: the base-frame velocity
+        vel, acc = vel[..., 3:], acc[..., 3:]
+    targets = (
+        jnp.moveaxis(prep.goal, -3, 0),
+        jnp.moveaxis(vel, -2, 0),
+        jnp.moveaxis(acc, -2, 0),
+        jnp.moveaxis(~prep.done, -1, 0),
+    )
+    v_max = chain.velocity.astype(dtype) * prep.g
+    v_max = v_max if use_limits else jnp.full(n, jnp.inf, dtype)
+    end, (q_all, code_all) = _follow(runs, targets, start, budget.warm_iter, v_max)
+    # The lane that fails last, then the one with the most room to the limits.
+    room = _room(end.low, end.high, box)
+    latest = jnp.max(end.fail, axis=-1, keepdims=True)
+    choice = jnp.argmax(jnp.where(end.fail == latest, room, -jnp.inf), axis=-1)
+    lead = len(batch)
+    pick = choice.reshape(1, *batch, 1)
+    code = jnp.take_along_axis(code_all, pick, axis=lead + 1)[..., 0]
+    q = jnp.take_along_axis(q_all, pick[..., None], axis=lead + 1)[..., 0, :]
+    q, code = jnp.moveaxis(q, 0, lead), jnp.moveaxis(code, 0, lead)
+    code = jnp.where(prep.done, prep.status, code)
+    turned = search._turned(q, box, box.lower, box.upper)
+    within = jnp.all((turned >= box.lower) & (turned <= box.upper), axis=-1)
+    solved = code == Status.OK
+    code = jnp.where(solved & ~within, Status.OUT_OF_LIMITS, code).astype(STATUS_DTYPE)
+    scale = _weights_scale(turned, box)
+    return search._finish(prep, prep.goal, turned, code, True, scale)
