@@ -34,13 +34,11 @@ In units of the chain's size and in the body frame, per element:
   formed): ``OK`` on ``|p_d - p| <= position_tol``, rates ``q_dot = J_p^+ p_dot`` with
   ``J_p = R J_b[3:]`` the tip origin's Jacobian in the base frame.
 
-``solve_paths`` warm-starts along sampled paths: the first sample as ``solve``, every further
-one from the previous solution (one run, then the unbounded run); a sample that fails keeps its
-status, and the next one starts from the last solution.
+The IK along sampled paths (``Chain.ik_path_kernel``) is ``serial.track``'s; it runs this search
+on a path's first sample.
 
-Every function here is pure and traceable (``solve`` and ``solve_paths`` are the kernels the
-chain robot compiles); the chain is read through its numeric fields, ``follows`` and
-``joint_kinds`` only.
+Every function here is pure and traceable (``solve`` is the kernel the chain robot compiles);
+the chain is read through its numeric fields, ``follows`` and ``joint_kinds`` only.
 """
 
 from __future__ import annotations
@@ -74,7 +72,6 @@ __all__ = [
     "Budget",
     "ChainIKOptions",
     "solve",
-    "solve_paths",
 ]
 
 # Levenberg-Marquardt damping ``mu = LM_WEIGHT |V|^2``: any positive weight keeps
@@ -391,10 +388,13 @@ def _task_jacobian_rate(chain: Any, rot: Array, jac_theta: Array, q_dot: Array) 
     return rot @ (turning + rate[..., 3:, :])
 
 
-def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
+def _update(
+    runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array, quota: Array | None = None
+) -> _Outcome:
     """One projected Levenberg-Marquardt update of every lane. ``starts`` ``(..., S, n)``: the
     lane's first ``S`` runs' starts, projected onto the box as ``runs.seeds`` are (``_search``);
-    ``done``: lanes that take no part."""
+    ``done``: lanes that take no part; ``quota`` ``(...)``: bounded runs after which a lane
+    ends unsolved (None: ``runs.runs``, then the unbounded runs)."""
     box, q = runs.box, lane.q
     one = jnp.asarray(1.0, q.dtype)
     bounded = jnp.any(jnp.isfinite(box.lower) | jnp.isfinite(box.upper))
@@ -417,7 +417,8 @@ def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -
     best_q = jnp.where(improve[..., None], q, lane.best_q)
     best = jnp.where(improve, score, lane.best)
     spent = (lane.k >= runs.max_iter) | escaped
-    ended = ~done & (solved | (spent & (lane.run >= last)))
+    final = lane.run >= last if quota is None else (lane.run >= last) | (lane.run >= quota - 1)
+    ended = ~done & (solved | (spent & final))
     # OUT_OF_LIMITS only when every unbounded run met the tolerances, each outside the limits.
     excluded = (free_runs > 0) & (outside >= free_runs)
     code = jnp.where(
@@ -464,14 +465,22 @@ def _fresh(q: Array) -> _Lane:
 
 
 def _search(
-    runs: _Runs, target: Array, starts: Array, done: Array, status: Array, slots: int | None
+    runs: _Runs,
+    target: Array,
+    starts: Array,
+    done: Array,
+    status: Array,
+    slots: int | None,
+    quota: Array | None = None,
 ) -> tuple[Array, Array]:
     """Projected Levenberg-Marquardt with restarts (module docstring), in units of the chain.
 
     ``target`` ``(..., 4, 4)``; ``starts`` ``(..., S, n)`` each element's first ``S`` runs'
     starts (``runs.seeds`` the later runs', rows below ``S`` unused); ``done``/``status``
-    preset elements (invalid, unreachable). Every element iterates in step until the last has
-    ended, or, with more elements than ``slots``, as a work queue of ``slots`` lanes. Returns
+    preset elements (invalid, unreachable); ``quota`` ``(...)`` (int32, or None): the bounded
+    runs after which an element ends unsolved (``_update``). Every element iterates in step
+    until the last has ended, or, with more elements than ``slots``, as a work queue of
+    ``slots`` lanes. Returns
     ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``, ``NOT_CONVERGED`` or the preset status.
     """
     per_element = (runs.runs + runs.free_runs) * (runs.max_iter + 1) + 2
@@ -482,11 +491,13 @@ def _search(
     size = math.prod(batch)
     if slots is not None and size > slots:
         flat = (target.reshape(size, 4, 4), starts.reshape(size, *starts.shape[-2:]))
-        q, status = _queued(runs, *flat, done.ravel(), status.ravel(), slots, per_element)
+        quota = None if quota is None else jnp.broadcast_to(quota, batch).ravel()
+        queue = (done.ravel(), status.ravel(), slots, per_element, quota)
+        q, status = _queued(runs, *flat, *queue)
         return q.reshape(*batch, -1), status.reshape(batch)
 
     def body(state: _InStep) -> _InStep:
-        out = _update(runs, target, starts, state.lane, state.done)
+        out = _update(runs, target, starts, state.lane, state.done, quota)
         status = jnp.where(out.ended, out.code, state.status)
         q = jnp.where(
             state.done[..., None], state.lane.q, jnp.where(out.ended[..., None], out.q, out.lane.q)
@@ -502,10 +513,10 @@ def _search(
     return final.lane.q, final.status
 
 
-def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: int):
+def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: int, quota=None):
     """``_search`` as a work queue (``_batching.work_queue``) over flat ``(B, ...)`` elements
-    (``starts`` projected). Each element gets the same updates as in step (the same starts and
-    seeds), so the same results."""
+    (``starts`` projected; ``quota`` ``(B,)`` or None, as ``_search``'s). Each element gets
+    the same updates as in step (the same starts and seeds), so the same results."""
     size = starts.shape[0]
 
     def fresh(slot: Array) -> _Lane:
@@ -514,7 +525,7 @@ def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: 
     def step(slot: Array, lane: _Lane):
         i = jnp.minimum(slot, size - 1)
         preset = done[i] | (slot >= size)  # invalid, unreachable, or idle
-        out = _update(runs, target[i], starts[i], lane, preset)
+        out = _update(runs, target[i], starts[i], lane, preset, None if quota is None else quota[i])
         # A preset element ends at once with its preset status and its start.
         finished = out.ended | (preset & (slot < size))
         q_out = jnp.where(out.ended[..., None], out.q, starts[i, 0])
@@ -678,49 +689,3 @@ def solve(
     starts = _starts.first_starts(prep.unit, prep.goal, prep.box, prep.seeds)
     q, status = _search(runs, prep.goal, starts, prep.done, prep.status, budget.slots)
     return _finish(prep, prep.goal, q, status, rates)
-
-
-def solve_paths(
-    chain: Any,
-    path: Jet,
-    tols: tuple[Array, Array],
-    budget: Budget,
-    use_limits: bool,
-    seed: Array | None = None,
-) -> IKResult:
-    """The search along sampled paths ``(..., T, 4, 4)`` (module docstring), with rates.
-
-    ``seed`` ``(..., n)``: the joints (the chain's units) of the last solved sample before
-    the first, for a path solved in windows: the first sample is then warm-started from it,
-    as every later one is from the previous solution (None: the first sample as ``solve``).
-    """
-    prep = _prepare(chain, path, tols, use_limits, budget.runs)
-    if seed is None:
-        first = prep.goal[..., 0, :, :]
-        starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
-        runs = _runs(prep, budget.max_iter, budget.runs)
-        q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
-    else:
-        batch = prep.goal.shape[:-3]
-        q = jnp.broadcast_to(jnp.asarray(seed, prep.g.dtype) * prep.g, (*batch, chain.n_joints))
-    warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1], free_runs=1)
-
-    def step(previous, sample):
-        goal_t, done_t, status_t = sample
-        q_t, code_t = _search(warm, goal_t, previous[..., None, :], done_t, status_t, None)
-        solved = (code_t == Status.OK) | (code_t == Status.OUT_OF_LIMITS)
-        return jnp.where(solved[..., None], q_t, previous), (q_t, code_t)
-
-    skip = 1 if seed is None else 0  # the samples the scan warm-starts
-    rest = (
-        jnp.moveaxis(x[..., skip:, *([slice(None)] * k)], x.ndim - 1 - k, 0)
-        for x, k in ((prep.goal, 2), (prep.done, 0), (prep.status, 0))
-    )
-    _, (q_rest, code_rest) = jax.lax.scan(step, q, tuple(rest))
-    q_rest, code_rest = jnp.moveaxis(q_rest, 0, -2), jnp.moveaxis(code_rest, 0, -1)
-    if seed is None:
-        q = jnp.concatenate([q[..., None, :], q_rest], axis=-2)
-        code = jnp.concatenate([code[..., None], code_rest], axis=-1)
-    else:
-        q, code = q_rest, code_rest
-    return _finish(prep, prep.goal, q, code, True)

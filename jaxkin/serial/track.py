@@ -70,6 +70,7 @@ from ..status import STATUS_DTYPE, Status
 from . import _kinematics, _starts, _step, search
 
 __all__ = [
+    "DIRECT_ITER",
     "JUMP_RTOL",
     "MAX_STEP",
     "SETTLE_ITER",
@@ -85,12 +86,21 @@ JUMP_RTOL = 0.4
 # A retried step: this many intermediate targets, this many updates each.
 SUBSTEPS = 8
 SUBSTEP_ITER = 2
+# Updates of a sample's first attempt (from the prediction) before it is retried.
+DIRECT_ITER = 8
 # The largest move of a revolute joint in one update (rad).
 MAX_STEP = 0.5
 # A redundant chain's null-space pull settles within this fraction of the reach, or stops
 # after this many updates (then Newton's alone).
 SETTLE_RTOL = 0.05
-SETTLE_ITER = 10
+SETTLE_ITER = 5
+
+# Runs of the first sample's search for every lane but the first (which has the whole budget).
+LANE_RUNS = 3
+# Lanes whose first joints are this close (rad, or units of the chain) are one.
+DUPLICATE_TOL = 1e-6
+# The largest weight of a joint's speed (at or beyond a limit).
+WEIGHT_CAP = 250.0
 
 _TWO_PI = 2.0 * np.pi
 
@@ -98,17 +108,22 @@ _TWO_PI = 2.0 * np.pi
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class _Lanes:
-    """Every lane's state at its last accepted sample, ``(..., K, ...)``.
+    """Every lane's state, ``(B, K, ...)``.
 
     Attributes:
-        q, q_dot, q_ddot: joints and rates ``(..., K, n)`` (units of the chain).
-        reached: the tip pose at ``q`` ``(..., K, 4, 4)``.
-        vel, acc: that sample's target twist and rate ``(..., K, r)``.
-        low, high: the joints' range over the accepted samples ``(..., K, n)``.
-        fail: the first failing sample (int32; ``_NEVER`` for none), ``(..., K)``.
+        q, q_dot, q_ddot: joints (turned as returned: ``search._turned``) and rates at its
+            last accepted sample, ``(B, K, n)``; ``u``: those joints unwrapped along the lane.
+        reached: the tip pose at ``q`` ``(B, K, 4, 4)``.
+        vel, acc: that sample's target twist and rate ``(B, K, r)``.
+        low, high: the joints' range over the accepted samples ``(B, K, n)``.
+        fail: the first failing sample (int32; ``_NEVER`` for none).
+        t: the sample being solved (int32; ``T`` once the path is done).
+        x: the iterate ``(B, K, n)``; ``fresh``: to be replaced by the prediction first.
+        k: updates so far in this attempt (int32); ``retried``: on the sub-step attempt.
     """
 
     q: Array
+    u: Array
     q_dot: Array
     q_ddot: Array
     reached: Array
@@ -117,31 +132,22 @@ class _Lanes:
     low: Array
     high: Array
     fail: Array
+    t: Array
+    x: Array
+    fresh: Array
+    k: Array
+    retried: Array
 
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
-class _Newton:
-    """The ``lax.while_loop`` state of one sample's updates, ``(..., K, ...)``.
+class _Loop:
+    """The ``lax.while_loop`` state: the lanes, every lane's joints ``(B, K, T, n)`` and
+    status ``(B, K, T)`` per sample so far, and the updates taken (int32 scalar)."""
 
-    Attributes:
-        q: the iterate.
-        k: updates so far in this attempt (int32).
-        retried: on the sub-step attempt.
-        reached, q_dot, q_ddot: at the accepted iterate (its pose and rates).
-        done, converged, jumped: ended; met the tolerances; its step jumps.
-        steps: updates so far (int32 scalar).
-    """
-
+    lanes: _Lanes
     q: Array
-    k: Array
-    retried: Array
-    reached: Array
-    q_dot: Array
-    q_ddot: Array
-    done: Array
-    converged: Array
-    jumped: Array
+    code: Array
     steps: Array
 
 
@@ -155,8 +161,8 @@ def _weights_scale(q: Array, box: Any) -> Array:
     weighted = finite & ~(box.revolute & (span >= _TWO_PI))
     lower = jnp.where(weighted, box.lower, -1.0)
     upper = jnp.where(weighted, box.upper, 1.0)
-    # At or beyond a limit the weight is capped (1e12: the joint all but stops).
-    inside = jnp.maximum((upper - q) * (q - lower), 1e-12 * span * span)
+    # At or beyond a limit the weight is capped (WEIGHT_CAP: the joint moves, slowly).
+    inside = jnp.maximum((upper - q) * (q - lower), span * span / (4.0 * WEIGHT_CAP))
     return jnp.where(weighted, jax.lax.rsqrt(span * span / (4.0 * inside)), 1.0)
 
 
@@ -204,149 +210,176 @@ def _step_time(xi: Array, v_prev: Array, vel: Array) -> Array:
     return jnp.maximum(jnp.sum(xi * mean, -1) / jnp.maximum(norm, tiny), 0.0)
 
 
-def _follow(runs: Any, targets: tuple, lanes: _Lanes, warm_iter: int, v_max: Array):
-    """Every lane along the samples (module docstring). ``targets``: ``(goal, vel, acc,
-    valid)``, each time first ``(T, ..., ...)``. Returns the lanes at the end and, per sample,
-    each lane's joints and status ``((T, ..., K, n), (T, ..., K))``."""
+def _at(x: Array, t: Array) -> Array:
+    """``x`` ``(B, T, ...)`` at each lane's sample ``t`` ``(B, K)``: ``(B, K, ...)``."""
+    index = t.reshape(*t.shape, *([1] * (x.ndim - 2)))
+    return jnp.take_along_axis(x[:, None], index[:, :, None], axis=2)[:, :, 0]
+
+
+def _follow(runs: Any, targets: tuple, lanes: _Lanes, warm_iter: int, v_max: Array) -> _Loop:
+    """Every lane along the samples (module docstring), each at its own pace: an update
+    moves every lane that has not ended by one Newton step of its own sample, and a lane
+    whose sample ends goes on to its next one. ``targets``: ``(goal, vel, acc, valid)``, each
+    ``(B, T, ...)``."""
     box, unit = runs.box, runs.unit
+    goals, vels, accs, valids = targets
+    size = goals.shape[1]
     dtype = lanes.q.dtype
     point = unit.target_kind == "point"
     redundant = unit.n_joints > (3 if point else 6)
     floor_rel = float(np.sqrt(eps(dtype)))
     substeps = SUBSTEPS * SUBSTEP_ITER
     max_step = jnp.asarray(MAX_STEP, dtype)
+    per_sample = 2 * DIRECT_ITER + substeps + 2
 
-    def sample(lanes: _Lanes, xs):
-        goal, vel, acc, valid, t = xs
-        shape = lanes.fail.shape
-        goal = jnp.broadcast_to(goal[..., None, :, :], (*shape, 4, 4))
-        vel = jnp.broadcast_to(vel[..., None, :], lanes.vel.shape)
-        acc = jnp.broadcast_to(acc[..., None, :], lanes.acc.shape)
-        valid = jnp.broadcast_to(valid[..., None], shape)
-        q_prev, prev = lanes.q, lanes.reached
+    def body(loop: _Loop) -> _Loop:
+        ln = loop.lanes
+        t = jnp.minimum(ln.t, size - 1)
+        goal, vel, acc, valid = (_at(x, t) for x in (goals, vels, accs, valids))
+        alive = ln.fail == _NEVER
+        # Lanes that have failed stop, but for those that failed last once none is alive
+        # (the one kept then is one of them).
+        latest = jnp.max(ln.fail, axis=-1, keepdims=True)
+        others = ~jnp.any(alive, axis=-1, keepdims=True) & (ln.fail == latest)
+        active = (ln.t < size) & (alive | others)
+        skip = active & ~valid
+        active = active & valid
+        prev = ln.reached
         if point:  # the step of the tip origin, base frame
             xi = goal[..., :3, 3] - prev[..., :3, 3]
         else:
             xi = lie.se3_log(lie.se3_inverse(prev) @ goal)
-        dt = jnp.where(t == 0, 0.0, _step_time(xi, lanes.vel, vel))[..., None]
-        guess = q_prev + dt * lanes.q_dot + 0.5 * dt * dt * lanes.q_ddot
-        alive = lanes.fail == _NEVER
-        v0, v1 = dt * lanes.vel, dt * vel
-
-        def substep_target(s: Array) -> Array:
-            """The target at fraction ``s`` ``(..., K, 1)`` of the step (Hermite curve)."""
-            h = (s**3 - 2 * s**2 + s) * v0 + (3 - 2 * s) * s**2 * xi + (s**3 - s**2) * v1
-            if point:
-                return goal.at[..., :3, 3].set(prev[..., :3, 3] + h)
-            return prev @ lie.se3_exp(h)
-
-        def body(state: _Newton) -> _Newton:
-            s = jnp.where(state.retried, (state.k // SUBSTEP_ITER + 1) / SUBSTEPS, 1.0)
-            last = s >= 1
-            s = jnp.minimum(s, 1.0).astype(dtype)[..., None]
-            target = jnp.where(last[..., None, None], goal, substep_target(s))
-            angles = _kinematics.angles(unit, state.q)
-            rot, p, jac_theta = _kinematics.screws_fk_and_jacobian(
-                unit.screws, unit.home, angles, "body", looped=True
-            )
-            jac = _kinematics.couple(unit, jac_theta)
-            twist, jac_res, err_rot, err_pos = search._residual(
-                unit, state.q, target, (rot, p, jac)
-            )
-            scale = _weights_scale(state.q, box)
-            zero = jnp.zeros(shape, dtype)
-            v_rhs, _ = _rate_rows(unit, rot, jac_theta, vel, acc, jnp.zeros_like(state.q))
-            q_dot = _weighted_step(jac_res, v_rhs, zero, eps(dtype), scale)
-            _, a_rhs = _rate_rows(unit, rot, jac_theta, vel, acc, q_dot)
-            q_ddot = _weighted_step(jac_res, a_rhs, zero, eps(dtype), scale)
-            moved = state.q - q_prev
-            predicted = dt * (lanes.q_dot + q_dot) / 2 + dt * dt * (lanes.q_ddot - q_ddot) / 12
-            reach = dt * (jnp.abs(lanes.q_dot) + jnp.abs(q_dot)) / 2
-            reach = reach + dt * dt * (jnp.abs(lanes.q_ddot) + jnp.abs(q_ddot)) / 12
-            floor = floor_rel * (jnp.abs(state.q) + jnp.abs(q_prev) + 1.0)
-            # A redundant chain: pulled in the null space towards the predicted step.
-            settling = state.k < jnp.where(state.retried, substeps, 0) + SETTLE_ITER
-            pulled = last & settling & (t > 0) if redundant else jnp.zeros_like(last)
-            pull = jnp.where(pulled[..., None], predicted - moved, 0.0)
-            rest = twist - jnp.einsum("...ij,...j->...i", jac_res, pull)
-            damping = safe_sqrt(search.LM_WEIGHT * jnp.sum(twist * twist, -1))
-            step = pull + _weighted_step(jac_res, rest, damping, 16 * eps(dtype), scale)
-            met = (err_rot <= runs.tol_rot) & (err_pos <= runs.tol_pos) & last
-            settled = jnp.all(jnp.abs(step) <= SETTLE_RTOL * reach + floor, axis=-1)
-            hit = met & (settled | ~pulled)
-            off = jnp.abs(moved - predicted) > JUMP_RTOL * reach + floor
-            jump = jnp.any(off, axis=-1) & (t > 0)
-            active = ~state.done
-            spent = state.k >= jnp.where(state.retried, substeps + warm_iter, warm_iter)
-            # A lane that has failed already is not tried again.
-            retry = active & alive & ~state.retried & ((hit & jump) | (~hit & spent))
-            end = active & ~retry & (hit | spent)
-            moved_q = state.q + _step.limited(step, box.revolute, max_step)
-            q = jnp.where((hit | state.done)[..., None], state.q, moved_q)
-            q = jnp.where(retry[..., None], q_prev, q)
-            keep = end & hit
-            reached = lie.from_rotation_translation(rot, p)
-            return _Newton(
-                q=q,
-                k=jnp.where(retry, 0, state.k + 1),
-                retried=state.retried | retry,
-                reached=jnp.where(keep[..., None, None], reached, state.reached),
-                q_dot=jnp.where(keep[..., None], q_dot, state.q_dot),
-                q_ddot=jnp.where(keep[..., None], q_ddot, state.q_ddot),
-                done=state.done | end,
-                converged=jnp.where(end, hit, state.converged),
-                jumped=jnp.where(end, hit & jump, state.jumped),
-                steps=state.steps + 1,
-            )
-
-        def cond(state: _Newton) -> Array:
-            return jnp.any(~state.done) & (state.steps < 2 * warm_iter + substeps + 2)
-
-        false = jnp.zeros(shape, bool)
-        zeros = jnp.zeros(shape, jnp.int32)
-        init = _Newton(
-            guess, zeros, false, prev, lanes.q_dot, lanes.q_ddot, ~valid, false, false, 0
+        dt = jnp.where(ln.t == 0, 0.0, _step_time(xi, ln.vel, vel))[..., None]
+        guess = ln.q + dt * ln.q_dot + 0.5 * dt * dt * ln.q_ddot
+        # Iterates turned as the joints returned are, so that a path solved in windows,
+        # warm-started from the joints returned, repeats the whole path's values.
+        x = search._turned(jnp.where(ln.fresh[..., None], guess, ln.x), box, box.lower, box.upper)
+        # The target: the sample's, or an intermediate one of a retry (a Hermite curve).
+        s = jnp.where(ln.retried, (ln.k // SUBSTEP_ITER + 1) / SUBSTEPS, 1.0)
+        last = s >= 1
+        s = jnp.minimum(s, 1.0).astype(dtype)[..., None]
+        h = (s**3 - 2 * s**2 + s) * dt * ln.vel + (3 - 2 * s) * s**2 * xi
+        h = h + (s**3 - s**2) * dt * vel
+        if point:
+            partial = goal.at[..., :3, 3].set(prev[..., :3, 3] + h)
+        else:
+            partial = prev @ lie.se3_exp(h)
+        target = jnp.where(last[..., None, None], goal, partial)
+        angles = _kinematics.angles(unit, x)
+        rot, p, jac_theta = _kinematics.screws_fk_and_jacobian(
+            unit.screws, unit.home, angles, "body", looped=True
         )
-        final = jax.lax.while_loop(cond, body, init)
-        ok = final.converged & valid
+        jac = _kinematics.couple(unit, jac_theta)
+        twist, jac_res, err_rot, err_pos = search._residual(unit, x, target, (rot, p, jac))
+        scale = _weights_scale(x, box)
+        zero = jnp.zeros(ln.fail.shape, dtype)
+        v_rhs, _ = _rate_rows(unit, rot, jac_theta, vel, acc, jnp.zeros_like(x))
+        q_dot = _weighted_step(jac_res, v_rhs, zero, eps(dtype), scale)
+        _, a_rhs = _rate_rows(unit, rot, jac_theta, vel, acc, q_dot)
+        q_ddot = _weighted_step(jac_res, a_rhs, zero, eps(dtype), scale)
+        moved = x - ln.q
+        moved = jnp.where(box.revolute, moved - _TWO_PI * jnp.round(moved / _TWO_PI), moved)
+        predicted = dt * (ln.q_dot + q_dot) / 2 + dt * dt * (ln.q_ddot - q_ddot) / 12
+        reach = dt * (jnp.abs(ln.q_dot) + jnp.abs(q_dot)) / 2
+        reach = reach + dt * dt * (jnp.abs(ln.q_ddot) + jnp.abs(q_ddot)) / 12
+        floor = floor_rel * (jnp.abs(x) + jnp.abs(ln.q) + 1.0)
+        # A redundant chain: pulled in the null space towards the predicted step.
+        settling = ln.k < jnp.where(ln.retried, substeps, 0) + SETTLE_ITER
+        pulled = last & settling & (ln.t > 0) if redundant else jnp.zeros_like(last)
+        pull = jnp.where(pulled[..., None], predicted - moved, 0.0)
+        rest = twist - jnp.einsum("...ij,...j->...i", jac_res, pull)
+        damping = safe_sqrt(search.LM_WEIGHT * jnp.sum(twist * twist, -1))
+        step = pull + _weighted_step(jac_res, rest, damping, 16 * eps(dtype), scale)
+        met = (err_rot <= runs.tol_rot) & (err_pos <= runs.tol_pos) & last
+        settled = jnp.all(jnp.abs(step) <= SETTLE_RTOL * reach + floor, axis=-1)
+        hit = met & (settled | ~pulled)
+        off = jnp.abs(moved - predicted) > JUMP_RTOL * reach + floor
+        jump = jnp.any(off, axis=-1) & (ln.t > 0)
+        spent = ln.k >= jnp.where(ln.retried, substeps + DIRECT_ITER, DIRECT_ITER)
+        retry = active & ~ln.retried & ((hit & jump) | (~hit & spent))
+        end = active & ~retry & (hit | spent)
+        # The sample ends: accepted where it met the tolerances.
+        ok = end & hit
         okn = ok[..., None]
-        q = jnp.where(okn, final.q, q_prev)
-        low = jnp.where(okn, jnp.minimum(lanes.low, final.q), lanes.low)
-        high = jnp.where(okn, jnp.maximum(lanes.high, final.q), lanes.high)
+        u = jnp.where(okn, ln.u + moved, ln.u)
+        low = jnp.where(okn, jnp.minimum(ln.low, u), ln.low)
+        high = jnp.where(okn, jnp.maximum(ln.high, u), ln.high)
         fits = _room(low, high, box) >= 0
-        fast = jnp.any(jnp.abs(final.q_dot) > v_max, axis=-1)
-        failed = valid & (~final.converged | final.jumped | ~fits | fast)
+        fast = jnp.any(jnp.abs(q_dot) > v_max, axis=-1)
+        failed = end & alive & (~hit | jump | ~fits | fast)
+        q_new = jnp.where(okn, x, ln.q)
+        step_q = x + _step.limited(step, box.revolute, max_step)
+        # The first sample's iterates stay within the limits (as the search's).
+        step_q = jnp.where((ln.t == 0)[..., None], search._project(step_q, box), step_q)
+        x_next = jnp.where(retry[..., None], ln.q, jnp.where(active[..., None], step_q, x))
+        ended = end | skip
         lanes = _Lanes(
-            q=q,
-            q_dot=jnp.where(okn, final.q_dot, lanes.q_dot),
-            q_ddot=jnp.where(okn, final.q_ddot, lanes.q_ddot),
-            reached=jnp.where(ok[..., None, None], final.reached, prev),
-            vel=jnp.where(okn, vel, lanes.vel),
-            acc=jnp.where(okn, acc, lanes.acc),
+            q=q_new,
+            u=u,
+            q_dot=jnp.where(okn, q_dot, ln.q_dot),
+            q_ddot=jnp.where(okn, q_ddot, ln.q_ddot),
+            reached=jnp.where(ok[..., None, None], lie.from_rotation_translation(rot, p), prev),
+            vel=jnp.where(okn, vel, ln.vel),
+            acc=jnp.where(okn, acc, ln.acc),
             low=low,
             high=high,
-            fail=jnp.where(failed & alive, t, lanes.fail),
+            fail=jnp.where(failed, ln.t, ln.fail),
+            t=ln.t + ended.astype(jnp.int32),
+            x=x_next,
+            fresh=jnp.where(ended, True, ln.fresh & ~active),
+            k=jnp.where(ended | retry, 0, ln.k + active.astype(jnp.int32)),
+            retried=jnp.where(ended, False, ln.retried | retry),
         )
-        code = jnp.where(final.converged, Status.OK, Status.NOT_CONVERGED)
-        return lanes, (q, code.astype(STATUS_DTYPE))
+        # Each ended lane's joints and status at its sample (others dropped: index T).
+        b, k = np.indices(ln.t.shape)
+        at = (b, k, jnp.where(ended, ln.t, size))
+        code = jnp.where(ok, Status.OK, Status.NOT_CONVERGED).astype(STATUS_DTYPE)
+        return _Loop(
+            lanes,
+            loop.q.at[at].set(q_new, mode="drop"),
+            loop.code.at[at].set(code, mode="drop"),
+            loop.steps + 1,
+        )
 
-    goal, vel, acc, valid = targets
-    index = jnp.arange(goal.shape[0], dtype=jnp.int32)
-    return jax.lax.scan(sample, lanes, (goal, vel, acc, valid, index))
+    def cond(loop: _Loop) -> Array:
+        ln = loop.lanes
+        alive = ln.fail == _NEVER
+        latest = jnp.max(ln.fail, axis=-1, keepdims=True)
+        others = ~jnp.any(alive, axis=-1, keepdims=True) & (ln.fail == latest)
+        going = (ln.t < size) & (alive | others)
+        return jnp.any(going) & (loop.steps < size * per_sample)
+
+    shape = lanes.fail.shape
+    q_all = jnp.zeros((*shape, size, lanes.q.shape[-1]), dtype)
+    code_all = jnp.full((*shape, size), Status.NOT_CONVERGED, STATUS_DTYPE)
+    return jax.lax.while_loop(cond, body, _Loop(lanes, q_all, code_all, jnp.int32(0)))
 
 
 def _first_lanes(prep: Any, runs: Any, budget: Any, count: int) -> Array:
-    """``(..., K, n)`` starts of the lanes: the first sample's solution of the search, then
-    the other starts of ``_starts.first_starts`` and the seeds, projected onto the limits."""
+    """``(..., K, n)`` starts of the lanes: the first sample's solutions of the search from
+    ``K`` starts (those of ``_starts.first_starts``, then the seeds), lane ``k`` starting with
+    the ``k``-th and going on through the others; lane 0 with the search's whole budget, the
+    others with ``LANE_RUNS`` runs (an unsolved lane starts from its best iterate)."""
     first = prep.goal[..., 0, :, :]
     near = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
-    solved, _ = search._search(
-        runs, first, near, prep.done[..., 0], prep.status[..., 0], budget.slots
-    )
     batch = first.shape[:-2]
     seeds = jnp.broadcast_to(prep.seeds[1:], (*batch, *prep.seeds[1:].shape))
-    pool = jnp.concatenate([solved[..., None, :], near[..., 1:, :], seeds], -2)
-    return search._project(pool[..., :count, :], prep.box)
+    pool = jnp.concatenate([near, seeds], -2)[..., :count, :]
+    count = pool.shape[-2]
+    order = (np.arange(count)[:, None] + np.arange(count)[None, :]) % count
+    starts = pool[..., order, :]  # lane k: pool[k], pool[k + 1], ...
+    quota = jnp.asarray(np.where(np.arange(count) == 0, runs.runs, LANE_RUNS), jnp.int32)
+    every = (*batch, count)
+    solved, _ = search._search(
+        runs,
+        jnp.broadcast_to(first[..., None, :, :], (*every, 4, 4)),
+        starts,
+        jnp.broadcast_to(prep.done[..., :1], every),
+        jnp.broadcast_to(prep.status[..., :1], every),
+        budget.slots,
+        quota,
+    )
+    return solved
 
 
 def solve_paths(
@@ -367,18 +400,29 @@ def solve_paths(
     prep = search._prepare(chain, path, tols, use_limits, budget.runs)
     runs = search._runs(prep, budget.max_iter, budget.runs)
     box, dtype, n = prep.box, prep.g.dtype, chain.n_joints
-    batch = prep.goal.shape[:-3]
+    batch, size = prep.goal.shape[:-3], prep.goal.shape[-3]
     if seed is None:
         q0 = _first_lanes(prep, runs, budget, budget.lanes)
     else:
-        q0 = jnp.broadcast_to(jnp.asarray(seed, dtype) * prep.g, (*batch, n))[..., None, :]
+        # One lane from the seed, the others its duplicates (idle): the same shapes as the
+        # whole path's, whose values a path solved in windows repeats to the last bit.
+        q0 = jnp.asarray(seed, dtype) * prep.g
+        q0 = jnp.broadcast_to(q0[..., None, :], (*batch, budget.lanes, n))
     count = q0.shape[-2]
+    q0 = search._turned(q0.reshape(-1, count, n), box, box.lower, box.upper)
+    # A lane that starts where an earlier one does (whole turns aside) takes no part.
+    apart = q0[:, :, None, :] - q0[:, None, :, :]
+    apart = jnp.where(box.revolute, apart - _TWO_PI * jnp.round(apart / _TWO_PI), apart)
+    same = jnp.max(jnp.abs(apart), axis=-1) <= DUPLICATE_TOL
+    duplicate = jnp.any(same & jnp.asarray(np.tri(count, k=-1, dtype=bool)), axis=-1)
     rot, p = _kinematics.fk_rp(prep.unit, q0, looped=True)
     point = chain.target_kind == "point"
     big = jnp.asarray(jnp.finfo(dtype).max, dtype)
-    zeros = jnp.zeros((*batch, count, 3 if point else 6), dtype)
+    zeros = jnp.zeros((*q0.shape[:2], 3 if point else 6), dtype)
+    ints = jnp.zeros(q0.shape[:2], jnp.int32)
     start = _Lanes(
         q=q0,
+        u=q0,
         q_dot=jnp.zeros_like(q0),
         q_ddot=jnp.zeros_like(q0),
         reached=lie.from_rotation_translation(rot, p),
@@ -386,31 +430,32 @@ def solve_paths(
         acc=zeros,
         low=jnp.full_like(q0, big),
         high=jnp.full_like(q0, -big),
-        fail=jnp.full((*batch, count), _NEVER, jnp.int32),
+        fail=jnp.where(duplicate, -1, _NEVER),
+        t=ints,
+        x=q0,
+        fresh=ints == 0,
+        k=ints,
+        retried=ints != 0,
     )
     vel, acc = search._body_twists(prep.safe)
     rows = jnp.concatenate([jnp.ones(3, dtype), jnp.full(3, 1.0 / prep.scale, dtype)])
     vel, acc = vel * rows, acc * rows
     if point:  # (0, p_dot) of an identity rotation: the base-frame velocity
         vel, acc = vel[..., 3:], acc[..., 3:]
-    targets = (
-        jnp.moveaxis(prep.goal, -3, 0),
-        jnp.moveaxis(vel, -2, 0),
-        jnp.moveaxis(acc, -2, 0),
-        jnp.moveaxis(~prep.done, -1, 0),
+    targets = tuple(
+        x.reshape(-1, size, *x.shape[len(batch) + 1 :]) for x in (prep.goal, vel, acc, ~prep.done)
     )
     v_max = chain.velocity.astype(dtype) * prep.g
     v_max = v_max if use_limits else jnp.full(n, jnp.inf, dtype)
-    end, (q_all, code_all) = _follow(runs, targets, start, budget.warm_iter, v_max)
+    end = _follow(runs, targets, start, budget.warm_iter, v_max)
     # The lane that fails last, then the one with the most room to the limits.
-    room = _room(end.low, end.high, box)
-    latest = jnp.max(end.fail, axis=-1, keepdims=True)
-    choice = jnp.argmax(jnp.where(end.fail == latest, room, -jnp.inf), axis=-1)
-    lead = len(batch)
-    pick = choice.reshape(1, *batch, 1)
-    code = jnp.take_along_axis(code_all, pick, axis=lead + 1)[..., 0]
-    q = jnp.take_along_axis(q_all, pick[..., None], axis=lead + 1)[..., 0, :]
-    q, code = jnp.moveaxis(q, 0, lead), jnp.moveaxis(code, 0, lead)
+    lanes = end.lanes
+    room = _room(lanes.low, lanes.high, box)
+    latest = jnp.max(lanes.fail, axis=-1, keepdims=True)
+    choice = jnp.argmax(jnp.where(lanes.fail == latest, room, -jnp.inf), axis=-1)
+    code = jnp.take_along_axis(end.code, choice[:, None, None], axis=1)[:, 0]
+    q = jnp.take_along_axis(end.q, choice[:, None, None, None], axis=1)[:, 0]
+    q, code = q.reshape(*batch, size, n), code.reshape(*batch, size)
     code = jnp.where(prep.done, prep.status, code)
     turned = search._turned(q, box, box.lower, box.upper)
     within = jnp.all((turned >= box.lower) & (turned <= box.upper), axis=-1)
