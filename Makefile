@@ -10,8 +10,8 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	{ $(BIN)/python -m pip install --quiet uv \
-	  && $(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[test,plot,bench,urdf]'; } \
-	  || $(BIN)/python -m pip install --quiet -e '.[test,plot,bench,urdf]'
+	  && $(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[test,cli,plot,bench,urdf]'; } \
+	  || $(BIN)/python -m pip install --quiet -e '.[test,cli,plot,bench,urdf]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -23,10 +23,12 @@ demo: $(STAMP)
 # later processes (workers, the command-line tests' subprocesses) load modules compiled once.
 PYTEST := PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q -n 2 --dist loadfile
 
-# lint-imports checks the import layers and cycles of pyproject.toml's [tool.importlinter].
+# lint-imports checks the import layers and cycles of pyproject.toml's [tool.importlinter];
+# mypy type-checks the package ([tool.mypy]; a second run reads its cache, .mypy_cache).
 test: $(STAMP)
 	$(PYTEST) -m "not slow" tests
 	$(BIN)/lint-imports
+	$(BIN)/mypy
 
 test-slow: $(STAMP)
 	$(PYTEST) -m slow tests
@@ -62,6 +64,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/lint-imports
+	$(BIN)/mypy
 
 lint-imports: $(STAMP)
 	$(BIN)/lint-imports
@@ -71,4 +74,4 @@ format: $(STAMP)
 	$(BIN)/ruff check --fix .
 
 clean:
-	rm -rf $(VENV) .pytest_cache .benchmarks build site *.egg-info
+	rm -rf $(VENV) .pytest_cache .mypy_cache .benchmarks build site *.egg-info

@@ -110,7 +110,7 @@ def throughput(n: int) -> None:
 
     jax.config.update("jax_enable_x64", True)
     import jaxkin
-    from jaxkin import robot
+    from jaxkin._execute import pipeline
     from jaxkin.serial import Chain
 
     chain = load("panda")
@@ -121,13 +121,13 @@ def throughput(n: int) -> None:
         policies["XLA defaults"] = dataclasses.replace(tuned, compiler_options=())
     programs = {}
     for name, policy in policies.items():  # compile each once
-        Chain.ik_policy, robot._PROGRAMS = policy, {}
+        Chain.ik_policy, pipeline._PROGRAMS = policy, {}
         jaxkin.ik(chain, targets).status.block_until_ready()
-        programs[name] = robot._PROGRAMS
+        programs[name] = pipeline._PROGRAMS
     rates: dict[str, list[float]] = {name: [] for name in policies}
     for _ in range(3):
         for name, policy in policies.items():
-            Chain.ik_policy, robot._PROGRAMS = policy, programs[name]
+            Chain.ik_policy, pipeline._PROGRAMS = policy, programs[name]
             start = time.perf_counter()
             jaxkin.ik(chain, targets).status.block_until_ready()
             rates[name].append(n / (time.perf_counter() - start))

@@ -69,7 +69,7 @@ def _row(spec: str) -> str:
 
     import jaxkin
     from jaxkin import _batching
-    from jaxkin import robot as robot_module
+    from jaxkin._execute import pipeline
 
     name, call = spec.split(":")
     robot, q = _robot(name)
@@ -90,7 +90,7 @@ def _row(spec: str) -> str:
     one = jnp.asarray(inputs[0])
     first_single = timed(one)
     times = [timed(one) for _ in range(_batching.HOT_AFTER + 1)]
-    hot = any(program is not None for _, program in robot_module._HOT.programs.values())
+    hot = any(program is not None for _, program in pipeline.HOT.programs.values())
     build = f"{max(times):.2f}" if hot else "-"  # the build is in the HOT_AFTER-th call
     times = [timed(one) for _ in range(2000)]
     load = os.getloadavg()[0]
@@ -113,7 +113,7 @@ def _parts(spec: str) -> None:
 
     import jaxkin
     from jaxkin import _batching
-    from jaxkin import robot as robot_module
+    from jaxkin._execute import pipeline
 
     name, call = spec.split(":")
     robot, q = _robot(name)
@@ -128,9 +128,7 @@ def _parts(spec: str) -> None:
     for label, x in inputs.items():
         for _ in range(_batching.HOT_AFTER + 1):
             result = run(robot, x)
-        program = next(
-            (p for owner, p in robot_module._HOT.programs.values() if owner is robot), None
-        )
+        program = next((p for owner, p in pipeline.HOT.programs.values() if owner is robot), None)
         if program is None:
             print(f"{spec}: no hot program")
             return

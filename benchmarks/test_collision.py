@@ -21,6 +21,7 @@ import pytest
 from jaxkin import collision as col
 from jaxkin.collision import distance as sd
 from jaxkin.collision import fused as cl
+from jaxkin.collision.rows import Placed
 
 coal = pytest.importorskip("coal")
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
@@ -248,7 +249,9 @@ def _panda_check(panda, dtype, fk: bool):
     pairs = panda["pairs"]
 
     def from_rows(rows):
-        return cl.min_clearance_rows(rows, col.Capsules.empty(dtype), world, pairs)
+        none = jnp.zeros((3, 0, rows.radius.shape[-1]), dtype)
+        placed = Placed(rows.center, rows.radius, none, none, jnp.zeros((0, 1), dtype))
+        return cl.min_clearance_rows(placed, world, pairs)
 
     def from_q(q):
         return from_rows(_panda_rows(panda, q))

@@ -24,7 +24,8 @@ _SUBMODULES = frozenset(
 _NAMES = {
     "num_threads": "_batching",
     "set_num_threads": "_batching",
-    "enable_compilation_cache": "_compile_cache",
+    "enable_compilation_cache": "_execute",
+    "compiled": "_execute",
     "Jet": "jet",
     "lift": "jet",
     "FKResult": "result",
@@ -32,8 +33,8 @@ _NAMES = {
     "SolverResult": "result",
     "JointLimits": "robot",
     "Robot": "robot",
-    "fk": "robot",
-    "ik": "robot",
+    "fk": "_execute",
+    "ik": "_execute",
     "Status": "status",
     "describe": "status",
 }
@@ -70,6 +71,7 @@ __all__ = [
     "describe",
     "dyad",
     "enable_compilation_cache",
+    "compiled",
     "fixedpoint",
     "fk",
     "ik",

@@ -1,22 +1,24 @@
-"""Every way jaxkin splits a batch, and every size threshold, in one place.
+"""Every way jaxkin splits a batch, and every size threshold, in one place (the execution
+layer, ``jaxkin._execute``, applies them).
 
 * **Chunks inside a kernel** (``map_chunks``): an iterative kernel (a Newton ``while_loop``)
   runs on cache-sized slices of the flattened batch with ``lax.map``, so its state stays in
   cache and each chunk stops as soon as its own elements have converged.
-* **Host parts on threads** (``PartsJit``, ``run_parts``, ``overlapping_parts``, ``join``): XLA
+* **Host parts on threads** (``run_parts``, ``thread_layout``, ``overlapping_parts``): XLA
   on CPU runs the body of a ``while_loop`` on one core, but two programs called from two host
   threads run at the same time. A large concrete batch is split into one part per thread, each
   part slicing its inputs inside the kernel, and the parts are joined.
-* **Candidate chunks** (``map_candidates``): the planner's N candidates in equal chunks, each
-  sharded over the devices when there are several, else run on the host threads.
+* **Candidate chunks** (``_execute.map_candidates``): the planner's N candidates in equal
+  chunks, each sharded over the devices when there are several, else run on the host threads.
 * **Host chunks** (``host_chunks``): a host-side loop over fixed-size, padded chunks (files of
   the command line, voxels of a workspace sweep), so one compilation serves every chunk.
 * **Work queue inside a kernel** (``work_queue``): an iterative kernel whose elements need very
   different numbers of steps (a chain's IK search) keeps a fixed number of lanes iterating and
   hands each lane the next element as its own ends.
-* **Padded small batches** (``PaddedJit``): a small concrete batch is flattened and padded to a
-  power of two, so calls whose batch shapes differ (a replanning loop whose
-  candidate count changes, a batch ``(3, 5)`` then ``(12,)``) share one compilation per size.
+* **Padded small batches** (``padded_size``, ``pad_leaf``): a small concrete batch is
+  flattened and padded to a power of two, so calls whose batch shapes differ (a replanning
+  loop whose candidate count changes, a batch ``(3, 5)`` then ``(12,)``) share one
+  compilation per size.
 
 Every split gives the same values as the whole batch: the kernels are elementwise in the batch
 (tested). Thread count: ``set_num_threads(n)``, else ``JAXKIN_NUM_THREADS``, else the CPUs this
@@ -27,21 +29,18 @@ process may run on; ``1`` turns host parts off. How the thresholds below were me
 from __future__ import annotations
 
 import dataclasses
-import functools
-import inspect
 import math
 import os
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any
+from typing import Any, TypeVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from . import _processes
 from ._validate import is_concrete
 
 # ------------------------------------------------------------------------------- thresholds
@@ -74,211 +73,12 @@ PAD_MAX = 1 << 12
 PLAN_PAD_SAMPLES = 1 << 15
 
 # A robot object asked one element at a time this many times (same kind, branch, options,
-# input shape and dtype) gets its own program with the geometry as constants (a compilation of
-# 0.1-2 s; the call then costs 0.3-0.75x the generic one-element path's, docs/performance.md).
+# input shape and dtype) gets its own compiled handle with the geometry as constants (a
+# compilation of 0.1-2 s; the call then costs 0.3-0.75x the generic one-element path's,
+# docs/performance.md).
 HOT_AFTER = 8
-# Hot single-query programs kept (the earliest built dropped): each holds its robot.
+# Hot single-query handles kept (the earliest built dropped): each holds its robot.
 HOT_PROGRAMS = 32
-
-
-# ------------------------------------------------------------------ hot single queries
-
-
-class HotQueries:
-    """The compiled single queries of the robots asked most often, the earliest built dropped
-    beyond ``HOT_PROGRAMS`` (a lookup stays one dictionary read).
-
-    ``get(key, owner, build)`` counts the calls of ``key`` (which starts with ``id(owner)``)
-    and returns None until the ``HOT_AFTER``-th, which calls ``build()`` and keeps its result
-    (a program, or None for a query that has none) with ``owner``: an entry answers only
-    while its owner is that very object (a key whose ``id`` was reused starts counting again).
-    """
-
-    def __init__(self, size: int | None = None) -> None:
-        self.size = HOT_PROGRAMS if size is None else size
-        self.programs: dict[tuple, tuple[Any, Any]] = {}
-        self.counts: dict[tuple, int] = {}
-        self.none: dict[tuple, Any] = {}  # keys without a program (batches): owner by key
-        self.by_value: dict[tuple, Any] = {}  # programs by the robot's values, for its copies
-
-    def get(self, key: tuple, owner: Any, build: Callable[[], Any]) -> Any:
-        entry = self.programs.get(key)
-        if entry is not None and entry[0] is owner:
-            return entry[1]
-        if self.none.get(key) is owner:
-            return None
-        count = self.counts.pop(key, 0) + 1
-        if count < HOT_AFTER:
-            bounded_put(self.counts, key, count, 4 * self.size)
-            return None
-        program = build()
-        self.counts.pop(key, None)  # the build may have called the query once more
-        if program is None:  # kept apart, so that batches never push programs out
-            bounded_put(self.none, key, owner, 4 * self.size)
-        else:
-            bounded_put(self.programs, key, (owner, program), self.size)
-        return program
-
-    def clear(self) -> None:
-        """Forget every program and count."""
-        self.programs.clear()
-        self.counts.clear()
-        self.none.clear()
-        self.by_value.clear()
-
-
-def bounded_put(table: dict, key: Any, value: Any, size: int) -> None:
-    """``table[key] = value`` as its newest entry, the oldest dropped beyond ``size``."""
-    table.pop(key, None)
-    table[key] = value
-    if len(table) > size:
-        del table[next(iter(table))]
-
-
-def hot_program(fn: Callable[[Array], Any], example: Any) -> Callable[[Array], Any]:
-    """``fn`` (one array in, a pytree out) compiled for ``example``'s shape and dtype, its
-    output leaves that do not depend on the input (the zero rates of a query at rest) taken
-    once from ``fn(example)`` and returned as they are: every output of a compiled call costs
-    about 1-2 us. One trace of ``fn`` (which outputs move) and one compilation (of those)."""
-    traced = jax.jit(fn).trace(example)
-    tree = jax.tree.structure(traced.out_info)
-    moving = _input_dependent(traced.jaxpr.jaxpr)
-    fixed = [i for i, m in enumerate(moving) if not m]
-    moving = [i for i, m in enumerate(moving) if m]
-
-    def pick(indices: list[int]) -> Callable[[Array], list]:
-        return lambda x: [jax.tree.leaves(fn(x))[i] for i in indices]
-
-    constants = {}
-    if fixed:  # from one call of ``fn`` as it is (its usual program): no compilation of them
-        computed = jax.tree.leaves(fn(example))
-        constants = {i: computed[i] for i in fixed}
-    jitted = jax.jit(pick(moving))
-    # Called as the compiled executable: a jitted closure over concrete arrays passes them as
-    # arguments on every call (tens of microseconds); the executable holds them as constants.
-    compiled = jitted.lower(example).compile()
-    try:  # sets up JAX's C++ entry of the executable, called directly below
-        compiled(example)
-    except (TypeError, ValueError):  # an example it does not take as it is: see call
-        pass
-    run = getattr(compiled, "_call", None) or compiled
-    call = _builder(traced.out_info, moving, constants, run, jitted)
-    if call is None:
-        position = {i: k for k, i in enumerate(moving)}
-        n = tree.num_leaves
-
-        def call(x: Array) -> Any:
-            try:
-                values = run(x)
-            except (TypeError, ValueError):  # an input it does not take as it is
-                values = jitted(x)
-            leaves = [constants[i] if i in constants else values[position[i]] for i in range(n)]
-            return tree.unflatten(leaves)
-
-    call.compiled = compiled  # for inspection (its cost analysis, its HLO)
-    return call
-
-
-def _builder(
-    example: Any, moving: list[int], constants: dict[int, Any], run: Callable, fallback: Callable
-) -> Callable[[Any], Any] | None:
-    """The hot call: ``run(x)`` (the compiled outputs: leaves ``moving`` of ``example``'s
-    tree, in order; ``fallback(x)`` for an input ``run`` refuses) and the tree built from them
-    with the leaves ``constants`` (by leaf index) in place, for nested frozen dataclasses (the
-    results), written out as one straight-line function: the objects made with
-    ``object.__new__`` and given their ``__dict__`` whole (their ``__init__`` and JAX's
-    unflatten cost several microseconds per call), fields that hold no leaf copied from
-    ``example``. None for any other tree."""
-    paths = [path for path, _ in jax.tree_util.tree_flatten_with_path(example)[0]]
-    if not paths or not all(
-        path and all(isinstance(k, jax.tree_util.GetAttrKey) for k in path) for path in paths
-    ):
-        return None
-    source = {i: f"v[{k}]" for k, i in enumerate(moving)}
-    namespace: dict[str, Any] = {
-        "new": object.__new__,
-        "set_attribute": object.__setattr__,
-        "run": run,
-        "fallback": fallback,
-    }
-    for i, value in constants.items():
-        source[i] = f"k{i}"
-        namespace[f"k{i}"] = value
-    lines: list[str] = []
-
-    def node(obj: Any, entries: list[tuple[tuple, int]]) -> str | None:
-        """Appends the lines that build ``obj``'s node; returns the name that holds it."""
-        if not dataclasses.is_dataclass(obj) or not hasattr(obj, "__dict__"):
-            return None
-        groups: dict[str, list] = {}
-        for path, index in entries:
-            groups.setdefault(path[0].name, []).append((path[1:], index))
-        if any(name not in obj.__dict__ for name in groups):
-            return None
-        fields = {}
-        for name, group in groups.items():
-            if len(group) == 1 and not group[0][0]:
-                fields[name] = source[group[0][1]]
-            elif any(not rest for rest, _ in group):
-                return None
-            else:
-                child = node(obj.__dict__[name], group)
-                if child is None:
-                    return None
-                fields[name] = child
-        var = f"o{len(namespace)}"
-        namespace[f"{var}_cls"] = type(obj)
-        for name, value in obj.__dict__.items():
-            if name not in groups:  # a field without leaves, kept as it is
-                fields[name] = f"{var}_field_{name}"
-                namespace[f"{var}_field_{name}"] = value
-        items = ", ".join(f"{name!r}: {fields[name]}" for name in obj.__dict__ if name in fields)
-        lines.append(f"{var} = new({var}_cls)")
-        lines.append(f"set_attribute({var}, '__dict__', {{{items}}})")
-        return var
-
-    root = node(example, [(tuple(path), i) for i, path in enumerate(paths)])
-    if root is None:
-        return None
-    head = [
-        "try:",
-        "    v = run(x)",
-        "except (TypeError, ValueError):  # an input it does not take as it is (another device)",
-        "    v = fallback(x)",
-    ]
-    body = "\n".join(f"    {line}" for line in (*head, *lines, f"return {root}"))
-    exec(f"def call(x):\n{body}\n", namespace)  # straight-line code from the field names
-    return namespace["call"]
-
-
-def _input_dependent(jaxpr: Any, inputs: list[bool] | None = None) -> list[bool]:
-    """Per output of ``jaxpr``: whether it depends on an input (``inputs``: which of its
-    inputs count; all by default). A nested call (``jit``, ``custom_jvp_call``) is followed
-    into its body; any other equation with a dependent operand has every result dependent."""
-    inputs = [True] * len(jaxpr.invars) if inputs is None else inputs
-    dependent = {id(v) for v, d in zip(jaxpr.invars, inputs, strict=True) if d}
-    for eqn in jaxpr.eqns:
-        operands = [not _is_literal(v) and id(v) in dependent for v in eqn.invars]
-        if not any(operands):
-            continue
-        body = None
-        if eqn.primitive.name in _CALLS:
-            body = next((eqn.params[k] for k in ("jaxpr", "call_jaxpr") if k in eqn.params), None)
-            body = getattr(body, "jaxpr", body)
-        if body is not None and len(getattr(body, "invars", ())) == len(operands):
-            results = _input_dependent(body, operands)
-        else:
-            results = [True] * len(eqn.outvars)
-        dependent.update(id(v) for v, d in zip(eqn.outvars, results, strict=True) if d)
-    return [not _is_literal(v) and id(v) in dependent for v in jaxpr.outvars]
-
-
-# Nested calls whose body runs once on the operands (not loops: a loop's carry mixes).
-_CALLS = frozenset({"pjit", "jit", "closed_call", "core_call", "custom_jvp_call", "remat"})
-
-
-def _is_literal(v: Any) -> bool:
-    return type(v).__name__ == "Literal"
 
 
 # ------------------------------------------------------------------ chunks in a kernel
@@ -394,9 +194,9 @@ def num_threads() -> int:
 def set_num_threads(n: int | None) -> None:
     """Split large batches across ``n`` host threads (1: never split; None: the default)."""
     global _requested
-    if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+    if n is not None and (isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1):
         raise ValueError(f"n must be a positive int or None, got {n!r}")
-    _requested = n
+    _requested = None if n is None else int(n)
 
 
 def _executor(workers: int) -> ThreadPoolExecutor:
@@ -425,16 +225,25 @@ def overlapping_parts(size: int, n_parts: int, multiple: int = 1) -> tuple[int, 
     return part, [k * part for k in range(count - 1)] + [size - part]
 
 
-def _layout(size: int, threads: int, min_part: int | None = None) -> tuple[int, list[int]]:
-    """The parts for ``threads`` threads, each of ``min_part`` (default ``MIN_PART``) elements
-    at least; one part when there are too few elements."""
-    parts = min(threads, size // (MIN_PART if min_part is None else min_part))
+def thread_layout(size: int, min_part: int | None = None) -> tuple[int, list[int]]:
+    """``(part size, starts)`` of a batch of ``size`` elements on the host threads
+    (``num_threads``), each part of ``min_part`` (default ``MIN_PART``) elements at least; one
+    part when there are too few elements."""
+    parts = min(num_threads(), size // (MIN_PART if min_part is None else min_part))
     if parts < 2:
         return size, [0]
     return overlapping_parts(size, parts)
 
 
-def run_parts(run: Callable[[int], Any], starts: list[int]) -> list[Any]:
+def in_worker() -> bool:
+    """True on a worker thread of ``run_parts`` (nested calls run their parts in turn)."""
+    return getattr(_in_worker, "active", False)
+
+
+_Start = TypeVar("_Start")
+
+
+def run_parts(run: Callable[[_Start], Any], starts: list[_Start]) -> list[Any]:
     """``[run(start) for start in starts]``, on the worker threads when there are several.
 
     ``run`` should return computed (not merely dispatched) arrays: a part's work happens on the
@@ -444,7 +253,7 @@ def run_parts(run: Callable[[int], Any], starts: list[int]) -> list[Any]:
     if threads < 2 or len(starts) < 2 or getattr(_in_worker, "active", False):
         return [run(start) for start in starts]
 
-    def in_worker(start: int) -> Any:
+    def in_worker(start: _Start) -> Any:
         _in_worker.active = True
         try:
             return jax.block_until_ready(run(start))
@@ -454,14 +263,14 @@ def run_parts(run: Callable[[int], Any], starts: list[int]) -> list[Any]:
     return list(_executor(threads).map(in_worker, starts))
 
 
-def _on_one_device(leaf: Any) -> bool:
+def on_one_device(leaf: Any) -> bool:
     """A concrete value on (at most) one device: tracers and sharded arrays are not split."""
     if not is_concrete(leaf):
         return False
     return not isinstance(leaf, jax.Array) or len(leaf.sharding.device_set) == 1
 
 
-def _splittable(tree: Any, batch: tuple[int, ...]) -> bool:
+def splittable(tree: Any, batch: tuple[int, ...]) -> bool:
     """True when every leaf is a scalar (shared) or has the whole batch as leading axes."""
     return all(
         jnp.ndim(leaf) == 0 or tuple(jnp.shape(leaf)[: len(batch)]) == batch
@@ -469,7 +278,7 @@ def _splittable(tree: Any, batch: tuple[int, ...]) -> bool:
     )
 
 
-def _take(tree: Any, batch: tuple[int, ...], start: Array, part: int) -> Any:
+def take_part(tree: Any, batch: tuple[int, ...], start: Array, part: int) -> Any:
     """Elements ``[start, start + part)`` of the flattened batch of the batched leaves."""
     size = math.prod(batch)
 
@@ -481,162 +290,6 @@ def _take(tree: Any, batch: tuple[int, ...], start: Array, part: int) -> Any:
         return jax.lax.dynamic_slice_in_dim(flat, start, part, axis=0)
 
     return jax.tree.map(take, tree)
-
-
-@functools.partial(jax.jit, static_argnames=("batch", "overlap"))
-def join(parts: list[Any], batch: tuple[int, ...], overlap: int) -> Any:
-    """Concatenate the parts' outputs along the flat batch axis (dropping the last part's
-    first ``overlap`` elements, computed twice); restore the batch shape."""
-
-    def join_leaf(*leaves):
-        whole = jnp.concatenate([*leaves[:-1], leaves[-1][overlap:]], axis=0)
-        return jnp.reshape(whole, (*batch, *whole.shape[1:]))
-
-    return jax.tree.map(join_leaf, *parts)
-
-
-class PartsJit:
-    """``jax.jit(impl, static_argnames)`` that splits large batches across host threads.
-
-    Args:
-        impl: the kernel, elementwise in the batch: element ``i`` of every output depends only
-            on element ``i`` of the batched arguments; every output leaf has the batch as its
-            leading axes.
-        static_argnames: as for ``jax.jit``.
-        batched_argnames: arguments whose array leaves carry the batch as leading axes (leaves
-            of rank 0 are shared by the whole batch); the others are passed to every part.
-        min_part: fewest elements per part (None: ``MIN_PART``; an iterative kernel whose
-            every element costs much, such as a chain's IK, splits far smaller batches).
-
-    Call it as the kernel, with the batch shape as the keyword ``batch``.
-    """
-
-    def __init__(
-        self,
-        impl: Callable[..., Any],
-        static_argnames: Iterable[str] = (),
-        batched_argnames: Iterable[str] = (),
-        min_part: int | None = None,
-    ) -> None:
-        self._impl = impl
-        self._min_part = min_part
-        self._signature = inspect.signature(impl)
-        self._static = tuple(static_argnames)
-        self._batched = tuple(batched_argnames)
-        self.whole = jax.jit(impl, static_argnames=self._static)
-        self._part = jax.jit(self._part_impl, static_argnames=("static", "batch", "part"))
-        functools.update_wrapper(self, impl)
-
-    def _part_impl(self, dynamic: dict[str, Any], static: tuple, batch, start: Array, part: int):
-        arguments = dict(static)
-        for name, value in dynamic.items():
-            if name in self._batched:
-                value = _take(value, batch, start, part)
-            arguments[name] = value
-        return self._impl(**arguments)
-
-    def __call__(self, *args: Any, batch: tuple[int, ...], **kwargs: Any) -> Any:
-        batch = tuple(int(d) for d in batch)
-        threads = num_threads()
-        size = math.prod(batch)
-        part, starts = _layout(size, threads, self._min_part)
-        if (
-            len(starts) < 2
-            or getattr(_in_worker, "active", False)
-            or on_accelerator()
-            or not all(_on_one_device(leaf) for leaf in jax.tree.leaves((args, kwargs)))
-        ):
-            return self.whole(*args, **kwargs)
-        bound = self._signature.bind(*args, **kwargs)
-        bound.apply_defaults()
-        dynamic = {k: v for k, v in bound.arguments.items() if k not in self._static}
-        if not _splittable([dynamic[name] for name in self._batched], batch):
-            return self.whole(*args, **kwargs)
-        static = tuple((k, v) for k, v in bound.arguments.items() if k in self._static)
-
-        def run(start: int) -> Any:
-            return self._part(dynamic, static, batch, start, part)
-
-        return join(run_parts(run, starts), batch, len(starts) * part - size)
-
-
-# ------------------------------------------------------------------ candidates and devices
-
-
-_device_block = threading.local()  # set while a device's block runs: nested calls stay local
-
-
-def map_candidates(fn: Callable[[Any], Any], tree: Any, chunk_size: int, name: str = "path") -> Any:
-    """Apply ``fn`` to a pytree whose leaves share a leading candidate axis N, in chunks.
-
-    ``fn`` is elementwise in the candidates. With one device the chunks have one size, at most
-    ``chunk_size`` candidates (the last one overlaps its neighbour rather than being padded:
-    ``overlapping_parts``), so one compilation serves them all; they run on the host threads
-    concurrently and are joined back to N candidates.
-
-    With several devices (one process or many, ``jax.distributed``) the candidates are split
-    into one block per device (``_processes.layout_of``: equal blocks of host data, the last
-    rows repeating the last candidate, or a global array's own blocks), each process computes
-    its own devices' blocks in chunks of at most ``chunk_size`` as above, with no
-    communication, and the outputs are global arrays split along the candidate axis like the
-    blocks (replicated when N is not a multiple of the device count: ``_processes.assemble``).
-    ``name`` names ``tree`` in the ``ValueError`` for a global array split otherwise, or host
-    arrays whose shapes differ between processes.
-    """
-    leaves = jax.tree.leaves(tree)
-    if (
-        jax.device_count() == 1
-        or getattr(_device_block, "active", False)
-        or not all(is_concrete(leaf) for leaf in leaves)
-    ):
-        return _map_on_one_device(fn, tree, chunk_size)
-    layout = _processes.layout_of(tree, name)
-    block = layout.block_rows
-    chunk, starts = _candidate_chunks(block, chunk_size)
-    blocks = [
-        jax.tree.map(lambda leaf, i=i: _processes.read_block(leaf, layout, i), tree)
-        for i in range(len(layout.blocks))
-    ]
-
-    def run(task: tuple[int, int]) -> Any:
-        i, start = task
-        part = blocks[i]
-        if chunk < block:
-            part = jax.tree.map(lambda x: x[start : start + chunk], part)
-        _device_block.active = True
-        try:
-            return fn(part)
-        finally:
-            _device_block.active = False
-
-    outputs = run_parts(run, [(i, start) for i in range(len(blocks)) for start in starts])
-    joined = []
-    for i in range(len(blocks)):
-        mine = outputs[i * len(starts) : (i + 1) * len(starts)]
-        joined.append(
-            mine[0] if len(mine) == 1 else join(mine, (block,), len(mine) * chunk - block)
-        )
-    return _processes.assemble(layout, joined)
-
-
-def _candidate_chunks(size: int, chunk_size: int) -> tuple[int, list[int]]:
-    """Chunks of one size, at most ``chunk_size``, covering ``size`` rows (overlapping)."""
-    return overlapping_parts(size, math.ceil(size / max(1, min(chunk_size, size))))
-
-
-def _map_on_one_device(fn: Callable[[Any], Any], tree: Any, chunk_size: int) -> Any:
-    """``map_candidates`` on the device the leaves are on (chunks on the host threads)."""
-    size = jax.tree.leaves(tree)[0].shape[0]
-    if size == 0:
-        return fn(tree)
-    chunk, starts = _candidate_chunks(size, chunk_size)
-
-    def run(start: int) -> Any:
-        part = tree if chunk == size else jax.tree.map(lambda x: x[start : start + chunk], tree)
-        return fn(part)
-
-    outputs = run_parts(run, starts)
-    return outputs[0] if len(outputs) == 1 else join(outputs, (size,), len(starts) * chunk - size)
 
 
 # ------------------------------------------------------------------ host chunks
@@ -668,84 +321,12 @@ def padded_size(size: int) -> int:
     return max(PAD_MIN, 1 << (size - 1).bit_length())
 
 
-class PaddedJit:
-    """A jitted kernel whose small concrete batches run padded to one size class.
-
-    Args:
-        jitted: the kernel (``jax.jit``, or ``PartsJit`` or another callable with a true
-            ``takes_batch`` attribute, called with ``batch=``), elementwise in the batch:
-            element ``i`` of every output depends only on element ``i`` of the batched
-            arguments.
-        core: for each batched argument, the number of trailing axes of its leaves that are
-            not batch axes (1 for points ``(..., 3)``, 0 for per-element scalars). Leaves of
-            rank 0 with no core axes (a scalar length) are shared by the whole batch.
-        axes: the batch axis of output fields where it is not the first (e.g. a history
-            ``(steps, ..., n)``: ``{"history": 1}``); the field is the leaf's attribute name.
-
-    Call it as the kernel, with the batch shape as the keyword ``batch``; ``pad=False`` where
-    an argument outside ``core`` has batch axes (e.g. a batched geometry), or ``pad`` a dict
-    that replaces ``core`` for this call (a target whose core shape depends on the robot).
-
-    A batch of at most ``PAD_MAX`` elements (``()`` included) whose arguments are all concrete,
-    on a single-device machine, is broadcast to ``batch``, flattened and padded to
-    ``padded_size`` on the host by repeating its last element (a real input, computed and
-    dropped), and the outputs are cut back by one small program (``_cut``) compiled per batch
-    shape in milliseconds, where the kernel takes a fraction of a second or more. Larger batches,
-    tracers (under a user's ``jit``, ``vmap`` or ``grad``) and several devices go to the
-    kernel as they are.
-    """
-
-    def __init__(
-        self,
-        jitted: Callable[..., Any],
-        core: dict[str, int],
-        axes: dict[str, int] | None = None,
-    ) -> None:
-        self.jitted = jitted
-        self._core = dict(core)
-        self._axes = dict(axes or {})
-        self._takes_batch = isinstance(jitted, PartsJit) or getattr(jitted, "takes_batch", False)
-        self._signature = inspect.signature(getattr(jitted, "__wrapped__", jitted))
-        functools.update_wrapper(self, jitted)
-
-    def __call__(
-        self, *args: Any, batch: tuple[int, ...], pad: bool | dict[str, int] = True, **kwargs: Any
-    ) -> Any:
-        batch = tuple(int(d) for d in batch)
-        size = math.prod(batch)
-        padded = padded_size(size)
-        if (
-            not pad
-            or size == 0
-            or (padded == size and len(batch) == 1)
-            or jax.device_count() > 1
-            or not all(is_concrete(leaf) for leaf in jax.tree.leaves((args, kwargs)))
-        ):
-            return self._direct(args, kwargs, batch)
-        bound = self._signature.bind(*args, **kwargs)
-        for name, core in (pad if isinstance(pad, dict) else self._core).items():
-            if bound.arguments.get(name) is not None:
-                bound.arguments[name] = jax.tree.map(
-                    lambda leaf, core=core: _pad_leaf(leaf, batch, core, padded),
-                    bound.arguments[name],
-                )
-        out = self._direct(bound.args, bound.kwargs, (padded,))
-        leaves, tree = jax.tree_util.tree_flatten_with_path(out)
-        axes = tuple(self._axes.get(_field(path), 0) for path, _ in leaves)
-        return jax.tree.unflatten(tree, _cut([leaf for _, leaf in leaves], axes, batch, size))
-
-    def _direct(self, args: tuple, kwargs: dict, batch: tuple[int, ...]) -> Any:
-        if self._takes_batch:
-            return self.jitted(*args, batch=batch, **kwargs)
-        return self.jitted(*args, **kwargs)
-
-
 def shared_geometry(robot: Any) -> bool:
     """True when every array leaf of ``robot`` is a scalar: nothing in it has batch axes."""
     return all(np.ndim(leaf) == 0 for leaf in jax.tree.leaves(robot))
 
 
-def _pad_leaf(leaf: Any, batch: tuple[int, ...], core: int, padded: int) -> Any:
+def pad_leaf(leaf: Any, batch: tuple[int, ...], core: int, padded: int) -> Any:
     """``leaf`` (``(*b, *core)`` with ``b`` broadcasting to ``batch``) as a host array
     ``(padded, *core)``, the last element repeated, for the kernel to take in; a scalar
     without core axes unchanged (shared). On the host: no program per input shape."""
@@ -783,40 +364,6 @@ def spread_rows(leaf: Any, batch: tuple[int, ...], core: int, padded: int, fill:
     out = np.full((padded, *shape), fill, flat.dtype)
     out[spread_positions(len(flat), padded)] = flat
     return out
-
-
-def gather_back(tree: Any, batch: tuple[int, ...]) -> Any:
-    """The batch's rows (``spread_positions``) of every leaf of a kernel's output on the
-    spread rows, reshaped to ``batch``: one small program per output structure and shape."""
-    leaves, structure = jax.tree.flatten(tree)
-    rows = jnp.asarray(spread_positions(math.prod(batch), leaves[0].shape[0]), jnp.int32)
-    return jax.tree.unflatten(structure, _gather(leaves, rows, batch))
-
-
-@functools.partial(jax.jit, static_argnames=("batch",))
-def _gather(leaves: list, rows: Array, batch: tuple[int, ...]) -> list:
-    return [leaf[rows].reshape((*batch, *leaf.shape[1:])) for leaf in leaves]
-
-
-@functools.partial(jax.jit, static_argnames=("axes", "batch", "size"))
-def _cut(leaves: list, axes: tuple[int, ...], batch: tuple[int, ...], size: int) -> list:
-    """Each output leaf's first ``size`` rows on its batch axis, that axis reshaped to
-    ``batch``: one small program per output structure and batch shape, compiled in
-    milliseconds (a transfer through the host would cost about 20 us per leaf and call)."""
-
-    def cut(leaf, axis):
-        rows = jax.lax.slice_in_dim(leaf, 0, size, axis=axis)
-        return rows.reshape((*rows.shape[:axis], *batch, *rows.shape[axis + 1 :]))
-
-    return [cut(leaf, axis) for leaf, axis in zip(leaves, axes, strict=True)]
-
-
-def _field(path: tuple) -> str | None:
-    """The attribute name of a pytree path's first dataclass field, if any."""
-    for key in path:
-        if isinstance(key, jax.tree_util.GetAttrKey):
-            return key.name
-    return None
 
 
 # ------------------------------------------------------------------ work queue in a kernel

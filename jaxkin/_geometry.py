@@ -14,7 +14,7 @@ scalars and arrays of the declared shape); refused: ``bool``, strings, ``None``,
 values, NaN, and values outside the field's kind (``LENGTH`` > 0, ``NONNEGATIVE`` >= 0,
 ``REAL`` finite, ``BOUND`` finite or +-inf). Python numbers are kept as Python floats (a
 concrete geometry can then be compiled into a kernel as constants), anything else becomes a
-floating JAX array.
+floating JAX array of its own (a copy: editing the caller's array afterwards changes nothing).
 
 JAX rebuilds geometries from tracers, abstract values and cotangents: that path (the pytree
 unflatten) skips ``__init__`` and so skips validation, because those are not user input (a
@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
-from typing import Any
+from typing import Any, TypeVar, dataclass_transform
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._validate import as_float, is_concrete
+from ._validate import is_concrete, owned_float
 
 LENGTH = "length"
 NONNEGATIVE = "nonnegative"
@@ -49,6 +49,12 @@ _EXPECTED = {
 # A field's shape: () a scalar; a tuple with -1 for "any size" on that axis; None any shape
 # (batched geometry values broadcast against the batch).
 Shape = tuple[int, ...] | None
+
+
+Numeric = Any
+"""The type of a ``number`` field: the constructor takes any real array-like (a float, a list, a
+NumPy or JAX array, a tracer), the field holds a float or a JAX array after validation; JAX's
+``ArrayLike`` has no arithmetic in its type, so the fields are ``Any`` to the type checker."""
 
 
 def number(kind: str = LENGTH, shape: Shape = (), default: Any = dataclasses.MISSING) -> Any:
@@ -138,7 +144,7 @@ def check_number(value: Any, name: str, kind: str = LENGTH, shape: Shape = ()) -
         raise ValueError(f"{name} must be {what}, got {shown}")
     if isinstance(value, numbers.Real) and arr.ndim == 0:
         return float(value)
-    return as_float(value)
+    return owned_float(value)  # the caller's array may change after this returns
 
 
 class Geometry:
@@ -182,18 +188,24 @@ class Geometry:
 
     def replace(self, **changes: Any) -> Any:
         """A copy with some fields changed (validated like a new geometry)."""
-        return dataclasses.replace(self, **changes)
+        return dataclasses.replace(self, **changes)  # type: ignore[type-var]  # a @geometry
 
     def astype(self, dtype: Any) -> Any:
         """The same geometry with every numeric leaf cast to ``dtype`` (no validation)."""
         return jax.tree.map(lambda x: jnp.asarray(x).astype(dtype), self)
 
 
-def geometry(cls: type) -> type:
+_Class = TypeVar("_Class", bound=type)
+
+
+@dataclass_transform(
+    frozen_default=True, field_specifiers=(dataclasses.field, number, static, label)
+)
+def geometry(cls: _Class) -> _Class:
     """Class decorator: a frozen dataclass registered as a pytree that skips validation on
     unflatten (see the module docstring). Fields declared with ``static()`` are metadata, those
     declared with ``label()`` metadata that never keys a compilation."""
-    cls = dataclasses.dataclass(frozen=True)(cls)
+    dataclasses.dataclass(frozen=True)(cls)  # in place: the class itself is returned
     fields = dataclasses.fields(cls)
 
     def is_data(f: dataclasses.Field) -> bool:
@@ -215,7 +227,7 @@ def geometry(cls: type) -> type:
         return [getattr(obj, n) for n in data], aux_of(obj)
 
     def unflatten(aux: tuple, children: Any) -> Any:
-        obj = object.__new__(cls)
+        obj: Any = object.__new__(cls)
         for name, value in zip(data, children, strict=True):
             object.__setattr__(obj, name, value)
         for name, value in zip(meta, aux[: len(meta)], strict=True):

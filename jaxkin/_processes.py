@@ -115,7 +115,7 @@ def _from_rows(rows: int, size: int, sharding: NamedSharding) -> Layout:
     shape = (size,)
     by_block: dict[tuple[int, int], list[Any]] = {}
     for device, index in sharding.addressable_devices_indices_map(shape).items():
-        start, stop, _ = index[0].indices(size)
+        start, stop, _ = index[0].indices(size)  # type: ignore[index]  # rows: never None
         by_block.setdefault((start, stop), []).append(device)
     blocks = tuple(sorted(by_block))
     return Layout(rows, size, sharding, blocks, tuple(tuple(by_block[b]) for b in blocks))

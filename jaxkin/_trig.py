@@ -31,6 +31,8 @@ are a CPU choice (``docs/scaling.md``).
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -98,7 +100,7 @@ _ATAN = (
 
 def _horner(z: Array, coefficients: tuple[float, ...]) -> Array:
     """``c0 + z (c1 + z (c2 + ...))``."""
-    result = coefficients[-1]
+    result: Any = coefficients[-1]  # a float until the first step
     for c in reversed(coefficients[:-1]):
         result = c + z * result
     return result

@@ -7,6 +7,7 @@ only shape checks apply (per-element problems then surface as statuses).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import jax
@@ -46,6 +47,16 @@ def as_float(x: ArrayLike) -> jax.Array:
     if not jnp.issubdtype(arr.dtype, jnp.inexact):
         arr = arr.astype(jnp.result_type(float))
     return arr
+
+
+def owned_float(x: ArrayLike) -> jax.Array:
+    """``as_float(x)`` sharing no memory with the caller: a host (NumPy) array is copied
+    first, since ``jax.device_put`` may alias its buffer on CPU, and an edit of the caller's
+    array would then change a robot built from it. For values kept beyond the call (a
+    geometry's fields, obstacles); the JAX array is read-only."""
+    if isinstance(x, np.ndarray | np.generic):
+        x = np.array(x, copy=True)
+    return as_float(x)
 
 
 def point(x: ArrayLike, name: str, coords: int) -> jax.Array:
@@ -94,6 +105,25 @@ def choice(value: Any, name: str, allowed: tuple[Any, ...]) -> Any:
     return value
 
 
+Progress = Callable[[int, int], object]
+"""A progress callback ``progress(done, total)``: ``done`` of ``total`` units of work are
+finished (a long call reports ``(0, total)`` first, then after every part of its work)."""
+
+
+def no_progress(done: int, total: int) -> None:
+    """The progress callback of a call given none: it does nothing."""
+
+
+def progress(value: Any, name: str = "progress") -> Progress | None:
+    """A progress callback (``Progress``) or None, checked."""
+    if value is not None and not callable(value):
+        raise ValueError(
+            f"{name} must be None or a callable progress(done, total) (the command line "
+            f"passes its progress bar), got {value!r}"
+        )
+    return value
+
+
 def cast_leaves(tree: Any, dtype: Any) -> Any:
     """``tree`` with every array leaf in ``dtype``; the same object when it already is.
 
@@ -115,6 +145,22 @@ def _real_scalar(value: Any) -> float | None:
     if dtype is None or np.dtype(dtype).kind not in "fiu" or np.ndim(value) != 0:
         return None
     return float(value)
+
+
+def count(value: Any, name: str, minimum: int = 1) -> int:
+    """A count (of samples, steps, candidates, iterations) ``>= minimum`` as a Python int.
+
+    Python ints, NumPy integer scalars (``np.int64(5)``, as ``len`` of an array or an index
+    gives) and concrete 0-d integer arrays are accepted; bools, floats (even ``3.0``: as
+    ``range`` and ``np.zeros``) and anything else raise a ``ValueError`` naming ``name``.
+    """
+    integer = not isinstance(value, bool | np.bool_) and is_concrete(value)
+    if integer and not isinstance(value, int | np.integer):
+        dtype = getattr(value, "dtype", None)
+        integer = dtype is not None and np.dtype(dtype).kind in "iu" and np.ndim(value) == 0
+    if not integer or int(value) < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
 
 
 def positive_number(value: Any, name: str) -> float:

@@ -258,7 +258,7 @@ class Sum:
     terms: tuple = dataclasses.field(metadata=dict(static=True))
 
     def __call__(self, sample: TrajectorySample) -> Array:
-        total = 0.0
+        total: Any = 0.0  # a float until the first term
         data = iter(self.data_terms)
         for weight, term in zip(self.weights, self.terms, strict=True):
             fn = next(data) if term is None else term
@@ -283,7 +283,9 @@ def bind(cost: Any, robot: Any) -> Any:
 def compose(*weighted_terms: tuple[float, CostTerm]) -> Sum:
     """The weighted sum of ``(weight, term)`` pairs, described by value (a new weight or
     threshold reuses the compilation)."""
-    weights, data_terms, terms = [], [], []
+    weights: list[np.ndarray] = []
+    data_terms: list[CostTerm] = []
+    terms: list[CostTerm | None] = []
     for weight, term in weighted_terms:
         weight = _validate.finite_number(weight, "compose: weights")
         # NumPy, not a device array: importing jaxkin must not start JAX before jax.distributed

@@ -37,7 +37,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _validate
+from . import _validate
+from ._execute import Kernel, Policy
 from ._numerics import all_last, computed_once, rsqrt, singular_rtol
 from ._trig import atan2
 from .jet import Jet, lift
@@ -272,10 +273,10 @@ def _analytic_rates(a_rates, rel, l_ac, l_bc, pos: _Position, mode: int):
     """
     ok = pos.status == Status.OK
     inv_l = pos.inv_l
-    theta_dot, theta_ddot = angle_rates(
-        *rel, inv_r2=inv_l * inv_l
-    )  # Fig. 2 (corrected, docs/errata.md)
-    l, l_dot, l_ddot = length_rates(*rel, inv_l=inv_l)  # Fig. 3
+    x, y, x_dot, y_dot, x_ddot, y_ddot = rel
+    # Fig. 2 (corrected, docs/errata.md)
+    theta_dot, theta_ddot = angle_rates(x, y, x_dot, y_dot, x_ddot, y_ddot, inv_r2=inv_l * inv_l)
+    l, l_dot, l_ddot = length_rates(x, y, x_dot, y_dot, x_ddot, y_ddot, inv_l=inv_l)  # Fig. 3
     # Eq. 4 (A_ddot corrected, docs/errata.md) and eq. 5. B and sin(beta) are replaced
     # by 1 where the status is not OK so no division below can make an inf (double-where).
     a_term = l_ac * l_ac + l * l - l_bc * l_bc
@@ -374,13 +375,16 @@ def _far_status(status: Array, far: Array) -> Array:
 
 def _position_impl(a: Array, b: Array, l_ac: Array, l_bc: Array, mode: int) -> DyadPosition:
     a_comps, rel, l_ac, l_bc, valid, scale, far = _sanitized([a], [b], l_ac, l_bc)
-    pos = _position(*rel, l_ac, l_bc, valid, mode)
+    dx, dy = rel
+    pos = _position(dx, dy, l_ac, l_bc, valid, mode)
     c = jnp.stack([a_comps[0] + pos.c_x * scale, a_comps[1] + pos.c_y * scale], axis=-1)
     return DyadPosition(c, pos.phi, _far_status(pos.status, far), pos.margin)
 
 
 _DYAD_CORES = {"a": 1, "b": 1, "l_ac": 0, "l_bc": 0}
-_position_jit = _batching.PaddedJit(jax.jit(_position_impl, static_argnames=("mode",)), _DYAD_CORES)
+_position_jit = Kernel(
+    _position_impl, static=("mode",), batched=_DYAD_CORES, policy=Policy(pad=True)
+)
 
 
 def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str):
@@ -388,7 +392,7 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     a_comps, rel, l_ac, l_bc, valid, scale = parts
 
     if method == "analytic":
-        pos = _position(*rel[:2], l_ac, l_bc, valid, mode, store_cos_sin=True)
+        pos = _position(rel[0], rel[1], l_ac, l_bc, valid, mode, store_cos_sin=True)
         phi_dot, phi_ddot, *c_rates = _analytic_rates(a_comps[2:], rel, l_ac, l_bc, pos, mode)
         c_x, c_y, c_v_x, c_v_y, c_a_x, c_a_y = (
             a_k + c_k * scale
@@ -431,8 +435,8 @@ def _solve_impl(a: Jet, b: Jet, l_ac: Array, l_bc: Array, mode: int, method: str
     return DyadResult(c, phi, _far_status(status, far), margin.p)
 
 
-_solve_jit = _batching.PaddedJit(
-    jax.jit(_solve_impl, static_argnames=("mode", "method")), _DYAD_CORES
+_solve_jit = Kernel(
+    _solve_impl, static=("mode", "method"), batched=_DYAD_CORES, policy=Policy(pad=True)
 )
 
 

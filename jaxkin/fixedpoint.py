@@ -34,7 +34,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _validate
+from . import _validate
+from ._execute import Kernel, Policy
 from ._numerics import safe_div, safe_sqrt
 from .serial.arms import Anthropomorphic, fk
 
@@ -138,7 +139,9 @@ def _ik_impl(lengths: Array, p: Array, bits: Array | None, rounding: str) -> Arr
     return _paper_ik(lengths, p, _quantizer(bits, rounding))
 
 
-_ik_jit = _batching.PaddedJit(jax.jit(_ik_impl, static_argnames=("rounding",)), {"p": 1, "bits": 0})
+_ik_jit = Kernel(
+    _ik_impl, static=("rounding",), batched={"p": 1, "bits": 0}, policy=Policy(pad=True)
+)
 
 
 def _robot_lengths(robot: Anthropomorphic, dtype) -> Array:

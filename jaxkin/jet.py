@@ -57,6 +57,12 @@ class Jet:
         return cls(p, zeros, zeros)
 
     @classmethod
+    def positions(cls, p: Array) -> Jet:
+        """Positions alone, their rates not computed (``None``): a kernel's intermediate when
+        its caller asked for no rates (``rates=False``), never a result."""
+        return cls(p, None, None)  # type: ignore[arg-type]  # the rates are left out
+
+    @classmethod
     def of(cls, p: ArrayLike, v: ArrayLike | None = None, a: ArrayLike | None = None) -> Jet:
         """Build a Jet from arrays, filling missing rates with zeros and sharing one dtype."""
         arrays = [jnp.asarray(x) for x in (p, v, a) if x is not None]

@@ -33,14 +33,15 @@ stays in float64 whatever JAX's x64 setting. The formula is written once for bot
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from ._execute import kernel
 from ._numerics import computed_once, eps, safe_sqrt
 from ._validate import as_float
 
@@ -72,7 +73,7 @@ def _small_angle(dtype) -> float:
     return 5.0 * eps(dtype) ** 0.125
 
 
-@jax.jit
+@kernel
 def hat(omega: ArrayLike) -> Array:
     """Skew-symmetric matrix of a 3-vector: ``(..., 3) -> (..., 3, 3)``, ``hat(a) b = a x b``."""
     omega = as_float(omega)
@@ -88,7 +89,7 @@ def hat(omega: ArrayLike) -> Array:
     )
 
 
-def vee(mat: ArrayLike, *, xp: Any = jnp, skew: bool = False) -> Array:
+def vee(mat: XArray, *, xp: Any = jnp, skew: bool = False) -> XArray:
     """Inverse of ``hat``: ``(..., 3, 3) -> (..., 3)``.
 
     Reads the antisymmetric part ``(M - M^T) / 2``; with ``skew`` it reads ``(M_21, M_02,
@@ -107,7 +108,7 @@ def vee(mat: ArrayLike, *, xp: Any = jnp, skew: bool = False) -> Array:
     )
 
 
-@jax.jit
+@kernel
 def se3_hat(xi: ArrayLike) -> Array:
     """4x4 matrix of a twist ``(omega, v)``: ``(..., 6) -> (..., 4, 4)``."""
     xi = as_float(xi)
@@ -116,7 +117,7 @@ def se3_hat(xi: ArrayLike) -> Array:
     return jnp.concatenate([top, bottom], axis=-2)
 
 
-@jax.jit
+@kernel
 def se3_vee(mat: ArrayLike) -> Array:
     """Inverse of ``se3_hat``: ``(..., 4, 4) -> (..., 6)`` ordered ``(omega, v)``."""
     mat = as_float(mat)
@@ -144,7 +145,7 @@ def _exp_coefficients(theta_sq: Array) -> tuple[Array, Array, Array]:
     )
 
 
-@jax.jit
+@kernel
 def so3_exp(omega: ArrayLike) -> Array:
     """Rotation matrix of a rotation vector (Rodrigues): ``(..., 3) -> (..., 3, 3)``."""
     omega = as_float(omega)
@@ -154,7 +155,7 @@ def so3_exp(omega: ArrayLike) -> Array:
     return eye + a[..., None, None] * k + b[..., None, None] * (k @ k)
 
 
-@jax.jit
+@kernel
 def se3_exp(xi: ArrayLike) -> Array:
     """Homogeneous transform of a twist ``(omega, v)``: ``(..., 6) -> (..., 4, 4)``.
 
@@ -173,7 +174,7 @@ def se3_exp(xi: ArrayLike) -> Array:
     return from_rotation_translation(rot, p)
 
 
-@jax.jit
+@kernel
 def from_rotation_translation(rot: ArrayLike, p: ArrayLike) -> Array:
     """Assemble ``[[R, p], [0, 1]]`` from ``R`` (..., 3, 3) and ``p`` (..., 3)."""
     rot, p = as_float(rot), as_float(p)
@@ -191,11 +192,13 @@ def from_rotation_translation(rot: ArrayLike, p: ArrayLike) -> Array:
 # list of batch arrays (``None`` marks an entry known to be zero), a vector a list of three.
 # All arithmetic is then elementwise, which XLA on CPU fuses into a few loops.
 
-Rot = list[list[Array | None]]
-Vec = list[Array]
+XArray = Any  # an array of the namespace ``xp`` of a function (NumPy or jax.numpy)
+Rot = Sequence[Sequence[Array | None]]
+FullRot = Sequence[Sequence[Array]]  # a rotation without structural zeros
+Vec = Sequence[Array]
 
 
-def unpack(transform: Array) -> tuple[Rot, Vec]:
+def unpack(transform: Array) -> tuple[FullRot, Vec]:
     """``(..., 4, 4)`` -> rotation and translation in the list representation."""
     rot = [[transform[..., r, c] for c in range(3)] for r in range(3)]
     return rot, [transform[..., r, 3] for r in range(3)]
@@ -205,19 +208,16 @@ def compose_soa(first: tuple[Rot, Vec], second: tuple[Rot, Vec]) -> tuple[Rot, V
     """``(R1, p1) (R2, p2) = (R1 R2, R1 p2 + p1)`` on the list representation."""
     rot1, p1 = first
     rot2, p2 = second
-    rot: Rot = []
+    rot: list[list[Array | None]] = []
     for r in range(3):
         row: list[Array | None] = []
         for c in range(3):
-            terms = [
-                rot1[r][k] * rot2[k][c]
-                for k in range(3)
-                if rot1[r][k] is not None and rot2[k][c] is not None
-            ]
+            pairs = ((rot1[r][k], rot2[k][c]) for k in range(3))
+            terms = [a * b for a, b in pairs if a is not None and b is not None]
             row.append(sum(terms[1:], terms[0]) if terms else None)
         rot.append(row)
     p = [
-        p1[r] + sum(rot1[r][k] * p2[k] for k in range(3) if rot1[r][k] is not None)
+        p1[r] + sum(a * b for a, b in zip(rot1[r], p2, strict=True) if a is not None)
         for r in range(3)
     ]
     return rot, p
@@ -231,12 +231,11 @@ def computed_once_soa(pose: tuple[Rot, Vec], batch: tuple[int, ...]) -> tuple[Ro
     recomputed. Storing a partial product cuts the trees.
     """
     rot, p = pose
-    flat = [x for row in rot for x in row] + list(p)
-    stored = iter(
-        computed_once(jnp.stack([jnp.broadcast_to(x, batch) for x in flat if x is not None]))
-    )
-    flat = [None if x is None else next(stored) for x in flat]
-    return [flat[0:3], flat[3:6], flat[6:9]], flat[9:12]
+    entries = [x for row in rot for x in row]
+    given = [x for x in (*entries, *p) if x is not None]
+    stored = iter(computed_once(jnp.stack([jnp.broadcast_to(x, batch) for x in given])))
+    kept = [None if x is None else next(stored) for x in entries]
+    return [kept[0:3], kept[3:6], kept[6:9]], [next(stored) for _ in p]
 
 
 def rotate_soa(rot: Rot, x: Vec, transpose: bool = False) -> Vec:
@@ -271,7 +270,7 @@ def to_matrix_soa(pose: tuple[Rot, Vec], batch: tuple[int, ...], dtype) -> Array
     return jnp.stack(rows, axis=-2)
 
 
-def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
+def so3_log_soa(rot: FullRot) -> tuple[Vec, Array, Array, Array]:
     """Rotation vector of ``R`` (module docstring), with ``t``, ``sin t``, ``cos t``.
 
     One transcendental call (``atan2``, an output): ``sin t`` and ``cos t`` are read
@@ -320,7 +319,7 @@ def so3_log_soa(rot: Rot) -> tuple[Vec, Array, Array, Array]:
     return omega, theta, sin_t, cos_t
 
 
-def se3_log_soa(rot: Rot, p: Vec) -> Vec:
+def se3_log_soa(rot: FullRot, p: Vec) -> Vec:
     """Twist ``(omega, v)`` of ``(R, p)``: ``v = p - omega x p / 2 + D omega x (omega x p)``.
 
     ``D = (1 - (t/2) cot(t/2)) / t^2`` with ``cot(t/2) = sin t / (1 - cos t)`` (finite at
@@ -339,7 +338,7 @@ def se3_log_soa(rot: Rot, p: Vec) -> Vec:
     return [*omega, *(p[i] - 0.5 * wp[i] + d * wwp[i] for i in range(3))]
 
 
-@jax.jit
+@kernel
 def so3_log(rot: ArrayLike) -> Array:
     """Rotation vector of a rotation matrix: ``(..., 3, 3) -> (..., 3)``, angle in [0, pi].
 
@@ -350,7 +349,7 @@ def so3_log(rot: ArrayLike) -> Array:
     return jnp.stack(omega, axis=-1)
 
 
-@jax.jit
+@kernel
 def se3_log(transform: ArrayLike) -> Array:
     """Twist ``(omega, v)`` of a homogeneous transform: ``(..., 4, 4) -> (..., 6)``.
 
@@ -359,7 +358,7 @@ def se3_log(transform: ArrayLike) -> Array:
     return jnp.stack(se3_log_soa(*unpack(as_float(transform))), axis=-1)
 
 
-@jax.jit
+@kernel
 def se3_inverse(transform: ArrayLike) -> Array:
     """Inverse of a homogeneous transform: ``[[R^T, -R^T p], [0, 1]]``, ``(..., 4, 4)``."""
     transform = as_float(transform)
@@ -368,7 +367,7 @@ def se3_inverse(transform: ArrayLike) -> Array:
     return from_rotation_translation(rot_t, p)
 
 
-@jax.jit
+@kernel
 def adjoint(transform: ArrayLike) -> Array:
     """Adjoint of a transform on ``(omega, v)`` twists: ``(..., 4, 4) -> (..., 6, 6)``.
 
@@ -387,7 +386,7 @@ def adjoint(transform: ArrayLike) -> Array:
 # Quaternions (w, x, y, z); ``xp`` is jax.numpy or numpy (module docstring).
 
 
-def quaternion_bilinear(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
+def quaternion_bilinear(a: XArray, b: XArray, *, xp: Any = jnp) -> XArray:
     """The symmetric bilinear form with ``Q(s) = quaternion_bilinear(s, s)``: ``(..., 4)``
     twice -> ``(..., 3, 3)``; ``Q(s) / |s|^2`` is the rotation of ``s``, and being quadratic
     its derivatives along ``s(t)`` are exact (``rotation_rates_of_quaternion``)."""
@@ -404,14 +403,14 @@ def quaternion_bilinear(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
     return xp.stack([xp.stack(r, -1) for r in rows], -2)
 
 
-def quaternion_to_matrix(quat: ArrayLike, *, xp: Any = jnp) -> Array:
+def quaternion_to_matrix(quat: XArray, *, xp: Any = jnp) -> XArray:
     """Rotation matrix ``Q(s) / |s|^2`` of quaternions ``(..., 4)`` of any non-zero length:
     ``(..., 3, 3)``."""
     return rotation_rates_of_quaternion(quat, None, None, xp=xp)[0]
 
 
 def rotation_rates_of_quaternion(
-    s: ArrayLike, ds: ArrayLike | None, dds: ArrayLike | None, *, xp: Any = jnp
+    s: XArray, ds: XArray | None, dds: XArray | None, *, xp: Any = jnp
 ) -> tuple[Array, Array | None, Array | None]:
     """``R``, ``R_dot``, ``R_ddot`` of ``R(s) = Q(s) / |s|^2`` along a quaternion curve ``s(t)``
     (``s`` any non-zero quaternion ``(..., 4)``, rates ``ds``, ``dds``; ``Q`` quadratic, so the
@@ -429,14 +428,14 @@ def rotation_rates_of_quaternion(
     return rot, d_rot, dd_rot
 
 
-def quaternion_product(a: ArrayLike, b: ArrayLike, *, xp: Any = jnp) -> Array:
+def quaternion_product(a: XArray, b: XArray, *, xp: Any = jnp) -> XArray:
     """Hamilton product of quaternions ``(..., 4)``."""
     aw, av, bw, bv = a[..., :1], a[..., 1:], b[..., :1], b[..., 1:]
     return xp.concatenate([aw * bw - xp.sum(av * bv, -1, keepdims=True),
                            aw * bv + bw * av + xp.cross(av, bv)], -1)  # fmt: skip
 
 
-def matrix_to_quaternion(rot: ArrayLike, *, xp: Any = jnp) -> Array:
+def matrix_to_quaternion(rot: XArray, *, xp: Any = jnp) -> XArray:
     """Unit quaternion ``(..., 4)`` of rotation matrices ``(..., 3, 3)`` by Shepperd's method,
     ``w >= 0`` (module docstring)."""
     trace = xp.trace(rot, axis1=-2, axis2=-1)[..., None]
@@ -465,8 +464,8 @@ def matrix_to_quaternion(rot: ArrayLike, *, xp: Any = jnp) -> Array:
 
 
 def quaternion_rates_of_rotation(
-    rot: ArrayLike, d_rot: ArrayLike, dd_rot: ArrayLike, *, xp: Any = jnp
-) -> tuple[Array, Array, Array]:
+    rot: XArray, d_rot: XArray, dd_rot: XArray, *, xp: Any = jnp
+) -> tuple[XArray, XArray, XArray]:
     """Unit quaternion of ``R`` (``matrix_to_quaternion``) and its rates along ``R(t)``.
 
     From the angular velocity ``[omega]_x = R_dot R^T`` and acceleration ``[alpha]_x = R_ddot
@@ -486,7 +485,7 @@ def quaternion_rates_of_rotation(
     return quat, d_quat, dd_quat
 
 
-def hemisphere_signs(quaternions: ArrayLike, *, xp: Any = jnp) -> Array:
+def hemisphere_signs(quaternions: XArray, *, xp: Any = jnp) -> XArray:
     """Signs ``(..., T)`` (+-1) that put consecutive quaternions ``(..., T, 4)`` in one
     hemisphere (``q`` and ``-q`` are one rotation; a spline through them needs one sign); the
     first sample keeps its own."""

@@ -126,6 +126,7 @@ def _solve_components(
     bound_sq = functools.reduce(
         operator.mul, [functools.reduce(operator.add, [v * v for v in row]) for row in m]
     )
+    adj_b: tuple[Array, ...] | None
     if n == 1:
         det, adj_b = m[0][0], (b[0],)
     elif n == 2:
@@ -268,8 +269,7 @@ def solve(
     if x0.ndim == 0:
         raise ValueError(f"x0: expected shape (..., n), got {tuple(x0.shape)}")
     x0 = _validate.as_float(x0)
-    if isinstance(max_iter, bool) or int(max_iter) != max_iter or max_iter < 0:
-        raise ValueError(f"max_iter must be an int >= 0, got {max_iter!r}")
+    max_iter = _validate.count(max_iter, "max_iter", minimum=0)
     if not tol > 0:
         raise ValueError(f"tol must be positive, got {tol}")
     batch = x0.shape[:-1]

@@ -17,10 +17,12 @@ second-to-last too, so the path starts and ends at rest); the interior points ar
 parameters, in units of the robot's size (task space and prismatic joints) or radians.
 Pose ends of a joint-space problem are solved once by the IK (host side) on ``branch``.
 
-Every guess is optimised on its own (``jax.vmap`` of one guess's update): the default,
-``LBFGS()``, keeps each guess's own L-BFGS memory and backtracking line search and evaluates
-one trial point per running guess per loop iteration, so the guesses advance independently;
-``Adam`` and other optax methods take one step per iteration. The loop runs compiled
+Every guess is optimised on its own (``jax.vmap`` of one guess's update): every method is an
+optax transformation of one guess's interior points (``init(params)``, ``update(grads, state,
+params, value=..., value_fn=...)``). The default, ``LBFGS()`` (``jaxkin._lbfgs``), keeps each
+guess's own L-BFGS memory (``LBFGSState``) and backtracking line search and evaluates one trial
+point per running guess per loop iteration, so the guesses advance independently; ``Adam``
+and other optax methods take one step per iteration. The loop runs compiled
 (``lax.while_loop`` over a ``LoopState``) until every guess has stopped. Per guess (``Stop``):
 
 - ``CONVERGED``: its gradient norm is below ``gtol * (1 + |f|)`` or its cost changed by less
@@ -51,6 +53,7 @@ import dataclasses
 import enum
 import functools
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import jax
@@ -60,16 +63,26 @@ import optax
 from jax import Array
 from jax.typing import ArrayLike
 
-from . import _batching, _processes, _validate, paths, plan
-from ._progress import bar, is_active
+from . import _processes, _validate, paths, plan
+from ._execute import as_robot, fk, ik, kernel, map_candidates
+from ._lbfgs import LBFGS, LBFGSState
 from .costs import DEFAULT_COST, CostTerm, TrajectorySample, bind
 from .jet import Jet
-from .robot import Robot, as_robot, fk, ik
+from .robot import Robot
 from .status import STATUS_DTYPE, Status
 
-__all__ = ["DIVERGED_SIZES", "LBFGS", "Adam", "LoopState", "OptimizationResult", "Stop", "optimize"]
+__all__ = [
+    "DIVERGED_SIZES",
+    "LBFGS",
+    "Adam",
+    "LBFGSState",
+    "LoopState",
+    "OptimizationResult",
+    "Stop",
+    "optimize",
+]
 
-PROGRESS_BLOCK = 50  # optimiser steps per compiled call when a progress bar is shown
+PROGRESS_BLOCK = 50  # optimiser steps per compiled call when progress is reported
 DIVERGED_SIZES = 10.0  # control points this many robot sizes (or radians) out have diverged
 BLOWN_UP = 1000.0  # a final cost this many times the initial one has diverged
 
@@ -85,27 +98,6 @@ class Stop(enum.IntEnum):
 
 # ------------------------------------------------------------------ methods
 @dataclasses.dataclass(frozen=True)
-class LBFGS:
-    """L-BFGS per guess (the default method), one cost-and-gradient evaluation per loop
-    iteration.
-
-    Each guess keeps its own ``memory`` pairs ``(s, y)`` (a pair with ``s.y <= eps |s| |y|``
-    is skipped, so the inverse Hessian estimate stays positive definite; the two-loop
-    recursion with ``H0 = (s.y / y.y) I`` [Nocedal & Wright 2006, alg. 7.4]) and its own
-    backtracking line search: the trial point ``x + alpha d`` is accepted when it meets the
-    Armijo condition ``f(x + alpha d) <= f(x) + 1e-4 alpha g.d`` (a non-finite trial is
-    refused); else ``alpha`` shrinks by the minimiser of the quadratic through ``f(x)``,
-    ``g.d`` and the trial (clipped to [0.1, 0.5] of ``alpha``), at most ``linesearch_steps``
-    times. ``alpha`` starts at 1 (the first step at ``0.1 / |g|``: a tenth of the robot's
-    size). The guesses advance independently, one evaluation each per iteration, so a batch
-    costs its slowest guess's evaluations, not the sum over steps of every step's longest
-    line search."""
-
-    memory: int = 10
-    linesearch_steps: int = 20
-
-
-@dataclasses.dataclass(frozen=True)
 class Adam:
     """Adam per guess with a step of ``learning_rate`` (in units of the robot's size)."""
 
@@ -113,6 +105,16 @@ class Adam:
 
     def transformation(self) -> optax.GradientTransformationExtraArgs:
         return optax.with_extra_args_support(optax.adam(self.learning_rate))
+
+
+def _transformation(method: Any) -> Any:
+    """One guess's optax transformation: ``LBFGS`` itself (it takes ``value_fn``), ``Adam``'s,
+    or any optax transformation given."""
+    if isinstance(method, LBFGS):
+        return method
+    if isinstance(method, Adam):
+        return method.transformation()
+    return optax.with_extra_args_support(method)
 
 
 # ------------------------------------------------------------------ the result
@@ -193,33 +195,60 @@ class _Static:
     joint: bool = False  # control points in joint space
 
 
-def _controls(x: Array, data: dict, static: _Static) -> Array:
-    interior = x * data["scale"]
-    return paths.bezier_controls(interior, data["start"], data["goal"], static.rest_to_rest)
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class _Data:
+    """The loop's array data (a new start, goal, weight or obstacle position: no compilation).
+
+    Attributes:
+        robot: the robot (a geometry pytree).
+        start, goal: the end control points, ``(d,)``.
+        basis: the Bernstein basis and its derivatives at the samples (``paths.bezier_basis``).
+        duration, dt: the motion time and the sample period.
+        limits: ``plan.Limits``, the robot's own intersected with the caller's.
+        cost: the cost's array leaves when it is data (``_Static.cost_treedef``), else empty.
+        scale: the unit of the interior points (the robot's size; radians for revolute joints
+            in joint space).
+        gtol, ftol: the stopping rules' tolerances.
+        box: ``(lo, hi, unit)`` the control points should stay near (``_box``).
+    """
+
+    robot: Robot
+    start: Array
+    goal: Array
+    basis: Array
+    duration: Array
+    dt: Array
+    limits: plan.Limits
+    cost: list
+    scale: Array
+    gtol: Array
+    ftol: Array
+    box: tuple
 
 
-def _trajectory(x: Array, data: dict, static: _Static) -> TrajectorySample:
+def _controls(x: Array, data: _Data, static: _Static) -> Array:
+    interior = x * data.scale
+    return paths.bezier_controls(interior, data.start, data.goal, static.rest_to_rest)
+
+
+def _trajectory(x: Array, data: _Data, static: _Static) -> TrajectorySample:
     controls = _controls(x, data, static)
-    args = (data["robot"], controls, data["basis"], data["duration"], data["dt"], data["limits"])
+    args = (data.robot, controls, data.basis, data.duration, data.dt, data.limits)
     if static.joint:
         return _joint_sample(*args)
     return _sample(*args, static.branch)
 
 
-def _objective(x: Array, data: dict, static: _Static) -> Array:
+def _objective(x: Array, data: _Data, static: _Static) -> Array:
     """One guess's cost at interior points ``x`` ``(K', d)`` in units of the robot's size."""
     cost = static.cost
     if cost is None:
-        cost = jax.tree.unflatten(static.cost_treedef, data["cost"])
+        cost = jax.tree.unflatten(static.cost_treedef, data.cost)
     return cost(_trajectory(x[None], data, static))[0]
 
 
-def _transformation(method: Any) -> Any:
-    if isinstance(method, Adam):
-        return method.transformation()
-    return optax.with_extra_args_support(method)
-
-
+# ------------------------------------------------------------------ the loop
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class LoopState:
@@ -227,12 +256,12 @@ class LoopState:
 
     Attributes:
         x: interior control points in units of the robot's size, ``(B, K', d)``.
-        opt_state: the optax state of each guess (leaves with a leading ``B`` axis).
+        opt_state: each guess's state of the method (``LBFGSState`` or an optax state; leaves
+            with a leading ``B`` axis).
         f: each guess's cost at ``x``, ``(B,)``.
         g: the gradient of ``f`` with respect to ``x``, ``(B, K', d)``.
         done: the guess has stopped, ``(B,)``.
         stop: why it stopped (``Stop``; ``MAX_STEPS`` while it runs), ``int8`` ``(B,)``.
-        fresh: the guess's memory was just cleared after a refused step, ``(B,)``.
         iterations: steps the guess took, ``int32`` ``(B,)``.
         evaluations: cost-and-gradient evaluations of the guess (line searches included),
             ``int32`` ``(B,)``.
@@ -248,7 +277,6 @@ class LoopState:
     g: Array
     done: Array
     stop: Array
-    fresh: Array
     iterations: Array
     evaluations: Array
     batched: Array
@@ -256,84 +284,78 @@ class LoopState:
     history: Array
 
 
-@functools.partial(jax.jit, static_argnames="static")
-def _start(x: Array, data: dict, static: _Static) -> LoopState:
+@kernel(static=("static",))
+def _start(x: Array, data: _Data, static: _Static) -> LoopState:
     """The loop's initial state for guesses ``x`` ``(B, K', d)``."""
     value_and_grad = jax.value_and_grad(_objective)
     f, g = jax.vmap(lambda xb: value_and_grad(xb, data, static))(x)
     batch = x.shape[0]
-    if isinstance(static.method, LBFGS):
-        opt_state = _lbfgs_init(static.method.memory, x, g)
+    tx = _transformation(static.method)
+    if isinstance(tx, LBFGS):  # the first line search from the gradients at hand
+        opt_state = jax.vmap(tx.init)(x, g)
     else:
-        opt_state = jax.vmap(_transformation(static.method).init)(x)
+        opt_state = jax.vmap(tx.init)(x)
     history = jnp.broadcast_to(f, (static.steps + 1, batch))
     done = ~jnp.isfinite(f) | (static.steps == 0)
     stop = jnp.where(jnp.isfinite(f), Stop.MAX_STEPS, Stop.DIVERGED).astype(jnp.int8)
     zeros = jnp.zeros(batch, jnp.int32)
-    fresh = jnp.zeros(batch, bool)
     one = jnp.int32(1)
-    return LoopState(
-        x, opt_state, f, g, done, stop, fresh, zeros, zeros + 1, one, jnp.int32(0), history
-    )
+    return LoopState(x, opt_state, f, g, done, stop, zeros, zeros + 1, one, jnp.int32(0), history)
 
 
-@functools.partial(jax.jit, static_argnames="static")
-def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
-    """Iterations until every guess has stopped or loop iteration ``stop``; a guess stops
-    after ``static.steps`` steps at the latest."""
-    if isinstance(static.method, LBFGS):
-        return _run_lbfgs(initial, data, stop, static)
+@kernel(static=("static",))
+def _run(initial: LoopState, data: _Data, stop: Array, static: _Static) -> LoopState:
+    """Loop iterations until every guess has stopped or loop iteration ``stop``; a guess
+    stops after ``static.steps`` steps at the latest.
+
+    Each iteration is one update of every running guess's method. An optax method's step is
+    taken and evaluated; a non-finite result stops the guess (``DIVERGED``). ``LBFGS``
+    evaluates its own trial point: the guess takes a step when the trial is accepted, and
+    stops (``NO_DESCENT``) when its state says it gave up."""
     tx = _transformation(static.method)
+    line_search = isinstance(static.method, LBFGS)  # it evaluates, accepts or refuses
     value_and_grad = jax.value_and_grad(_objective)
-    gtol, ftol = data["gtol"], data["ftol"]
-    descent = False  # an optax method promises no lower cost
+    gtol, ftol = data.gtol, data.ftol
 
-    def one_step(x, state, f, g):
-        def value_fn(y):
+    def one_step(x: Array, state: Any, f: Array, g: Array) -> tuple:
+        """One guess's update: ``(x, state, f, g)`` after it, whether it took a step, gave up
+        (no descent) or blew up (a step to a non-finite point)."""
+
+        def value_fn(y: Array) -> Array:
             return _objective(y, data, static)
 
         updates, state = tx.update(g, state, x, value=f, grad=g, value_fn=value_fn)
+        no = jnp.zeros((), bool)
+        if line_search:  # the point it evaluated, exactly (params + updates rounds)
+            return state.params, state, state.value, state.grad, state.accepted, state.gave_up, no
         x = optax.apply_updates(x, updates)
-        if descent:
-            # the line search evaluated the accepted point already: reuse, not re-trace
-            f_new = optax.tree_utils.tree_get(state, "value")
-            g_new = optax.tree_utils.tree_get(state, "grad")
-            info = optax.tree_utils.tree_get(state, "info")
-            count = jnp.asarray(info.num_linesearch_steps, jnp.int32)
-        else:
-            f_new, g_new = value_and_grad(x, data, static)
-            count = jnp.int32(1)
-        return x, state, f_new, g_new, count
+        f, g = value_and_grad(x, data, static)
+        good = jnp.isfinite(f) & jnp.all(jnp.isfinite(g))
+        return x, state, f, g, good, no, ~good
 
     def cond(loop: LoopState) -> Array:
         return (loop.step < stop) & ~jnp.all(loop.done)
 
     def body(loop: LoopState) -> LoopState:
-        x, state, f, g = loop.x, loop.opt_state, loop.f, loop.g
-        x_new, state_new, f_new, g_new, count = jax.vmap(one_step)(x, state, f, g)
-        count = jnp.where(loop.done, 0, count)
-        good = jnp.isfinite(f_new) & jnp.all(jnp.isfinite(g_new), axis=(-2, -1))
-        refused = good & (f_new > f) if descent else jnp.zeros_like(good)
-        take = ~loop.done & good & ~refused
-        retry = ~loop.done & refused & ~loop.fresh  # clear the memory, go on from x
+        running = ~loop.done
+        x_new, state_new, f_new, g_new, took, gave_up, blew = jax.vmap(one_step)(
+            loop.x, loop.opt_state, loop.f, loop.g
+        )
+        took, gave_up, blew = running & took, running & gave_up, running & blew
 
-        def choose(mask, new, old):
+        def choose(mask: Array, new: Array, old: Array) -> Array:
             mask = mask.reshape(mask.shape + (1,) * (jnp.ndim(new) - 1))
             return jnp.where(mask, new, old)
 
-        x, state, f_next, g = jax.tree.map(
-            functools.partial(choose, take), (x_new, state_new, f_new, g_new), (x, state, f, g)
+        x, f, g = jax.tree.map(
+            functools.partial(choose, took), (x_new, f_new, g_new), (loop.x, loop.f, loop.g)
         )
-        if descent:
-            cleared = jax.vmap(tx.init)(x)
-            state = jax.tree.map(functools.partial(choose, retry), cleared, state)
+        state = jax.tree.map(functools.partial(choose, running), state_new, loop.opt_state)
         grad_norm = jnp.sqrt(jnp.sum(g * g, axis=(-2, -1)))
-        change = jnp.abs(f - f_next) <= ftol * jnp.maximum(jnp.abs(f), jnp.abs(f_next))
-        met = take & ((grad_norm <= gtol * (1.0 + jnp.abs(f_next))) | change)
-        gave_up = ~loop.done & refused & loop.fresh
-        blew = ~loop.done & ~good
-        iterations = loop.iterations + take.astype(jnp.int32)
-        spent = ~loop.done & (iterations >= static.steps)
+        change = jnp.abs(loop.f - f) <= ftol * jnp.maximum(jnp.abs(loop.f), jnp.abs(f))
+        met = took & ((grad_norm <= gtol * (1.0 + jnp.abs(f))) | change)
+        iterations = loop.iterations + took.astype(jnp.int32)
+        spent = running & (iterations >= static.steps)
         code = jnp.where(
             met,
             Stop.CONVERGED,
@@ -343,16 +365,15 @@ def _run(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopSt
         return LoopState(
             x=x,
             opt_state=state,
-            f=f_next,
+            f=f,
             g=g,
             done=loop.done | ended,
             stop=jnp.where(ended, code, loop.stop),
-            fresh=jnp.where(loop.done, loop.fresh, retry),
             iterations=iterations,
-            evaluations=loop.evaluations + count,
-            batched=loop.batched + jnp.max(count),
+            evaluations=loop.evaluations + running.astype(jnp.int32),
+            batched=loop.batched + jnp.any(running).astype(jnp.int32),
             step=loop.step + 1,
-            history=_record(loop.history, iterations, f_next),
+            history=_record(loop.history, iterations, f),
         )
 
     return jax.lax.while_loop(cond, body, initial)
@@ -364,148 +385,8 @@ def _record(history: Array, iterations: Array, f: Array) -> Array:
     return history.at[index, jnp.arange(f.shape[0])].set(f)
 
 
-def _lbfgs_init(memory: int, x: Array, g: Array) -> dict:
-    """The L-BFGS state of guesses ``x`` ``(B, K', d)`` with gradients ``g``: empty memory,
-    a steepest-descent direction and a first step of a tenth of the robot's size."""
-    batch, n = x.shape[0], x[0].size
-    flat_g = g.reshape(batch, n)
-    norm = jnp.sqrt(jnp.sum(flat_g * flat_g, axis=-1))
-    return dict(
-        s=jnp.zeros((batch, memory, n), x.dtype),
-        y=jnp.zeros((batch, memory, n), x.dtype),
-        rho=jnp.zeros((batch, memory), x.dtype),
-        pairs=jnp.zeros(batch, jnp.int32),  # pairs stored so far (the newest at pairs - 1)
-        gamma=jnp.ones(batch, x.dtype),
-        d=-flat_g,
-        alpha=_first_step(norm),
-        tries=jnp.zeros(batch, jnp.int32),  # refused trials of the current line search
-    )
-
-
-def _first_step(grad_norm: Array) -> Array:
-    return jnp.where(grad_norm > 0.1, 0.1 / jnp.where(grad_norm > 0, grad_norm, 1.0), 1.0)
-
-
-def _two_loop(g: Array, state: dict) -> Array:
-    """``-H g`` for one guess by the two-loop recursion over its stored pairs."""
-    memory = state["rho"].shape[-1]
-    pairs = state["pairs"]
-    q, alphas = g, []
-    for j in range(memory):  # newest first
-        i = (pairs - 1 - j) % memory
-        valid = j < jnp.minimum(pairs, memory)
-        a = jnp.where(valid, state["rho"][i] * jnp.dot(state["s"][i], q), 0.0)
-        q = q - a * state["y"][i]
-        alphas.append(a)
-    r = state["gamma"] * q
-    for j in reversed(range(memory)):
-        i = (pairs - 1 - j) % memory
-        valid = j < jnp.minimum(pairs, memory)
-        b = state["rho"][i] * jnp.dot(state["y"][i], r)
-        r = r + jnp.where(valid, alphas[j] - b, 0.0) * state["s"][i]
-    return -r
-
-
-@functools.partial(jax.jit, static_argnames="static")
-def _run_lbfgs(initial: LoopState, data: dict, stop: Array, static: _Static) -> LoopState:
-    """``LBFGS``'s loop: every iteration evaluates one trial point per running guess."""
-    value_and_grad = jax.vmap(jax.value_and_grad(_objective), in_axes=(0, None, None))
-    gtol, ftol = data["gtol"], data["ftol"]
-    shape = initial.x.shape
-    batch = shape[0]
-    epsilon = jnp.finfo(initial.x.dtype).eps
-    max_tries = static.method.linesearch_steps
-
-    def cond(loop: LoopState) -> Array:
-        return (loop.step < stop) & ~jnp.all(loop.done)
-
-    def body(loop: LoopState) -> LoopState:
-        st = loop.opt_state
-        x, f, g = loop.x.reshape(batch, -1), loop.f, loop.g.reshape(batch, -1)
-        d, alpha = st["d"], st["alpha"]
-        trial = x + alpha[:, None] * d
-        f_t, g_t = value_and_grad(trial.reshape(shape), data, static)
-        g_t = g_t.reshape(batch, -1)
-        running = ~loop.done
-        slope = jnp.sum(g * d, axis=-1)  # < 0: a descent direction
-        finite = jnp.isfinite(f_t) & jnp.all(jnp.isfinite(g_t), axis=-1)
-        accept = running & finite & (f_t <= f + 1e-4 * alpha * slope)
-        # refused: the minimiser of the quadratic through f, the slope and the trial
-        curvature = f_t - f - slope * alpha
-        ratio = -slope * alpha / (2.0 * jnp.where(curvature > 0, curvature, 1.0))
-        shrink = jnp.where(finite & (curvature > 0), jnp.clip(ratio, 0.1, 0.5), 0.1)
-        tries = st["tries"] + 1
-        exhausted = running & ~accept & (tries >= max_tries)
-        gave_up = exhausted & loop.fresh
-        restart = exhausted & ~loop.fresh  # clear the memory, steepest descent from x
-
-        # accepted: store the pair (skipped without positive curvature), next direction
-        step = trial - x
-        change_g = g_t - g
-        sy = jnp.sum(step * change_g, axis=-1)
-        yy = jnp.sum(change_g * change_g, axis=-1)
-        size = jnp.sqrt(jnp.sum(step * step, axis=-1) * yy)
-        store = accept & (sy > epsilon * size) & (yy > 0)
-        slot = st["pairs"] % static.method.memory
-        one_hot = (jnp.arange(static.method.memory) == slot[:, None]) & store[:, None]
-        new = dict(
-            s=jnp.where(one_hot[..., None], step[:, None, :], st["s"]),
-            y=jnp.where(one_hot[..., None], change_g[:, None, :], st["y"]),
-            rho=jnp.where(one_hot, (1.0 / jnp.where(store, sy, 1.0))[:, None], st["rho"]),
-            pairs=st["pairs"] + store.astype(jnp.int32),
-            gamma=jnp.where(store, sy / jnp.where(store, yy, 1.0), st["gamma"]),
-        )
-        x_next = jnp.where(accept[:, None], trial, x)
-        f_next = jnp.where(accept, f_t, f)
-        g_next = jnp.where(accept[:, None], g_t, g)
-        direction = jax.vmap(_two_loop)(g_next, new)
-        downhill = jnp.sum(direction * g_next, axis=-1) < 0
-        direction = jnp.where(downhill[:, None], direction, -g_next)
-        grad_norm = jnp.sqrt(jnp.sum(g_next * g_next, axis=-1))
-        cleared = _lbfgs_init(static.method.memory, x_next.reshape(shape), g_next.reshape(shape))
-        state = dict(
-            s=new["s"],
-            y=new["y"],
-            rho=new["rho"],
-            pairs=new["pairs"],
-            gamma=new["gamma"],
-            d=jnp.where(accept[:, None], direction, d),
-            alpha=jnp.where(
-                accept, jnp.where(downhill, 1.0, _first_step(grad_norm)), alpha * shrink
-            ),
-            tries=jnp.where(accept, 0, tries),
-        )
-        state = jax.tree.map(
-            lambda c, k: jnp.where(restart.reshape(restart.shape + (1,) * (c.ndim - 1)), c, k),
-            cleared,
-            state,
-        )
-        change = jnp.abs(f - f_t) <= ftol * jnp.maximum(jnp.abs(f), jnp.abs(f_t))
-        met = accept & ((grad_norm <= gtol * (1.0 + jnp.abs(f_t))) | change)
-        iterations = loop.iterations + accept.astype(jnp.int32)
-        spent = running & ~met & (iterations >= static.steps)
-        code = jnp.where(met, Stop.CONVERGED, jnp.where(gave_up, Stop.NO_DESCENT, Stop.MAX_STEPS))
-        ended = met | gave_up | spent
-        return LoopState(
-            x=x_next.reshape(shape),
-            opt_state=state,
-            f=f_next,
-            g=g_next.reshape(shape),
-            done=loop.done | ended,
-            stop=jnp.where(ended, code.astype(jnp.int8), loop.stop),
-            fresh=jnp.where(accept, False, loop.fresh | restart),
-            iterations=iterations,
-            evaluations=loop.evaluations + running.astype(jnp.int32),
-            batched=loop.batched + jnp.any(running).astype(jnp.int32),
-            step=loop.step + 1,
-            history=_record(loop.history, iterations, f_next),
-        )
-
-    return jax.lax.while_loop(cond, body, initial)
-
-
-@functools.partial(jax.jit, static_argnames="static")
-def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
+@kernel(static=("static",))
+def _outcome(loop: LoopState, f0: Array, data: _Data, static: _Static) -> tuple:
     """Controls, tool paths, history and stop codes of finished guesses; the divergence
     checks (blown-up cost, control points far outside the box) applied."""
     x, f, g = loop.x, loop.f, loop.g
@@ -516,9 +397,9 @@ def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
         sample = _trajectory(x, data, static)
         path, q, status = sample.path, sample.q, sample.status
     else:  # the tool paths alone: the planner's evaluation solves their IK
-        path = paths.bezier_path(controls, data["basis"], data["duration"])
+        path = paths.bezier_path(controls, data.basis, data.duration)
         q, status = None, None
-    lo, hi, unit = data["box"]
+    lo, hi, unit = data.box
     outside = (jax.nn.relu(lo - controls) + jax.nn.relu(controls - hi)) / unit
     far = jnp.any(outside > DIVERGED_SIZES, axis=(-2, -1))
     blown = ~(f <= BLOWN_UP * jnp.abs(f0)) & (f > 0)
@@ -527,10 +408,11 @@ def _outcome(loop: LoopState, f0: Array, data: dict, static: _Static) -> tuple:
     return controls, path, q, status, f, history.T, stop, grad_norm
 
 
-@jax.jit
-def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array) -> Any:
+@kernel
+def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array, unit: Array) -> Any:
     """``plan.Evaluation`` of joint trajectories ``(N, T, n)`` (continuous by construction):
-    a sample is ``OUT_OF_LIMITS`` where a limit is passed, else its FK status."""
+    a sample is ``OUT_OF_LIMITS`` where a limit is passed, else its FK status; the costs
+    with each joint's ``unit`` (``plan.joint_units``), as the planner's."""
     solved = fk_status == Status.OK
     violated = plan.limit_excess(q, limits) > 0
     status = jnp.where(solved & violated, jnp.int8(Status.OUT_OF_LIMITS), fk_status)
@@ -539,7 +421,7 @@ def _joint_evaluation(q: Jet, fk_status: Array, limits: plan.Limits, dt: Array) 
     feasible = ~jnp.any(bad, axis=-1)
     first = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
     margin = jnp.full(feasible.shape, jnp.inf, q.p.dtype)
-    return q, status, feasible, first, margin, plan.trajectory_costs(q, dt, limits, feasible)
+    return q, status, feasible, first, margin, plan.trajectory_costs(q, dt, limits, feasible, unit)
 
 
 def _evaluation(robot, joint, path, q, status, limits, branch, dt) -> plan.Evaluation:
@@ -549,10 +431,10 @@ def _evaluation(robot, joint, path, q, status, limits, branch, dt) -> plan.Evalu
     if not joint:
         return plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt)
     q, status, feasible, first, margin, scores = _joint_evaluation(
-        q, status, limits, jnp.asarray(dt, q.p.dtype)
+        q, status, limits, jnp.asarray(dt, q.p.dtype), plan.joint_units(robot, q.p.dtype)
     )
     index = robot.branches.index(branch)
-    return plan.Evaluation(
+    evaluation = plan.Evaluation(
         q=q,
         status=status,
         feasible=feasible,
@@ -562,6 +444,7 @@ def _evaluation(robot, joint, path, q, status, limits, branch, dt) -> plan.Evalu
         costs=scores,
         branches=robot.branches,
     )
+    return plan.with_context(evaluation, robot, limits, dt, "joint")  # plan.retime reads it
 
 
 # ------------------------------------------------------------------ the ends
@@ -627,7 +510,9 @@ def _target(robot: Robot, x: Any, name: str) -> np.ndarray:
     return value
 
 
-def _ends(robot: Robot, start, goal, space: str, joint: bool, branch: Any, limits) -> list:
+def _ends(
+    robot: Robot, start, goal, space: str, joint: bool, branch: Any, limits
+) -> tuple[np.ndarray, np.ndarray]:
     """``start`` and goal as control points: joints (``joint``) or tool positions."""
     names = ("start", "goal")
     if space == "task":
@@ -642,7 +527,7 @@ def _ends(robot: Robot, start, goal, space: str, joint: bool, branch: Any, limit
             if not np.all(np.isfinite(value)):
                 raise ValueError(f"{name} must be finite, got {value}")
     if space == "joint" and not joint:  # tool positions of joint ends
-        return [np.asarray(fk(robot, value).x.p) for value in ends]
+        return np.asarray(fk(robot, ends[0]).x.p), np.asarray(fk(robot, ends[1]).x.p)
     if space == "task" and joint:  # joints of target ends
         for i, (name, target) in enumerate(zip(names, ends, strict=True)):
             res = ik(robot, target, branch)
@@ -657,10 +542,10 @@ def _ends(robot: Robot, start, goal, space: str, joint: bool, branch: Any, limit
         moved = ends[1] - 2 * math.pi * np.where(_revolute(robot), turns, 0.0)
         inside = (moved >= np.asarray(limits.q_min)) & (moved <= np.asarray(limits.q_max))
         ends[1] = np.where(inside, moved, ends[1])
-    return ends
+    return ends[0], ends[1]
 
 
-def _box(robot: Robot, joint: bool, ends: list, limits: plan.Limits) -> tuple:
+def _box(robot: Robot, joint: bool, ends: Sequence[np.ndarray], limits: plan.Limits) -> tuple:
     """The box ``(lo, hi, unit)`` (each ``(d,)``) control points should stay near: the
     workspace box (task space; the ends' box padded by the robot's size when the robot has
     none) or the joint limits, the ends' range where a joint has none (joint space)."""
@@ -701,7 +586,7 @@ def optimize(
     space: str = "task",
     gtol: float | None = None,
     ftol: float | None = None,
-    progress: bool | None = None,
+    progress: _validate.Progress | None = None,
     controls: str | None = None,
 ) -> OptimizationResult:
     """Optimise B trajectories from ``start`` to ``goal`` at once, each guess on its own.
@@ -735,7 +620,8 @@ def optimize(
             change ``<= ftol`` in one step; None for ``max(1e-7, 1000 eps)`` and
             ``max(1e-10, 8 eps)`` (float64: 1e-7 and 1e-10, which reach the optimum of the
             benchmark problems to 1e-8 relative; float32: 1.2e-4 and 9.5e-7).
-        progress: show a progress bar (default: only when stderr is a terminal).
+        progress: None, or a callback ``progress(done, total)`` told the steps of the
+            furthest guess (of ``steps``) every ``PROGRESS_BLOCK`` loop iterations.
         controls: where the control points live, ``"task"`` or ``"joint"`` (module
             docstring); None: ``"task"`` for robots whose targets are points, else ``"joint"``.
 
@@ -744,9 +630,63 @@ def optimize(
 
     Raises:
         ValueError: task-space controls for a robot whose targets are not points, shapes that
-            do not match, non-finite or unsolvable ends, no guesses or non-finite ones, or bad
-            numeric options (each named).
+            do not match, non-finite or unsolvable ends, no guesses or non-finite ones, bad
+            numeric options or a progress that is not callable (each named).
     """
+    problem = _checked_problem(
+        robot, start, goal, interior, duration, n_samples, optimizer, steps, cost, branch,
+        limits, rest_to_rest, space, gtol, ftol, progress, controls,
+    )  # fmt: skip
+    data, static = _build(problem)
+    # A guess's steps never depend on the others' (a stopped guess is held), so each device
+    # runs its own guesses' loop to its own end.
+    out = map_candidates(
+        functools.partial(_optimise_guesses, data=data, static=static, progress=problem.progress),
+        problem.interior,
+        problem.interior.shape[0],
+        name="interior",
+    )
+    return _result(problem, out)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Problem:
+    """``optimize``'s arguments, checked (host side).
+
+    Attributes:
+        robot, branch: the robot and the branch held (or solving the ends).
+        joint: the control points are joints (else tool positions).
+        ends: ``(start, goal)`` as control points, ``(d,)`` each.
+        interior: the guesses' interior points ``(B, K', d)``, in the work dtype.
+        duration, n_samples, steps, method, cost, rest_to_rest: as given (the method's
+            default chosen, the cost bound to the robot: ``costs.bind``).
+        limits: the robot's own limits intersected with the caller's.
+        tolerances: ``(gtol, ftol)``, the stopping rules' (the defaults of the dtype chosen).
+        progress: the progress callback, or None.
+    """
+
+    robot: Robot
+    branch: Any
+    joint: bool
+    ends: tuple[np.ndarray, np.ndarray]
+    interior: Array
+    duration: float
+    n_samples: int
+    steps: int
+    method: Any
+    cost: Any
+    rest_to_rest: bool
+    limits: plan.Limits
+    tolerances: tuple[float, float]
+    progress: _validate.Progress | None
+
+
+def _checked_problem(
+    robot, start, goal, interior, duration, n_samples, optimizer, steps, cost, branch, limits,
+    rest_to_rest, space, gtol, ftol, progress, controls,
+) -> _Problem:  # fmt: skip
+    """``optimize``'s boundary: every argument checked (a ``ValueError`` naming it), the ends
+    made control points (their IK or FK solved), the defaults chosen."""
     robot = as_robot(robot)
     branch = robot.check_branch(branch)
     space = _validate.choice(space, "space", ("task", "joint"))
@@ -762,14 +702,42 @@ def optimize(
     for name, value, low in (("n_samples", n_samples, 3), ("steps", steps, 0)):
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
             raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
-    n_samples, steps = int(n_samples), int(steps)
     duration = _validate.positive_number(duration, "duration")
+    progress = _validate.progress(progress)
+    interior = _checked_guesses(interior, robot, joint)
+    epsilon = float(jnp.finfo(interior.dtype).eps)
+    gtol = max(1e-7, 1000 * epsilon) if gtol is None else gtol
+    ftol = max(1e-10, 8 * epsilon) if ftol is None else ftol
+    gtol, ftol = (_validate.nonnegative_number(v, n) for n, v in (("gtol", gtol), ("ftol", ftol)))
+    limits = plan.robot_limits(robot, limits)
+    return _Problem(
+        robot=robot,
+        branch=branch,
+        joint=joint,
+        ends=_ends(robot, start, goal, space, joint, branch, limits),
+        interior=interior,
+        duration=duration,
+        n_samples=int(n_samples),
+        steps=int(steps),
+        method=LBFGS() if optimizer is None else optimizer,
+        cost=bind(cost, robot),  # obstacle terms get the robot's body here, on the host
+        rest_to_rest=bool(rest_to_rest),
+        limits=limits,
+        tolerances=(gtol, ftol),
+        progress=progress,
+    )
+
+
+def _checked_guesses(interior: ArrayLike, robot: Robot, joint: bool) -> Array:
+    """The guesses as ``(B, K', d)``, at least one, every one finite (checked on every
+    process when they are split over processes)."""
     dims = robot.n_joints if joint else robot.target.shape[0]
     interior = jnp.asarray(interior, float)
     if interior.ndim == 2:
         interior = interior[None]
     if interior.ndim != 3 or interior.shape[-1] != dims or interior.shape[1] < 1:
         what = "n_joints" if joint else "the target's size"
+        controls = "joint" if joint else "task"
         raise ValueError(
             f"interior: expected shape (B, K', {dims}) ({what}, {controls}-space controls) with "
             f"K' >= 1, got {interior.shape}"
@@ -789,83 +757,100 @@ def optimize(
             f"interior: initial guess(es) {bad.tolist()} hold NaN or inf (every guess must be "
             "finite: a NaN would come back as NaN controls)"
         )
-    dtype = interior.dtype
-    epsilon = float(jnp.finfo(dtype).eps)
-    gtol = max(1e-7, 1000 * epsilon) if gtol is None else gtol
-    ftol = max(1e-10, 8 * epsilon) if ftol is None else ftol
-    gtol, ftol = (_validate.nonnegative_number(v, n) for n, v in (("gtol", gtol), ("ftol", ftol)))
-    limits = plan.robot_limits(robot, limits)
-    start, goal = _ends(robot, start, goal, space, joint, branch, limits)
-    method = LBFGS() if optimizer is None else optimizer
-    n_ctrl = interior.shape[1] + 2 + (2 if rest_to_rest else 0)
-    basis = jnp.asarray(paths.bezier_basis(n_ctrl, n_samples), dtype)
-    dt = duration / (n_samples - 1)
-    cost = bind(cost, robot)  # obstacle terms get the robot's body here, on the host
-    leaves, treedef = jax.tree.flatten(cost)
+    return interior
+
+
+def _build(problem: _Problem) -> tuple[_Data, _Static]:
+    """The compiled loop's array data and its static structure (a cost that is array data
+    goes into the data: new weights or obstacles do not compile)."""
+    dtype = problem.interior.dtype
+    n_ctrl = problem.interior.shape[1] + 2 + (2 if problem.rest_to_rest else 0)
+    leaves, treedef = jax.tree.flatten(problem.cost)
     is_data = all(isinstance(leaf, jax.Array | np.ndarray | float | int) for leaf in leaves)
     static = _Static(
-        method,
-        None if is_data else cost,
+        problem.method,
+        None if is_data else problem.cost,
         treedef if is_data else None,
-        branch,
-        bool(rest_to_rest),
-        steps,
-        joint,
+        problem.branch,
+        problem.rest_to_rest,
+        problem.steps,
+        problem.joint,
     )
+    robot, (start, goal) = problem.robot, problem.ends
+    gtol, ftol = problem.tolerances
+    box = _box(robot, problem.joint, problem.ends, problem.limits)
     size = robot.length_scale()
-    scale = jnp.where(jnp.asarray(_revolute(robot)), 1.0, size) if joint else size
-    scale = jnp.asarray(scale, dtype)
-    data = dict(
+    scale = jnp.where(jnp.asarray(_revolute(robot)), 1.0, size) if problem.joint else size
+    data = _Data(
         robot=robot,
         start=jnp.asarray(start, dtype),
         goal=jnp.asarray(goal, dtype),
-        basis=basis,
-        duration=jnp.asarray(duration, dtype),
-        dt=jnp.asarray(dt, dtype),
-        limits=limits,
+        basis=jnp.asarray(paths.bezier_basis(n_ctrl, problem.n_samples), dtype),
+        duration=jnp.asarray(problem.duration, dtype),
+        dt=jnp.asarray(_period(problem), dtype),
+        limits=problem.limits,
         cost=[jnp.asarray(leaf, dtype) for leaf in leaves] if is_data else [],
-        scale=scale,
+        scale=jnp.asarray(scale, dtype),
         gtol=jnp.asarray(gtol, dtype),
         ftol=jnp.asarray(ftol, dtype),
-        box=tuple(jnp.asarray(b, dtype) for b in _box(robot, joint, [start, goal], limits)),
+        box=tuple(jnp.asarray(b, dtype) for b in box),
     )
+    return data, static
 
-    def run(guesses: Array) -> tuple:
-        """The guesses ``(b, K', d)`` of one device optimised, per-guess results leading."""
-        loop = _start(guesses / scale, data, static)
-        f0 = loop.f
-        # loop iterations: one step each for optax methods, one evaluation each for LBFGS
-        tries = 2 * method.linesearch_steps + 1 if isinstance(method, LBFGS) else 1
-        limit = steps * tries + 1
-        block = PROGRESS_BLOCK if is_active(progress) else limit
-        with bar(steps, "optimize", enabled=progress) as meter:
-            shown = reached = 0
-            while reached < limit:
-                target = min(reached + block, limit)
-                loop = _run(loop, data, jnp.int32(target), static)
-                reached = int(loop.step)
-                if block < limit:  # a bar is shown: the furthest guess's steps
-                    now = int(jnp.max(loop.iterations))
-                    meter.update(now - shown)
-                    shown = now
-                if reached < target:  # every guess has stopped
-                    break
-        out = _outcome(loop, f0, data, static)
-        return (*out, loop.iterations)
 
-    # A guess's steps never depend on the others' (a stopped guess is held), so each device
-    # runs its own guesses' loop to its own end.
-    out = _batching.map_candidates(run, interior, interior.shape[0], name="interior")
+def _period(problem: _Problem) -> float:
+    """The sample period ``duration / (n_samples - 1)``."""
+    return problem.duration / (problem.n_samples - 1)
+
+
+def _optimise_guesses(
+    guesses: Array, data: _Data, static: _Static, progress: _validate.Progress | None
+) -> tuple:
+    """The guesses ``(b, K', d)`` of one device optimised: ``_outcome``'s arrays and the
+    iterations, per-guess results leading. With progress reported the loop runs in blocks of
+    ``PROGRESS_BLOCK`` iterations (the same values: a stopped guess is held)."""
+    loop = _start(guesses / data.scale, data, static)
+    f0 = loop.f
+    steps = static.steps
+    # loop iterations: one step each for optax methods, one evaluation each for LBFGS
+    tries = 2 * static.method.linesearch_steps + 1 if isinstance(static.method, LBFGS) else 1
+    limit = steps * tries + 1
+    block = limit if progress is None else PROGRESS_BLOCK
+    report = progress or _validate.no_progress
+    report(0, steps)
+    reached = 0
+    while reached < limit:
+        target = min(reached + block, limit)
+        loop = _run(loop, data, jnp.int32(target), static)
+        reached = int(loop.step)
+        if block < limit:  # progress is reported: the furthest guess's steps
+            report(int(jnp.max(loop.iterations)), steps)
+        if reached < target:  # every guess has stopped
+            break
+    out = _outcome(loop, f0, data, static)
+    return (*out, loop.iterations)
+
+
+def _result(problem: _Problem, out: tuple) -> OptimizationResult:
+    """The result of the optimised guesses: their evaluation (``_evaluation``) and the best."""
     ctrl, path, q, fk_status, f, history, stop, grad_norm, iterations = out
-    history = history.T
-    evaluation = _evaluation(robot, joint, path, q, fk_status, limits, branch, dt)
+    evaluation = _evaluation(
+        problem.robot,
+        problem.joint,
+        path,
+        q,
+        fk_status,
+        problem.limits,
+        problem.branch,
+        _period(problem),
+    )
     ranked = jnp.where(evaluation.feasible, f, jnp.inf)
     best = jnp.where(jnp.any(evaluation.feasible), jnp.argmin(ranked), jnp.argmin(f))
     return OptimizationResult(
         ctrl,
         path,
         f,
-        history,
+        history.T,
         stop == Stop.CONVERGED,
         stop,
         iterations,

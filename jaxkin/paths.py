@@ -134,7 +134,8 @@ def path_from_samples(
     positions = np.asarray(positions, dtype=float)
     _check_samples(positions, "positions", None, dt)
     _validate.choice(space, "space", SPACES)
-    return _path(*_splined(positions, dt, end), dt, space)
+    p, v, a = _splined(positions, dt, end)
+    return _path(p, v, a, dt, space)
 
 
 def path_from_joint_waypoints(
@@ -160,8 +161,7 @@ def path_from_joint_waypoints(
     """
     waypoints = np.asarray(waypoints, dtype=float)
     _check_samples(waypoints, "waypoints", None, dt)
-    if isinstance(steps, bool) or not isinstance(steps, int | np.integer) or steps < 1:
-        raise ValueError(f"steps must be a positive integer, got {steps!r}")
+    steps = _validate.count(steps, "steps")
     _validate.choice(end, "end", _splines.END_CONDITIONS)
     segment_time = int(steps) * float(dt)
     count = waypoints.shape[-2]
@@ -286,6 +286,7 @@ def bezier_basis(n_ctrl: int, n_samples: int) -> np.ndarray:
     ``B_i(s) = C(K-1, i) s^i (1 - s)^(K-1-i)`` at ``s = linspace(0, 1, n_samples)``; the
     derivatives use ``B'_{i,n} = n (B_{i-1,n-1} - B_{i,n-1})`` (host-side setup, float64).
     """
+    n_ctrl, n_samples = _validate.count(n_ctrl, "n_ctrl"), _validate.count(n_samples, "n_samples")
 
     def bernstein(degree: int, s: np.ndarray) -> np.ndarray:
         i = np.arange(degree + 1)
@@ -315,7 +316,7 @@ def bezier_controls(interior: Array, start: Array, goal: Array, rest_to_rest: bo
     return jnp.concatenate([ends[0], interior, ends[1]], axis=-2)
 
 
-def bezier_path(controls: Array, basis: Array, duration: float) -> Jet:
+def bezier_path(controls: Array, basis: Array, duration: ArrayLike) -> Jet:
     """Jet of the Bezier path, shape ``(..., T, d)``, from controls ``(..., K, d)``."""
     p = jnp.einsum("tk,...kc->...tc", basis[0], controls)
     v = jnp.einsum("tk,...kc->...tc", basis[1], controls) / duration
@@ -327,6 +328,8 @@ def straight_line_guess(
     start: ArrayLike, goal: ArrayLike, n_interior: int, n_guesses: int = 1, noise=0.0, seed=0
 ) -> np.ndarray:
     """Interior control points on the segment start-goal, plus Gaussian noise: (B, K-2, d)."""
+    n_interior = _validate.count(n_interior, "n_interior")
+    n_guesses = _validate.count(n_guesses, "n_guesses")
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     s = np.linspace(0.0, 1.0, n_interior + 2)[1:-1, None]
     line = start + s * (goal - start)

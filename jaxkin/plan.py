@@ -68,14 +68,15 @@ each window prefixed with the previous window's last sample, so the first step i
 Duration: ``retime`` times every feasible candidate's joint path as fast as the velocity and
 acceleration limits allow (``jaxkin.timing``, batched TOPP-RA, one compiled call), and
 ``best(ev, k, by="duration")`` ranks by that duration; a candidate that is not feasible or
-cannot be timed is ``UNTIMEABLE`` and left out.
+cannot be timed is ``UNTIMEABLE`` and left out. Every joint needs a finite acceleration limit
+for it (a joint without one has no time-optimal motion: ``retime`` names it).
 
 Scale: huge N is processed in chunks of about ``jaxkin._batching.plan_chunk_samples()`` samples,
 so memory stays bounded besides the returned arrays; the chunks run on the host threads. With
 several JAX devices, in one process or in many joined by ``jax.distributed`` (every process
 then calls ``evaluate`` with the same arguments), the candidates are split into one block per
 device, each process evaluates its own devices' blocks, and the results are global arrays
-split along the candidate axis (``jaxkin._batching.map_candidates``; ``docs/scaling.md``).
+split along the candidate axis (``jaxkin._execute.map_candidates``; ``docs/scaling.md``).
 """
 
 from __future__ import annotations
@@ -92,11 +93,12 @@ from jax.typing import ArrayLike
 
 from . import _batching, _processes, _validate, collision
 from . import timing as _timing
+from ._execute import Kernel, Policy, as_robot, kernel, map_candidates
 from ._numerics import computed_once, safe_norm
 from .jet import Jet
 from .paths import Path
-from .result import SolverResult
-from .robot import Robot, as_robot
+from .result import IKResult, SolverResult
+from .robot import Robot
 from .status import STATUS_DTYPE, Status
 
 __all__ = [
@@ -111,6 +113,7 @@ __all__ = [
     "jerk",
     "joint_path",
     "joint_scales",
+    "joint_units",
     "limit_excess",
     "path_ik",
     "range_turns",
@@ -120,6 +123,7 @@ __all__ = [
     "unexplained_steps",
     "unwrapped",
     "unwrapping_turns",
+    "with_context",
     "within_turns",
 ]
 
@@ -155,6 +159,7 @@ class Limits:
             ValueError: a bound that does not broadcast to ``(n_joints,)``, is NaN, a negative
                 speed or acceleration bound, or ``q_min > q_max``.
         """
+        n_joints = _validate.count(n_joints, "n_joints")
 
         def bound(x, name, fill):
             arr = np.full(n_joints, fill) if x is None else np.asarray(x, dtype=float)
@@ -226,6 +231,7 @@ class Evaluation(SolverResult):
             (``collision.check``: signed distance, robot-world and self) over the samples
             the solve reached (the others have no joints to place), 0 for a candidate with
             none, ``(N,)``; else None.
+        joint_names: the robot's joint names (static), for messages.
     """
 
     q: Jet
@@ -241,6 +247,7 @@ class Evaluation(SolverResult):
     space: str = dataclasses.field(metadata=dict(static=True), default="task")
     limits: tuple = dataclasses.field(metadata=dict(static=True), default=())
     min_clearance: Array | None = None
+    joint_names: tuple = dataclasses.field(metadata=dict(static=True), default=())
 
     def applied_limits(self) -> Limits:
         """The joint limits this evaluation applied (the robot's and the user's)."""
@@ -381,7 +388,7 @@ def limit_excess(q: Jet, limits: Limits, scales: Any = (1.0, 1.0, 1.0)) -> Array
     return jnp.sum(excess, axis=-1)
 
 
-def jerk(q: Jet, dt: float) -> Array:
+def jerk(q: Jet, dt: ArrayLike) -> Array:
     """Jerk by a forward difference of the exact accelerations, shape ``(..., T - 1, n)``."""
     return (q.a[..., 1:, :] - q.a[..., :-1, :]) / dt
 
@@ -405,7 +412,7 @@ def joint_scales(limits: Limits, unit: Any, weights: Any) -> tuple[Array, Array,
 
 
 def trajectory_costs(
-    q: Jet, dt: float, limits: Limits, feasible: Array, unit: Any = 1.0, weights: Any = 1.0
+    q: Jet, dt: ArrayLike, limits: Limits, feasible: Array, unit: Any = 1.0, weights: Any = 1.0
 ) -> Costs:
     """All per-candidate costs of joint trajectories ``q`` of shape ``(..., T, n)``, each
     joint in its own units divided by its scale (``joint_scales``)."""
@@ -437,8 +444,9 @@ def trajectory_costs(
 
 
 # ------------------------------------------------------------------ the kernel
-def _joint_unit(robot, dtype) -> Array:
-    """The size of each joint, ``(n,)``: 1 rad, or the robot's length for a prismatic one."""
+def joint_units(robot: Robot, dtype: Any) -> Array:
+    """The size of each joint, ``(n,)``: 1 rad, or the robot's length (``length_scale()``)
+    for a prismatic one: the position scale of the costs (``joint_scales``)."""
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     return jnp.where(jnp.asarray(revolute), 1.0, robot.length_scale()).astype(dtype)
 
@@ -485,7 +493,7 @@ def checked_samples(
     # Stored once: about ten cost and status reductions read q; without the barrier XLA fuses
     # IK work into each of them.
     q = Jet(*computed_once(jnp.stack([q.p, q.v, q.a])))
-    unit = _joint_unit(robot, dtype)
+    unit = joint_units(robot, dtype)
     step = jnp.asarray(dt, dtype)
     step = step[..., None] if step.ndim else step  # per-step dt (N, T - 1) over the joints
     jumped = unexplained_steps(q, step, unit) & solved[..., :-1] & moving[:, None]
@@ -496,7 +504,8 @@ def checked_samples(
     ]
     min_clearance = None
     if collide is not None:  # collision.check of every sample: the body against world and self
-        checked = collision.check_kernel(robot, *collide[:2], q.p, collide[2])
+        body, pairs, world = collide
+        checked = collision.check_kernel(robot, body, pairs, q.p, world)
         checks.append((checked.collides, Status.COLLISION))
         # an unsolved sample's joints are a placeholder: its clearance says nothing
         clearance = jnp.where(solved, checked.clearance, jnp.inf)
@@ -523,7 +532,7 @@ def _checked(
     bad = status != Status.OK
     feasible = ~jnp.any(bad, axis=-1)
     first_failure = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
-    unit = _joint_unit(robot, q.p.dtype)
+    unit = joint_units(robot, q.p.dtype)
     return Evaluation(
         q=q,
         status=status,
@@ -542,7 +551,7 @@ def _moving(path: Jet) -> Array:
     return jnp.any((path.v != 0) | (path.a != 0), axis=tuple(range(1, path.p.ndim)))
 
 
-def path_ik(robot, path: Jet, branch_index: Any, *, seed: Any = None) -> SolverResult:
+def path_ik(robot, path: Jet, branch_index: Any, *, seed: Any = None) -> IKResult:
     """The IK along sampled paths ``(N, T, *target)`` on branch ``robot.branches[branch_index]``
     (an int or a traced ``int32``), in the robot's work dtype: its ``ik_path_kernel`` (an
     iterative IK warm-starts every sample from the previous solution; the branch is held).
@@ -588,7 +597,7 @@ def _evaluate_joint(robot, path: Jet, limits: Limits, dt, weights, collide=None)
     q = path.astype(robot.work_dtype(path.dtype))
     fk = robot.fk_kernel(q, robot.FKOptions(), True)
     revolute = np.array([kind == "R" for kind in robot.joint_types])
-    unit = _joint_unit(robot, q.dtype)
+    unit = joint_units(robot, q.dtype)
     # The IK of the tool path on every branch; the nearest to the given joints is theirs.
     indices = jnp.arange(len(robot.branches), dtype=jnp.int32)
     every = jax.vmap(lambda i: robot.ik_path_kernel(fk.x, i, robot.IKOptions()))(indices)
@@ -629,8 +638,12 @@ def _evaluate_impl(
 
 
 # Candidates are padded (the core of a path: its samples and the target's axes, per call).
-_evaluate_jit = _batching.PaddedJit(
-    jax.jit(_evaluate_impl, static_argnames=("branch", "space")), {}
+_evaluate_jit = Kernel(_evaluate_impl, static=("branch", "space"), policy=Policy(pad=True))
+# With a world: the collision checks' XLA options (their loops over obstacles and pairs)
+_evaluate_world_jit = Kernel(
+    _evaluate_impl,
+    static=("branch", "space"),
+    policy=Policy(pad=True, compiler_options=collision.rows.COMPILER_OPTIONS),
 )
 
 
@@ -706,20 +719,21 @@ def evaluate(
     if world is not None:
         if not isinstance(world, collision.World):
             raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
-        collide = (*collision.prepare(robot), world)
+        collide = (*collision.prepare(robot), world.bucketed())
     n, t = path.shape[:2]
     # "best" holds every branch of a chunk at once; a joint path solves every branch once
     held = len(robot.branches) if (branch == "best" or space == "joint") else 1
     if chunk_size is None:
         chunk_size = max(1, _batching.plan_chunk_samples() // (t * held))
-    elif isinstance(chunk_size, bool) or not (isinstance(chunk_size, int) and chunk_size >= 1):
-        raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
+    else:
+        chunk_size = _validate.count(chunk_size, "chunk_size")
 
     def call(chunk: Jet) -> Evaluation:
         candidates = chunk.shape[0]
         samples = _batching.padded_size(candidates) * t * held
         pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
-        return _evaluate_jit(
+        kernel = _evaluate_jit if collide is None else _evaluate_world_jit
+        return kernel(
             robot,
             chunk,
             limits,
@@ -736,9 +750,23 @@ def evaluate(
         placeholder = jax.tree.map(lambda x: jnp.zeros((1, *x.shape[1:]), x.dtype), path)
         ev = jax.tree.map(lambda x: x[:0], call(placeholder))
     else:
-        ev = _batching.map_candidates(call, path, chunk_size)
+        ev = map_candidates(call, path, chunk_size)
+    return with_context(ev, robot, limits, dt, space)
+
+
+def with_context(
+    evaluation: Evaluation, robot: Robot, limits: Limits, dt: float, space: str
+) -> Evaluation:
+    """``evaluation`` carrying what ``retime`` and ``best`` read besides its arrays: the
+    sampling period, the space, the limits applied and the robot's joint names."""
     applied = tuple(tuple(float(x) for x in np.asarray(b)) for b in jax.tree.leaves(limits))
-    return dataclasses.replace(ev, dt=dt, space=space, limits=applied)
+    return dataclasses.replace(
+        evaluation,
+        dt=float(dt),
+        space=space,
+        limits=applied,
+        joint_names=tuple(robot.joint_names),
+    )
 
 
 PLAIN_ARRAY_HELP = (
@@ -790,7 +818,7 @@ def _weights(weights: Any, n: int) -> Array:
 RANKINGS = ("cost", "duration")
 
 
-@jax.jit
+@kernel
 def _feasible_only(timed: _timing.Timing, feasible: Array) -> _timing.Timing:
     """``timed`` with the candidates that are not feasible marked ``UNTIMEABLE`` (zeros)."""
     ok = feasible & (timed.status == Status.OK)
@@ -828,16 +856,34 @@ def retime(
     zero placeholders. ``timing.sample(plan.joint_path(ev), timed, period)`` samples the
     retimed trajectories at a control period.
 
+    Every joint needs a finite acceleration limit (its speed limit may be ``inf``): without
+    one, a joint's time-optimal speed changes within one sample, at an acceleration set by the
+    sample spacing alone, and with no speed limit either it moves in no time (``jaxkin.timing``
+    would report every candidate that moves it ``UNTIMEABLE``). A URDF gives no acceleration
+    limits: give them in ``evaluate``'s ``limits``.
+
     Raises:
-        ValueError: an evaluation without limits or dt (not from ``evaluate``), or limits
-            with no finite velocity or acceleration bound (any duration would do).
+        ValueError: an evaluation without limits or dt (not from ``evaluate``), a joint
+            without a finite acceleration limit (named), or candidates of fewer than 3
+            samples (a rest-to-rest motion over one interval does not exist).
     """
     limits = evaluation.applied_limits()
     v_max, a_max = np.asarray(limits.v_max), np.asarray(limits.a_max)
-    if not np.any(np.isfinite(v_max) | np.isfinite(a_max)):
+    unlimited = np.flatnonzero(~np.isfinite(a_max))
+    if unlimited.size:
+        names = evaluation.joint_names or tuple(f"joint {j}" for j in range(len(a_max)))
+        listed = ", ".join(str(names[j]) for j in unlimited)
         raise ValueError(
-            "retiming needs a finite velocity or acceleration limit: the robot has none; "
-            "give them with limits=plan.Limits.create(n, v_max=..., a_max=...)"
+            f"retiming needs a finite acceleration limit for every joint; {listed} "
+            f"{'has' if unlimited.size == 1 else 'have'} none (its time-optimal speed would "
+            "change within one sample, and with no speed limit either it would move in no "
+            "time): give every joint an acceleration limit, a_max"
+        )
+    if evaluation.q.shape[-2] < 3:
+        raise ValueError(
+            f"retiming from rest to rest needs candidates of at least 3 samples, got "
+            f"{evaluation.q.shape[-2]} (a motion over one interval that starts and ends at "
+            "rest does not exist)"
         )
     path = joint_path(evaluation)
     dtype = path.q.dtype
@@ -869,15 +915,15 @@ def best(
         by: ``"cost"`` (``costs.total``, the smoothest first) or ``"duration"`` (the
             minimum duration under the joints' velocity and acceleration limits, the fastest
             first: ``retime``; candidates that cannot be timed are left out).
-        timing: ``retime(evaluation)`` when already computed (for ``by="duration"``).
+        timing: ``retime(evaluation)`` when already computed (for ``by="duration"``); any
+            timing of the candidates is ranked over the feasible ones only.
 
     Returns:
         ``(indices, values)``: candidate indices sorted by increasing cost or duration (ties
         by index) and those values, NumPy; fewer than ``k`` when fewer candidates are
         feasible (and timed).
     """
-    if not (isinstance(k, int) and not isinstance(k, bool) and k >= 1):
-        raise ValueError(f"k must be a positive integer, got {k!r}")
+    k = _validate.count(k, "k")
     _validate.choice(by, "by", RANKINGS)
     if by == "cost":
         key, usable = evaluation.costs.total, evaluation.feasible
@@ -886,7 +932,13 @@ def best(
             timing = retime(evaluation)
         elif not isinstance(timing, _timing.Timing):
             raise ValueError(f"timing must be plan.retime's Timing, got {type(timing).__name__}")
-        key, usable = timing.duration, timing.status == Status.OK
+        elif jnp.shape(timing.duration) != jnp.shape(evaluation.feasible):
+            raise ValueError(
+                f"timing: expected one duration per candidate {jnp.shape(evaluation.feasible)}, "
+                f"got {jnp.shape(timing.duration)}"
+            )
+        # A timing of the joint paths alone (timing.retime) times infeasible candidates too.
+        key, usable = timing.duration, (timing.status == Status.OK) & evaluation.feasible
     indices, values = [], []
     held = zip(_processes.local_rows(key), _processes.local_rows(usable), strict=True)
     for (start, value), (_, ok) in held:

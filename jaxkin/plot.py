@@ -2,7 +2,7 @@
 
 Every function builds a ``matplotlib.figure.Figure`` directly (no ``pyplot`` global state, no
 GUI: rendering uses the Agg canvas, so it works headless, in threads and in notebooks), returns
-it, and with ``path=`` also saves it (atomically: ``jaxkin.files.atomic_write``). The saved
+it, and with ``path=`` also saves it (atomically: ``jaxkin._output.atomic_write``). The saved
 image is ``figsize * dpi`` pixels (no tight bounding box).
 
 * ``joint_trajectories``: joint positions, velocities and accelerations against time, one
@@ -22,7 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from . import files as kio
+from . import _validate
+from ._output import atomic_write
 from .robot import fk
 from .status import Status
 
@@ -73,7 +74,7 @@ def _figure(figsize: tuple[float, float], dpi: float) -> Any:
 def save(fig: Any, path: str | os.PathLike, dpi: float | None = None) -> None:
     """Save ``fig`` to ``path`` atomically (format from the suffix, PNG by default)."""
     fmt = os.path.splitext(os.fspath(path))[1].lstrip(".").lower() or "png"
-    with kio.atomic_write(path, "wb") as f:
+    with atomic_write(path, "wb") as f:
         fig.savefig(f, format=fmt, dpi=dpi if dpi is not None else fig.dpi)
 
 
@@ -346,6 +347,7 @@ def workspace_slices(
 ) -> Any:
     """``n_slices`` horizontal slices of a workspace mask (evenly spaced over the z range
     that has reachable voxels), reachable voxels filled."""
+    n_slices = _validate.count(n_slices, "n_slices")
     fig = _figure(figsize, dpi)
     cols = int(np.ceil(n_slices / 2)) if n_slices > 3 else n_slices
     rows = int(np.ceil(n_slices / cols))

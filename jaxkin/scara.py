@@ -38,13 +38,14 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _validate, dyad, lie, planar
-from ._geometry import LENGTH, NONNEGATIVE, geometry, number
+from ._execute import solve_fk, solve_ik
+from ._geometry import LENGTH, NONNEGATIVE, Numeric, geometry, number
 from ._numerics import all_finite, computed_once
 from ._trig import cos_alone, sin_alone, sincos
 from .collision.body import Body
 from .jet import Jet, lift
 from .result import FKResult, IKResult
-from .robot import POINT, JointLimits, Robot, options, solve_fk, solve_ik
+from .robot import POINT, JointLimits, Robot, options
 from .status import STATUS_DTYPE, Status
 
 __all__ = [
@@ -93,11 +94,11 @@ class Scara(Robot):
             >= 0; default 0 (the links as their centre lines).
     """
 
-    l_oa: Array = number(LENGTH, None)
-    l_ab: Array = number(LENGTH, None)
-    l_bc: Array = number(LENGTH, None)
+    l_oa: Numeric = number(LENGTH, None)
+    l_ab: Numeric = number(LENGTH, None)
+    l_bc: Numeric = number(LENGTH, None)
     limits: JointLimits | None = None
-    link_radius: Array = number(NONNEGATIVE, default=0.0)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)
 
     target: ClassVar = POINT
     branches: ClassVar = BRANCHES
@@ -130,7 +131,7 @@ class Scara(Robot):
         limits: JointLimits | Mapping[str, tuple[float, float]] | None = None,
     ) -> Scara:
         """The same as the constructor (kept for symmetry with the other geometries)."""
-        return cls(l_oa, l_ab, l_bc, limits)
+        return cls(l_oa, l_ab, l_bc, limits)  # type: ignore[arg-type]  # _validate: a mapping
 
     @classmethod
     def paper(cls) -> Scara:
@@ -244,14 +245,21 @@ def relative_elbow_angle(theta2: Jet | ArrayLike) -> Jet | Array:
     ``-theta2_ddot``.
     """
     if isinstance(theta2, Jet):
-        return Jet(relative_elbow_angle(theta2.p), -theta2.v, -theta2.a)
-    q2 = -jnp.asarray(theta2)
-    wrapped = jnp.pi - jnp.mod(jnp.pi - q2, 2.0 * jnp.pi)  # in (-pi, pi]
-    return wrapped
+        return Jet(_wrapped(-jnp.asarray(theta2.p)), -theta2.v, -theta2.a)
+    return _wrapped(-jnp.asarray(theta2))
+
+
+def _wrapped(angle: Array) -> Array:
+    """``angle`` wrapped to (-pi, pi]."""
+    return jnp.pi - jnp.mod(jnp.pi - angle, 2.0 * jnp.pi)
 
 
 def _broadcast_geometry(robot: Scara, batch: tuple[int, ...]) -> tuple[Array, Array, Array]:
-    return tuple(jnp.broadcast_to(x, batch) for x in (robot.l_oa, robot.l_ab, robot.l_bc))
+    return (
+        jnp.broadcast_to(robot.l_oa, batch),
+        jnp.broadcast_to(robot.l_ab, batch),
+        jnp.broadcast_to(robot.l_bc, batch),
+    )
 
 
 def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True) -> IKResult:
@@ -294,18 +302,18 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True)
         ok = dyad_status == Status.OK
     elif method == "analytic":
         wrist = d[..., :2]  # eq. 13: C = (x_D, y_D) with the same rates
-        sol = dyad.solve(Jet.constant(shoulder), wrist, l_ab, l_bc, mode=branch)
-        ok = sol.status == Status.OK
+        solved = dyad.solve(Jet.constant(shoulder), wrist, l_ab, l_bc, mode=branch)
+        ok = solved.status == Status.OK
         # The forearm in units of its length (the dyad works in units of the reach): the
         # angle's rate formulas multiply four lengths, which must not overflow at any scale.
         inv_bc = jnp.asarray(1.0 / l_bc)[..., None]
         forearm = Jet(
-            (wrist.p - sol.c.p) * inv_bc,
-            (wrist.v - sol.c.v) * inv_bc,
-            (wrist.a - sol.c.a) * inv_bc,
+            (wrist.p - solved.c.p) * inv_bc,
+            (wrist.v - solved.c.v) * inv_bc,
+            (wrist.a - solved.c.a) * inv_bc,
         )
         theta_bc, _ = planar.angle(forearm)  # the angle of Fig. 2 (docs/errata.md)
-        theta1 = sol.phi  # eqs. 9-10
+        theta1 = solved.phi  # eqs. 9-10
         theta2 = Jet(  # eq. 15
             theta1.p - theta_bc.p,
             jnp.where(ok, theta1.v - theta_bc.v, 0.0),
@@ -313,7 +321,7 @@ def _ik_impl(robot: Scara, d: Jet, branch: int, method: str, rates: bool = True)
         )
         l3 = Jet(l_oa - d.p[..., 2], -d.v[..., 2], -d.a[..., 2])  # eq. 14
         q = Jet.stack([theta1, theta2, l3])
-        dyad_status, margin = sol.status, sol.margin
+        dyad_status, margin = solved.status, solved.margin
     else:
 
         def position(d_p: Array) -> tuple[Array, Array, Array]:

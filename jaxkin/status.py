@@ -66,7 +66,8 @@ _DESCRIPTIONS = {
     Status.INVALID_INPUT: "NaN or inf in this element's input",
     Status.UNTIMEABLE: (
         "the path cannot be timed within the velocity and acceleration limits (a joint that "
-        "must move has a zero limit, or the start or end speed cannot be reached)"
+        "must move has a zero limit or no acceleration limit, or the start or end speed "
+        "cannot be reached)"
     ),
     Status.DISCONTINUOUS: (
         "solved, but the joints jump from the previous sample by a step their rates do not "

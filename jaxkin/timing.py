@@ -40,8 +40,10 @@ everywhere.
 
 Statuses per candidate: ``OK``; ``INVALID_INPUT`` (NaN or inf in the path or the limits);
 ``UNTIMEABLE`` (no timing within the limits on this grid: a joint that must move has a zero
-velocity or acceleration limit, the start or end speed is not reachable, or the speed falls to
-zero at two neighbouring grid points, a grid too coarse for a sharp bend).
+velocity or acceleration limit, or no acceleration limit (``inf``: its speed could change
+within one grid interval, and with no speed limit either it would move in no time), the start
+or end speed is not reachable, or the speed falls to zero at two neighbouring grid points, a
+grid too coarse for a sharp bend).
 Failed candidates get finite placeholders: zero times, speeds and duration.
 """
 
@@ -59,6 +61,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from . import _splines, _validate
+from ._execute import kernel
 from .jet import Jet
 from .result import SolverResult
 from .status import STATUS_DTYPE, Status
@@ -183,7 +186,7 @@ def _spline_slopes(knots: Array, end: str) -> Array:
     return jax.lax.linalg.tridiagonal_solve(lower, diag, upper, rhs)
 
 
-@functools.partial(jax.jit, static_argnames=("subdivisions", "end"))
+@kernel(static=("subdivisions", "end"))
 def _spline_path(knots: Array, subdivisions: int, end: str) -> JointPath:
     """The spline through ``knots`` (``(..., K, n)`` at ``s = 0..K-1``), sampled
     ``subdivisions`` times per segment."""
@@ -219,8 +222,7 @@ def path_from_waypoints(
         ValueError: a bad shape, a non-finite waypoint (checked when concrete), or a bad
             ``subdivisions`` or ``end``.
     """
-    if isinstance(subdivisions, bool) or not isinstance(subdivisions, int) or subdivisions < 1:
-        raise ValueError(f"subdivisions must be a positive integer, got {subdivisions!r}")
+    subdivisions = _validate.count(subdivisions, "subdivisions")
     _validate.choice(end, "end", _splines.END_CONDITIONS)
     arr = waypoints if isinstance(waypoints, jax.Array) else jnp.asarray(waypoints)
     if arr.ndim < 2 or arr.shape[-2] < 2 or arr.shape[-1] < 1:
@@ -346,6 +348,10 @@ def _time_one(
         & ~jnp.any(jnp.isnan(v_max))
         & ~jnp.any(jnp.isnan(a_max))
     )
+    # A joint that moves with no acceleration limit could change its speed within one grid
+    # interval (and, with no speed limit either, move in no time): no time-optimal timing.
+    moves = jnp.any((q != q[:1]) | (dq != 0), axis=0)
+    unbounded = jnp.any(moves & jnp.isinf(a_max))
     s = jnp.where(finite, s, jnp.arange(s.shape[0], dtype=dtype))
     q = jnp.where(finite, q, 0.0)
     dq = jnp.where(finite, dq, 0.0)
@@ -401,7 +407,11 @@ def _time_one(
 
     def forward(x: Array, stage: tuple) -> tuple[Array, Array]:
         joint, d, lo_next, hi_next = stage
-        room = joint.hi - joint.r * x
+        # A slab's room is known to its terms' round-off only: at a joint whose dq/ds is
+        # round-off (p ~ 0) and whose r x is at its bound, room / p would be 0 / 0, and its
+        # sign (the sign of p's round-off) would decide between no bound and u <= 0.
+        slack = 64.0 * eps * (jnp.abs(joint.hi) + jnp.abs(joint.r * x))
+        room = joint.hi - joint.r * x + slack
         bound = jnp.where(joint.p > 0, room / jnp.where(joint.p > 0, joint.p, 1.0), big)
         u = jnp.minimum(jnp.min(bound), (hi_next - x) / (2.0 * d))
         x_next = jnp.clip(x + 2.0 * d * u, lo_next, hi_next)
@@ -417,7 +427,7 @@ def _time_one(
     stalled = jnp.any(still[:-1] & still[1:]) | jnp.any(total <= 0)
     steps = 2.0 * delta / jnp.where(total > 0, total, 1.0)
     t = jnp.concatenate([jnp.zeros((1,), dtype), jnp.cumsum(steps)])
-    ok = finite & ~last.empty & start_ok & ~stalled & jnp.isfinite(t[-1])
+    ok = finite & ~last.empty & start_ok & ~stalled & ~unbounded & jnp.isfinite(t[-1])
     status = jnp.where(
         finite, jnp.where(ok, Status.OK, Status.UNTIMEABLE), Status.INVALID_INPUT
     ).astype(STATUS_DTYPE)
@@ -427,7 +437,7 @@ def _time_one(
     return t[-1], status, t, speed, acceleration
 
 
-@functools.partial(jax.jit, static_argnames=("scheme", "speed_bound"))
+@kernel(static=("scheme", "speed_bound"))
 def _retime(
     path: JointPath,
     v_max: Array,
@@ -503,7 +513,11 @@ def retime(
             shape ``(...)``, grid ``M``, ``n`` joints.
         v_max: speed limit per joint, shape ``(n,)`` or per candidate ``(..., n)``; ``inf``
             for none; 0 pins the joint (a path that moves it is ``UNTIMEABLE``).
-        a_max: acceleration limit per joint, same shapes.
+        a_max: acceleration limit per joint, same shapes; a path that moves a joint (its
+            ``q`` or ``dq`` not all equal to its start's and zero, exactly) whose limit is
+            ``inf`` is ``UNTIMEABLE``: its speed could change within one grid interval, at
+            an acceleration set by nothing but the grid (and with no speed limit either, in
+            no time at all).
         start_speed, end_speed: path speeds ``s_dot`` at the ends, default 0 (at rest);
             scalars or shape ``(...)``.
         scheme: ``"interpolation"`` (acceleration limits at both ends of every interval,
@@ -610,7 +624,7 @@ def _sample_one(
     return jet, valid
 
 
-@jax.jit
+@kernel
 def _sample(path: JointPath, timing: Timing, times: Array) -> RetimedTrajectory:
     batch = timing.duration.shape
     flat = int(np.prod(batch, dtype=int))
@@ -670,8 +684,7 @@ def sample(
         durations = np.asarray(timing.duration)
         longest = float(np.max(durations, initial=0.0))
         num = int(math.floor(longest / period * (1.0 + 1e-12))) + 1
-    if not (isinstance(num, int) and num >= 1):
-        raise ValueError(f"num must be a positive integer, got {num!r}")
+    num = _validate.count(num, "num")
     q = jnp.asarray(path.q)
     if q.shape[-2] != timing.t.shape[-1]:
         raise ValueError(
@@ -691,8 +704,7 @@ def best(timing: Timing, k: int) -> tuple[np.ndarray, np.ndarray]:
         increasing duration (ties by index), and their durations, NumPy; fewer than ``k`` when
         fewer candidates could be timed.
     """
-    if not (isinstance(k, int) and not isinstance(k, bool) and k >= 1):
-        raise ValueError(f"k must be a positive integer, got {k!r}")
+    k = _validate.count(k, "k")
     duration = np.asarray(timing.duration)
     if duration.ndim != 1:
         raise ValueError(f"timing: expected a flat batch (N,), got shape {duration.shape}")

@@ -9,8 +9,8 @@ get a 2-D grid, 3-D point robots a 3-D one; robots whose targets are poses have 
 workspace.
 
 Memory is bounded: points are made on the host chunk by chunk (``jaxkin._batching.host_chunks``,
-one compiled shape for every chunk) and only the boolean mask is kept. A progress bar is
-shown when stderr is a terminal (``progress=None``); ``False`` silences it, ``True`` forces it.
+one compiled shape for every chunk) and only the boolean mask is kept. ``progress`` (a callback
+``progress(done, total)``, e.g. the command line's progress bar) hears of every chunk swept.
 
 Several processes (``jax.distributed``; every process calls ``sweep`` with the same
 arguments): the flattened grid (index order x, y, z) is split into one contiguous run of
@@ -24,7 +24,6 @@ holds the whole mask, gathered as bits); ``jaxkin._processes.to_host`` gives it 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from typing import Any
 
@@ -33,9 +32,9 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from . import _batching, _processes
-from ._progress import bar
-from .robot import Robot, as_robot, ik
+from . import _batching, _processes, _validate
+from ._execute import as_robot, ik, kernel
+from .robot import Robot
 
 __all__ = ["WorkspaceResult", "grid_axes", "sweep"]
 
@@ -105,7 +104,7 @@ def _check_box(robot: Robot, bounds: Any, resolution: Any) -> tuple[Bounds, floa
     return bounds, resolution
 
 
-@functools.partial(jax.jit, static_argnames=("branch", "accept"))
+@kernel(static=("branch", "accept"))
 def _reachable(robot: Robot, points: Array, branch: Any, accept: tuple[int, ...]) -> Array:
     """Whether each point's status is one of ``accept``: ``(M,)`` bool."""
     status = ik(robot, points, branch).status.astype(jnp.int32)
@@ -120,7 +119,7 @@ def sweep(
     branch: Any = None,
     chunk_size: int = _batching.SWEEP_CHUNK,
     dtype: Any = None,
-    progress: bool | None = None,
+    progress: _validate.Progress | None = None,
 ) -> WorkspaceResult:
     """Sweep a voxel grid with the robot's inverse kinematics; the reachable mask and volume.
 
@@ -133,11 +132,12 @@ def sweep(
         branch: the IK branch evaluated (None: ``robot.default_branch``).
         chunk_size: voxels per call (memory bound; every call has one shape).
         dtype: float dtype of the points (default: JAX's default float, float64 under x64).
-        progress: progress bar policy (module docstring).
+        progress: None, or a callback ``progress(done, total)`` told the voxels swept so far
+            (by this process) after every chunk.
 
     Raises:
         ValueError: a robot whose targets are not points, malformed bounds, a non-positive
-            resolution or chunk size, an unknown branch.
+            resolution or chunk size, an unknown branch, a progress that is not callable.
     """
     robot = as_robot(robot)
     if not robot.target.is_point:
@@ -146,8 +146,8 @@ def sweep(
             "sweep needs a robot whose targets are points"
         )
     branch = robot.check_branch(branch)
-    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
-        raise ValueError(f"chunk_size must be a positive int, got {chunk_size!r}")
+    chunk_size = _validate.count(chunk_size, "chunk_size")
+    report = _validate.progress(progress) or _validate.no_progress
     bounds, resolution = _check_box(robot, bounds, resolution)
     axes = grid_axes(bounds, resolution)
     shape = tuple(len(a) for a in axes)
@@ -158,16 +158,17 @@ def sweep(
     first, last = _processes.process_range(total)  # (0, total) with one process
     flat = np.zeros(last - first, dtype=bool)
     slice_counts = np.zeros(shape[-1] if len(shape) == 3 else 1, dtype=np.int64)
-    with bar(last - first, "workspace", enabled=progress) as meter:
-        for start, stop, index in _batching.host_chunks(last - first, chunk_size):
-            coords = np.unravel_index(first + index, shape)
-            points = np.stack([a[i] for a, i in zip(axes, coords, strict=True)], -1)
-            inside = np.asarray(_reachable(robot, points.astype(dtype), branch, accept))
-            flat[start:stop] = inside[: stop - start]
-            if len(shape) == 3:
-                z = coords[-1][: stop - start][inside[: stop - start]]
-                slice_counts += np.bincount(z, minlength=shape[-1])
-            meter.update(stop - start)
+    report(0, last - first)
+    for start, stop, index in _batching.host_chunks(last - first, chunk_size):
+        coords = np.unravel_index(first + index, shape)
+        points = np.stack([a[i] for a, i in zip(axes, coords, strict=True)], -1)
+        inside = np.asarray(_reachable(robot, points.astype(dtype), branch, accept))
+        flat[start:stop] = inside[: stop - start]
+        if len(shape) == 3:
+            z = coords[-1][: stop - start][inside[: stop - start]]
+            slice_counts += np.bincount(z, minlength=shape[-1])
+        report(stop, last - first)
+    mask: np.ndarray | Array
     if _processes.process_count() == 1:
         mask = flat.reshape(shape)
         n_reachable = int(mask.sum())

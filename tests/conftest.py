@@ -52,9 +52,9 @@ def _release_compiled_programs():
 def hot_after_two(monkeypatch):
     """Programs built at the second call (the default waits longer), from an empty table."""
     from jaxkin import _batching  # imported after the configuration above
-    from jaxkin import robot as robot_module
+    from jaxkin._execute import pipeline
 
     monkeypatch.setattr(_batching, "HOT_AFTER", 2)
-    robot_module._HOT.clear()
+    pipeline.HOT.clear()
     yield
-    robot_module._HOT.clear()
+    pipeline.HOT.clear()

@@ -21,7 +21,8 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from jaxkin import Jet, cli, delta, files, optimize, paths, plan, scara, workspace
+from jaxkin import Jet, cli, delta, optimize, paths, plan, scara, workspace
+from jaxkin.cli import files
 
 ROBOT = scara.Scara.paper()
 N, T = 4, 12  # candidates and samples; the optimiser's paths have the same shape

@@ -102,3 +102,22 @@ def tree_allfinite(tree) -> bool:
     """True when every floating leaf of a pytree is finite."""
     leaves = [np.asarray(x) for x in jax.tree.leaves(tree)]
     return all(np.all(np.isfinite(x)) for x in leaves if np.issubdtype(x.dtype, np.floating))
+
+
+def gradient_against_differences(
+    fn: Callable[..., Any], args: Iterable[Any], grad: Callable[..., Any] | None = None,
+    h: float = 1e-6, tol: float = 1e-7,
+) -> None:  # fmt: skip
+    """The gradient of the scalar ``fn`` (``grad``, by default ``jax.grad`` over every
+    argument) against central differences of step ``h``, argument by argument, to ``tol``."""
+    args = [np.asarray(x, dtype=float) for x in args]
+    grad = grad or jax.grad(fn, argnums=tuple(range(len(args))))
+    grads = grad(*[jax.numpy.asarray(x) for x in args])
+    for i, (x, g) in enumerate(zip(args, grads, strict=True)):
+        num = np.zeros_like(x)
+        for idx in np.ndindex(x.shape):
+            plus, minus = [y.copy() for y in args], [y.copy() for y in args]
+            plus[i][idx] += h
+            minus[i][idx] -= h
+            num[idx] = (float(fn(*plus)) - float(fn(*minus))) / (2 * h)
+        np.testing.assert_allclose(np.asarray(g), num, atol=tol, err_msg=f"argument {i}")

@@ -15,6 +15,7 @@ import pytest
 
 import jaxkin
 from jaxkin import Jet, Status, _batching, delta, serial
+from jaxkin._execute import Kernel, Policy
 from tests.helpers import compilations, tree_allfinite
 
 ROBOT = delta.Delta.paper()
@@ -100,7 +101,8 @@ def _whole(fn, *args, **kwargs):
     ],
 )
 def test_thread_layout(small_parts, size, threads, part, starts):
-    assert _batching._layout(size, threads) == (part, starts)
+    _batching.set_num_threads(threads)
+    assert _batching.thread_layout(size) == (part, starts)
     covered = set()
     for start in starts:
         covered |= set(range(start, start + part))
@@ -122,6 +124,13 @@ def test_overlapping_parts(size, n_parts, multiple, part, starts):
     assert part % multiple == 0 and starts[-1] + part == size
 
 
+def _threaded(fn, static, batched):
+    """``fn`` as a kernel whose large batches run in parts on the host threads."""
+    return Kernel(
+        fn, static=static, batched=dict.fromkeys(batched, 0), policy=Policy(pad=False, threads=True)
+    )
+
+
 def _toy(x, y, scale, mode):
     """Elementwise in the batch; ``scale`` is shared, ``mode`` static."""
     norm = jnp.sqrt(jnp.sum(x * x, axis=-1))
@@ -132,11 +141,11 @@ def _toy(x, y, scale, mode):
 @pytest.mark.parametrize("threads", [2, 3])
 def test_parts_equal_whole_batch(small_parts, batch, threads):
     x, y = _pair(batch)
-    kernel = _batching.PartsJit(_toy, ("mode",), ("x", "y"))
+    kernel = _threaded(_toy, ("mode",), ("x", "y"))
     _batching.set_num_threads(threads)
     with compilations() as count:
         parts = kernel(x, y, jnp.asarray(2.0), 3, batch=batch)
-    whole = kernel.whole(x, y, jnp.asarray(2.0), 3)
+    whole = kernel.jitted(x, y, jnp.asarray(2.0), 3)
     assert count.compiled("_part_impl") == 1  # the parts ran (one shared compilation)
     for key in whole:
         assert parts[key].shape == whole[key].shape
@@ -150,7 +159,7 @@ def test_parts_run_on_worker_threads(small_parts):
         jax.debug.callback(lambda: seen.add(threading.current_thread().name))
         return x * 2.0
 
-    split = _batching.PartsJit(kernel, (), ("x",))
+    split = _threaded(kernel, (), ("x",))
     np.testing.assert_array_equal(split(jnp.arange(64.0), batch=(64,)), 2.0 * np.arange(64.0))
     assert len(seen) == 2 and all(name.startswith("jaxkin") for name in seen)
 
@@ -162,7 +171,7 @@ def test_whole_batch_when_splitting_does_not_apply(small_parts):
         calls.append(x.shape)  # runs at trace time: one entry per compilation
         return x + y
 
-    split = _batching.PartsJit(kernel, (), ("x", "y"))
+    split = _threaded(kernel, (), ("x", "y"))
     x = jnp.ones((64, 2))
     with compilations() as count:
         out = [
@@ -182,7 +191,7 @@ def test_errors_reach_the_caller(small_parts):
         raise ValueError("bad part")
 
     with pytest.raises(ValueError, match="bad part"):
-        _batching.PartsJit(kernel, (), ("x",))(jnp.ones(64), batch=(64,))
+        _threaded(kernel, (), ("x",))(jnp.ones(64), batch=(64,))
 
 
 def test_thread_count_setting(monkeypatch):
@@ -336,7 +345,7 @@ def test_padding_broadcasts_batched_arguments_and_leaves_the_rest_alone(monkeypa
     def no_padding(*_):
         raise AssertionError("padded a call that should run as it is")
 
-    monkeypatch.setattr(_batching, "_pad_leaf", no_padding)
+    monkeypatch.setattr(_batching, "pad_leaf", no_padding)
     traced = jax.jit(lambda a: dyad.solve(a, b, l_ac, 1.1).c.p)(a)
     np.testing.assert_allclose(traced, exact.c.p, rtol=1e-14, atol=1e-14)
 

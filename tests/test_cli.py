@@ -6,6 +6,7 @@ pads each file's rows to a power of two, so the files here have few distinct pad
 (4, 32 and 64 rows) and share compilations.
 """
 
+import io
 import os
 import shutil
 import signal
@@ -17,8 +18,8 @@ import numpy as np
 import pytest
 
 from jaxkin import Jet, Robot, cli, delta, scara, serial
-from jaxkin import files as kio
-from jaxkin.cli import commands, demo
+from jaxkin.cli import commands, demo, progress
+from jaxkin.cli import files as kio
 from jaxkin.cli.parser import build_parser
 from jaxkin.cli.robots import ROBOTS, RobotEntry
 from tests.references import delta as delta_ref
@@ -842,30 +843,92 @@ def test_version(capsys):
     assert capsys.readouterr().out.strip() == f"jaxkin {__version__}"
 
 
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_help_imports_no_jax():
+    """``jaxkin --help``, a subcommand's ``--help`` and ``--version`` (a fresh process) load
+    neither JAX nor NumPy: the parser names the subcommands' modules, imported when one runs."""
+    argvs = [["--help"], ["ik", "--help"], ["plan", "--help"], ["workspace", "--help"]]
+    argvs += [["demo", "--help"], ["--version"]]
+    script = (
+        "import sys\n"
+        "from jaxkin import cli\n"
+        f"for argv in {argvs!r}:\n"
+        "    try:\n"
+        "        cli.main(argv)\n"
+        "    except SystemExit as exit:\n"
+        "        assert exit.code == 0, (argv, exit.code)\n"
+        "print(sorted(m for m in ('jax', 'numpy', 'jaxkin.robot') if m in sys.modules))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=True
+    )
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+    assert "usage: jaxkin workspace" in done.stdout
+
+
+def test_parser_spells_the_spline_ends_of_the_library():
+    from jaxkin import _splines
+    from jaxkin.cli import parser
+
+    assert parser.SPLINE_ENDS == _splines.END_CONDITIONS
+
+
 def test_progress_bar_only_on_a_terminal(monkeypatch):
-    import io
-
-    from jaxkin import _progress as progress
-
-    monkeypatch.setitem(sys.modules, "tqdm", None)  # the built-in bar, even if tqdm is installed
-
-    class Terminal(io.StringIO):
-        def isatty(self):
-            return True
-
+    """Without tqdm (its import blocked) the command draws its own bar, on a terminal only."""
+    monkeypatch.setitem(sys.modules, "tqdm", None)
     pipe = io.StringIO()
     with progress.bar(10, "work", stream=pipe) as bar:
         bar.update(10)
     assert pipe.getvalue() == ""
-    term = Terminal()
+    term = _Terminal()
     with progress.bar(10, "work", stream=term) as bar:
+        assert isinstance(bar, progress.TextBar)
         for _ in range(10):
             bar.update(1)
     text = term.getvalue()
     assert text.startswith("\rwork [") and "100%" in text and text.endswith("\n")
-    quiet = Terminal()
+    quiet = _Terminal()
     with progress.bar(10, "work", enabled=False, stream=quiet) as bar:
         bar.update(10)
+    assert quiet.getvalue() == ""
+
+
+def test_progress_bar_is_tqdm_when_installed():
+    """With the cli extra's tqdm the bar is tqdm's, on a terminal only (the same policy)."""
+    tqdm = pytest.importorskip("tqdm")
+    term = _Terminal()
+    with progress.bar(10, "work", stream=term) as bar:
+        assert isinstance(bar, tqdm.tqdm)
+        bar.update(10)
+    assert "work" in term.getvalue() and "100%" in term.getvalue()
+    pipe = io.StringIO()
+    with progress.bar(10, "work", stream=pipe) as bar:
+        assert isinstance(bar, progress.NullBar)
+
+
+@pytest.mark.parametrize("tqdm_installed", [True, False])
+def test_progress_callback_of_a_library_call_draws_one_bar(monkeypatch, tqdm_installed):
+    """``reporting`` turns a library's ``progress(done, total)`` into one bar of ``total``
+    (workspace.sweep's calls: (0, 2197), then after each chunk of 1000 voxels)."""
+    if tqdm_installed:
+        pytest.importorskip("tqdm")
+    else:
+        monkeypatch.setitem(sys.modules, "tqdm", None)
+    term = _Terminal()
+    with progress.reporting("workspace", stream=term) as report:
+        for done in (0, 1000, 2000, 2197):
+            report(done, 2197)
+    text = term.getvalue()
+    assert "workspace" in text and "100%" in text
+    assert text.endswith("\n")  # closed: the bar's line ended
+    quiet = _Terminal()
+    with progress.reporting("workspace", enabled=False, stream=quiet) as report:
+        report(0, 10)
+        report(10, 10)
     assert quiet.getvalue() == ""
 
 

@@ -1,4 +1,4 @@
-"""Trajectory files of the command line (jaxkin.files): CSV/NPZ round trips, parse errors
+"""Trajectory files of the command line (jaxkin.cli.files): CSV/NPZ round trips, parse errors
 with line numbers, atomic writes, spline rates per candidate, chunked solving."""
 
 import os
@@ -7,7 +7,7 @@ import stat
 import numpy as np
 import pytest
 
-from jaxkin import files as kio
+from jaxkin.cli import files as kio
 
 
 def _write(path, text, encoding="utf-8"):

@@ -1,4 +1,4 @@
-"""Fuzzing the command line's files (slow tier): pose files and output paths.
+"""Fuzzing the command line (slow tier): pose files, output paths and ``jaxkin plan``.
 
 Pose files: a smooth rotation path written with every quaternion scaled by a random length
 (1e-150 to 1e150), a random sign, and some rows zero. Every non-zero row must give the pose and
@@ -16,6 +16,10 @@ directory, a named pipe, a socket, a device node, a hard link to the input, the 
 ``..``, a missing directory, an empty name), each spelled relative, absolute and through a
 symlinked directory. The expected outcome is written here per kind; a refused path must leave
 every file as it was (contents, kinds and link targets) and reach no solver.
+
+``jaxkin plan``: random joint- and task-space candidate files (one infeasible), ranked by cost
+or by duration; the ranking file and the written trajectories must be ``plan.evaluate``,
+``plan.retime`` and ``plan.best`` of the same samples.
 """
 
 from __future__ import annotations
@@ -33,8 +37,8 @@ from hypothesis import strategies as st
 
 import jaxkin
 from jaxkin import cli, paths, serial
-from jaxkin import files as kio
 from jaxkin.cli import commands
+from jaxkin.cli import files as kio
 
 pytestmark = pytest.mark.slow
 
@@ -321,3 +325,99 @@ def test_every_kind_of_output_path(tmp_path, capsys, monkeypatch, kind, spelling
     q1, q2 = Q[:, 0], Q[:, 1]
     expected_xy = np.c_[np.cos(q1) + 0.6 * np.cos(q1 + q2), np.sin(q1) + 0.6 * np.sin(q1 + q2)]
     np.testing.assert_allclose(xy, expected_xy, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- jaxkin plan
+# One shape for every example: 4 candidates of 25 samples (3 cubic segments of 8 steps).
+PLAN_CANDIDATES, PLAN_DT = 4, 0.1
+SCARA_JOINTS = ("theta1", "theta2", "l3")
+PLAN_SETTINGS = settings(  # capsys is read out after every example
+    max_examples=8,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+    derandomize=True,
+)
+
+
+def _plan_candidates(rng, space):
+    """Joint paths of the paper SCARA through random waypoints (exact rates), as joint or
+    task samples; candidate 1 made infeasible: its theta1 jumps by 0.3 rad that its rates do
+    not explain (joint space), or its tool path pushed out of reach (task space)."""
+    from jaxkin import plan, scara
+
+    start = np.array([0.3, 1.0, 60.0]) + rng.uniform(-0.2, 0.2, 3) * [1, 1, 50]
+    way = start + np.cumsum(rng.uniform(-0.4, 0.4, (PLAN_CANDIDATES, 4, 3)) * [1, 1, 20], 1)
+    path = paths.path_from_joint_waypoints(way, PLAN_DT, 8)
+    q = [np.array(x) for x in (path.p, path.v, path.a)]
+    robot = scara.Scara.paper()
+    if space == "joint":
+        q[0][1, 12:, 0] += 0.3
+        names, rows = SCARA_JOINTS, q
+    else:
+        tool = jaxkin.fk(robot, jaxkin.Jet(*q)).x
+        rows = [np.array(x) for x in (tool.p, tool.v, tool.a)]
+        rows[0][1, :, :2] *= 3.0  # far out of the 30-130 mm annulus
+        names = ("x", "y", "z")
+    return robot, plan, names, rows
+
+
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    space=st.sampled_from(["joint", "task"]),
+    by=st.sampled_from(["cost", "duration"]),
+    k=st.integers(1, 4),
+)
+@PLAN_SETTINGS
+def test_plan_ranks_as_plan_evaluate_retime_and_best(tmp_path_factory, capsys, seed, space, by,
+                                                     k):  # fmt: skip
+    """``jaxkin plan`` on joint- and task-space candidates (rates in the file), by cost or by
+    duration: its ranking file is ``plan.evaluate`` / ``plan.retime`` /  ``plan.best`` of the
+    same samples (feasibility, first failure, cost and duration to 1e-12, the rank), and it
+    writes exactly the ranked candidates, each from rest at t = 0 within the speed bounds."""
+    tmp = tmp_path_factory.mktemp("plan")
+    rng = np.random.default_rng(seed)
+    robot, plan, names, rows = _plan_candidates(rng, space)
+    count, samples = rows[0].shape[:2]
+    v_max = rng.uniform(1.0, 4.0, 3) * [1, 1, 50]
+    a_max = rng.uniform(5.0, 20.0, 3) * [1, 1, 200]
+    t = np.arange(samples) * PLAN_DT
+    columns = {"candidate": np.repeat(np.arange(count), samples), "t": np.tile(t, count)}
+    velocity, acceleration = kio.rate_names(names)
+    for j in range(len(names)):
+        for name, values in ((names, rows[0]), (velocity, rows[1]), (acceleration, rows[2])):
+            columns[name[j]] = values[..., j].ravel()
+    kio.write_table(tmp / "c.csv", columns)
+    bounds = [",".join(map(str, x)) for x in (v_max, a_max)]
+    code = cli.main(
+        ["plan", "scara", "--robot", "paper", "-i", str(tmp / "c.csv"), "-o", str(tmp / "b.csv"),
+         "-k", str(k), "--by", by, "--v-max", bounds[0], "--a-max", bounds[1],
+         "--ranking", str(tmp / "r.csv")]
+    )  # fmt: skip
+    _, err = capsys.readouterr()
+    assert code == 0, err
+    limits = plan.Limits.create(3, v_max=v_max, a_max=a_max)
+    path = paths.Path.from_jet(jaxkin.Jet(*rows), PLAN_DT, space)
+    ev = plan.evaluate(robot, path, limits)
+    timed = plan.retime(ev, speed_bound="interval")
+    order, _ = plan.best(ev, k, by=by, timing=timed)
+    table = np.genfromtxt(tmp / "r.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    feasible = np.asarray(ev.feasible)
+    assert not feasible[1]
+    np.testing.assert_array_equal(table["feasible"], feasible)
+    np.testing.assert_array_equal(table["first_failure"], np.asarray(ev.first_failure))
+    cost = np.asarray(ev.costs.total)
+    np.testing.assert_allclose(table["cost"][feasible], cost[feasible], rtol=1e-12)
+    ok = np.asarray(timed.ok)
+    np.testing.assert_allclose(table["duration"][ok], np.asarray(timed.duration)[ok], rtol=1e-12)
+    assert np.all(np.isnan(table["duration"][~ok]))
+    rank = np.full(count, -1)
+    rank[order] = np.arange(1, len(order) + 1)
+    np.testing.assert_array_equal(table["rank"], rank)
+    best = np.genfromtxt(tmp / "b.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert sorted(set(np.atleast_1d(best["candidate"]).tolist())) == sorted(order.tolist())
+    for place, index in enumerate(order.tolist()):
+        mine = np.atleast_1d(best["rank"]) == place + 1
+        assert np.all(np.atleast_1d(best["candidate"])[mine] == index)
+        assert np.atleast_1d(best["t"])[mine][0] == 0.0
+        speeds = np.stack([np.atleast_1d(best[n + "_dot"])[mine] for n in SCARA_JOINTS], -1)
+        assert np.all(np.abs(speeds) <= v_max * (1 + 1e-6))

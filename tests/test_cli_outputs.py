@@ -9,14 +9,15 @@ compilation for the module).
 import os
 import socket
 import stat
+import tempfile
 import threading
 
 import numpy as np
 import pytest
 
 from jaxkin import cli
-from jaxkin import files as kio
 from jaxkin.cli import commands
+from jaxkin.cli import files as kio
 
 PLANAR = ["fk", "planar-2r", "--l1", "1.0", "--l2", "0.6"]
 
@@ -173,7 +174,7 @@ def test_unwritable_output_directory_is_refused_before_solving(
 ):
     """A directory where no file can be created (read-only mount, permissions): simulated by
     the creation failing, since the tests may run as root, whom permissions do not stop."""
-    real = kio.tempfile.mkstemp
+    real = tempfile.mkstemp
 
     def refuse(*args, **kwargs):
         if os.fspath(kwargs.get("dir", "")) == os.fspath(tmp_path / "ro"):
@@ -181,7 +182,7 @@ def test_unwritable_output_directory_is_refused_before_solving(
         return real(*args, **kwargs)
 
     (tmp_path / "ro").mkdir()
-    monkeypatch.setattr(kio.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)
     code, _, err = run(capsys, *PLANAR, "-i", joints, "-o", tmp_path / "ro" / "o.csv")
     assert_one_line_error(code, err, "--output", "cannot write in", "Permission denied")
 

@@ -11,12 +11,13 @@ one padded shape, so the SCARA path kernel compiles once for the module. The URD
 from __future__ import annotations
 
 import importlib.metadata
+import json
 
 import numpy as np
 import pytest
 
-from jaxkin import cli
-from jaxkin import files as kio
+from jaxkin import Jet, cli, paths, plan, scara
+from jaxkin.cli import files as kio
 from tests.references import scara as scara_ref
 from tests.test_cli import spiral
 
@@ -263,6 +264,84 @@ def test_plan_ranks_by_duration_and_writes_the_best_retimed(tmp_path, capsys):
     assert out.splitlines()[1].split()[:2] == ["1", "12"]
 
 
+def joint_candidates(path, q, rates=None):
+    """Joint-space candidates 0, 1, ... of ``q`` ``(N, T, 3)`` at t = 0, 0.1, ..., with
+    ``rates`` ``(q_dot, q_ddot)`` columns when given."""
+    count, samples = q.shape[:2]
+    t = np.arange(samples) * 0.1
+    columns = {"candidate": np.repeat(np.arange(count), samples), "t": np.tile(t, count)}
+    for j, name in enumerate(JOINTS):
+        columns[name] = q[..., j].ravel()
+        if rates is not None:
+            columns[name + "_dot"], columns[name + "_ddot"] = (x[..., j].ravel() for x in rates)
+    return write(path, columns)
+
+
+def test_plan_joint_space_candidates_are_plan_evaluates(tmp_path, capsys):
+    """Joint-space candidates go through ``plan.evaluate``: a 0.4 rad jump of theta1 that
+    the file's rates do not explain is DISCONTINUOUS at its sample and not written (the
+    command's own check called it feasible and wrote it); and ``--by cost`` ranks the same
+    with the column in millimetres or in metres (the command scaled a joint without rate
+    limits by 1 in its own unit, so 1e6 apart: it chose candidate 0 in mm, 1 in m)."""
+    t = np.arange(21) * 0.1
+    q = np.stack([0.3 + 0.2 * t, 1.0 - 0.1 * t, 60.0 + 5 * t], -1)
+    jumped = q.copy()
+    jumped[11:, 0] += 0.4
+    rates = np.broadcast_to([0.2, -0.1, 5.0], (2, 21, 3)), np.zeros((2, 21, 3))
+    src = joint_candidates(tmp_path / "jump.csv", np.stack([q, jumped]), rates)
+    code, _, err = run(
+        capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "b.csv", "-k", 2,
+        "--v-max", "1,1,50", "--a-max", "10,10,500", "--ranking", tmp_path / "r.csv",
+    )  # fmt: skip
+    assert code == 0, err
+    ranking = read(tmp_path / "r.csv", ("rank", "feasible", "first_failure", "failure"))
+    assert ranking["feasible"].tolist() == [1, 0] and ranking["rank"].tolist() == [1, -1]
+    assert ranking["failure"][1] == "DISCONTINUOUS" and ranking["first_failure"][1] == 11
+    assert set(read(tmp_path / "b.csv", ("candidate",))["candidate"]) == {0}
+    limits = plan.Limits.create(3, v_max=[1, 1, 50], a_max=[10, 10, 500])
+    path = paths.Path.from_jet(Jet.of(np.stack([q, jumped]), *rates), 0.1, "joint")
+    own = plan.evaluate(scara.Scara.paper(), path, limits)
+    assert np.asarray(own.first_failure).tolist() == [-1, 11]
+    swing = np.stack([0.3 + 0.5 * np.sin(t), 1.0 + 0 * t, 60.0 + 0 * t], -1)
+    column = np.stack([0.3 + 0 * t, 1.0 + 0 * t, 60.0 + 10 * np.sin(t)], -1)
+    costs = []
+    for unit, robot in ((1.0, PAPER), (1e-3, ["--l-oa", 0.15, "--l-ab", 0.08, "--l-bc", 0.05])):
+        both = np.stack([swing, column]) * [1.0, 1.0, unit]
+        src = joint_candidates(tmp_path / f"units{unit}.csv", both)
+        out, ranked = tmp_path / f"u{unit}.csv", tmp_path / f"ur{unit}.csv"
+        code, _, err = run(
+            capsys, "plan", "scara", *robot, "-i", src, "-o", out, "--by", "cost",
+            "--ranking", ranked,
+        )  # fmt: skip
+        assert code == 0, err
+        assert "not retimed (retiming needs a finite acceleration limit" in err
+        costs.append(read(ranked, ("rank", "cost")))
+    assert costs[0]["rank"].tolist() == costs[1]["rank"].tolist() == [-1, 1]
+    np.testing.assert_allclose(costs[1]["cost"], costs[0]["cost"], rtol=1e-9)
+
+
+def test_plan_two_sample_candidates_are_refused_or_written_at_their_samples(tmp_path, capsys):
+    """Candidates of 2 samples have no rest-to-rest retiming: ``--by duration`` is a one-line
+    error saying so; ``--by cost`` writes the best at the file's samples, with a warning
+    (it wrote a file without rows and said nothing)."""
+    q = np.stack([[[0.3, 1.0, 60.0], [0.4, 1.1, 62.0]], [[0.3, 1.0, 60.0], [0.5, 0.9, 65.0]]])
+    src = joint_candidates(tmp_path / "two.csv", q)
+    limits = ["--v-max", "2,3,40", "--a-max", "6,8,100"]
+    code, _, err = run(capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "d.csv",
+                       *limits)  # fmt: skip
+    assert code == 2 and "needs candidates of at least 3 samples, got 2" in err
+    assert not (tmp_path / "d.csv").exists()
+    code, _, err = run(
+        capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "c.csv", "--by", "cost",
+        *limits,
+    )  # fmt: skip
+    assert code == 0, err
+    assert "not retimed (retiming from rest to rest needs candidates of at least 3" in err
+    written = read(tmp_path / "c.csv", ("rank", "candidate", "t", *JOINTS))
+    assert written["t"].tolist() == [0.0, 0.1] and set(written["candidate"]) == {0}
+    np.testing.assert_allclose(joints_of(written), q[0], rtol=0, atol=1e-12)
+
+
 def scara_xy(q):
     """Planar forward kinematics of the paper SCARA (independent of the library)."""
     th1, th2 = q[:, 0], q[:, 1]
@@ -289,7 +368,7 @@ def test_plan_by_cost_joint_space_and_errors(tmp_path, capsys):
     best = read(tmp_path / "b.csv", ("rank", "candidate", "t"))
     assert set(best["candidate"]) == {11} and best["t"].tolist() == t.tolist()
     code, _, err = run(capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "d.csv")
-    assert code == 2 and "give --v-max and --a-max" in err
+    assert code == 2 and "theta1, theta2, l3 have none" in err and "--a-max" in err
     joints = {"candidate": np.repeat([0, 1], 21), "t": np.r_[t, t]}
     q = np.stack([0.3 + 0.2 * t, 1.0 - 0.1 * t, 60.0 + 5 * t], -1)
     for j, n in enumerate(JOINTS):
@@ -338,7 +417,7 @@ def test_urdf_arm_straight_line_is_continuous(tmp_path, capsys):
     Pinocchio in tests/test_urdf.py) are the file's to 1e-9."""
     from scipy.spatial.transform import Rotation
 
-    from jaxkin import Jet, fk, serial
+    from jaxkin import fk, serial
 
     robots = importlib.metadata.distribution("example-robot-data").locate_file(
         "cmeel.prefix/share/example-robot-data/robots"
@@ -376,7 +455,7 @@ def test_plan_urdf_arm_joint_and_task_space(tmp_path, capsys):
     continuous joint, which has none) to 1e-6 and reach it."""
     from scipy.spatial.transform import Rotation
 
-    from jaxkin import Jet, fk, serial
+    from jaxkin import fk, serial
 
     (tmp_path / "arm.urdf").write_text(URDF_ARM)
     chain = serial.from_urdf(str(tmp_path / "arm.urdf"), "tool")
@@ -531,3 +610,56 @@ def test_memory_is_bounded_by_the_chunk(tmp_path, capsys, mode):
         finally:
             tracemalloc.stop()
     assert (peaks[1] - peaks[0]) / 24_000 < 20, peaks
+
+
+def test_plan_with_a_world_file(tmp_path, capsys):
+    """``--world``: a post of 6 mm square standing on the -x axis, its near face 87 mm from
+    the base. The arm of the arc of 60 mm stays within 80 mm of the base (the elbow's
+    radius), so it keeps at least 7 mm clear and stays feasible; the arcs of 90 and 120 mm
+    reach past the post's radius while sweeping across the -x axis (the tip, then the
+    forearm from the elbow to the tip) and fail with COLLISION; --ranking gets each
+    candidate's clearance. Joint-space candidates are checked too. A world with cylinders, a
+    missing file and a bad entry are one-line errors naming the file."""
+    t = np.linspace(0.0, 2.0, 21)
+    src = candidates_file(tmp_path / "c.csv", t, ARCS)
+    post = {"name": "post", "center": [-90.0, 0.0, 0.0], "half_extents": [3, 3, 500]}
+    world = {"units": "mm", "frame": "the SCARA's base", "boxes": [post]}
+    (tmp_path / "post.json").write_text(json.dumps(world))
+    argv = ["plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "best.csv", "-k", 2,
+            "--v-max", "1.5,2,20", "--a-max", "5,8,100",
+            "--ranking", tmp_path / "rank.csv"]  # fmt: skip
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "post.json")
+    assert code == 0, err
+    names = ("candidate", "feasible", "failure", "first_failure", "clearance")
+    ranking = read(tmp_path / "rank.csv", names)
+    assert ranking["failure"].tolist() == ["COLLISION", "UNREACHABLE", "", "COLLISION"]
+    assert ranking["first_failure"][0] <= 10  # at or before the post (t = 1 is sample 10)
+    assert ranking["clearance"][0] < 0 and ranking["clearance"][3] < 0
+    assert ranking["clearance"][2] >= 7.0
+    # joint space: candidate 0 holds the tool over the post, candidate 1 far from it
+    q_post = scara_ref.ik_numpy(*behind_the_base(np.ones(1), 90.0, 1.0), *L, mode=1)[0][0]
+    joints = {"candidate": np.repeat([0, 1], 21), "t": np.r_[t, t]}
+    for j, n in enumerate(JOINTS):
+        joints[n] = np.r_[np.full(21, q_post[j]), np.full(21, [0.0, 0.5, 60.0][j])]
+    jsrc = write(tmp_path / "j.csv", joints)
+    code, _, err = run(
+        capsys, "plan", "scara", *PAPER, "-i", jsrc, "-o", tmp_path / "jb.csv", "--by", "cost",
+        "--ranking", tmp_path / "jr.csv", "--world", tmp_path / "post.json",
+    )  # fmt: skip
+    assert code == 0, err
+    jr = read(tmp_path / "jr.csv", names)
+    assert jr["failure"].tolist() == ["COLLISION", ""] and jr["first_failure"][0] == 0
+    world["cylinders"] = [{"center": [0, 0, 0], "radius": 1, "half_length": 1}]
+    (tmp_path / "cyl.json").write_text(json.dumps(world))
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "cyl.json")
+    assert code == 2 and "cylinders are not yet supported" in err
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "none.json")
+    assert code == 2 and "--world" in err and "no such world file" in err
+    world.pop("cylinders")
+    world["boxes"][0]["half_extents"] = [3, 3]
+    (tmp_path / "bad.json").write_text(json.dumps(world))
+    code, _, err = run(capsys, *argv, "--world", tmp_path / "bad.json")
+    assert code == 2 and "bad.json: boxes[0] ('post'): half_extents must be shape [3]" in err
+    code, _, err = run(capsys, *argv[:-2], "--ranking", tmp_path / "post.json",
+                       "--world", tmp_path / "post.json")  # fmt: skip
+    assert code == 2 and str(tmp_path / "post.json") in err  # an input is never overwritten

@@ -18,7 +18,7 @@ import sys
 import numpy as np
 import pytest
 
-from jaxkin import files as kio
+from jaxkin.cli import files as kio
 from jaxkin.cli import planning
 from tests.test_cli_paths import JOINTS, OUT, PAPER, URDF_ARM, behind_the_base, read, run, write
 

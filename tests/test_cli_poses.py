@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from jaxkin import _validate, paths
-from jaxkin import files as kio
+from jaxkin.cli import files as kio
 
 # A smooth rotation path: rotation by 0.7 t about a fixed unit axis, plus a translation.
 AXIS = np.array([1.0, 2.0, 2.0]) / 3.0

@@ -14,7 +14,7 @@ import pytest
 from jaxkin import collision as col
 from jaxkin.collision import distance as sd
 
-from .helpers import compilations
+from .helpers import compilations, gradient_against_differences
 
 SQ2, SQ3 = np.sqrt(2.0), np.sqrt(3.0)
 EYE = np.eye(3)
@@ -232,18 +232,8 @@ def test_gradients_finite_in_contact_penetration_and_degenerate(k):
     assert all(np.all(np.isfinite(np.asarray(g))) for g in grads)
 
 
-def _fd_check(fn, args, h=1e-6, tol=1e-7):
-    """Gradient against central differences, argument by argument."""
-    args = [np.asarray(x, dtype=float) for x in args]
-    grads = jax.grad(fn, argnums=tuple(range(len(args))))(*[jnp.asarray(x) for x in args])
-    for i, (x, g) in enumerate(zip(args, grads, strict=True)):
-        num = np.zeros_like(x)
-        for idx in np.ndindex(x.shape):
-            plus, minus = [y.copy() for y in args], [y.copy() for y in args]
-            plus[i][idx] += h
-            minus[i][idx] -= h
-            num[idx] = (float(fn(*plus)) - float(fn(*minus))) / (2 * h)
-        np.testing.assert_allclose(np.asarray(g), num, atol=tol, err_msg=f"argument {i}")
+def _fd_check(fn, args):
+    gradient_against_differences(fn, args)
 
 
 def test_gradients_match_finite_differences():

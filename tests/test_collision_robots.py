@@ -9,7 +9,9 @@ The URDF chain's link poses against Pinocchio's frame placements are in the slow
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -132,6 +134,38 @@ def test_arm_body_joins_the_dh_origins(arm):
     assert body.links[0] == "base" and len(body.links) == arm.n_joints + 1
 
 
+def test_links_that_touch_at_home_are_no_self_pair():
+    """The Stanford arm's column and its prismatic rod (radius 0) touch at q = 0: their
+    distance there is round-off (+2.4e-17 on this machine), which ``d > 0`` kept as a pair,
+    and 11 % of random configurations then collided in an empty world (none now: the slow
+    test below checks q = 0 of every arm). A pair within 64 ulp of the robot's size at
+    q = 0 is left out."""
+    pairs = serial.Stanford(d1=0.4, a2=0.3).self_collision_pairs()
+    assert (1, 3) not in pairs and (1, 4) in pairs
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("radius", [0.0, 0.02])
+@pytest.mark.parametrize("arm", serial.ARMS, ids=lambda cls: cls.__name__)
+def test_every_arm_is_clear_of_itself_at_home(arm, radius):
+    """Every analytic arm, with capsules of radius 0 or 2 cm: q = 0 does not collide with
+    itself in an empty world (its self pairs leave out the links in contact there), nor
+    does the Stanford arm with radius 0 anywhere (its links meet only where they touch at
+    home: 11 % of random configurations collided)."""
+    from tests.test_geometry import GEOMETRIES
+
+    robot = GEOMETRIES[arm.__name__][0](**GEOMETRIES[arm.__name__][1], link_radius=radius)
+    q = np.random.default_rng(0).uniform(-np.pi, np.pi, (64, robot.n_joints))
+    q[0] = 0.0
+    if arm is serial.Stanford:
+        q[:, 2] = np.random.default_rng(1).uniform(0.0, 0.5, 64)  # the prismatic joint
+    empty = collision.World.create()
+    verdict, exact = collision.collides(robot, q, empty), collision.check(robot, q, empty)
+    assert not bool(verdict.collides[0]) and not bool(exact.collides[0])
+    if arm is serial.Stanford and radius == 0.0:
+        assert not np.any(np.asarray(verdict.collides))
+
+
 def test_link_radius_is_validated_and_arms_keep_their_lengths():
     with pytest.raises(ValueError, match="link_radius"):
         scara.Scara(150.0, 80.0, 50.0, link_radius=-1.0)
@@ -181,6 +215,26 @@ def test_chain_own_spheres_override():
     assert body.sphere_link == (forearm,) and forearm not in body.capsule_link
     with pytest.raises(ValueError, match="unknown link"):
         chain.with_link_spheres({"nope": (np.zeros((1, 3)), np.array([0.1]))})
+
+
+def test_chain_own_spheres_keep_the_other_links_skeleton():
+    """A URDF without ``<collision>`` elements: spheres for one link replace that link's
+    skeleton capsules only; every other link keeps its own (the body had the user's spheres
+    alone, so a penetration of another link read as clear), and the self pairs are the
+    skeleton's that do not touch at q = 0 (as without the spheres), and the forearm's."""
+    skeleton = serial.from_urdf(UR5, "tool0").with_link_radius(0.04)
+    chain = skeleton.with_link_spheres({"forearm_link": (np.zeros((1, 3)), [0.07])})
+    spheres, capsules = chain.collision_body().per_link()
+    own = skeleton.collision_body().per_link()[1]
+    assert set(spheres) == {"forearm_link"} and set(capsules) == set(own) - {"forearm_link"}
+    for link, arrays in capsules.items():
+        for got, expected in zip(arrays, own[link], strict=True):
+            np.testing.assert_array_equal(got, expected)
+    pairs = chain.self_collision_pairs()
+    forearm = chain.collision_body().links.index("forearm_link")
+    others = {pair for pair in pairs if forearm not in pair}
+    assert others == {p for p in skeleton.self_collision_pairs() if forearm not in p}
+    assert len(others) < len(pairs)  # the forearm's spheres against the others' capsules
 
 
 def test_chain_own_spheres_are_copied_and_checked():
@@ -338,6 +392,76 @@ def test_check_arguments_name_the_argument():
     np.testing.assert_array_equal(same.collides, exact.collides)
     traced = jax.jit(lambda m: collision.check(SCARA, q, world, margin=m).collides)(1.0)
     np.testing.assert_array_equal(traced, exact.collides)
+
+
+_PROTOCOL = (
+    "n_joints",
+    "collision_body",
+    "link_poses",
+    "link_frame_rows",
+    "placeable",
+    "self_collision_pairs",
+)
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class _Checkable:
+    """No ``jaxkin.Robot``: the collision protocol's members alone, delegated to a robot."""
+
+    robot: Any
+
+    @property
+    def n_joints(self):
+        return self.robot.n_joints
+
+    def collision_body(self):
+        return self.robot.collision_body()
+
+    def link_poses(self, q):
+        return self.robot.link_poses(q)
+
+    def link_frame_rows(self, q):
+        return self.robot.link_frame_rows(q)
+
+    def placeable(self, q):
+        return self.robot.placeable(q)
+
+    def self_collision_pairs(self):
+        return self.robot.self_collision_pairs()
+
+
+class _Members:
+    """The protocol's members as instance attributes, all or all but ``missing``."""
+
+    def __init__(self, robot, missing=()):
+        for name in _PROTOCOL:
+            if name not in missing:
+                setattr(self, name, getattr(robot, name))
+
+
+def test_checks_take_any_robot_of_the_collision_protocol():
+    """``check`` and ``collides`` take their robot through ``collision.CollisionRobot``: every
+    jaxkin robot is one; an object with its members and no ``jaxkin.Robot`` gets the robot's
+    own results; one without a member is refused naming ``robot``, also after another
+    instance of its class had them all."""
+    for robot in (SCARA, delta.Delta.paper(), serial.Puma560(), serial.from_urdf(UR5, "tool0")):
+        assert isinstance(robot, collision.CollisionRobot)
+    world = scara_world([[130.0, 0.0, 150.0]], [10.0], -1000.0)
+    q = np.array([[0.0, 0.0, 10.0], [3.0, 0.0, 10.0], [1.0, -2.0, 150.0]])
+    own, duck = collision.check(SCARA, q, world), collision.check(_Checkable(SCARA), q, world)
+    np.testing.assert_array_equal(duck.clearance, own.clearance)
+    np.testing.assert_array_equal(duck.status, own.status)
+    verdict = collision.collides(_Checkable(SCARA), q, world)
+    np.testing.assert_array_equal(verdict.collides, own.collides)
+    assert collision.protocol.conforms(_Members(SCARA))
+    for name in _PROTOCOL:
+        partial = _Members(SCARA, missing=(name,))
+        assert not isinstance(partial, collision.CollisionRobot)
+        with pytest.raises(ValueError, match="robot: expected a robot with the collision"):
+            collision.check(partial, q, world)
+        with pytest.raises(ValueError, match="robot: expected a robot with the collision"):
+            collision.validate_motions(partial, q, q, world, 2.0)
 
 
 # ------------------------------------------------------------------ motions
@@ -534,7 +658,13 @@ def dataclasses_replace(sample, q):
 
 
 def _fields(result) -> dict[str, np.ndarray]:
-    return {f: np.array(getattr(result, f)) for f in result.__dataclass_fields__}
+    """Every field of a ``CheckResult``, its closest pair's and its world and self parts'."""
+    names = ("clearance", "collides", "status", "pair_kind", "link", "other", "obstacle_kind")
+    out = {f: np.array(getattr(result, f)) for f in names}
+    for part in ("world", "self_collision"):
+        value = getattr(result, part)
+        out.update({f"{part}.{f}": np.array(getattr(value, f)) for f in value.__dataclass_fields__})
+    return out
 
 
 @pytest.mark.slow
@@ -569,13 +699,16 @@ def test_check_fused_pass_equals_the_per_primitive_queries():
     # ties: a primitive nearest to a joint centre is as near to both links that meet there
     # (their capsules share the end point), and either link may be reported
     tie = np.zeros(n, bool)
-    for name in ("link", "other"):
+    links = ("link", "other", "world.link", "self_collision.first", "self_collision.second")
+    for name in links:
         differs = fused[name] != reference[name]
         np.testing.assert_array_equal(np.abs(fused[name] - reference[name])[differs], 1)
         tie |= differs
     assert np.sum(tie) <= 1e-3 * n
-    for name in ("link", "other"):
+    for name in links:
         fused[name][tie] = reference[name][tie]
+    for part in ("world.clearance", "self_collision.clearance"):
+        np.testing.assert_allclose(fused.pop(part), reference.pop(part), atol=1e-12)
     for name, value in reference.items():
         np.testing.assert_array_equal(fused[name], value, err_msg=name)
     assert 0 < np.sum(fused["collides"]) < n

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -26,11 +25,12 @@ UR5 = Path(__file__).resolve().parents[1] / "examples" / "ur5.urdf"
 
 def _ur5():
     """Spheres on three links (the Chain's rows placement through link home poses), the
-    skeleton's capsules on the others (the exact capsule distances)."""
+    skeleton's capsules on the others (the exact capsule distances). The wrist's sphere
+    clears the wrist_1 capsule by 0.025 in every configuration (more than a margin)."""
     spheres = {
         "upper_arm_link": (np.array([[0.0, 0.0, 0.1], [0.0, 0.0, 0.3]]), np.array([0.07, 0.06])),
         "forearm_link": (np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.25]]), np.array([0.06, 0.05])),
-        "wrist_3_link": (np.zeros((1, 3)), np.array([0.05])),
+        "wrist_3_link": (np.zeros((1, 3)), np.array([0.03])),
     }
     return serial.from_urdf(UR5, "tool0").with_link_radius(0.04).with_link_spheres(spheres)
 
@@ -163,8 +163,7 @@ def test_validate_motions_with_the_verdict_alone():
 
 
 def _spheres_ur5():
-    """Spheres on every link of the UR5 (the culled path tests spheres), the forearm with 7
-    (two groups of the culling, the second padded) and the wrist links with one each."""
+    """Spheres on every link of the UR5: the forearm with 7, the wrist links with one each."""
     line = lambda k, length, r: (  # noqa: E731
         np.stack([np.zeros(k), np.zeros(k), np.linspace(0.0, length, k)], -1),
         np.full(k, r),
@@ -181,60 +180,21 @@ def _spheres_ur5():
     return serial.from_urdf(UR5, "tool0").with_link_spheres(spheres)
 
 
-def _kernel(cull: bool, capacity: float | None = None):
-    """``collides_kernel`` under a jit of its own (a fresh trace reads ``WORLD_CAPACITY``)."""
-    from jaxkin.collision import cull as culling
-    from jaxkin.collision import verdict
-
-    def run(robot, body, pairs, q, world, margin):
-        return verdict.collides_kernel(robot, body, pairs, q, world, margin, cull=cull)
-
-    jitted = jax.jit(run)
-    saved = culling.WORLD_CAPACITY
-
-    def call(robot, q, world, margin=0.0):
-        body, pairs = collision.prepare(robot)
-        culling.WORLD_CAPACITY = saved if capacity is None else capacity
-        try:
-            return jitted(robot, body, pairs, jnp.asarray(q), world, margin)
-        finally:
-            culling.WORLD_CAPACITY = saved
-
-    return call
-
-
-def test_culled_world_equals_the_full_pass():
-    """Float64: the bounding spheres first (every candidate tested: capacity 1) give the
-    same flags as every sphere-obstacle pair, which agree with the exact clearance."""
-    robot = _spheres_ur5()
-    world = _world(11)
-    q = np.random.default_rng(12).uniform(-3.0, 3.0, (300, robot.n_joints))
-    culled = _kernel(True, capacity=1.0)(robot, q, world, 0.01)
-    full = _kernel(False)(robot, q, world, 0.01)
-    np.testing.assert_array_equal(culled.collides, full.collides)
-    np.testing.assert_array_equal(culled.status, full.status)
-    hit = _agree(robot, q, world, 0.01, "float64")
-    assert 0.05 < np.mean(hit) < 0.95
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("dtype", ["float64", "float32"])
-def test_culled_world_shapes_contact_nan_and_fallback(dtype):
-    """Both dtypes: culled (every candidate tested; none: the full pass past the capacity)
-    against the full pass over two chunks (the default capacity runs in every public call);
-    batch shapes () (7,) (3,5); margins at configurations' own clearances (contact within
-    rounding); NaN rows; a moved obstacle reuses the compilation."""
+def test_sphere_body_over_chunks_shapes_contact_and_nan(dtype):
+    """A sphere body, both dtypes, over two chunks of the verdict: the exact verdict's flags
+    (``_agree``); batch shapes () (7,) (3,5); margins at configurations' own clearances
+    (contact within rounding); NaN rows; a moved obstacle reuses the compilation."""
     robot = _spheres_ur5()
     world = _world(13).astype(dtype)
     rng = np.random.default_rng(14)
     q = rng.uniform(-3.0, 3.0, (700, robot.n_joints)).astype(dtype)
     q[5, 2] = np.nan
-    full = _kernel(False)(robot, q, world)
-    for capacity in (1.0, 1e-9):
-        out = _kernel(True, capacity)(robot, q, world)
-        np.testing.assert_array_equal(out.collides, full.collides)
-        np.testing.assert_array_equal(out.status, full.status)
+    out = collision.collides(robot, q, world)
     assert out.status[5] == Status.INVALID_INPUT
+    hit = _agree(robot, q[:300], world, 0.01, dtype)
+    assert 0.05 < np.mean(hit) < 0.95
     for shape in [(), (7,), (3, 5)]:
         qs = rng.uniform(-3.0, 3.0, (*shape, robot.n_joints)).astype(dtype)
         _agree(robot, qs, world, 0.0, dtype)
@@ -242,37 +202,36 @@ def test_culled_world_shapes_contact_nan_and_fallback(dtype):
         margin = float(collision.check(robot, q[k], world).clearance)
         assert bool(collision.collides(robot, q[k], world, margin).collides)
         assert not bool(collision.collides(robot, q[k], world, margin - 1e-3).collides)
-    collision.collides(robot, q, world)
     with compilations() as count:
         collision.collides(robot, q, _world(15).astype(dtype))
     assert count.n == 0
 
 
-def test_sphere_blocks_cover_every_self_pair_once():
-    """``_ss_blocks``: the dense blocks of sphere-sphere self pairs hold every pair once and
-    no other (random pair sets, and the Panda-like layout of two blocks); ``_tree_min``
-    equals ``jnp.min`` along either axis for even and odd lengths."""
-    from types import SimpleNamespace
-
-    from jaxkin.collision.verdict import _ss_blocks, _tree_min
+def test_pair_chunks_cover_every_self_pair_once_and_halving_is_the_minimum():
+    """``rows.pair_chunks``: the chunks of self pairs hold every pair once, in order, the
+    last chunk padded with the last pair (random pair sets, one chunk and several);
+    ``tree_min`` and ``tree_argmin`` equal ``jnp.min``/``argmin`` along either axis for even
+    and odd lengths (ties: the first)."""
+    from jaxkin.collision import rows
 
     rng = np.random.default_rng(16)
-    panda_like = [(i, j) for i in range(15) for j in range(25, 65)]
-    panda_like += [(i, j) for i in range(25, 30) for j in range(45, 65)]
-    for pairs in [panda_like] + [
-        sorted({tuple(p) for p in rng.integers(0, 12, (30, 2)) if p[0] < p[1]}) for _ in range(5)
-    ]:
-        first, second = zip(*pairs, strict=True)
-        blocks = _ss_blocks(SimpleNamespace(ss=(first, second)))
-        covered = [(int(i), int(j)) for a, b in blocks for i in a for j in b]
-        assert sorted(covered) == sorted(pairs) and len(set(covered)) == len(covered)
-    first, second = zip(*panda_like, strict=True)
-    blocks = _ss_blocks(SimpleNamespace(ss=(first, second)))
-    assert [(len(a), len(b)) for a, b in blocks] == [(15, 40), (5, 20)]
+    for count in (1, 7, rows.PAIR_CHUNK, rows.PAIR_CHUNK + 5, 3 * rows.PAIR_CHUNK - 1):
+        pairs = rng.integers(0, 90, (count, 2))
+        firsts, seconds = rows.pair_chunks(pairs[:, 0], pairs[:, 1])
+        assert firsts.shape == seconds.shape and firsts.size >= count
+        flat = list(zip(firsts.ravel().tolist(), seconds.ravel().tolist(), strict=True))
+        assert flat[:count] == [tuple(p) for p in pairs.tolist()]
+        assert set(flat[count:]) <= {tuple(pairs[-1].tolist())}
     for n in (1, 2, 5, 8):
         x = rng.normal(size=(n, 4, 3))
-        np.testing.assert_array_equal(_tree_min(jnp.asarray(x), 0), x.min(axis=0))
-        np.testing.assert_array_equal(_tree_min(jnp.asarray(x.transpose(1, 0, 2)), 1), x.min(0))
+        np.testing.assert_array_equal(rows.tree_min(jnp.asarray(x)), x.min(axis=0))
+        np.testing.assert_array_equal(rows.tree_min(jnp.asarray(x.transpose(1, 0, 2)), 1), x.min(0))
+        value, code = rows.tree_argmin(jnp.asarray(x), jnp.arange(n)[:, None, None])
+        np.testing.assert_array_equal(value, x.min(axis=0))
+        np.testing.assert_array_equal(code, x.argmin(axis=0))
+    tied = jnp.asarray([[1.0, 2.0], [1.0, 0.5], [3.0, 0.5]])
+    _, code = rows.tree_argmin(tied, jnp.arange(3)[:, None])
+    np.testing.assert_array_equal(code, [0, 1])
 
 
 def _spheres_and_boxes(seed: int) -> collision.World:

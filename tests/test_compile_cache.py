@@ -19,7 +19,7 @@ import pytest
 from jax.experimental.compilation_cache import compilation_cache as jax_cache
 
 import jaxkin
-from jaxkin import _compile_cache
+from jaxkin._execute import cache as _compile_cache
 
 
 @pytest.fixture
@@ -29,7 +29,6 @@ def restore_jax_cache():
         jax.config.jax_persistent_cache_min_compile_time_secs,
     )
     yield
-    _compile_cache.enable_store(None)
     jax.config.update("jax_compilation_cache_dir", saved[0])
     jax.config.update("jax_persistent_cache_min_compile_time_secs", saved[1])
     jax_cache.reset_cache()
@@ -123,16 +122,14 @@ _COUNTING_RUN = """
 import sys
 import jax.monitoring
 import jaxkin.cli
-counts = {"hits": 0, "misses": 0, "loads": 0}
+counts = {"hits": 0, "misses": 0}
 def listen(event, **kwargs):
     for name in ("hits", "misses"):
         if event == "/jax/compilation_cache/cache_" + name:
             counts[name] += 1
-    if event == "/jaxkin/executable_store/load":
-        counts["loads"] += 1
 jax.monitoring.register_event_listener(listen)
 code = jaxkin.cli.main(sys.argv[1:])
-print("COUNTS", counts["hits"] + counts["loads"], counts["misses"])
+print("COUNTS", counts["hits"], counts["misses"])
 sys.exit(code)
 """
 
@@ -140,8 +137,7 @@ sys.exit(code)
 @pytest.mark.slow
 def test_second_command_run_compiles_nothing(tmp_path):
     """The command's cache keeps every program it compiles: a second run of the same command
-    on another file of the same length loads each program (cache hits, or executables from
-    the store) and compiles none."""
+    on another file of the same length loads each program (cache hits) and compiles none."""
     t = np.linspace(0.0, 2.0, 20)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX", "XDG_CACHE"))}
     env["XDG_CACHE_HOME"] = str(tmp_path / "home")

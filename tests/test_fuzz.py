@@ -10,6 +10,12 @@ bands are ``sqrt(eps)`` wide); everything else must match, every output must be 
 round trip ``fk(ik(t))`` must return ``t`` to a stated tolerance in units of the robot's size,
 and the gradient of a status-masked loss must be finite. Every example compiles nothing new:
 batches have one size and geometries are traced data.
+
+Retiming is fuzzed against its invariances (a joint's unit, the path parameter's and the
+time's scale, limits of any size on a joint held still, none on one that moves), and worlds
+(the PUMA 560 and its obstacles scaled by 1e-3..1e3, degenerate primitives, padding obstacles
+far away) through ``collision.check`` against the per-primitive queries and
+``collision.collides`` against ``collision.check``.
 """
 
 from __future__ import annotations
@@ -22,7 +28,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import jaxkin
-from jaxkin import Jet, Status, delta, dyad, scara, serial
+from jaxkin import Jet, Status, collision, delta, dyad, scara, serial, timing
 
 N = 64
 BAND = 1e-2  # relative distance to the boundary below which a status is not compared
@@ -259,3 +265,183 @@ def test_puma_round_trip_at_the_ends_of_the_range(dtype):
         ok = status == Status.OK
         tol = 1e-3 if dtype == np.float32 else 1e-9
         np.testing.assert_allclose(angles[ok], results[0][1][ok], atol=tol)
+
+
+# ------------------------------------------------------------------------------ retiming
+# One shape for every example: 8 candidates of 3 joints, 6 waypoints, 4 grid intervals each.
+T_CANDIDATES, T_WAYPOINTS, T_JOINTS = 8, 6, 3
+T_SCALES = {np.float32: 3, np.float64: 12}  # decades of the unit and time scalings
+
+
+def _joint_paths(rng: np.random.Generator) -> np.ndarray:
+    """Smooth random waypoints ``(8, 6, 3)``: sums of two sines per joint; joint 2 of
+    candidate 0 held still (a joint that does not move needs no limit)."""
+    s = np.linspace(0.0, 1.0, T_WAYPOINTS)[None, :, None]
+    amp = rng.uniform(0.3, 1.5, (T_CANDIDATES, 1, T_JOINTS))
+    phase = rng.uniform(0.0, 2.0 * np.pi, (T_CANDIDATES, 2, T_JOINTS))
+    way = amp * (np.sin(np.pi * s + phase[:, :1]) + 0.5 * np.sin(2 * np.pi * s + phase[:, 1:]))
+    way[0, :, 2] = 0.7
+    return way
+
+
+def _scaled(path, unit, stretch, dtype):
+    """``path`` with joint ``j`` in a unit ``unit[j]`` times smaller and its parameter ``s``
+    stretched by ``stretch``: ``q -> q unit``, ``dq/ds -> dq/ds unit / stretch``, ..."""
+    s, q, dq, ddq = (np.asarray(x, np.float64) for x in (path.s, path.q, path.dq, path.ddq))
+    arrays = (s * stretch, q * unit, dq * unit / stretch, ddq * unit / stretch**2)
+    return timing.JointPath(*(jnp.asarray(x, dtype) for x in arrays))
+
+
+@pytest.mark.slow
+@SETTINGS
+@given(data=st.data(), dtype=dtypes)
+def test_retiming_limits_units_and_scales(data, dtype):
+    """TOPP-RA against its own invariances, over every scale a dtype holds well: a joint's
+    unit (positions and limits times ``c_j``, 1e-12..1e12 in float64) and the path
+    parameter's (``s`` times ``l``) change no duration; limits ``v k``, ``a k^2`` divide
+    every duration by ``k``; a joint held still is not limited by a zero, tiny, huge or
+    infinite limit; one that moves is UNTIMEABLE with a zero speed limit or no acceleration
+    limit (inf), and a huge limit (1e12 times) on every joint but one changes nothing that
+    the other's does not bound. Durations within 1e-9 (float64) or 1e-3 (float32)."""
+    decades = T_SCALES[dtype]
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**31 - 1)))
+    unit = 10.0 ** rng.uniform(-decades, decades, T_JOINTS)
+    k = 10.0 ** data.draw(st.floats(-decades, decades))
+    stretch = 10.0 ** data.draw(st.floats(-decades, decades))
+    rtol = 1e-3 if dtype == np.float32 else 1e-9
+    path = timing.path_from_waypoints(jnp.asarray(_joint_paths(rng), dtype), subdivisions=4)
+    v = rng.uniform(0.5, 2.0, (T_CANDIDATES, T_JOINTS))
+    a = rng.uniform(1.0, 4.0, (T_CANDIDATES, T_JOINTS))
+    still = data.draw(st.sampled_from([(0.0, np.inf), (np.inf, 0.0), (1e-30, 1e-30), (1e30, 1e30)]))
+    v[0, 2], a[0, 2] = still
+
+    def retime(p, v_max, a_max):
+        result = timing.retime(p, jnp.asarray(v_max, dtype), jnp.asarray(a_max, dtype))
+        return np.asarray(result.status), np.asarray(result.duration, np.float64)
+
+    status, duration = retime(path, v, a)
+    assert np.all(status == Status.OK) and np.all(duration > 0)
+    units = retime(_scaled(path, unit, stretch, dtype), v * unit, a * unit)
+    np.testing.assert_array_equal(units[0], status)
+    np.testing.assert_allclose(units[1] * 1.0, duration, rtol=rtol)
+    faster = retime(path, v * k, a * k * k)
+    np.testing.assert_array_equal(faster[0], status)
+    np.testing.assert_allclose(faster[1] * k, duration, rtol=rtol)
+    # Candidate 0 with its still joint's limits of any size: the same duration.
+    v_free, a_free = v.copy(), a.copy()
+    v_free[0, 2], a_free[0, 2] = 1.0, 1.0
+    np.testing.assert_allclose(retime(path, v_free, a_free)[1][0], duration[0], rtol=rtol)
+    # A moving joint with no speed, or no acceleration limit: that candidate only fails.
+    v_bad, a_bad = v.copy(), a.copy()
+    v_bad[1, 0], a_bad[2, 1] = 0.0, np.inf
+    bad = retime(path, v_bad, a_bad)
+    assert bad[0][1] == bad[0][2] == Status.UNTIMEABLE and np.all(bad[1][1:3] == 0.0)
+    np.testing.assert_allclose(bad[1][3:], duration[3:], rtol=rtol)
+    # Huge limits on joints 1 and 2: joint 0 alone bounds the motion, as with 1e6 times.
+    huge, larger = (retime(path, v * [1, f, f], a * [1, f, f])[1] for f in (1e6, 1e12))
+    np.testing.assert_allclose(larger[1:], huge[1:], rtol=1e-6 if dtype == np.float64 else 1e-2)
+
+
+# -------------------------------------------------------------------------------- worlds
+# One shape for every example: the PUMA 560 (lengths as traced data, so a new scale compiles
+# nothing), 32 configurations, a world of 4 spheres, 3 capsules, 3 boxes and a half-space.
+W_CONFIGS = 32
+PUMA = (0.4318, 0.0203, 0.15005, 0.4318, 0.05)  # a2, a3, d3, d4, d6 (m)
+FAR = 1e5  # a padding obstacle's distance, in robot sizes
+
+
+def _puma(s: float, dtype) -> serial.Puma560:
+    lengths = (jnp.asarray(x * s, dtype) for x in PUMA)
+    return serial.Puma560(0.0, *lengths, link_radius=jnp.asarray(0.05 * s, dtype))
+
+
+def _random_world(rng: np.random.Generator, s: float, far: bool, dtype) -> collision.World:
+    """Obstacles in a cube of half-side 1 (times ``s``) with a degenerate one of each kind (a
+    sphere of radius 0, a capsule of length 0, a flat box); with ``far``, a padding obstacle
+    of each kind ``FAR`` away (as a fixed-size world is padded), else a fourth ordinary one."""
+
+    def spot(n):
+        return rng.uniform(-1.0, 1.0, (n, 3))
+
+    padding = np.array([[FAR, FAR, FAR]]) if far else spot(1)
+    centres = np.concatenate([spot(3), padding])
+    radii = np.r_[0.0, rng.uniform(0.02, 0.1, 3)]
+    a = np.concatenate([spot(2), padding])
+    b = np.concatenate([a[:1], spot(1), padding + 0.1])  # capsule 0 has length 0
+    half = rng.uniform(0.02, 0.2, (3, 3))
+    half[0, rng.integers(3)] = 0.0  # a flat box
+    rotation = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(3)])
+    rotation *= np.sign(np.linalg.det(rotation))[:, None, None]  # proper rotations
+    box_centres = np.concatenate([spot(2), padding])
+    floor = -FAR if far else -1.0
+    return collision.World.create(
+        spheres=collision.Spheres.create(centres * s, radii * s, dtype),
+        capsules=collision.Capsules.create(a * s, b * s, rng.uniform(0.02, 0.06, 3) * s, dtype),
+        boxes=collision.Boxes.create(box_centres * s, half * s, rotation, dtype),
+        halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [floor * s], dtype),
+    )
+
+
+def _world_case(data, dtype, far):
+    s = 10.0 ** data.draw(st.floats(-3.0, 3.0))
+    rng = np.random.default_rng(data.draw(st.integers(0, 2**31 - 1)))
+    q = jnp.asarray(rng.uniform(-3.0, 3.0, (W_CONFIGS, 6)), dtype)
+    return s, _puma(s, dtype), _random_world(rng, s, far, dtype), q
+
+
+@pytest.mark.slow
+@SETTINGS
+@given(data=st.data(), dtype=dtypes, far=st.booleans())
+def test_world_check_equals_the_per_primitive_queries_at_every_scale(data, dtype, far):
+    """``collision.check``'s fused pass against the per-primitive queries
+    (``nearest_obstacles``, ``self_distances``), the robot and its world scaled by 1e-3..1e3,
+    with degenerate obstacles (radius 0, length 0, a flat box) and padding ones far away:
+    the same clearance (1e-12 float64, 1e-5 float32, of the robot's size) and verdicts away
+    from contact."""
+    from jaxkin.collision.check import _check_per_primitive
+
+    s, robot, world, q = _world_case(data, dtype, far)
+    body, pairs = collision.prepare(robot)
+    fused = collision.check(robot, q, world)
+    reference = jax.jit(_check_per_primitive)(robot, body, pairs, q, world)
+    size = s * (sum(PUMA) + 0.1)
+    tol = (1e-5 if dtype == np.float32 else 1e-12) * size
+    clearance = np.asarray(fused.clearance, np.float64)
+    np.testing.assert_allclose(clearance, np.asarray(reference.clearance, np.float64), atol=tol)
+    away = np.abs(clearance) > tol
+    np.testing.assert_array_equal(np.asarray(fused.collides)[away], clearance[away] <= 0)
+    np.testing.assert_array_equal(np.asarray(fused.status), np.asarray(reference.status))
+
+
+def _verdict_against_check(data, dtype, far):
+    s, robot, world, q = _world_case(data, dtype, far)
+    exact = collision.check(robot, q, world)
+    verdict = collision.collides(robot, q, world)
+    clearance = np.asarray(exact.clearance, np.float64)
+    size = s * (sum(PUMA) + 0.1)
+    away = np.abs(clearance) > (1e-4 if dtype == np.float32 else 1e-10) * size
+    flagged, hit = np.asarray(verdict.collides), np.asarray(exact.collides)
+    assert not np.any(hit & ~flagged), "a collision the exact clearance reports is missed"
+    np.testing.assert_array_equal(flagged[away], hit[away], err_msg=f"clearance {clearance}")
+
+
+@pytest.mark.slow
+@SETTINGS
+@given(data=st.data(), dtype=dtypes, far=st.booleans())
+def test_world_verdict_equals_the_check_at_every_scale(data, dtype, far):
+    """``collision.collides`` (the fast verdict) against ``collision.check`` on the same
+    scaled worlds: every collision flagged, and the same verdict away from contact (1e-10
+    float64, 1e-4 float32, of the robot's size). Float32 with padding obstacles far away is
+    the next test's."""
+    if dtype == np.float32 and far:
+        far = False
+    _verdict_against_check(data, dtype, far)
+
+
+@pytest.mark.slow
+@SETTINGS
+@given(data=st.data())
+def test_world_verdict_in_float32_with_padding_far_away(data):
+    """Float32 worlds padded with obstacles 1e5 robot sizes away: the verdict should still
+    equal the exact check away from contact."""
+    _verdict_against_check(data, np.float32, True)

@@ -130,3 +130,55 @@ def test_jax_rebuilds_geometries_without_validation():
     assert float(negative.l_ab) < 0
     traced = jax.jit(lambda r: scara.Scara(r.l_oa, r.l_ab * 2, r.l_bc).l_ab)(robot)
     assert float(traced) == 160.0
+
+
+def aligned(value, alignment=4096):
+    """``value`` as a float64 NumPy array whose buffer starts on an ``alignment`` boundary,
+    where ``jax.device_put`` may take it without a copy (CPU): an unaligned buffer is always
+    copied, so an aliasing would show only now and then."""
+    value = np.asarray(value, dtype=float)
+    raw = np.empty(value.nbytes + alignment, np.uint8)
+    start = -raw.ctypes.data % alignment
+    out = raw[start : start + value.nbytes].view(np.float64).reshape(value.shape)
+    out[...] = value
+    return out
+
+
+@pytest.mark.parametrize("name", GEOMETRIES)
+def test_a_geometry_keeps_its_own_copy_of_the_callers_arrays(name):
+    """Every numeric field given as a NumPy array (aligned, so that JAX could alias it): an
+    edit of those arrays after the robot is built changes none of its values (a DHTable, a
+    Chain and JointLimits held the caller's buffer: editing it moved the robot)."""
+    cls, kwargs = GEOMETRIES[name]
+    numeric = {f.name for f in _numeric_fields(cls)}
+    given = {k: aligned(v) if k in numeric else v for k, v in kwargs.items()}
+    robot = cls(**given)
+    before = [np.array(leaf) for leaf in jax.tree.leaves(robot)]
+    for key in numeric & set(given):
+        given[key][...] = given[key] * 2.0 + 1.0
+    for leaf, old in zip(jax.tree.leaves(robot), before, strict=True):
+        np.testing.assert_array_equal(np.asarray(leaf), old)
+
+
+def test_obstacles_keep_their_own_copy_of_the_callers_arrays():
+    """Collision primitives built by ``create`` and a ``World`` of primitives built by their
+    plain constructor from NumPy arrays: editing the arrays afterwards moves no obstacle (the
+    world held the plain primitives' buffers)."""
+    from jaxkin import collision
+
+    arrays = [aligned(x) for x in (np.zeros((2, 3)), np.ones(2), np.ones((2, 3)))]
+    made = [
+        collision.Spheres.create(arrays[0], arrays[1]),
+        collision.Capsules.create(arrays[0], arrays[2], arrays[1]),
+        collision.Boxes.create(arrays[0], arrays[2]),
+        collision.HalfSpaces.create(arrays[2], arrays[1]),
+        collision.World.create(
+            spheres=collision.Spheres(arrays[0], arrays[1]),
+            capsules=collision.Capsules(arrays[0], arrays[2], arrays[1]),
+        ),
+    ]
+    before = [np.array(leaf) for leaf in jax.tree.leaves(made)]
+    for arr in arrays:
+        arr[...] = arr * 2.0 + 1.0
+    for leaf, old in zip(jax.tree.leaves(made), before, strict=True):
+        np.testing.assert_array_equal(np.asarray(leaf), old)

@@ -8,8 +8,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxkin
-from jaxkin import _batching, scara, serial
-from jaxkin import robot as robot_module
+from jaxkin import scara, serial
+from jaxkin._execute import handles, pipeline
+from jaxkin._execute.handles import HotQueries
 from jaxkin.jet import Jet
 from jaxkin.result import FKResult
 from jaxkin.status import Status
@@ -52,7 +53,7 @@ def test_hot_scara_ik_and_fk_equal_the_batched_path(hot_after_two):
                         atol=tol,
                     )
     assert [int(s) for s in batched.status][2] == Status.INVALID_INPUT
-    programs = [p for key, (_, p) in robot_module._HOT.programs.items() if key[1] == "ik"]
+    programs = [p for key, (_, p) in pipeline.HOT.programs.items() if key[1] == "ik"]
     assert len(programs) == 2  # one per input shape
     for program in programs:
         assert len(program.compiled.out_info) == 3
@@ -119,7 +120,7 @@ def test_hot_panda_fk_equals_the_batched_path_runs_inline_and_compiles_once(hot_
                 assert int(got.status.reshape(())) == int(batched.status[i])
     assert int(batched.status[2]) == Status.INVALID_INPUT
     np.testing.assert_allclose(batched.x.p[2], at_zero, rtol=0, atol=tol)
-    programs = [p for key, (_, p) in robot_module._HOT.programs.items() if key[1] == "fk"]
+    programs = [p for key, (_, p) in pipeline.HOT.programs.items() if key[1] == "fk"]
     assert len(programs) == 2  # one per input shape
     for program in programs:
         cost = program.compiled.cost_analysis()
@@ -190,7 +191,7 @@ def test_input_dependence_follows_nested_calls():
         return {"moving": moving, "zeros": zeros, "one": jnp.ones(2), "sum": x + zeros}
 
     traced = jax.jit(fn).trace(jnp.ones(3))
-    flags = _batching._input_dependent(traced.jaxpr.jaxpr)
+    flags = handles._input_dependent(traced.jaxpr.jaxpr)
     names = [str(path[0].key) for path, _ in jax.tree_util.tree_flatten_with_path(fn(1.0))[0]]
     assert dict(zip(names, flags, strict=True)) == {
         "moving": True,
@@ -198,7 +199,7 @@ def test_input_dependence_follows_nested_calls():
         "sum": True,
         "zeros": False,
     }
-    program = _batching.hot_program(fn, jnp.ones(3))
+    program = handles.Handle(fn, (jnp.ones(3),))
     out = program(jnp.arange(3.0))
     np.testing.assert_array_equal(out["moving"], [0.0, 2.0, 4.0])
     np.testing.assert_array_equal(out["zeros"], np.zeros(3))
@@ -208,17 +209,17 @@ def test_input_dependence_follows_nested_calls():
 def test_batches_never_push_hot_programs_out(hot_after_two, monkeypatch):
     """Keys without a program (batches, here of several sizes) are kept apart from the
     programs, so a table of one program keeps it however many batch shapes come."""
-    monkeypatch.setattr(robot_module, "_HOT", _batching.HotQueries(size=1))
+    monkeypatch.setattr(pipeline, "HOT", HotQueries(size=1))
     robot = scara.Scara.paper()
     q = jnp.asarray([0.4, -0.7, 10.0])
     for _ in range(2):
         jaxkin.fk(robot, q)
-    (program,) = [entry[1] for entry in robot_module._HOT.programs.values()]
+    (program,) = [entry[1] for entry in pipeline.HOT.programs.values()]
     for n in (2, 3, 5, 6, 9):
         for _ in range(2):
             jaxkin.fk(robot, jnp.tile(q, (n, 1)))
-    assert [entry[1] for entry in robot_module._HOT.programs.values()] == [program]
-    assert len(robot_module._HOT.none) <= 4
+    assert [entry[1] for entry in pipeline.HOT.programs.values()] == [program]
+    assert len(pipeline.HOT.none) <= 4
 
 
 def test_a_robot_rebuilt_with_the_same_values_shares_the_hot_program(hot_after_two):
@@ -235,4 +236,4 @@ def test_a_robot_rebuilt_with_the_same_values_shares_the_hot_program(hot_after_t
                 result = jaxkin.ik(robot, target)
     assert count.n == 0
     assert int(result.status) == Status.OK
-    assert len(robot_module._HOT.by_value) == 1
+    assert len(pipeline.HOT.by_value) == 1

@@ -9,7 +9,7 @@ import pytest
 
 import jaxkin
 from jaxkin import delta, scara
-from jaxkin import robot as robot_module
+from jaxkin._execute import pipeline
 from jaxkin.status import Status
 from tests.helpers import compilations
 
@@ -23,7 +23,7 @@ def test_the_hot_lane_refuses_what_the_usual_path_refuses(hot_after_two):
     for _ in range(3):
         jaxkin.ik(robot, target)
         jaxkin.fk(robot, target)
-    assert len(robot_module._HOT.programs) == 2
+    assert len(pipeline.HOT.programs) == 2
     bad_calls = {
         "options": lambda: jaxkin.ik(robot, target, options=delta.Delta.IKOptions()),
         "fk options": lambda: jaxkin.fk(robot, target, options=scara.Scara.IKOptions()),
@@ -61,7 +61,7 @@ def test_default_options_given_or_not_share_one_program(hot_after_two):
     for way in ways:
         for _ in range(3):
             way(jnp.asarray(targets[0]))
-    assert len(robot_module._HOT.by_value) == 1
+    assert len(pipeline.HOT.by_value) == 1
     with compilations() as count:
         for i in range(2):
             for way in ways:
@@ -78,5 +78,5 @@ def test_default_options_given_or_not_share_one_program(hot_after_two):
     assert count.n == 0
     # hot entries: default options as None, as an instance (twice: equal values), with the
     # branch given (scara.ik), each for a JAX and a NumPy input
-    assert len(robot_module._HOT.programs) == 6
+    assert len(pipeline.HOT.programs) == 6
     assert statuses == [Status.OK, Status.UNREACHABLE]

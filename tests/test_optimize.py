@@ -204,6 +204,22 @@ def test_second_call_compiles_nothing(problem):
     assert count.n == 0
 
 
+def test_progress_hears_the_steps_and_changes_nothing(problem):
+    """``progress(done, total)`` hears the furthest guess's steps every ``PROGRESS_BLOCK``
+    loop iterations (the loop then runs in blocks): the result is the one run without it."""
+    guesses, result = problem
+    calls = []
+    report = lambda done, total: calls.append((done, total))  # noqa: E731
+    again = optimize.optimize(
+        ROBOT, START, GOAL, guesses, cost=costs.acceleration, progress=report, **KWARGS
+    )
+    np.testing.assert_array_equal(again.history, result.history)
+    np.testing.assert_array_equal(again.controls, result.controls)
+    done, totals = zip(*calls, strict=True)
+    assert set(totals) == {500} and done[0] == 0 and len(calls) > 2
+    assert list(done) == sorted(done) and done[-1] == int(np.max(result.iterations))
+
+
 def test_converged_only_where_the_stopping_rule_held_near_the_workspace(problem):
     """A guess 100 robot sizes away (every sample unreachable: its cost, the acceleration,
     is flat there) meets the gradient rule where it starts, far outside the workspace box:
@@ -297,6 +313,53 @@ def test_other_robots_and_joint_space_ends(robot, start, goal):
     np.testing.assert_allclose(joint.cost, res.cost, rtol=1e-9)
 
 
+def _joint_controls(a_max):
+    """The SCARA optimised with joint-space controls between the ends' joints (a short run
+    of the shared shape: 2 guesses, 20 samples)."""
+    limits = plan.Limits.create(3, v_max=[3.0, 3.0, 300.0], a_max=a_max)
+    q_ends = [np.asarray(jaxkin.ik(ROBOT, x).q.p) for x in (START, GOAL)]
+    guesses = paths.straight_line_guess(*q_ends, 3, n_guesses=2, noise=0.01, seed=1)
+    kwargs = dict(n_samples=20, steps=10, space="joint", controls="joint")
+    return optimize.optimize(
+        ROBOT, *q_ends, guesses, limits=limits, cost=costs.acceleration, **kwargs
+    ).evaluation
+
+
+def test_joint_controls_evaluation_can_be_retimed():
+    """Joint-space controls: the optimiser's evaluation is a first-class ``plan.Evaluation``
+    (it carried no dt, space or limits, so ``plan.retime`` refused it): ``plan.retime`` and
+    ``best(by="duration")`` take it, with the durations of ``timing.retime`` on its joint
+    path under the limits applied (1e-12)."""
+    from jaxkin import timing
+
+    ev = _joint_controls([20.0, 20.0, 2000.0])
+    assert ev.space == "joint" and ev.dt == pytest.approx(1.0 / 19)
+    timed = plan.retime(ev)
+    alone = timing.retime(plan.joint_path(ev), [3.0, 3.0, 300.0], [20.0, 20.0, 2000.0])
+    ok = np.asarray(timed.ok)
+    assert np.all(ok == np.asarray(ev.feasible)) and np.any(ok)
+    np.testing.assert_allclose(timed.duration[ok], alone.duration[ok], rtol=1e-12)
+    order, durations = plan.best(ev, 2, by="duration", timing=timed)
+    np.testing.assert_allclose(durations, np.sort(np.asarray(alone.duration)[ok]), rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_joint_controls_costs_are_the_planners():
+    """The joint-space controls' costs are the planner's evaluation of the same joint
+    trajectories (each joint in its unit: the column's 130 mm, where they were in 1 mm);
+    an acceleration limit missing on the column is named by ``plan.retime``."""
+    ev = _joint_controls([20.0, 20.0, np.inf])
+    limits = ev.applied_limits()
+    planner = plan.evaluate(ROBOT, paths.Path.from_jet(ev.q, ev.dt, "joint"), limits)
+    np.testing.assert_array_equal(ev.feasible, planner.feasible)
+    for name in ("path_length", "integrated_speed", "integrated_acceleration", "total"):
+        np.testing.assert_allclose(
+            getattr(ev.costs, name), getattr(planner.costs, name), rtol=1e-12
+        )
+    with pytest.raises(ValueError, match="l3 has none"):
+        plan.retime(ev)
+
+
 def test_bad_arguments():
     guesses = paths.straight_line_guess(START, GOAL, 2)
     with pytest.raises(ValueError, match="start"):
@@ -314,6 +377,8 @@ def test_bad_arguments():
         optimize.optimize(serial.Puma560(), START, GOAL, guesses, controls="task")
     with pytest.raises(ValueError, match="controls"):
         optimize.optimize(ROBOT, START, GOAL, guesses, controls="cartesian")
+    with pytest.raises(ValueError, match="progress must be None or a callable"):
+        optimize.optimize(ROBOT, START, GOAL, guesses, progress=True)
     # Pose ends: a 4x4 matrix whose rotation is not orthonormal, a zero quaternion.
     puma, pose = serial.Puma560(), np.eye(4)
     joints = np.zeros((1, 2, 6))

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import jaxkin
-from jaxkin import Jet, Status, delta, paths, plan, scara, serial
+from jaxkin import Jet, Status, delta, paths, plan, scara, serial, timing
 from jaxkin._geometry import LENGTH, geometry, number
 from jaxkin.jet import lift
 from jaxkin.result import FKResult, IKResult
@@ -829,7 +829,6 @@ def test_retime_and_rank_by_duration():
     times as the path parameter) under the limits applied; an infeasible candidate is
     UNTIMEABLE and left out of ``best(by="duration")``, which sorts the others by duration;
     a second call of the same shapes compiles nothing."""
-    from jaxkin import timing
 
     path = paths.path_from_joint_waypoints(scara_waypoints(n=5), JOINT_DT, JOINT_STEPS)
     v_max, a_max = np.array([12.0, 5.0, 200.0]), np.array([60.0, 25.0, 800.0])
@@ -859,8 +858,57 @@ def test_retime_and_rank_by_duration():
     assert count.n == 0, count.events
     with pytest.raises(ValueError, match="by must be one of"):
         plan.best(ev, 1, by="speed")
-    with pytest.raises(ValueError, match="finite velocity or acceleration limit"):
+    with pytest.raises(ValueError, match="theta1, theta2, l3 have none"):
         plan.retime(plan.evaluate(ROBOT, path))
+
+
+def test_retime_refuses_a_joint_without_an_acceleration_limit():
+    """A joint with no acceleration limit has no time-optimal motion: with no speed limit
+    either, ``plan.retime`` timed theta1's 2 rad turn in 8e-39 s and ranked it first; with a
+    speed limit only, its speed jumped within one sample (accelerations set by the sample
+    spacing). Both are refused naming the joint, as ``jaxkin plan`` does; a speed limit of
+    ``inf`` with a finite acceleration limit is timed, within that acceleration (1e-9)."""
+    way = scara_waypoints(n=5)
+    way[0] = np.linspace([0.0, 1.0, 60.0], [2.0, 1.0, 60.0], way.shape[1])  # theta1 turns 2 rad
+    path = paths.path_from_joint_waypoints(way, JOINT_DT, JOINT_STEPS)
+    for v_max, a_max in (([np.inf, 3, 40], [np.inf, 8, 100]), ([2, 3, 40], [np.inf, 8, 100])):
+        ev = plan.evaluate(ROBOT, path, plan.Limits.create(3, v_max=v_max, a_max=a_max))
+        with pytest.raises(ValueError, match="limit for every joint; theta1 has none"):
+            plan.retime(ev)
+        with pytest.raises(ValueError, match="theta1 has none"):
+            plan.best(ev, 2, by="duration")
+    a_max = np.array([6.0, 8.0, 100.0])
+    ev = plan.evaluate(ROBOT, path, plan.Limits.create(3, v_max=np.inf, a_max=a_max))
+    timed = plan.retime(ev)
+    assert np.all(np.asarray(timed.ok) == np.asarray(ev.feasible)) and ev.feasible[0]
+    retimed = timing.sample(plan.joint_path(ev), timed, JOINT_DT / 4)
+    accelerations = np.abs(np.asarray(retimed.q.a))[np.asarray(retimed.valid)]
+    assert np.all(accelerations <= a_max * (1 + 1e-9))
+    # A 2 rad turn at 6 rad/s^2 from rest to rest takes at least 2 sqrt(2 / 6) s.
+    assert float(timed.duration[0]) >= 2.0 * np.sqrt(2.0 / 6.0) * (1 - 1e-9)
+
+
+def test_best_ranks_only_feasible_candidates_whatever_the_timing():
+    """``best(by="duration")`` with a timing of the joint paths alone (``timing.retime``,
+    which knows nothing of the position limits) leaves out the OUT_OF_LIMITS candidate, as it
+    does with ``plan.retime``'s; ``by="cost"`` too; a timing of another batch is refused."""
+
+    path = paths.path_from_joint_waypoints(scara_waypoints(n=5), JOINT_DT, JOINT_STEPS)
+    v_max, a_max = np.array([12.0, 5.0, 200.0]), np.array([60.0, 25.0, 800.0])
+    limits = plan.Limits.create(3, [-np.inf, 0.0, -np.inf], [np.inf, 2.0, np.inf], v_max, a_max)
+    ev = plan.evaluate(ROBOT, path, limits)
+    feasible = np.asarray(ev.feasible)
+    assert not feasible[3] and np.asarray(ev.status)[3].max() == Status.OUT_OF_LIMITS
+    times = np.broadcast_to(np.arange(path.shape[1]) * JOINT_DT, path.shape[:2])
+    alone = timing.retime(timing.JointPath(times, ev.q.p, ev.q.v, ev.q.a), v_max, a_max)
+    assert np.all(np.asarray(alone.ok))  # candidate 3 is timed, and among the fastest
+    assert np.argsort(np.asarray(alone.duration))[0] == 3
+    for by, given in (("duration", alone), ("duration", None), ("cost", None)):
+        order, values = plan.best(ev, 10, by=by, timing=given)
+        assert len(order) == feasible.sum() and np.all(feasible[order]), (by, order)
+        assert np.all(np.diff(values) >= 0)
+    with pytest.raises(ValueError, match="timing: expected one duration per candidate"):
+        plan.best(ev, 1, by="duration", timing=jax.tree.map(lambda x: x[:2], alone))
 
 
 @pytest.mark.slow

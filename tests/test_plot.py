@@ -90,7 +90,7 @@ def test_delta_pose_and_drawn_rods_have_the_rod_length(tmp_path):
 @pytest.fixture(scope="module")
 def sweep_result():
     robot = scara.Scara.create(10.0, 8.0, 5.0)
-    return workspace.sweep(robot, ((-13, 13), (-13, 13), (0, 10)), 1.0, progress=False)
+    return workspace.sweep(robot, ((-13, 13), (-13, 13), (0, 10)), 1.0)
 
 
 @pytest.mark.parametrize(

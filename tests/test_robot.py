@@ -247,7 +247,7 @@ def test_consumers_never_ask_which_robot():
     module: they are written against the protocol alone."""
     robot_modules = {"scara", "delta", "serial", "dyad"}
     consumers = ("plan.py", "paths.py", "costs.py", "optimize.py", "workspace.py")
-    for path in (*consumers, "cli/commands.py", "files.py"):
+    for path in (*consumers, "cli/commands.py", "cli/files.py"):
         tree = ast.parse((ROOT / "jaxkin" / path).read_text())
         imported = set()
         for node in ast.walk(tree):

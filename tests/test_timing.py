@@ -107,6 +107,30 @@ def test_invalid_element_does_not_poison_the_batch_nor_recompile(solved):
     np.testing.assert_array_equal(status[keep], np.asarray(result.status)[keep])
 
 
+def test_a_moving_joint_without_an_acceleration_limit_is_untimeable(solved):
+    """A joint that moves with an acceleration limit of inf (and a speed limit, or none) has
+    no time-optimal timing: its candidate is UNTIMEABLE (with neither limit it was timed in
+    about 1e-38 and OK); a joint that does not move needs none (candidate 0's joints 1 and
+    2), and the other candidates' durations are unchanged (no recompilation)."""
+    _, v_max, a_max, start, path, result = solved
+    v_max, a_max = v_max.copy(), a_max.copy()
+    a_max[0, 1:] = np.inf  # candidate 0 moves joint 0 only
+    a_max[2, 1] = np.inf  # with its speed limit
+    v_max[3, 0], a_max[3, 0] = np.inf, np.inf  # with neither
+    with compilations() as count:
+        again = timing.retime(path, v_max, a_max, start_speed=start, speed_bound="interval")
+        jax.block_until_ready(again)
+    assert count.n == 0
+    status = np.asarray(again.status)
+    assert status[2] == status[3] == Status.UNTIMEABLE
+    assert np.all(np.asarray(again.duration)[2:4] == 0.0)
+    keep = [0, 1, 4, 5]
+    np.testing.assert_array_equal(status[keep], np.asarray(result.status)[keep])
+    np.testing.assert_array_equal(
+        np.asarray(again.duration)[keep], np.asarray(result.duration)[keep]
+    )
+
+
 def test_spline_matches_the_host_spline(solved):
     # jaxkin._splines solves the same spline on the host (general knots, its own code).
     way, *_, path, _ = solved
@@ -344,3 +368,104 @@ def test_limits_at_every_sample_on_a_fine_grid(speed_bound):
     speed = 1.02 if speed_bound == "grid" else 1 + 1e-9
     assert (np.abs(np.asarray(traj.q.v)) / v_max[:, None])[valid].max() <= speed
     assert (np.abs(np.asarray(traj.q.a)) / a_max[:, None])[valid].max() <= 1.01
+
+
+def turning_joint_path(tiny: float) -> timing.JointPath:
+    """Joint 0 steady (``q = s``), joint 1 ``cos(pi s)`` turning at the middle grid point
+    ``s = 1``, where its ``dq/ds`` is set to ``tiny`` (a round-off of either sign) and its
+    acceleration is all centripetal, ``ddq x``: at that point's top speed the joint is at its
+    acceleration limit with ``dq/ds`` of about zero."""
+    s = np.linspace(0.0, 2.0, 9)
+    q = np.stack([s, np.cos(np.pi * s)], -1)
+    dq = np.stack([np.ones_like(s), -np.pi * np.sin(np.pi * s)], -1)
+    ddq = np.stack([np.zeros_like(s), -(np.pi**2) * np.cos(np.pi * s)], -1)
+    dq[4, 1] = tiny
+    return timing.JointPath(*(np.broadcast_to(x, (16, *x.shape)) for x in (s, q, dq, ddq)))
+
+
+TURNING_A_MAX = np.stack([np.full(16, 50.0), np.linspace(4.0, 6.0, 16)], -1)
+
+
+def test_a_round_off_of_a_turning_joints_rate_changes_no_duration():
+    """The sign of a round-off ``dq/ds`` (+-1e-17) of a joint at its turning point, at its
+    acceleration limit there, changes no duration (1e-12): the forward pass's bound on the
+    path acceleration from that joint, room / dq/ds, was 0 / 0 and its sign chose between
+    no bound and none at all (up to 18 % longer)."""
+    v_max = np.array([10.0, 10.0])
+    plus, minus = (
+        timing.retime(turning_joint_path(tiny), v_max, TURNING_A_MAX) for tiny in (1e-17, -1e-17)
+    )
+    assert np.all(np.asarray(plus.ok)) and np.all(np.asarray(minus.ok))
+    np.testing.assert_allclose(plus.duration, minus.duration, rtol=1e-12)
+    # At the turning point the joint's acceleration is ddq x = pi^2 x: at its limit a_1.
+    np.testing.assert_allclose(
+        np.asarray(plus.speed)[:, 4] ** 2 * np.pi**2, TURNING_A_MAX[:, 1], rtol=1e-12
+    )
+
+
+class GridPath:
+    """A toppra geometric path given by its values and derivatives on a grid (toppra
+    evaluates it at the grid points only)."""
+
+    def __init__(self, s, q, dq, ddq):
+        self.grid, self.values = np.asarray(s), (np.asarray(q), np.asarray(dq), np.asarray(ddq))
+
+    def __call__(self, at, order=0):
+        index = np.clip(np.searchsorted(self.grid, np.atleast_1d(at)), 0, len(self.grid) - 1)
+        assert np.allclose(self.grid[index], at)
+        out = self.values[order][index]
+        return out if np.ndim(at) else out[0]
+
+    eval = __call__
+
+    def evald(self, at):
+        return self(at, 1)
+
+    def evaldd(self, at):
+        return self(at, 2)
+
+    @property
+    def dof(self):
+        return self.values[0].shape[1]
+
+    @property
+    def path_interval(self):
+        return np.array([self.grid[0], self.grid[-1]])
+
+
+def toppra_grid_durations(path: timing.JointPath, v_max, a_max) -> np.ndarray:
+    """toppra's durations (interpolation scheme, at rest at both ends) of a batch of grid
+    paths ``(N, M, n)``, with limits ``(N, n)``."""
+    pytest.importorskip("toppra")
+    import toppra
+    import toppra.algorithm
+    import toppra.constraint
+
+    toppra.setup_logging("ERROR")
+    kind = toppra.constraint.DiscretizationType.Interpolation
+    durations = []
+    for s, q, dq, ddq, v, a in zip(path.s, path.q, path.dq, path.ddq, v_max, a_max, strict=True):
+        constraints = [
+            toppra.constraint.JointVelocityConstraint(np.stack([-v, v], -1)),
+            toppra.constraint.JointAccelerationConstraint(
+                np.stack([-a, a], -1), discretization_scheme=kind
+            ),
+        ]
+        algorithm = toppra.algorithm.TOPPRA(
+            constraints, GridPath(s, q, dq, ddq), gridpoints=np.asarray(s)
+        )
+        _, speed, _, _ = algorithm.compute_parameterization(0.0, 0.0, return_data=True)
+        durations.append(np.sum(2.0 * np.diff(s) / (speed[:-1] + speed[1:])))
+    return np.array(durations)
+
+
+@pytest.mark.slow
+def test_turning_joint_durations_match_toppra():
+    """The turning joint's durations against toppra on the same grid and derivatives, with
+    either sign of the round-off (1e-6; measured 1.1e-8)."""
+    v_max = np.broadcast_to([10.0, 10.0], TURNING_A_MAX.shape)
+    for tiny in (1e-17, -1e-17):
+        path = turning_joint_path(tiny)
+        result = timing.retime(path, v_max, TURNING_A_MAX)
+        reference = toppra_grid_durations(path, v_max, TURNING_A_MAX)
+        np.testing.assert_allclose(result.duration, reference, rtol=1e-6)

@@ -621,3 +621,48 @@ def test_a_five_joint_arm_solves_positions_checked_by_pinocchio():
     assert np.all(np.asarray(ev.status) == Status.OK) and bool(np.asarray(ev.feasible)[0])
     along = np.array([tip(qi) for qi in np.asarray(ev.q.p)[0]])
     assert np.max(np.linalg.norm(along - path.p[0], axis=-1)) <= 1e-9
+
+
+def test_joints_off_the_path_held_and_mimicked_as_pinocchio_places_them():
+    """``fixed={"panda_finger_joint1": 0.03}``: both fingers (the second mimics the first)
+    and every other link are where Pinocchio's forward kinematics of the whole model puts
+    them with both finger joints at 0.03, at random arm joints (1e-12)."""
+    chain = serial.from_urdf(_path("panda"), "panda_hand", fixed={"panda_finger_joint1": 0.03})
+    assert dict(chain.links.held) == {"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.03}
+    closed = serial.from_urdf(_path("panda"), "panda_hand")
+    model = pin.buildModelFromUrdf(_path("panda"))
+    data = model.createData()
+    for q7 in _random_q(chain, 3, seed=4):
+        q = pin.neutral(model)
+        q[:7], q[7:9] = q7, 0.03
+        pin.framesForwardKinematics(model, data, q)
+        base = np.linalg.inv(data.oMf[model.getFrameId("panda_link0")].homogeneous)
+        poses = np.asarray(chain.link_poses(q7))
+        for i, name in enumerate(chain.links.names):
+            reference = base @ data.oMf[model.getFrameId(name)].homogeneous
+            np.testing.assert_allclose(poses[i], reference, atol=1e-12, err_msg=name)
+        moved = np.linalg.norm(
+            poses[:, :3, 3] - np.asarray(closed.link_poses(q7))[:, :3, 3], axis=-1
+        )
+        fingers = [chain.links.names.index(n) for n in ("panda_leftfinger", "panda_rightfinger")]
+        np.testing.assert_allclose(moved[fingers], 0.03, atol=1e-15)
+        assert np.delete(moved, fingers).max() == 0.0
+    np.testing.assert_array_equal(chain.screws, closed.screws)  # the kinematics are the same
+
+
+@pytest.mark.parametrize(
+    "fixed, message",
+    [
+        ({"panda_finger_joint1": 0.05}, "'panda_finger_joint1' = 0.05 lies outside its limits"),
+        ({"panda_finger_joint1": np.nan}, "'panda_finger_joint1' = nan lies outside"),
+        ({"panda_finger_joint1": "open"}, "needs a number"),
+        ({"panda_finger_joint2": 0.01}, "mimics 'panda_finger_joint1': give that joint's"),
+        ({"panda_joint3": 0.1}, "'panda_joint3' is on the chain's path"),
+        ({"panda_hand_joint": 0.0}, "'panda_hand_joint' is fixed, not a moving joint"),
+        ({"gripper": 0.0}, r"no joint 'gripper'.*joints off the path: 'panda_finger_joint1'"),
+        ([("panda_finger_joint1", 0.01)], "expected a mapping"),
+    ],
+)
+def test_fixed_joints_are_checked_naming_the_joint(fixed, message):
+    with pytest.raises(ValueError, match=message):
+        serial.from_urdf(_path("panda"), "panda_hand", fixed=fixed)

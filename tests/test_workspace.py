@@ -55,14 +55,14 @@ def test_ball_counts_match_numpy_and_chunking():
     x, y, z = np.meshgrid(grid, grid, grid, indexing="ij")
     expected = x**2 + y**2 + z**2 <= 2.5**2
     for chunk in (7, 100, 10_000):  # last chunk padded; results must not depend on chunking
-        result = workspace.sweep(ball_status, bounds, 0.5, chunk_size=chunk, progress=False)
+        result = workspace.sweep(ball_status, bounds, 0.5, chunk_size=chunk)
         np.testing.assert_array_equal(result.mask, expected)
     assert result.n_evaluated == 13**3
     assert result.n_reachable == int(expected.sum())
     assert result.volume == pytest.approx(expected.sum() * 0.125)
     np.testing.assert_allclose(result.slice_areas, expected.sum(axis=(0, 1)) * 0.25)
     # the voxel volume converges to the ball's volume as the grid is refined
-    fine = workspace.sweep(ball_status, bounds, 0.1, progress=False)
+    fine = workspace.sweep(ball_status, bounds, 0.1)
     assert fine.volume == pytest.approx(4.0 / 3.0 * math.pi * 2.5**3, rel=0.02)
 
 
@@ -88,6 +88,18 @@ def test_bad_arguments():
         workspace.sweep(serial.Puma560())
     with pytest.raises(ValueError, match="branch"):
         workspace.sweep(ball_status, bounds, 0.5, branch="other")
+    with pytest.raises(ValueError, match="progress must be None or a callable"):
+        workspace.sweep(ball_status, bounds, 0.5, progress=True)
+
+
+def test_progress_callback_hears_every_chunk():
+    """``progress(done, total)``: ``(0, total)`` first, then the voxels swept after each chunk
+    (13**3 = 2197 voxels in chunks of 1000)."""
+    calls = []
+    bounds = ((-3.0, 3.0), (-3.0, 3.0), (-3.0, 3.0))
+    report = lambda done, total: calls.append((done, total))  # noqa: E731
+    workspace.sweep(ball_status, bounds, 0.5, chunk_size=1000, progress=report)
+    assert calls == [(0, 2197), (1000, 2197), (2000, 2197), (2197, 2197)]
 
 
 def in_three_tori(points: np.ndarray) -> np.ndarray:
@@ -110,7 +122,7 @@ def in_three_tori(points: np.ndarray) -> np.ndarray:
 
 def test_delta_workspace_is_the_intersection_of_three_tori():
     robot = delta.Delta.paper()
-    result = workspace.sweep(robot, resolution=5.0, progress=False)
+    result = workspace.sweep(robot, resolution=5.0)
     xs, ys, zs = result.axes
     x, y, z = np.meshgrid(xs, ys, zs, indexing="ij")
     points = np.stack([x.ravel(), y.ravel(), z.ravel()], -1)
@@ -127,7 +139,7 @@ def test_delta_workspace_is_the_intersection_of_three_tori():
 
 def test_scara_workspace_is_its_annulus_and_a_planar_arm_gets_a_2d_grid():
     robot = scara.Scara.paper()
-    result = workspace.sweep(robot, resolution=10.0, progress=False)
+    result = workspace.sweep(robot, resolution=10.0)
     xs, ys, zs = result.axes
     r = np.hypot(*np.meshgrid(xs, ys, indexing="ij"))
     tol = 1e-6 * 130.0
@@ -136,7 +148,7 @@ def test_scara_workspace_is_its_annulus_and_a_planar_arm_gets_a_2d_grid():
     for k in range(len(zs)):  # every height of the column is reached alike
         np.testing.assert_array_equal(result.mask[:, :, k][clear], expected[clear])
     arm = serial.Planar2R(1.0, 0.6)
-    flat = workspace.sweep(arm, resolution=0.1, progress=False)
+    flat = workspace.sweep(arm, resolution=0.1)
     assert flat.mask.ndim == 2 and len(flat.axes) == 2
     gx, gy = np.meshgrid(*flat.axes, indexing="ij")
     rr = np.hypot(gx, gy)
@@ -148,8 +160,8 @@ def test_scara_workspace_is_its_annulus_and_a_planar_arm_gets_a_2d_grid():
 
 def test_a_repeated_sweep_compiles_nothing_new():
     bounds = ((-3.0, 3.0),) * 3
-    workspace.sweep(Ball(2.0), bounds, 0.5, progress=False)
+    workspace.sweep(Ball(2.0), bounds, 0.5)
     with compilations() as count:
-        again = workspace.sweep(Ball(2.2), bounds, 0.5, progress=False)  # a new robot object
+        again = workspace.sweep(Ball(2.2), bounds, 0.5)  # a new robot object
     assert count.n == 0
     assert again.n_reachable > 0

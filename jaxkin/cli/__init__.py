@@ -14,7 +14,7 @@ joint and target columns, default workspace box) comes from the robot protocol.
 Errors: bad input prints one line ``jaxkin: error: ...`` on stderr and exits with status 2,
 never a traceback (``--traceback`` shows it). Rows with NaN/inf get status
 ``INVALID_INPUT`` and the rest is solved. Every output path is checked before any work
-(``jaxkin.files.check_outputs``): one naming an input file (``-i``, ``--robot``) or another
+(``jaxkin.cli.files.check_outputs``): one naming an input file (``-i``, ``--robot``) or another
 output is refused, as are read-only files and unwritable directories; a symlink writes its
 target, a named pipe or ``/dev/null`` is written into. Regular files are written atomically:
 a failed or interrupted run leaves an existing output file untouched. Ctrl-C exits with
@@ -32,8 +32,6 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator, Sequence
-
-from .._compile_cache import enable_for_command, enable_store, store_directory
 
 __all__ = ["EXIT_BROKEN_PIPE", "EXIT_ERROR", "EXIT_INTERRUPTED", "Terminated", "main"]
 
@@ -90,10 +88,11 @@ def _run(argv: list[str], debug: bool) -> int:
     from .parser import build_parser
     from .robots import CliError
 
-    store = store_directory()
-    enable_for_command()  # the persistent compilation cache (docs/cli.md)
     try:
         args = build_parser().parse_args(argv)
+        from .._execute.cache import enable_for_command  # after --help: JAX loads in ~1 s
+
+        enable_for_command()  # the persistent compilation cache (docs/cli.md)
         args.notes = []
         code = int(args.func(args) or 0)
         if not getattr(args, "quiet", False):
@@ -126,8 +125,6 @@ def _run(argv: list[str], debug: bool) -> int:
         prefix = "" if known else f"internal error ({type(exc).__name__}): "
         print(f"jaxkin: error: {prefix}{text}", file=sys.stderr)
         return EXIT_ERROR
-    finally:
-        enable_store(store)  # stored executables for this command only
 
 
 if __name__ == "__main__":

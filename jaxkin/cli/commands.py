@@ -12,11 +12,12 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _batching, _processes, files, paths
+from .. import _batching, _processes, paths
 from ..jet import Jet
 from ..robot import POSE, Robot, fk, ik
 from ..status import Status, status_names
-from . import distributed, planning
+from . import distributed, files, planning
+from .progress import reporting
 from .robots import ROBOTS, CliError, build_robot, geometry_values, option, parse_branch
 
 __all__ = ["cmd_fk", "cmd_ik", "cmd_plan", "cmd_workspace", "robot_from_args", "set_dtype"]
@@ -124,11 +125,14 @@ def _parts(args: argparse.Namespace, names: tuple[str, ...], quaternions: bool, 
     # times, or with --each-row, each on its own.
     as_path = inverse and first.t is not None and not args.each_row
     if streamed and not (args.output == "-" and first.candidate is not None):
-        why = ("along a path", "; or give --each-row") if as_path else ()
-        streamed_parts = files.completed_parts(
-            itertools.chain([first], parts), args.spline, chunk, quaternions, False, *why,
-            ordered=as_path,
-        )  # fmt: skip
+        chained = itertools.chain([first], parts)
+        if as_path:
+            streamed_parts = files.completed_parts(
+                chained, args.spline, chunk, quaternions, False, "along a path",
+                "; or give --each-row", ordered=True,
+            )  # fmt: skip
+        else:
+            streamed_parts = files.completed_parts(chained, args.spline, chunk, quaternions)
         return as_path, streamed_parts
     traj = files.read_trajectory(args.input, names, timed=False)
     return as_path, _whole(traj, args.spline, quaternions, as_path)
@@ -357,16 +361,16 @@ def cmd_workspace(args: argparse.Namespace) -> int:
             f"{' x '.join(map(str, counts))} voxels is too many (at most {MAX_VOXELS:.0e}): "
             "use a coarser --resolution or smaller --bounds"
         )
-    progress = False if args.quiet else None
-    result = workspace.sweep(
-        robot,
-        bounds,
-        resolution,
-        branch=branch,
-        chunk_size=args.chunk_size or _batching.SWEEP_CHUNK,
-        dtype=dtype,
-        progress=progress,
-    )
+    with reporting("workspace", enabled=False if args.quiet else None) as progress:
+        result = workspace.sweep(
+            robot,
+            bounds,
+            resolution,
+            branch=branch,
+            chunk_size=args.chunk_size or _batching.SWEEP_CHUNK,
+            dtype=dtype,
+            progress=progress,
+        )
     if not _processes.fetchable(result.mask):  # every process takes part in the gather
         result = dataclasses.replace(result, mask=_processes.to_host(result.mask))
     if not distributed.is_writer():
@@ -375,19 +379,19 @@ def cmd_workspace(args: argparse.Namespace) -> int:
         entry = ROBOTS[args.kind]
         geometry = {f"geometry_{k}": float(np.asarray(getattr(robot, k))) for k in entry.fields}
         axes = dict(zip("xyz", result.axes, strict=False))
+        saved: dict[str, Any] = dict(
+            mask=result.mask,
+            **axes,
+            resolution=result.resolution,
+            volume=result.volume,
+            n_reachable=result.n_reachable,
+            n_evaluated=result.n_evaluated,
+            slice_areas=result.slice_areas,
+            robot=args.kind,
+            **geometry,
+        )
         with files.atomic_write(args.output, "wb") as f:
-            np.savez(
-                f,
-                mask=result.mask,
-                **axes,
-                resolution=result.resolution,
-                volume=result.volume,
-                n_reachable=result.n_reachable,
-                n_evaluated=result.n_evaluated,
-                slice_areas=result.slice_areas,
-                robot=args.kind,
-                **geometry,
-            )
+            np.savez(f, **saved)
     if args.plot:
         from .. import plot
 
@@ -398,6 +402,25 @@ def cmd_workspace(args: argparse.Namespace) -> int:
         f"= {result.n_reachable} of {result.n_evaluated} voxels of edge {result.resolution:g}"
     )
     return 0
+
+
+def _world(path: str) -> Any:
+    """The obstacles of ``--world`` (a world file or a MoveIt scene), or a ``CliError``."""
+    from .. import collision
+
+    try:
+        return collision.read_world(path)
+    except (ValueError, ImportError) as exc:
+        raise CliError(f"--world {path}: {exc}") from None
+
+
+def _checked(evaluate: Any, *args: Any, **kwargs: Any) -> Any:
+    """``evaluate(*args, **kwargs)``, a ``ValueError`` (a world the checks refuse) as a
+    ``CliError``."""
+    try:
+        return evaluate(*args, **kwargs)
+    except ValueError as exc:
+        raise CliError(f"--world: {exc}") from None
 
 
 def _candidate_samples(traj: files.Trajectory, valid: np.ndarray) -> tuple[list[np.ndarray], float]:
@@ -436,7 +459,7 @@ def _candidate_samples(traj: files.Trajectory, valid: np.ndarray) -> tuple[list[
 def cmd_plan(args: argparse.Namespace) -> int:
     """``jaxkin plan``: evaluate a file of candidate paths, rank them, write the best retimed."""
     _join(args)
-    inputs = {"--input": args.input, "--robot": _robot_file(args)}
+    inputs = {"--input": args.input, "--robot": _robot_file(args), "--world": args.world}
     outputs = {"--output": args.output, "--ranking": args.ranking}
     try:
         files.check_outputs(outputs, inputs)
@@ -446,6 +469,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         raise CliError(f"--period must be a positive number, got {args.period:g}")
     dtype = set_dtype(args.dtype)
     robot = robot_from_args(args)
+    world = None if args.world is None else _world(args.world)
     pose = robot.target == POSE
     if not (robot.target.is_point or pose):
         raise CliError(f"{args.kind}: files of {robot.target.name} targets are not supported")
@@ -463,9 +487,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
         limits = planning.joint_limits(robot, args.v_max, args.a_max)
     except ValueError as exc:
         raise CliError(str(exc)) from None
+    branch = None
     if joint_space:
         jet = Jet.of(*(x[take].astype(dtype) for x in (p, v, a)))
-        evaluation = planning.evaluate_joints(robot, jet, dt, limits)
     else:
         branch = "best" if args.branch == "best" else parse_branch(robot, args.branch)
         flat = [x[take].reshape(-1, x.shape[-1]) for x in (p, v, a)]
@@ -474,45 +498,50 @@ def cmd_plan(args: argparse.Namespace) -> int:
         else:
             jet = Jet.of(*(x.astype(dtype) for x in flat))
         jet = jet.map(lambda x: x.reshape(*take.shape, *x.shape[1:]))
-        evaluation = planning.evaluate_targets(robot, jet, dt, limits, branch, args.chunk_size)
+    path = paths.Path.from_jet(jet, dt, "joint" if joint_space else "task")
+    evaluation = planning.evaluate(robot, path, limits, branch, args.chunk_size, world=world)
     period = args.period if args.period is not None else dt
     try:
-        ranked = planning.rank(evaluation, dt, limits, args.best, args.by, period)
+        ranked = planning.rank(evaluation, args.best, args.by, period)
     except ValueError as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(str(exc).replace("a_max", "--a-max")) from None
     if not distributed.is_writer():
         return 0
     labels = traj.candidate[take[:, 0]] if traj.candidate is not None else np.zeros(len(take))
     labels = labels.astype(np.int64)
     if args.ranking is not None:
-        place = np.full(len(take), -1)
-        place[ranked.order] = np.arange(1, len(ranked.order) + 1)
+        rank_of = np.full(len(take), -1)
+        rank_of[ranked.order] = np.arange(1, len(ranked.order) + 1)
         files.write_table(
             args.ranking,
             {
                 "candidate": labels,
-                "rank": place,
+                "rank": rank_of,
                 "feasible": ranked.feasible,
                 "first_failure": ranked.first_failure,
                 "failure": ranked.failure.astype(str),
                 "cost": np.where(np.isfinite(ranked.cost), ranked.cost, np.nan),
                 "duration": ranked.duration,
+                **({} if world is None else {"clearance": np.asarray(evaluation.min_clearance)}),
             },
         )
+    at_samples = []  # chosen candidates not retimed, written at the file's samples
     with files.table_writer(args.output) as write:
         for place, index in enumerate(ranked.order.tolist()):
-            if ranked.retimed is not None:
+            if ranked.retimed is not None and np.isfinite(ranked.duration[index]):
                 count = int(ranked.retimed.count[place])
                 t = np.asarray(ranked.retimed.t)[:count]
                 jet = ranked.retimed.q
                 q = [np.asarray(x)[place, :count] for x in (jet.p, jet.v, jet.a)]
-            else:  # no timing (no finite rate limits): the candidate at the file's samples
+            else:
+                at_samples.append(int(labels[index]))
                 t = traj.t[take[index]]
                 jet = evaluation.q
                 q = [np.asarray(x)[index] for x in (jet.p, jet.v, jet.a)]
-            columns = {"rank": np.full(len(t), place + 1)}
-            columns |= files.trajectory_columns(t, np.full(len(t), labels[index]), joints, *q)
-            write(columns)
+            written = {"rank": np.full(len(t), place + 1)}
+            labelled = np.full(len(t), labels[index])
+            written |= files.trajectory_columns(t, labelled, joints, q[0], q[1], q[2])
+            write(written)
     if not args.quiet:
         print(f"{'rank':>4} {'candidate':>9} {'cost':>12} {'duration':>10}")
         for place, index in enumerate(ranked.order.tolist()):
@@ -526,6 +555,18 @@ def cmd_plan(args: argparse.Namespace) -> int:
             f"jaxkin: {args.kind} plan, {len(take)} candidates of {take.shape[1]} samples "
             f"({'joint' if joint_space else 'task'} space), {feasible} feasible; the "
             f"{len(ranked.order)} best by {how} -> {args.output}",
+            file=sys.stderr,
+        )
+    if ranked.untimed:
+        print(
+            f"jaxkin: warning: not retimed ({ranked.untimed}): the best are written at the "
+            "file's samples",
+            file=sys.stderr,
+        )
+    elif at_samples:
+        print(
+            f"jaxkin: warning: candidate(s) {', '.join(map(str, at_samples))} could not be "
+            "retimed (UNTIMEABLE): written at the file's samples",
             file=sys.stderr,
         )
     if not len(ranked.order):

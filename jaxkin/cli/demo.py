@@ -66,9 +66,10 @@ def _own_options(rest: list[str], output_dir: str, quiet: bool) -> tuple[list[st
     items = iter(rest)
     for item in items:
         if item == "--output-dir":
-            output_dir = next(items, None)
-            if output_dir is None:
+            given = next(items, None)
+            if given is None:
                 raise CliError("--output-dir: expected one argument (a directory)")
+            output_dir = given
         elif item.startswith("--output-dir="):
             output_dir = item.partition("=")[2]
         elif item in ("-q", "--quiet"):

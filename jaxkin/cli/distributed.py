@@ -8,7 +8,8 @@ cluster (SLURM, Open MPI, Kubernetes...). Every process reads the input, solves 
 (rows of a file: ``solve_rows``; voxels: ``jaxkin.workspace.sweep``), the parts are gathered,
 and only process 0 writes files and prints (``is_writer``).
 
-Joining waits at most ``--distributed-timeout`` seconds (default ``TIMEOUT``). With the three
+Joining waits at most ``--distributed-timeout`` seconds (default ``DISTRIBUTED_TIMEOUT`` of
+``jaxkin.cli.parser``). With the three
 variables set, the processes first meet on the coordinator's port (``rendezvous``: process 0
 listens, the others connect and say who they are), so a missing process or a wrong address is
 one line naming the missing processes (on process 0) or the coordinator that did not answer
@@ -32,12 +33,12 @@ from typing import Any
 import jax
 import numpy as np
 
-from .. import _processes, files
+from .. import _processes
+from . import files
+from .parser import DISTRIBUTED_TIMEOUT
 from .robots import CliError
 
 __all__ = [
-    "TIMEOUT",
-    "add_option",
     "is_writer",
     "join",
     "rendezvous",
@@ -46,37 +47,7 @@ __all__ = [
 ]
 
 ENVIRONMENT = ("JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID")
-TIMEOUT = 60.0  # seconds for every process to join
 _GRACE = 15.0  # JAX's own timeout is this much later, so the watchdog's line comes first
-
-
-def add_option(parser: argparse.ArgumentParser) -> None:
-    """The ``--distributed`` and ``--distributed-timeout`` options."""
-    parser.add_argument(
-        "--distributed",
-        action="store_true",
-        help="run as one of several processes (jax.distributed: JAX_COORDINATOR_ADDRESS, "
-        "JAX_NUM_PROCESSES, JAX_PROCESS_ID, or the cluster's own variables, e.g. SLURM's); "
-        "every process runs the same command and process 0 writes the output",
-    )
-    parser.add_argument(
-        "--distributed-timeout",
-        type=_positive_seconds,
-        default=TIMEOUT,
-        metavar="S",
-        help=f"seconds to wait for every process to join (default {TIMEOUT:g}); then exit 2 "
-        "naming the missing processes",
-    )
-
-
-def _positive_seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (value > 0 and np.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
-    return value
 
 
 def _environment_int(name: str) -> int | None:
@@ -259,7 +230,7 @@ def join(args: argparse.Namespace) -> None:
     """Join JAX's processes when ``--distributed`` was given (once; before any computation)."""
     if not getattr(args, "distributed", False) or jax.distributed.is_initialized():
         return
-    timeout = float(getattr(args, "distributed_timeout", TIMEOUT))
+    timeout = float(getattr(args, "distributed_timeout", DISTRIBUTED_TIMEOUT))
     count = _environment_int("JAX_NUM_PROCESSES")
     index = _environment_int("JAX_PROCESS_ID")
     address = os.environ.get("JAX_COORDINATOR_ADDRESS", "").strip()
@@ -312,7 +283,7 @@ def solve_rows(
 def solved_chunks(
     fn: Callable[..., Any], arrays: Sequence[np.ndarray], chunk: int, desc: str, quiet: bool
 ) -> Iterator[tuple[int, int, list[np.ndarray]]]:
-    """``jaxkin.files.solved_chunks`` (one process: a chunk at a time), or with several
+    """``jaxkin.cli.files.solved_chunks`` (one process: a chunk at a time), or with several
     processes every row solved by ``solve_rows`` and then handed out in the same chunks."""
     if _processes.process_count() == 1:
         yield from files.solved_chunks(fn, arrays, chunk, desc, quiet)

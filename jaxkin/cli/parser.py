@@ -1,14 +1,28 @@
-"""The ``jaxkin`` command line: subcommands, options and help."""
+"""The ``jaxkin`` command line: subcommands, options and help.
+
+Building the parser and printing ``--help`` import neither JAX nor jaxkin's numeric modules
+(``jaxkin --help`` answers in a fraction of the second JAX takes to load): a subcommand's
+module is imported when the subcommand runs (``_command``), and the few constants the options
+show are spelled here (``SPLINE_ENDS`` is ``jaxkin._splines.END_CONDITIONS``, a test holds
+them equal).
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import math
+from collections.abc import Callable
 from typing import Any
 
-from .. import __version__, _splines
+from .. import __version__
+from . import demo
 from .robots import ROBOTS, CliError, option
 
-__all__ = ["build_parser"]
+__all__ = ["DISTRIBUTED_TIMEOUT", "SPLINE_ENDS", "build_parser"]
+
+DISTRIBUTED_TIMEOUT = 60.0  # seconds for every process to join (--distributed-timeout)
+SPLINE_ENDS = ("not-a-knot", "natural")  # the end conditions of jaxkin._splines
 
 
 class _Parser(argparse.ArgumentParser):
@@ -105,10 +119,79 @@ _FILE_HELP = (
 )
 
 
+def _command(module: str, name: str) -> Callable[[argparse.Namespace], Any]:
+    """The subcommand function ``name`` of ``jaxkin.cli.<module>``, imported when it runs."""
+
+    def run(args: argparse.Namespace) -> Any:
+        return getattr(importlib.import_module(f"{__package__}.{module}"), name)(args)
+
+    run.__name__ = run.__qualname__ = name
+    return run
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return value
+
+
+def _add_distributed_options(parser: argparse.ArgumentParser) -> None:
+    """The ``--distributed`` and ``--distributed-timeout`` options (``jaxkin.cli.distributed``)."""
+    parser.add_argument(
+        "--distributed",
+        action="store_true",
+        help="run as one of several processes (jax.distributed: JAX_COORDINATOR_ADDRESS, "
+        "JAX_NUM_PROCESSES, JAX_PROCESS_ID, or the cluster's own variables, e.g. SLURM's); "
+        "every process runs the same command and process 0 writes the output",
+    )
+    parser.add_argument(
+        "--distributed-timeout",
+        type=_positive_seconds,
+        default=DISTRIBUTED_TIMEOUT,
+        metavar="S",
+        help=f"seconds to wait for every process to join (default {DISTRIBUTED_TIMEOUT:g}); "
+        "then exit 2 naming the missing processes",
+    )
+
+
+def _add_motion_parser(sub: Any) -> None:
+    """The ``motion`` subcommand on ``sub`` (``jaxkin.cli.motion``)."""
+    p = sub.add_parser(
+        "motion",
+        help="plan a collision-free motion among a scene's obstacles; write it timed",
+        description="Plan a motion of the robot from joints --from to joints --to among the "
+        "obstacles of a MoveIt planning scene (YAML: boxes, spheres, cylinders; --world), "
+        "shorten and smooth it, time it within the joints' speed and acceleration limits and "
+        "write it sampled every --period: columns t, the joints, their rates and "
+        "accelerations. Needs PyYAML (the motion extra).",
+        epilog="example: jaxkin motion planar-2r --l1 1 --l2 0.8 --link-radius 0.05 "
+        "--from 0,0.3 --to 2.5,0.4 --world scene.yaml -o motion.csv",
+    )
+    _add_robot_options(p, with_branch=False)
+    p.add_argument("--from", dest="start", type=_numbers, required=True, metavar="Q[,Q...]")
+    p.add_argument("--to", dest="goal", type=_numbers, required=True, metavar="Q[,Q...]")
+    p.add_argument("--world", required=True, metavar="FILE.yaml", help="MoveIt planning scene")
+    p.add_argument("-o", "--output", required=True, metavar="FILE.csv", help="written atomically")
+    p.add_argument(
+        "--srdf", metavar="FILE", help="urdf: pairs the SRDF leaves out of self-collision"
+    )
+    p.add_argument("--link-radius", type=float, metavar="R", help="arms: the links' radius")
+    p.add_argument(
+        "--mode",
+        choices=("certified", "discrete"),
+        default="certified",
+        help="edge checks: certified (default: nothing slips through) or discrete",
+    )
+    p.add_argument("--period", type=float, default=0.01, metavar="DT", help="default 0.01")
+    p.set_defaults(func=_command("motion", "cmd_motion"), branch=None)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``jaxkin`` argument parser."""
-    from . import commands, demo, distributed
-
     parser = _Parser(
         prog="jaxkin",
         description="Batched robot kinematics from the command line.",
@@ -143,13 +226,13 @@ def build_parser() -> argparse.ArgumentParser:
     for name, func, what, example in (
         (
             "ik",
-            commands.cmd_ik,
+            _command("commands", "cmd_ik"),
             "joint trajectories from end-point trajectories (t,x,y,z[,candidate])",
             "jaxkin ik scara --robot paper -i spiral.csv -o joints.csv --plot joints.png",
         ),
         (
             "fk",
-            commands.cmd_fk,
+            _command("commands", "cmd_fk"),
             "end-point trajectories from joint trajectories",
             "jaxkin fk scara --robot paper -i joints.csv -o check.csv",
         ),
@@ -168,14 +251,14 @@ def build_parser() -> argparse.ArgumentParser:
         )
         p.add_argument(
             "--spline",
-            choices=_splines.END_CONDITIONS,
+            choices=SPLINE_ENDS,
             default="not-a-knot",
             help="end condition of the cubic spline for missing rates (default not-a-knot)",
         )
         p.add_argument("--plot", metavar="FILE.png", help="also plot the result (needs matplotlib)")
         if name == "ik":
             _add_path_options(p)
-        distributed.add_option(p)
+        _add_distributed_options(p)
         p.set_defaults(func=func, branch=None)
 
     pl = sub.add_parser(
@@ -215,8 +298,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     pl.add_argument("--ranking", metavar="FILE", help="also write every candidate's scores")
     pl.add_argument(
+        "--world",
+        metavar="FILE",
+        help="obstacles: a world file (.json, .yaml; collision.read_world) or a MoveIt "
+        "planning scene (.yaml), in the robot's base frame and length unit: a sample whose "
+        "body touches them or itself fails (COLLISION)",
+    )
+    pl.add_argument(
         "--spline",
-        choices=_splines.END_CONDITIONS,
+        choices=SPLINE_ENDS,
         default="not-a-knot",
         help="end condition of the cubic spline for missing rates (default not-a-knot)",
     )
@@ -228,7 +318,9 @@ def build_parser() -> argparse.ArgumentParser:
             help=f"joint {what} bound, one for every joint or one per joint (tightens the "
             "robot's own)",
         )
-    pl.set_defaults(func=commands.cmd_plan)
+    pl.set_defaults(func=_command("commands", "cmd_plan"))
+
+    _add_motion_parser(sub)
 
     ws = sub.add_parser(
         "workspace",
@@ -254,6 +346,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ws.add_argument("-o", "--output", metavar="FILE.npz", help="save the mask and grid (atomic)")
     ws.add_argument("--plot", metavar="FILE.png", help="slices and point cloud (needs matplotlib)")
-    distributed.add_option(ws)
-    ws.set_defaults(func=commands.cmd_workspace)
+    _add_distributed_options(ws)
+    ws.set_defaults(func=_command("commands", "cmd_workspace"))
     return parser

@@ -29,9 +29,10 @@ power of two) is solved window by window (``PathSolver``), with the whole path's
 Memory is bounded by a window, not by the path; every window is padded to the window's size
 (the last one too), so a file of any length compiles the same programs.
 
-``jaxkin plan`` evaluates a file of candidates with ``plan.evaluate`` (task space) or by
-forward kinematics (joint space), ranks them by ``costs.total`` or by the duration of their
-time-optimal retiming (``jaxkin.timing``) and samples the best at a control period.
+``jaxkin plan`` evaluates a file of candidates with ``plan.evaluate`` (task or joint space:
+the library's checks, feasibility and costs), ranks them with ``plan.best`` by ``costs.total``
+or by the duration of their time-optimal retiming (``plan.retime``) and samples the best at a
+control period.
 """
 
 from __future__ import annotations
@@ -45,16 +46,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import _compile_cache, plan, timing
+from .. import paths, plan, timing
+from .._execute import Kernel
 from ..jet import Jet
-from ..robot import Robot, fk
-from ..status import STATUS_DTYPE, Status
+from ..robot import Robot
+from ..status import Status
 
 __all__ = [
     "PathSolver",
     "Ranked",
-    "evaluate_joints",
-    "evaluate_targets",
+    "evaluate",
     "joint_limits",
     "rank",
     "solve_paths",
@@ -108,7 +109,7 @@ def _follow(robot: Robot, path: Jet, dt: Any, real: Any, limits: plan.Limits, in
     return q, status, res.margin
 
 
-_follow_jit = _compile_cache.stored_jit(_follow, static_argnames=("index",))
+_follow_jit = Kernel(_follow, static=("index",))
 
 
 def _padded(size: int, smallest: int) -> int:
@@ -335,7 +336,7 @@ def _window(robot: Robot, path: Jet, real: Any, index: int, carry: dict | None):
     return Jet(p, res.q.v, res.q.a), status, res.margin, out
 
 
-_window_jit = jax.jit(_window, static_argnames=("index",))
+_window_jit = Kernel(_window, static=("index",))
 
 
 def _window_checks(robot: Robot, q: Jet, status: Any, moving: Any, limits, dt: Any, turns: Any):
@@ -345,7 +346,7 @@ def _window_checks(robot: Robot, q: Jet, status: Any, moving: Any, limits, dt: A
     return q, status
 
 
-_window_checks_jit = jax.jit(_window_checks)
+_window_checks_jit = Kernel(_window_checks)
 
 
 @dataclasses.dataclass
@@ -610,7 +611,9 @@ class Ranked:
         failure: status name at the first failure ("" when feasible), ``(N,)``.
         duration: time-optimal duration under the limits (``nan`` where not timed), ``(N,)``.
         retimed: the chosen candidates sampled every ``period``: ``t`` ``(T,)``, Jet
-            ``(k, T, n)`` and the valid counts ``(k,)``.
+            ``(k, T, n)`` and the valid counts ``(k,)`` (0 for one not timed); None when
+            none could be retimed.
+        untimed: why the candidates could not be retimed at all ("" when they could).
     """
 
     order: np.ndarray
@@ -620,59 +623,38 @@ class Ranked:
     failure: np.ndarray
     duration: np.ndarray
     retimed: timing.RetimedTrajectory | None
+    untimed: str = ""
 
 
-def evaluate_joints(robot: Robot, q: Jet, dt: float, limits: plan.Limits) -> plan.Evaluation:
-    """Joint-space candidates ``(N, T, n)``: forward kinematics along each (its statuses),
-    then ``OUT_OF_LIMITS`` where a joint leaves its limits, and ``plan.evaluate``'s costs."""
-    res = fk(robot, q)
-    status = jnp.asarray(res.status)
-    violated = plan.limit_excess(q, limits) > 0
-    status = jnp.where((status == Status.OK) & violated, jnp.int8(Status.OUT_OF_LIMITS), status)
-    bad = status != Status.OK
-    feasible = ~jnp.any(bad, axis=-1)
-    first = jnp.where(feasible, -1, jnp.argmax(bad, axis=-1)).astype(jnp.int32)
-    return plan.Evaluation(
-        q=q,
-        status=status.astype(STATUS_DTYPE),
-        feasible=feasible,
-        first_failure=first,
-        min_margin=jnp.zeros(feasible.shape, q.p.dtype),
-        branch=jnp.zeros(feasible.shape, jnp.int8),
-        costs=plan.trajectory_costs(q, dt, limits, feasible),
-        branches=robot.branches,
-    )
-
-
-def evaluate_targets(
-    robot: Robot, path: Jet, dt: float, limits: plan.Limits, branch: Any, samples: int | None
-) -> plan.Evaluation:
-    """Task-space candidates ``(N, T, *target)`` by ``plan.evaluate`` (the robot's own limits
-    apply there too; ``limits`` can only tighten them), about ``samples`` samples per call
-    (None: its default)."""
-    chunk = None if samples is None else max(1, samples // path.shape[1])
-    return plan.evaluate(robot, path, limits=limits, branch=branch, dt=dt, chunk_size=chunk)
-
-
-def rank(
-    evaluation: plan.Evaluation,
-    dt: float,
+def evaluate(
+    robot: Robot,
+    path: paths.Path,
     limits: plan.Limits,
-    k: int,
-    by: str,
-    period: float,
-) -> Ranked:
-    """Rank the candidates of ``evaluation`` by ``"cost"`` (``costs.total``) or ``"duration"``
-    (the time-optimal timing, ``jaxkin.timing.retime``, of each feasible candidate's joint
-    path under the speed and acceleration limits, from rest to rest, speeds bounded between
-    grid points too: ``speed_bound="interval"``) and sample the ``k`` best every ``period``.
+    branch: Any,
+    samples: int | None,
+    world: Any = None,
+) -> plan.Evaluation:
+    """Task-space (``(N, T, *target)``) or joint-space (``(N, T, n)``) candidates by
+    ``plan.evaluate``, the library's own checks (the robot's limits apply there too;
+    ``limits`` can only tighten them; with a ``world``, its collision check), about
+    ``samples`` samples per call (None: its default)."""
+    chunk = None if samples is None else max(1, samples // path.shape[1])
+    return plan.evaluate(robot, path, limits=limits, branch=branch, chunk_size=chunk, world=world)
 
-    The joint path of a candidate is its samples with their rates in the file's time
-    (``s = t``: ``dq/ds = q_dot``), so the retimed trajectory follows the same geometric path.
+
+def rank(evaluation: plan.Evaluation, k: int, by: str, period: float) -> Ranked:
+    """Rank the candidates of ``evaluation`` by ``"cost"`` or ``"duration"`` (``plan.best``)
+    and sample the ``k`` best every ``period``, retimed by ``plan.retime`` (from rest to rest,
+    speeds bounded between samples too, as a controller needs: ``speed_bound="interval"``).
+
+    The joint path of a candidate is its samples with their rates in the file's time, so the
+    retimed trajectory follows the same geometric path. With ``by="cost"``, when the
+    candidates cannot be retimed (``plan.retime`` refuses them: ``untimed`` says why) or a
+    chosen one is not timed (its ``duration`` is NaN), the caller writes it at its samples.
 
     Raises:
-        ValueError: ``by="duration"`` with a joint whose speed or acceleration bound is
-            infinite (no finite minimum duration).
+        ValueError: ``by="duration"`` and ``plan.retime`` refuses the candidates (a joint
+            without an acceleration limit, named; fewer than 3 samples).
     """
     feasible = np.asarray(evaluation.feasible)
     cost = np.asarray(evaluation.costs.total, float)
@@ -682,33 +664,20 @@ def rank(
         ["" if f < 0 else Status(int(status[i, f])).name for i, f in enumerate(first.tolist())],
         dtype=object,
     )
-    q = evaluation.q
-    n_cand, n_samples = q.p.shape[:2]
-    v_max, a_max = (np.asarray(x, float) for x in (limits.v_max, limits.a_max))
-    timed = bool(np.all(np.isfinite(v_max)) and np.all(np.isfinite(a_max)))
-    if by == "duration" and not timed:
-        raise ValueError(
-            "ranking by duration needs finite speed and acceleration limits for every joint: "
-            "the robot has none for some; give --v-max and --a-max (or --by cost)"
-        )
-    duration = np.full(n_cand, np.nan)
-    path = timing_result = None
-    if timed and n_cand:
-        s = np.arange(n_samples) * dt
-        path = timing.JointPath(jnp.asarray(s, q.p.dtype), q.p, q.v, q.a)
-        # "interval": the sampled speeds hold between grid points too, as a controller needs
-        timing_result = timing.retime(path, v_max, a_max, speed_bound="interval")
-        ok = np.asarray(timing_result.ok) & feasible
-        duration = np.where(ok, np.asarray(timing_result.duration, float), np.nan)
-    if by == "duration":
-        candidates = np.flatnonzero(np.isfinite(duration))
-        order = candidates[np.argsort(duration[candidates], kind="stable")][:k]
+    duration = np.full(len(feasible), np.nan)
+    timed, untimed = None, ""
+    try:
+        timed = plan.retime(evaluation, speed_bound="interval")
+    except ValueError as exc:
+        if by == "duration":
+            raise
+        untimed = str(exc)
     else:
-        order, _ = plan.best(evaluation, k)
+        duration = np.where(np.asarray(timed.ok), np.asarray(timed.duration, float), np.nan)
+    order, _ = plan.best(evaluation, k, by=by, timing=timed)
     retimed = None
-    if path is not None and len(order):
+    if timed is not None and len(order):
         chosen = jnp.asarray(order)
-        sub = jax.tree.map(lambda x: x[chosen] if x.ndim > 1 else x, path)
-        sub_timing = jax.tree.map(lambda x: x[chosen], timing_result)
-        retimed = timing.sample(sub, sub_timing, period)
-    return Ranked(np.asarray(order), cost, feasible, first, failure, duration, retimed)
+        path = jax.tree.map(lambda x: x[chosen], plan.joint_path(evaluation))
+        retimed = timing.sample(path, jax.tree.map(lambda x: x[chosen], timed), period)
+    return Ranked(np.asarray(order), cost, feasible, first, failure, duration, retimed, untimed)

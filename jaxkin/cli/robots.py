@@ -14,9 +14,10 @@ import json
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..robot import Robot
+if TYPE_CHECKING:  # the registry is read by --help, which must not load JAX
+    from ..robot import Robot
 
 __all__ = [
     "ROBOTS",

@@ -1,13 +1,18 @@
 """Collision geometry: primitives, exact signed distances, the world, robot bodies as data.
 
-- ``primitives``: ``Spheres``, ``Capsules``, ``Boxes`` (oriented), ``HalfSpaces`` as array
-  pytrees; ``point_cloud_spheres`` (voxel down-sampling).
+- ``primitives``: ``Spheres``, ``Capsules``, ``Boxes`` (oriented), ``Cylinders``,
+  ``HalfSpaces`` as array pytrees; ``point_cloud_spheres`` (voxel down-sampling).
 - ``distance``: closed-form signed distances of every robot/world pair (negative in
   penetration, finite gradients everywhere).
 - ``world``: ``World`` and ``nearest_obstacles`` (per robot primitive, the smallest signed
   distance over the world and which obstacle).
 - ``body``: ``Body``, spheres and capsules attached to links; ``Body.place(link_poses)``.
 - ``urdf``: ``body_from_urdf`` (``<collision>`` elements; meshes covered by spheres).
+- ``body_files``: bodies as other planners' files: cuRobo's sphere lists
+  (``read_sphere_lists``), spherised URDFs (``spherized_urdf``; read by ``body_from_urdf``).
+- ``scene``: world files (JSON, YAML): ``read_world``, ``write_world``.
+- ``moveit``: MoveIt planning scenes (YAML) as a ``World``: ``read_moveit_scene``; a motion
+  plan request's start and goals: ``read_moveit_request``.
 - ``cover``: conservative sphere and capsule covers of meshes, capsule covers of boxes.
 - ``pairs``: self-collision link pairs (adjacency, SRDF ``disable_collisions``),
   ``self_distances``, ``propose_disabled``.
@@ -15,17 +20,21 @@
   itself (clearance, collision flag, which pair), batched.
 - ``motions``: ``validate_motions(robot, q_from, q_to, world, resolution)``, M joint-space
   edges in one compiled call.
+- ``protocol``: ``CollisionRobot``, what the checks ask of a robot (a ``typing.Protocol``).
 - ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
   (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
 """
 
 from . import distance as distance
 from .body import Body as Body
+from .body_files import read_sphere_lists as read_sphere_lists
+from .body_files import spherized_urdf as spherized_urdf
 from .check import ROBOT_WORLD as ROBOT_WORLD
 from .check import SELF as SELF
 from .check import CheckResult as CheckResult
 from .check import check as check
 from .check import check_kernel as check_kernel
+from .check import clearances_kernel as clearances_kernel
 from .check import prepare as prepare
 from .cover import MeshCover as MeshCover
 from .cover import SphereCover as SphereCover
@@ -38,6 +47,9 @@ from .fused import min_clearance as min_clearance
 from .motions import MotionResult as MotionResult
 from .motions import validate_motions as validate_motions
 from .motions import validate_motions_kernel as validate_motions_kernel
+from .moveit import MoveItRequest as MoveItRequest
+from .moveit import read_moveit_request as read_moveit_request
+from .moveit import read_moveit_scene as read_moveit_scene
 from .pairs import SelfPairs as SelfPairs
 from .pairs import adjacent_links as adjacent_links
 from .pairs import propose_disabled as propose_disabled
@@ -46,9 +58,13 @@ from .pairs import self_collision_link_pairs as self_collision_link_pairs
 from .pairs import self_distances as self_distances
 from .primitives import Boxes as Boxes
 from .primitives import Capsules as Capsules
+from .primitives import Cylinders as Cylinders
 from .primitives import HalfSpaces as HalfSpaces
 from .primitives import Spheres as Spheres
 from .primitives import point_cloud_spheres as point_cloud_spheres
+from .protocol import CollisionRobot as CollisionRobot
+from .scene import read_world as read_world
+from .scene import write_world as write_world
 from .urdf import UrdfBody as UrdfBody
 from .urdf import body_from_urdf as body_from_urdf
 from .verdict import Verdict as Verdict
@@ -56,7 +72,9 @@ from .verdict import collides as collides
 from .verdict import collides_kernel as collides_kernel
 from .world import BOX as BOX
 from .world import CAPSULE as CAPSULE
+from .world import CYLINDER as CYLINDER
 from .world import HALFSPACE as HALFSPACE
+from .world import OBSTACLE_BUCKET as OBSTACLE_BUCKET
 from .world import SPHERE as SPHERE
 from .world import Nearest as Nearest
 from .world import World as World
@@ -65,17 +83,22 @@ from .world import nearest_obstacles as nearest_obstacles
 __all__ = [
     "BOX",
     "CAPSULE",
+    "CYLINDER",
     "HALFSPACE",
+    "OBSTACLE_BUCKET",
     "ROBOT_WORLD",
     "SELF",
     "SPHERE",
     "Body",
     "Boxes",
+    "CollisionRobot",
     "Capsules",
     "CheckResult",
     "Clearance",
+    "Cylinders",
     "HalfSpaces",
     "MeshCover",
+    "MoveItRequest",
     "MotionResult",
     "Nearest",
     "SelfPairs",
@@ -89,6 +112,7 @@ __all__ = [
     "box_capsules",
     "check",
     "check_kernel",
+    "clearances_kernel",
     "clearance",
     "collides",
     "collides_kernel",
@@ -100,9 +124,15 @@ __all__ = [
     "point_cloud_spheres",
     "prepare",
     "propose_disabled",
+    "read_moveit_request",
+    "read_moveit_scene",
+    "read_sphere_lists",
     "read_srdf_disabled",
+    "read_world",
     "self_collision_link_pairs",
     "self_distances",
+    "spherized_urdf",
     "validate_motions",
     "validate_motions_kernel",
+    "write_world",
 ]

@@ -17,7 +17,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.typing import ArrayLike
+from numpy.typing import ArrayLike  # host data: lists too
 
 from .primitives import Capsules, Spheres, _sphere_arrays
 

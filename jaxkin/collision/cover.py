@@ -27,6 +27,7 @@ Radii are grown by a relative 1e-6 of the mesh size so the covers survive roundi
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -221,7 +222,7 @@ def _fit(
     """
     center, radius = _enclosing_ball(points)
     reach = radius + margin + _signed_distance(surface, solid, center[None])[0]
-    best = (reach, ("sphere", center, radius + margin))
+    best: tuple[float, tuple[Any, ...]] = (reach, ("sphere", center, radius + margin))
     if capsules:
         a, b, r = _enclosing_capsule(points, margin)
         length = float(np.linalg.norm(b - a))

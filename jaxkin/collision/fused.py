@@ -1,21 +1,18 @@
-"""The fused clearance of placed robot primitives: robot-world and self pairs in one pass.
+"""The exact clearance of placed robot primitives: robot-world and self pairs, and their pairs.
 
 ``clearance(spheres, capsules, world, self_pairs)`` gives, per configuration, the smallest
 signed distance over every robot primitive against every obstacle and over every checked
 self-collision primitive pair, and which pair attains it; ``min_clearance`` gives the distance
-alone (no bookkeeping of the pair: the cheapest verdict, ``min_clearance(...) > 0`` is
-collision-free). The values equal the smallest entries of ``world.nearest_obstacles`` and
-``pairs.self_distances`` (the same closed forms of ``distance``).
+alone (no bookkeeping of the pair). The values equal the smallest entries of
+``world.nearest_obstacles`` and ``pairs.self_distances`` (the same closed forms of
+``distance``). ``world_and_self`` keeps the two apart: the world's smallest distance with its
+(robot primitive, obstacle) pair and the self pairs' with theirs.
 
-Layout (why it is fast on a CPU): the configurations are the minor axis. Each robot primitive
-coordinate is a ``(n, B)`` array (structure of arrays), each obstacle enters as scalars, and
-the reduction over obstacles is a running elementwise minimum written out obstacle by obstacle
-(up to ``UNROLL`` of a kind; a ``fori_loop`` beyond), so XLA fuses each obstacle's distance
-and its minimum into one vectorised loop over the batch, with no ``(B, n, m)`` temporary and
-no multi-axis reduction. Self pairs are grouped by their first primitive: each group is a
-contiguous ``(k, B)`` block against that primitive's row. The rows left at the end are
-reduced by halving (elementwise minimums of two halves). The pair is tracked by an integer
-code carried through the same minimums, decoded once per configuration.
+Layout (``collision.rows``): the configurations are the minor axis; one loop step per
+obstacle (every robot primitive of a kind against it: a block ``(n, B)``) and per chunk of
+self pairs, each block reduced by halving, with the integer code of the pair attaining the
+minimum carried through the same minimums and decoded once per configuration. The program's
+size depends on which kinds of primitives and obstacles are present, not on their counts.
 
 World obstacles are taken unbatched (arrays ``(m, ...)``): for a world per configuration,
 ``vmap`` over it.
@@ -24,6 +21,8 @@ World obstacles are taken unbatched (arrays ``(m, ...)``): for a world per confi
 from __future__ import annotations
 
 import dataclasses
+import math
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -32,13 +31,26 @@ import numpy as np
 from . import distance as sd
 from .pairs import SelfPairs
 from .primitives import Capsules, Spheres
-from .world import BOX, CAPSULE, HALFSPACE, SPHERE, World
+from .rows import (
+    CAPSULE_CHUNK,
+    OBSTACLE_CHUNK,
+    Placed,
+    loop_pairs,
+    loop_world,
+    tree_argmin,
+    tree_min,
+)
+from .world import BOX, CAPSULE, CYLINDER, HALFSPACE, SPHERE, World
 
-__all__ = ["Clearance", "clearance", "min_clearance", "min_clearance_rows"]
-
-# Obstacles of one kind written out one by one up to this count (compile size grows with
-# it); larger kinds (point clouds) run in a fori_loop, one obstacle per step.
-UNROLL = 48
+__all__ = [
+    "Clearance",
+    "primitive_clearances",
+    "WorldAndSelf",
+    "clearance",
+    "min_clearance",
+    "min_clearance_rows",
+    "world_and_self",
+]
 
 
 @jax.tree_util.register_dataclass
@@ -48,9 +60,9 @@ class Clearance:
     world and self pairs, and its pair: ``world`` (True: robot-world pair, False: self pair),
     the robot primitive ``robot_kind`` (``SPHERE`` or ``CAPSULE``, int8) and ``robot_index``
     (int32, within its kind), and the other member ``other_kind`` / ``other_index``: an
-    obstacle (``SPHERE, CAPSULE, BOX, HALFSPACE``) for a world pair, a robot primitive for a
-    self pair. With nothing to check the distance is the dtype's largest finite value and
-    the kinds and indices are -1."""
+    obstacle (``SPHERE, CAPSULE, BOX, HALFSPACE, CYLINDER``) for a world pair, a robot
+    primitive for a self pair. With nothing to check the distance is the dtype's largest
+    finite value and the kinds and indices are -1."""
 
     distance: jax.Array
     world: jax.Array
@@ -60,230 +72,287 @@ class Clearance:
     other_index: jax.Array
 
 
-def _soa(x: jax.Array, batch: tuple[int, ...], n: int) -> list[jax.Array]:
-    """``(*batch, n, 3)`` -> three ``(n, B)`` coordinate arrays (configurations minor)."""
-    flat = x.reshape((-1, n, 3))
-    # the barrier materialises the transposed rows once; fused into every obstacle's loop,
-    # the transpose would be a strided, unvectorised read per obstacle
-    return list(_materialised([flat[..., i].T for i in range(3)]))
+@dataclasses.dataclass(frozen=True)
+class WorldAndSelf:
+    """Per configuration ``(B,)``: the smallest robot-world distance and its code
+    (``primitive * n_obstacles + obstacle``, robot spheres first; obstacles by kind and
+    index), the smallest self-pair distance and its code (the pair's index in ``ss``, then
+    ``sc``, then ``cc``); a distance is the dtype's largest finite value and its code -1
+    where there is nothing of its kind to check."""
+
+    world: jax.Array
+    world_code: jax.Array
+    own: jax.Array
+    own_code: jax.Array
 
 
-def _materialised(tree):
-    """``tree`` computed into buffers of its own: XLA on CPU fuses a transpose into each of
-    its consumers as a strided, unvectorised read (and drops optimisation barriers), but a
-    conditional's results are materialised. The predicate is true unless the data hold a
-    NaN, and both branches are the identity."""
-    leaf = jax.tree.leaves(tree)[0]
-    pred = jnp.ravel(leaf)[0] == jnp.ravel(leaf)[0] if leaf.size else jnp.bool_(True)
-    return jax.lax.cond(pred, lambda t: t, lambda t: jax.tree.map(lambda x: x + 0, t), tree)
-
-
-def _rows(x: jax.Array, batch: tuple[int, ...], n: int) -> jax.Array:
-    return _materialised(jnp.broadcast_to(x, (*batch, n)).reshape((-1, n)).T)
-
-
-def _take(x: jax.Array, idx: np.ndarray) -> jax.Array:
-    """Rows ``idx`` of ``x`` (static): a slice when they are contiguous, else a gather."""
-    if len(idx) and np.all(np.diff(idx) == 1):
-        return x[int(idx[0]) : int(idx[-1]) + 1]
-    return x[idx]
-
-
-class _Best:
-    """A running minimum ``value`` with the integer ``code`` of its argument (or no code)."""
-
-    def __init__(self, codes: bool):
-        self.codes = codes
-        self.value = None
-        self.code = None
-
-    def add(self, value: jax.Array, code) -> None:
-        """Take ``value`` (same shape or broadcast) with ``code`` (an int or an int32 array)."""
-        code = jnp.asarray(code, jnp.int32) if self.codes else None
-        if self.value is None:
-            self.value = value
-            self.code = jnp.broadcast_to(code, value.shape) if self.codes else None
-            return
-        if self.codes:
-            self.code = jnp.where(value < self.value, code, self.code)
-        self.value = jnp.minimum(self.value, value)
-
-
-def _halve(value: jax.Array, code: jax.Array | None) -> tuple[jax.Array, jax.Array | None]:
-    """The minimum over axis 0 of ``(k, B)`` rows, and the code of the row attaining it."""
-    if code is None:
-        return jnp.min(value, axis=0), None
-    row = jnp.argmin(value, axis=0)[None]
-    pick = lambda x: jnp.take_along_axis(x, row, axis=0)[0]  # noqa: E731
-    return pick(value), pick(code)
-
-
-def _obstacles(world: World) -> list[tuple[int, int, tuple[jax.Array, ...]]]:
-    """``(kind, first code, arrays (m, ...))`` of each non-empty kind, in kind order."""
-    w, out, offset = world, [], 0
-    for kind, prims, arrays in [
+def obstacle_kinds(world: World) -> list[tuple[int, int, tuple[jax.Array, ...]]]:
+    """``(kind, first code, arrays (m, ...))`` of each non-empty obstacle kind, in kind
+    order."""
+    w, c, out, offset = world, world.cylinders, [], 0
+    kinds: list[tuple[int, Any, tuple[jax.Array, ...]]] = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),
         (HALFSPACE, w.halfspaces, (w.halfspaces.normal, w.halfspaces.offset)),
-    ]:
+        (CYLINDER, c, (c.center, c.axis, c.radius, c.half_length)),
+    ]
+    for kind, prims, arrays in kinds:
         if len(prims):
             out.append((kind, offset, arrays))
             offset += len(prims)
     return out
 
 
-def _world_distance(robot_kind: int, robot: tuple, kind: int, obstacle: tuple) -> jax.Array:
-    """Signed distances ``(n, B)`` of robot primitives (SoA) to one obstacle (its arrays
-    without the obstacle axis)."""
-    if robot_kind == SPHERE:
-        (x, y, z), r = robot
-        c = jnp.stack([x, y, z], axis=-1)
-        if kind == SPHERE:
-            return sd.sphere_sphere(c, r, *obstacle)
-        if kind == CAPSULE:
-            return sd.sphere_capsule(c, r, *obstacle)
-        if kind == BOX:
-            return sd.sphere_box(c, r, *obstacle)
-        return sd.sphere_halfspace(c, r, *obstacle)
-    (ax, ay, az), (bx, by, bz), r = robot
-    a, b = jnp.stack([ax, ay, az], axis=-1), jnp.stack([bx, by, bz], axis=-1)
+def _points(rows: jax.Array) -> jax.Array:
+    """``(3, n, B)`` rows as points ``(n, B, 3)`` (the distances' layout; fused away)."""
+    return jnp.stack([rows[0], rows[1], rows[2]], axis=-1)
+
+
+def _sphere_distance(kind: int, c: jax.Array, r: jax.Array, obstacle: tuple) -> jax.Array:
+    """Signed distances ``(n, B)`` of spheres (centres ``(n, B, 3)``) to one obstacle."""
+    if kind == SPHERE:
+        return sd.sphere_sphere(c, r, *obstacle)
+    if kind == CAPSULE:
+        return sd.sphere_capsule(c, r, *obstacle)
+    if kind == BOX:
+        return sd.sphere_box(c, r, *obstacle)
+    if kind == CYLINDER:
+        return sd.sphere_cylinder(c, r, *obstacle)
+    return sd.sphere_halfspace(c, r, *obstacle)
+
+
+def _capsule_distance(kind: int, a: jax.Array, b: jax.Array, r: jax.Array, obstacle: tuple):
+    """Signed distances ``(n, B)`` of capsules (ends ``(n, B, 3)``) to one obstacle."""
     if kind == SPHERE:
         return sd.sphere_capsule(obstacle[0], obstacle[1], a, b, r)
     if kind == CAPSULE:
         return sd.capsule_capsule(a, b, r, *obstacle)
     if kind == BOX:
         return sd.capsule_box(a, b, r, *obstacle)
+    if kind == CYLINDER:
+        return sd.capsule_cylinder(a, b, r, *obstacle)
     return sd.capsule_halfspace(a, b, r, *obstacle)
 
 
-def _world_rows(robot_kind: int, robot: tuple, world: World, codes: bool) -> _Best:
-    """Per robot primitive row ``(n, B)``: the smallest distance over the world and the
-    obstacle's code."""
-    best = _Best(codes)
-    for kind, offset, arrays in _obstacles(world):
-        m = arrays[0].shape[0]
-        if m <= UNROLL:
-            for j in range(m):
-                obstacle = tuple(x[j] for x in arrays)
-                best.add(_world_distance(robot_kind, robot, kind, obstacle), offset + j)
-            continue
-        best.add(_world_distance(robot_kind, robot, kind, tuple(x[0] for x in arrays)), offset)
-
-        def step(j, carry, kind=kind, arrays=arrays, offset=offset):
-            value, code = carry
-            obstacle = tuple(jax.lax.dynamic_index_in_dim(x, j, keepdims=False) for x in arrays)
-            d = _world_distance(robot_kind, robot, kind, obstacle)
-            if codes:
-                code = jnp.where(d < value, offset + j, code)
-            return jnp.minimum(value, d), code
-
-        carry = (best.value, best.code if codes else jnp.zeros((), jnp.int32))
-        best.value, code = jax.lax.fori_loop(1, m, step, carry)
-        best.code = code if codes else None
-    return best
+def _sphere_rows(kind: int, spheres: tuple, obstacle: tuple) -> jax.Array:
+    """``_sphere_distance`` of spheres in rows (centres ``(3, n, B)``, radii ``(n, 1)``)."""
+    center, radius = spheres
+    return _sphere_distance(kind, _points(center), radius, obstacle)
 
 
-def _self_groups(pairs: SelfPairs) -> list[tuple[str, int, np.ndarray]]:
-    """Self pairs grouped by kind and first primitive: ``(kind, i, js)`` with ``kind`` one of
-    ``ss, sc, cc`` (static)."""
-    out = []
-    for kind, (first, second) in (("ss", pairs.ss), ("sc", pairs.sc), ("cc", pairs.cc)):
-        first, second = np.asarray(first, int), np.asarray(second, int)
-        for i in np.unique(first):
-            out.append((kind, int(i), np.sort(second[first == i])))
-    return out
+def _capsule_rows(kind: int, capsules: tuple, obstacle: tuple) -> jax.Array:
+    """``_capsule_distance`` of capsules in rows (ends ``(3, n, B)``, radii ``(n, 1)``)."""
+    a, b, radius = capsules
+    return _capsule_distance(kind, _points(a), _points(b), radius, obstacle)
 
 
-def _as_rows(spheres: Spheres, capsules: Capsules) -> tuple[Spheres, Capsules]:
-    """Placed primitives ``(*batch, n, 3)`` in the rows layout: centres and end points
-    ``(3, n, B)``, radii ``(n, B)`` (configurations minor)."""
-    batch = spheres.radius.shape[:-1]
-    dtype = jnp.result_type(spheres.radius, capsules.radius)
-    ns, nc = len(spheres), len(capsules)
-
-    def points(x, n):
-        return jnp.stack(_soa(x.astype(dtype), batch, n)) if n else jnp.zeros((3, 0, 1), dtype)
-
-    def radii(x, n):
-        return _rows(x.astype(dtype), batch, n) if n else jnp.zeros((0, 1), dtype)
-
-    return (
-        Spheres(points(spheres.center, ns), radii(spheres.radius, ns)),
-        Capsules(points(capsules.a, nc), points(capsules.b, nc), radii(capsules.radius, nc)),
-    )
+def _row(x: jax.Array, row: jax.Array) -> jax.Array:
+    """Row ``row[b]`` of rows ``x`` ``(..., n, B)`` (or radii ``(n, 1)``) for each
+    configuration ``b``: ``(..., 1, B)``."""
+    if x.ndim == 2:
+        return x[row, 0][None]
+    return jnp.take_along_axis(x, row[None, None], axis=-2)
 
 
-def _fused(spheres: Spheres, capsules: Capsules, world: World, pairs: SelfPairs | None, codes):
-    """The kernel on the rows layout (``_as_rows``)."""
-    dtype = jnp.result_type(spheres.radius, capsules.radius)
-    ns, nc = spheres.radius.shape[0], capsules.radius.shape[0]
-    if not ns and not nc:
-        raise ValueError("spheres, capsules: the robot has no primitive")
-    size = max(x.shape[-1] for x in (spheres.radius, capsules.radius) if x.ndim == 2 and x.size)
+def _smaller(a: Any, b: Any) -> Any:
+    """The elementwise smaller of two ``(value, code)`` pairs (a tie: the smaller code, a
+    code of -1 (nothing) losing)."""
+    later = (b[0] < a[0]) | ((b[0] == a[0]) & (b[1] >= 0) & ((b[1] < a[1]) | (a[1] < 0)))
+    return jnp.where(later, b[0], a[0]), jnp.where(later, b[1], a[1])
+
+
+def _running(codes: bool) -> Any:
+    """The ``update`` of a self-pair loop: a running minimum over steps, with the pair's
+    code."""
+
+    def update(carry: Any, code: Any, block: jax.Array, rows_code: jax.Array) -> Any:
+        if not codes:
+            return jnp.minimum(carry, tree_min(block))
+        value, row = tree_argmin(block, rows_code)
+        return _smaller(carry, (value, row + code))
+
+    return update
+
+
+def world_and_self(
+    placed: Placed, world: World, pairs: SelfPairs | None, codes: bool = True
+) -> WorldAndSelf:
+    """The smallest world and self distances of a placed chunk (module docstring); without
+    ``codes`` the codes are -1."""
+    size = placed.size
+    dtype = placed.spheres.dtype
     big = jnp.finfo(dtype).max
-    s_c = [spheres.center[i] for i in range(3)] if ns else None
-    s_r = spheres.radius if ns else None
-    c_a = [capsules.a[i] for i in range(3)] if nc else None
-    c_b = [capsules.b[i] for i in range(3)] if nc else None
-    c_r = capsules.radius if nc else None
-    world = world.astype(dtype)
-    n_obstacles = sum(
-        len(p) for p in (world.spheres, world.capsules, world.boxes, world.halfspaces)
-    )
-    prims = ns + nc
-    total = _Best(codes)
-    # robot-world: code = primitive * n_obstacles + obstacle (spheres first, then capsules)
-    for robot_kind, n, robot, first in (
-        (SPHERE, ns, (s_c, s_r), 0),
-        (CAPSULE, nc, (c_a, c_b, c_r), ns),
-    ):
-        if not n or not n_obstacles:
+    none = jnp.full((size,), -1, jnp.int32)
+    kinds = obstacle_kinds(world.astype(dtype))
+    n_obstacles = sum(len(arrays[0]) for _, _, arrays in kinds)
+    ns = placed.spheres.shape[1]
+    rows: list[tuple[int, int, int, tuple[jax.Array, ...], Any]] = []
+    # (first code, count, obstacles per step, the rows' distances to an obstacle)
+    if ns:
+        spheres = (placed.spheres, placed.sphere_radius)
+        rows.append((0, ns, OBSTACLE_CHUNK, spheres, _sphere_rows))
+    if placed.capsule_a.shape[1]:
+        capsules = (placed.capsule_a, placed.capsule_b, placed.capsule_radius)
+        rows.append((ns, capsules[2].shape[0], CAPSULE_CHUNK, capsules, _capsule_rows))
+    world_value, world_code = jnp.full((size,), big, dtype), none
+    for first, count, chunk, prims, distance in rows:
+        # per primitive the smallest distance over the obstacles (one output per step: the
+        # obstacle's code carried along would have XLA store every obstacle's distances)
+        carry = jnp.full((count, size), big, dtype)
+        for kind, _, arrays in kinds:
+            carry = loop_world(
+                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(  # type: ignore[misc]  # defaults
+                    kind, prims, obstacle
+                ),
+                arrays,
+                carry,
+                jnp.minimum,
+                chunk=chunk,
+            )
+        if not codes:
+            world_value = jnp.minimum(world_value, tree_min(carry))
             continue
-        rows = _world_rows(robot_kind, robot, world, codes)
-        code = None
-        if codes:
-            row = jnp.arange(first, first + n, dtype=jnp.int32)[:, None] * n_obstacles
-            code = row + rows.code
-        value, code = _halve(rows.value, code)
-        total.add(value, code)
-    world_value, world_code = total.value, total.code
-    # self: code = primitive i * prims + primitive j
-    own = _Best(codes)
-    for kind, i, js in _self_groups(pairs) if pairs is not None else []:
-        if kind == "ss":
-            d = sd.sphere_sphere(
-                jnp.stack([x[i] for x in s_c], -1),
-                s_r[i],
-                jnp.stack([_take(x, js) for x in s_c], -1),
-                _take(s_r, js),
+        value, prim = tree_argmin(carry, jnp.arange(count, dtype=jnp.int32)[:, None])
+        # the obstacle: that primitive's distances again, one row per configuration
+        chosen = tuple(_row(x, prim) for x in prims)
+        nearest = (jnp.full((1, size), big, dtype), jnp.full((1, size), -1, jnp.int32))
+        for kind, offset, arrays in kinds:
+
+            def coded(obstacle, j, kind=kind, chosen=chosen, distance=distance, offset=offset):
+                d = distance(kind, chosen, obstacle)
+                return d, jnp.broadcast_to(offset + j, d.shape).astype(jnp.int32)
+
+            nearest = loop_world(coded, arrays, nearest, _smaller, _smaller, chunk=chunk)
+        code = jnp.where(nearest[1][0] < 0, -1, (first + prim) * n_obstacles + nearest[1][0])
+        world_value, world_code = _smaller((world_value, world_code), (value, code))
+    start = (jnp.full((size,), big, dtype), none) if codes else jnp.full((size,), big, dtype)
+    own_value, own_code = _self(placed, pairs, start, _running(codes), codes)
+    return WorldAndSelf(world_value, world_code, own_value, own_code)
+
+
+def primitive_clearances(
+    placed: Placed, world: World, pairs: SelfPairs | None
+) -> tuple[jax.Array, jax.Array]:
+    """Per robot primitive its smallest signed distance to the world, ``(S + C, B)``
+    (spheres, then capsules; the dtype's largest finite value with no obstacle), and per
+    checked link pair (``pairs.link_pairs``) its smallest self distance, ``(len(link_pairs),
+    B)``: what conservative advancement bounds, one speed per link (``jaxkin.motion``)."""
+    size = placed.size
+    dtype = placed.spheres.dtype
+    big = jnp.finfo(dtype).max
+    kinds = obstacle_kinds(world.astype(dtype))
+    parts = []
+    rows = [
+        ((placed.spheres, placed.sphere_radius), _sphere_rows, OBSTACLE_CHUNK),
+        ((placed.capsule_a, placed.capsule_b, placed.capsule_radius), _capsule_rows, CAPSULE_CHUNK),
+    ]
+    for prims, distance, chunk in rows:
+        carry = jnp.full((prims[-1].shape[0], size), big, dtype)
+        for kind, _, arrays in kinds:
+            carry = loop_world(
+                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(
+                    kind, prims, obstacle
+                ),
+                arrays,
+                carry,
+                jnp.minimum,
+                chunk=chunk,
             )
-            ci, cj = i, js
-        elif kind == "sc":
-            d = sd.sphere_capsule(
-                jnp.stack([x[i] for x in s_c], -1),
-                s_r[i],
-                jnp.stack([_take(x, js) for x in c_a], -1),
-                jnp.stack([_take(x, js) for x in c_b], -1),
-                _take(c_r, js),
-            )
-            ci, cj = i, ns + js
-        else:
-            d = sd.capsule_capsule(
-                jnp.stack([x[i] for x in c_a], -1),
-                jnp.stack([x[i] for x in c_b], -1),
-                c_r[i],
-                jnp.stack([_take(x, js) for x in c_a], -1),
-                jnp.stack([_take(x, js) for x in c_b], -1),
-                _take(c_r, js),
-            )
-            ci, cj = ns + i, ns + js
-        code = None
-        if codes:
-            code = jnp.asarray((ci * prims + cj).astype(np.int32))[:, None]
-            code = jnp.broadcast_to(code, d.shape)
-        own.add(*_halve(d, code))
-    return world_value, world_code, own.value, own.code, big, size, ns, prims, n_obstacles
+        parts.append(carry)
+    link_pairs = len(pairs.link_pairs) if pairs is not None else 0
+    own = jnp.full((link_pairs, size), big, dtype)
+    if link_pairs:
+        tests = _self_tests(placed)
+        lists = ((pairs.ss, pairs.ss_pair), (pairs.sc, pairs.sc_pair), (pairs.cc, pairs.cc_pair))
+        for test, ((first, second), of_pair) in zip(tests, lists, strict=True):
+            own = loop_pairs(
+                test, first, second, own, lambda c, tags, block: c.at[tags].min(block),
+                tags=of_pair,
+            )  # fmt: skip
+    return jnp.concatenate(parts), own
+
+
+def self_order(pairs: SelfPairs) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+    """The self pairs' codes: each pair's rank in the order of its link pair (then ``ss``,
+    ``sc``, ``cc``), so that the smallest code among tied pairs names the first link pair;
+    returns the ranks of the ``ss``, ``sc`` and ``cc`` pairs and, by rank, the pair's two
+    primitives (numbered spheres first, then capsules: ``ns`` added to capsule indices by the
+    caller) as ``(kind, index)`` codes ``index * 2 + (1 if capsule)`` and its link pair."""
+    lists = [
+        (pairs.ss, pairs.ss_pair, (0, 0)),
+        (pairs.sc, pairs.sc_pair, (0, 1)),
+        (pairs.cc, pairs.cc_pair, (1, 1)),
+    ]
+    rows = []  # (link pair, kind order, index, first, second)
+    for order, ((first, second), of_pair, kinds) in enumerate(lists):
+        for k, (i, j, link_pair) in enumerate(zip(first, second, of_pair, strict=True)):
+            rows.append((link_pair, order, k, 2 * i + kinds[0], 2 * j + kinds[1]))
+    ranked = sorted(range(len(rows)), key=lambda r: rows[r][:3])
+    rank = np.empty(len(rows), np.int32)
+    rank[ranked] = np.arange(len(rows), dtype=np.int32)
+    sizes = np.cumsum([0] + [len(first) for (first, _), _, _ in lists])
+    ranks = [rank[sizes[k] : sizes[k + 1]] for k in range(3)]
+    by_rank = np.asarray([rows[r] for r in ranked], np.int32).reshape(-1, 5)
+    return ranks, by_rank[:, 3], by_rank[:, 4], by_rank[:, 0]
+
+
+def _self_tests(placed: Placed) -> tuple[Any, Any, Any]:
+    """The signed distances ``(Q, B)`` of sphere-sphere, sphere-capsule and capsule-capsule
+    self pairs ``(i, j)`` (index arrays ``(Q,)``) of a placed chunk."""
+    s_c, s_r = placed.spheres, placed.sphere_radius
+    c_a, c_b, c_r = placed.capsule_a, placed.capsule_b, placed.capsule_radius
+
+    def ss(i: jax.Array, j: jax.Array) -> jax.Array:
+        return sd.sphere_sphere(_points(s_c[:, i]), s_r[i], _points(s_c[:, j]), s_r[j])
+
+    def sc(i: jax.Array, j: jax.Array) -> jax.Array:
+        a, b = _points(c_a[:, j]), _points(c_b[:, j])
+        return sd.sphere_capsule(_points(s_c[:, i]), s_r[i], a, b, c_r[j])
+
+    def cc(i: jax.Array, j: jax.Array) -> jax.Array:
+        a, b = _points(c_a[:, i]), _points(c_b[:, i])
+        return sd.capsule_capsule(a, b, c_r[i], _points(c_a[:, j]), _points(c_b[:, j]), c_r[j])
+
+    return ss, sc, cc
+
+
+def _self(placed: Placed, pairs: SelfPairs | None, carry: Any, update: Any, codes: bool) -> Any:
+    """The smallest self-pair distance (and code: ``self_order``) of a placed chunk."""
+    if pairs is None or not pairs.link_pairs:
+        return carry if codes else (carry, jnp.full(carry.shape, -1, jnp.int32))
+    ranks = self_order(pairs)[0]
+    tests = zip(_self_tests(placed), (pairs.ss, pairs.sc, pairs.cc), ranks, strict=True)
+    for test, (first, second), rank in tests:
+        carry = loop_pairs(
+            test, first, second, carry, lambda c, tags, block: update(c, 0, block, tags[:, None]),
+            tags=rank,
+        )  # fmt: skip
+    return carry if codes else (carry, jnp.full(carry.shape, -1, jnp.int32))
+
+
+def as_placed(spheres: Spheres, capsules: Capsules) -> tuple[Placed, tuple[int, ...]]:
+    """Placed primitives ``(*batch, n, 3)`` in the rows layout, and ``batch``."""
+    batch = jnp.broadcast_shapes(spheres.radius.shape[:-1], capsules.radius.shape[:-1])
+    size = math.prod(batch)
+    dtype = jnp.result_type(spheres.radius, capsules.radius)
+
+    def points(x: jax.Array, n: int) -> jax.Array:
+        x = jnp.broadcast_to(x.astype(dtype), (*batch, n, 3))
+        return jnp.transpose(x.reshape((size, n, 3)), (2, 1, 0))
+
+    def radii(x: jax.Array, n: int) -> jax.Array:
+        return jnp.broadcast_to(x.astype(dtype), (*batch, n)).reshape((size, n)).T
+
+    ns, nc = spheres.radius.shape[-1], capsules.radius.shape[-1]
+    placed = Placed(
+        points(spheres.center, ns),
+        radii(spheres.radius, ns),
+        points(capsules.a, nc),
+        points(capsules.b, nc),
+        radii(capsules.radius, nc),
+    )
+    return placed, batch
 
 
 def min_clearance(
@@ -301,33 +370,16 @@ def min_clearance(
     Returns:
         ``(*batch)``: the clearance, the dtype's largest finite value when nothing is checked.
     """
-    batch = spheres.radius.shape[:-1]
-    world_value, _, self_value, _, big, _, _, _, _ = _fused(
-        *_as_rows(spheres, capsules), world, self_pairs, codes=False
-    )
-    parts = [v for v in (world_value, self_value) if v is not None]
-    if not parts:
-        return jnp.full(batch, big)
-    out = parts[0] if len(parts) == 1 else jnp.minimum(*parts)
-    return out.reshape(batch)
+    placed, batch = as_placed(spheres, capsules)
+    return min_clearance_rows(placed, world, self_pairs).reshape(batch)
 
 
-def min_clearance_rows(
-    spheres: Spheres, capsules: Capsules, world: World, self_pairs: SelfPairs | None = None
-) -> jax.Array:
-    """``min_clearance`` for primitives already in the rows layout: centres and end points
-    ``(3, n, B)``, radii ``(n, B)``, configurations minor; returns ``(B,)``.
-
-    For a fused pipeline whose forward kinematics writes each placed coordinate as a row of
-    ``B`` configurations, so no transpose is needed between placement and the check.
-    """
-    world_value, _, self_value, _, big, size, _, _, _ = _fused(
-        spheres, capsules, world, self_pairs, codes=False
-    )
-    parts = [v for v in (world_value, self_value) if v is not None]
-    if not parts:
-        return jnp.full((size,), big)
-    return parts[0] if len(parts) == 1 else jnp.minimum(*parts)
+def min_clearance_rows(placed: Placed, world: World, self_pairs: SelfPairs | None = None):
+    """``min_clearance`` of primitives already in the rows layout (``rows.Placed``): returns
+    ``(B,)``. For a pipeline whose forward kinematics writes each placed coordinate as a row
+    of ``B`` configurations (``rows.place``), so no transpose is needed before the check."""
+    parts = world_and_self(placed, world, self_pairs, codes=False)
+    return jnp.minimum(parts.world, parts.own)
 
 
 def clearance(
@@ -339,57 +391,72 @@ def clearance(
     to the first pair in the order: world pairs (robot spheres, then capsules; obstacles by
     kind and index), then self pairs.
     """
-    batch = spheres.radius.shape[:-1]
-    world_value, world_code, self_value, self_code, big, size, ns, prims, n_obstacles = _fused(
-        *_as_rows(spheres, capsules), world, self_pairs, codes=True
+    placed, batch = as_placed(spheres, capsules)
+    parts = world_and_self(placed, world, self_pairs)
+    ns = spheres.radius.shape[-1]
+    is_world = parts.world <= parts.own
+    n_obstacles = max(1, sum(len(a[0]) for _, _, a in obstacle_kinds(world)))
+    w_prim, w_obstacle = parts.world_code // n_obstacles, parts.world_code % n_obstacles
+    first, second = self_primitives(self_pairs, ns, parts.own_code)
+    prim = jnp.where(is_world, w_prim, first)
+    nothing = jnp.where(is_world, parts.world_code, parts.own_code) < 0
+    obstacle_kind, obstacle_index = obstacle_of(world, w_obstacle)
+
+    def kind_of(p: jax.Array) -> jax.Array:
+        return jnp.where(p < ns, SPHERE, CAPSULE)
+
+    def index_of(p: jax.Array) -> jax.Array:
+        return jnp.where(p < ns, p, p - ns)
+
+    fields = (
+        jnp.minimum(parts.world, parts.own),
+        is_world & ~nothing,
+        jnp.where(nothing, -1, kind_of(prim)).astype(jnp.int8),
+        jnp.where(nothing, -1, index_of(prim)).astype(jnp.int32),
+        jnp.where(nothing, -1, jnp.where(is_world, obstacle_kind, kind_of(second))).astype(
+            jnp.int8
+        ),
+        jnp.where(nothing, -1, jnp.where(is_world, obstacle_index, index_of(second))).astype(
+            jnp.int32
+        ),
     )
-    dtype = jnp.result_type(spheres.radius, capsules.radius)
-    none = jnp.full((size,), -1, jnp.int32)
-    if world_value is None and self_value is None:
-        return Clearance(
-            jnp.full(batch, big, dtype),
-            jnp.zeros(batch, bool),
-            none.astype(jnp.int8).reshape(batch),
-            none.reshape(batch),
-            none.astype(jnp.int8).reshape(batch),
-            none.reshape(batch),
-        )
-    w_value = jnp.full((size,), big, dtype) if world_value is None else world_value
-    s_value = jnp.full((size,), big, dtype) if self_value is None else self_value
-    is_world = (w_value <= s_value) & (world_value is not None)
-    if self_value is None:
-        is_world = jnp.ones((size,), bool)
-    distance = jnp.minimum(w_value, s_value)
-    # decode: world code = primitive * n_obstacles + obstacle; self code = i * prims + j
-    wc = jnp.zeros((size,), jnp.int32) if world_code is None else world_code
-    sc = jnp.zeros((size,), jnp.int32) if self_code is None else self_code
-    w_prim, w_obst = wc // max(n_obstacles, 1), wc % max(n_obstacles, 1)
-    s_first, s_second = sc // prims, sc % prims
-    prim = jnp.where(is_world, w_prim, s_first)
-    robot_kind = jnp.where(prim < ns, SPHERE, CAPSULE).astype(jnp.int8)
-    robot_index = jnp.where(prim < ns, prim, prim - ns)
-    obstacle_kind, obstacle_index = _obstacle_of(world, w_obst)
-    other_kind = jnp.where(
-        is_world, obstacle_kind, jnp.where(s_second < ns, SPHERE, CAPSULE)
-    ).astype(jnp.int8)
-    other_index = jnp.where(
-        is_world, obstacle_index, jnp.where(s_second < ns, s_second, s_second - ns)
-    )
-    return Clearance(
-        distance.reshape(batch),
-        is_world.reshape(batch),
-        robot_kind.reshape(batch),
-        robot_index.astype(jnp.int32).reshape(batch),
-        other_kind.reshape(batch),
-        other_index.astype(jnp.int32).reshape(batch),
+    return Clearance(*(x.reshape(batch) for x in fields))
+
+
+def self_primitives(
+    pairs: SelfPairs | None, ns: int, code: jax.Array
+) -> tuple[jax.Array, jax.Array]:
+    """A self code (``self_order``) as the pair's two primitives, numbered spheres first then
+    capsules (``ns`` spheres); ``(-1, -1)`` for -1."""
+    if pairs is None or not pairs.num_primitive_pairs:
+        none = jnp.full(code.shape, -1, jnp.int32)
+        return none, none
+    _, first, second, _ = self_order(pairs)
+
+    def number(x: np.ndarray) -> jax.Array:
+        return jnp.asarray(x // 2 + ns * (x % 2))  # a capsule after the spheres
+
+    safe = jnp.clip(code, 0, len(first) - 1)
+    return (
+        jnp.where(code < 0, -1, number(first)[safe]),
+        jnp.where(code < 0, -1, number(second)[safe]),
     )
 
 
-def _obstacle_of(world: World, code: jax.Array) -> tuple[jax.Array, jax.Array]:
+def self_link_pair(pairs: SelfPairs | None, code: jax.Array) -> jax.Array:
+    """A self code (``self_order``) as the index of its link pair in ``pairs.link_pairs``
+    (-1 for -1)."""
+    if pairs is None or not pairs.num_primitive_pairs:
+        return jnp.full(code.shape, -1, jnp.int32)
+    link_pair = jnp.asarray(self_order(pairs)[3])
+    return jnp.where(code < 0, -1, link_pair[jnp.clip(code, 0, len(link_pair) - 1)])
+
+
+def obstacle_of(world: World, code: jax.Array) -> tuple[jax.Array, jax.Array]:
     """An obstacle code (kinds in order, indices within) as ``(kind, index)``."""
     kind = jnp.full(code.shape, -1, jnp.int32)
     index = jnp.full(code.shape, -1, jnp.int32)
-    for k, offset, arrays in _obstacles(world):
+    for k, offset, arrays in obstacle_kinds(world):
         inside = (code >= offset) & (code < offset + arrays[0].shape[0])
         kind = jnp.where(inside, k, kind)
         index = jnp.where(inside, code - offset, index)

@@ -28,10 +28,24 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
+from .. import _validate
+from .._execute import Handle, Kernel, Policy, builds
 from .._validate import positive_number
 from .body import Body
-from .check import _as_q, _check_margin, _check_robot, _check_world, check_kernel, prepare
+from .check import (
+    _as_q,
+    _check_margin,
+    _check_robot,
+    _check_world,
+    check_kernel,
+    handle_setup,
+    prepare,
+    single,
+)
 from .pairs import SelfPairs
+from .protocol import CollisionRobot
+from .rows import COMPILER_OPTIONS
+from .verdict import collides_kernel
 from .world import World
 
 __all__ = ["MotionResult", "motion_samples", "validate_motions", "validate_motions_kernel"]
@@ -74,8 +88,13 @@ def motion_samples(q_from: ArrayLike, q_to: ArrayLike, resolution: float) -> int
     return 1 << max(1, math.ceil(math.log2(max(k, 1) + 1)))
 
 
+def _samples(samples: Any) -> int:
+    """``samples`` as an int >= 2; ``ValueError`` naming it otherwise."""
+    return _validate.count(samples, "samples", minimum=2)
+
+
 def validate_motions_kernel(
-    robot: Any,
+    robot: CollisionRobot,
     body: Body,
     pairs: SelfPairs,
     q_from: Array,
@@ -102,8 +121,6 @@ def validate_motions_kernel(
         result = check_kernel(robot, body, pairs, states, world, margin)
         hit, smallest = result.collides, jnp.min(result.clearance, axis=-1)
     else:
-        from .verdict import collides_kernel
-
         hit = collides_kernel(robot, body, pairs, states, world, margin).collides
         smallest = jnp.full(hit.shape[:-1], jnp.nan, dtype)
     free = ~jnp.any(hit, axis=-1)
@@ -124,11 +141,16 @@ def validate_motions_kernel(
     )
 
 
-_validate_jit = jax.jit(validate_motions_kernel, static_argnames=("samples", "clearance"))
+_validate_jit = Kernel(
+    validate_motions_kernel,
+    static=("samples", "clearance"),
+    batched={"q_from": 1, "q_to": 1},
+    policy=Policy(pad=True, compiler_options=COMPILER_OPTIONS),
+)
 
 
 def validate_motions(
-    robot: Any,
+    robot: CollisionRobot,
     q_from: ArrayLike,
     q_to: ArrayLike,
     world: World,
@@ -141,7 +163,7 @@ def validate_motions(
     """Validate M joint-space edges at once (module docstring).
 
     Args:
-        robot: a robot with ``collision_body`` and ``link_poses``.
+        robot: any robot of the collision protocol (``CollisionRobot``: every jaxkin robot).
         q_from, q_to: the edges' ends, ``(M, n_joints)`` (or any common leading axes).
         world: the obstacles.
         resolution: states per unit of joint distance (a number > 0; NumPy scalars too).
@@ -164,14 +186,11 @@ def validate_motions(
     if q_from.shape != q_to.shape:
         raise ValueError(f"q_from and q_to: shapes differ, {q_from.shape} and {q_to.shape}")
     resolution = positive_number(resolution, "resolution")
-    world = _check_world(world)
+    world = _check_world(world).bucketed()  # a world within its buckets: no compilation
     margin = _check_margin(margin)
     dtype = jnp.result_type(q_from, q_to)
     q_from, q_to = q_from.astype(dtype), q_to.astype(dtype)
-    if samples is None:
-        samples = motion_samples(q_from, q_to, resolution)
-    elif not (isinstance(samples, int) and samples >= 2):
-        raise ValueError(f"samples must be an int >= 2, got {samples!r}")
+    samples = motion_samples(q_from, q_to, resolution) if samples is None else _samples(samples)
     body, pairs = prepare(robot, self_collision)
     return _validate_jit(
         robot,
@@ -184,4 +203,52 @@ def validate_motions(
         samples=samples,
         margin=margin,
         clearance=clearance,
+        batch=q_from.shape[:-1],
+        pad=single(q_from.shape[:-1]) and not world.batched(),
+    )
+
+
+@builds(validate_motions)
+def _validate_motions_handle(
+    robot: Any,
+    world: World,
+    resolution: float,
+    samples: int,
+    batch: Any = 1,
+    margin: float = 0.0,
+    self_collision: bool = True,
+    clearance: bool = True,
+    dtype: Any = None,
+) -> Handle:
+    """``compiled(collision.validate_motions, robot, world, resolution, samples, batch=1,
+    margin=0.0, self_collision=True, clearance=True, dtype=None)``: ``handle(q_from, q_to)``
+    for edges ``(*batch, n_joints)``, each checked at ``samples`` slots (an edge that needs
+    more is reported not valid, as ``validate_motions`` with ``samples`` given); the
+    ``MotionResult`` of ``validate_motions`` on the same edges (the other arguments as for
+    ``check``'s handle; ``handle.rebound(world)`` for another world of the same layout)."""
+    resolution = positive_number(resolution, "resolution")
+    samples = _samples(samples)
+    setup = handle_setup(robot, world, batch, margin, self_collision, dtype)
+
+    def run(q_from: Array, q_to: Array, flat: Array) -> MotionResult:
+        return validate_motions_kernel(
+            setup.robot,
+            setup.body,
+            setup.pairs,
+            q_from,
+            q_to,
+            setup.world(flat),
+            resolution,
+            samples,
+            setup.margin,
+            clearance,
+        )
+
+    example = setup.configurations()
+    return Handle(
+        run,
+        (example, example),
+        bound=(setup.packed,),
+        rebind=setup.rebind,
+        compiler_options=COMPILER_OPTIONS,
     )

@@ -24,7 +24,9 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.typing import ArrayLike
 
+from .._execute import Kernel
 from . import distance as sd
 from .body import Body
 from .primitives import Capsules, Spheres
@@ -155,7 +157,12 @@ class SelfPairs:
     def create(cls, body: Body, link_pairs: Iterable[tuple[int, int]]) -> SelfPairs:
         link_pairs = tuple((int(i), int(j)) for i, j in link_pairs)
         s_link, c_link = np.asarray(body.sphere_link, int), np.asarray(body.capsule_link, int)
-        ss, sc, cc, ssp, scp, ccp = ([], []), ([], []), ([], []), [], [], []
+        ss: tuple[list[int], list[int]] = ([], [])
+        sc: tuple[list[int], list[int]] = ([], [])
+        cc: tuple[list[int], list[int]] = ([], [])
+        ssp: list[int] = []
+        scp: list[int] = []
+        ccp: list[int] = []
 
         def add(target, tag, which, left, right, k):
             for p in np.flatnonzero(left):
@@ -247,7 +254,7 @@ def self_distances(spheres: Spheres, capsules: Capsules, pairs: SelfPairs) -> ja
 def propose_disabled(
     body: Body,
     link_poses: Callable[[jax.Array], jax.Array],
-    samples: jax.Array,
+    samples: ArrayLike,
     link_pairs: Iterable[tuple[int, int]] | None = None,
     chunk: int = 4096,
 ) -> dict[str, list[tuple[str, str]]]:
@@ -264,28 +271,32 @@ def propose_disabled(
         ``{"never": [...], "always": [...]}``: name pairs never in collision (signed distance
         > 0 in every sample) and always in collision (<= 0 in every sample).
     """
-    samples = np.asarray(samples)
-    if samples.ndim != 2 or len(samples) == 0:
-        raise ValueError(f"samples: expected shape (n, dof) with n >= 1, got {samples.shape}")
+    configurations = np.asarray(samples)
+    if configurations.ndim != 2 or len(configurations) == 0:
+        raise ValueError(
+            f"samples: expected shape (n, dof) with n >= 1, got {configurations.shape}"
+        )
     if link_pairs is None:
         geo = sorted(_links_with_geometry(body))
         link_pairs = [(i, j) for k, i in enumerate(geo) for j in geo[k + 1 :]]
     pairs = SelfPairs.create(body, link_pairs)
 
-    @jax.jit
-    def extremes(q):
+    def extremes_of(q):
         spheres, capsules = body.place(link_poses(q))
         d = self_distances(spheres, capsules, pairs)
         return jnp.min(d, axis=0), jnp.max(d, axis=0)
 
-    lo, hi = None, None
-    for start in range(0, len(samples), chunk):
-        part = samples[start : start + chunk]
+    extremes = Kernel(extremes_of)  # one program for this call's chunks
+
+    lows, highs = [], []
+    for start in range(0, len(configurations), chunk):
+        part = configurations[start : start + chunk]
         if len(part) < chunk and start > 0:  # keep one shape: pad with the first sample
             part = np.concatenate([part, np.repeat(part[:1], chunk - len(part), axis=0)])
         a, b = (np.asarray(x) for x in extremes(jnp.asarray(part)))
-        lo = a if lo is None else np.minimum(lo, a)
-        hi = b if hi is None else np.maximum(hi, b)
+        lows.append(a)
+        highs.append(b)
+    lo, hi = np.min(lows, axis=0), np.max(highs, axis=0)
     names = [(body.links[i], body.links[j]) for i, j in pairs.link_pairs]
     return {
         "never": [n for n, d in zip(names, lo, strict=True) if d > 0],

@@ -1,4 +1,4 @@
-"""Collision primitives as array data: spheres, capsules, oriented boxes, half-spaces.
+"""Collision primitives as array data: spheres, capsules, oriented boxes, cylinders, half-spaces.
 
 Each kind is a frozen dataclass registered as a pytree whose fields are arrays with one row per
 primitive (shape ``(n, ...)``, any further leading axes broadcast), so moving or resizing a
@@ -22,7 +22,7 @@ from jax.typing import ArrayLike
 
 from .._validate import finite_number, positive_number
 
-__all__ = ["Boxes", "Capsules", "HalfSpaces", "Spheres", "point_cloud_spheres"]
+__all__ = ["Boxes", "Capsules", "Cylinders", "HalfSpaces", "Spheres", "point_cloud_spheres"]
 
 
 def _floats(x: ArrayLike, name: str, shape_tail: tuple[int, ...], dtype=None) -> np.ndarray:
@@ -64,6 +64,20 @@ def _count(name: str, *arrays: np.ndarray, axes: tuple[int, ...]) -> None:
     counts = {arr.shape[arr.ndim - k] for arr, k in zip(arrays, axes, strict=True)}
     if len(counts) != 1:
         raise ValueError(f"{name}: fields disagree on the number of primitives: {sorted(counts)}")
+
+
+def _rotations(rotation: ArrayLike, dtype=None) -> np.ndarray:
+    """Proper rotation matrices ``(..., 3, 3)`` (host side), or a ``ValueError`` naming
+    ``rotation``."""
+    rot = _floats(rotation, "rotation", (3, 3), dtype)
+    err = np.abs(np.swapaxes(rot, -1, -2) @ rot - np.eye(3)).max(initial=0.0)
+    tol = 100.0 * np.sqrt(np.finfo(rot.dtype).eps)
+    if err > tol or np.any(np.linalg.det(rot.astype(float)) <= 0):
+        raise ValueError(
+            f"rotation must be proper rotation matrices (R^T R = I within {tol:.1e}, "
+            f"det > 0); largest |R^T R - I| is {err:.2e}"
+        )
+    return rot
 
 
 def _sphere_arrays(
@@ -143,6 +157,14 @@ class Boxes:
         dtype=None,
     ) -> Boxes:
         c = _floats(center, "center", (3,), dtype)
+        given = np.shape(half_extents)
+        if given[-2:] == (3, 3) and len(given) > np.ndim(center):
+            # the fields' order (center, rotation, half_extents) is not create's
+            raise ValueError(
+                f"half_extents: got shape {given}, 3x3 matrices (one more axis than center): "
+                "Boxes.create takes (center, half_extents, rotation=None); pass rotation= "
+                "by name"
+            )
         h = _nonnegative(
             _floats(
                 _per_primitive(half_extents, "half_extents", c.shape), "half_extents", (3,), dtype
@@ -151,15 +173,8 @@ class Boxes:
         )
         if rotation is None:
             rotation = np.broadcast_to(np.eye(3), (*c.shape[:-1], 3, 3))
-        rot = _floats(rotation, "rotation", (3, 3), dtype)
+        rot = _rotations(rotation, dtype)
         _count("Boxes", c, rot, axes=(2, 3))
-        err = np.abs(np.swapaxes(rot, -1, -2) @ rot - np.eye(3)).max(initial=0.0)
-        tol = 100.0 * np.sqrt(np.finfo(rot.dtype).eps)
-        if err > tol or np.any(np.linalg.det(rot.astype(float)) <= 0):
-            raise ValueError(
-                f"rotation must be proper rotation matrices (R^T R = I within {tol:.1e}, "
-                f"det > 0); largest |R^T R - I| is {err:.2e}"
-            )
         return cls(jnp.asarray(c), jnp.asarray(rot), jnp.asarray(h))
 
     @classmethod
@@ -168,6 +183,69 @@ class Boxes:
 
     def __len__(self) -> int:
         return self.center.shape[-2]
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class Cylinders:
+    """Solid cylinders ``{center + z axis + w : |z| <= half_length, w . axis = 0,
+    |w| <= radius}``.
+
+    ``center`` ``(..., n, 3)``; ``axis`` ``(..., n, 3)`` (unit: ``create`` normalises it);
+    ``radius`` and ``half_length`` ``(..., n)`` (>= 0). A cylinder of radius 0 is a segment,
+    one of half-length 0 a disk. URDF's and MoveIt's cylinders lie along their frame's z axis:
+    ``create(..., rotation=R)`` takes that frame (the axis is ``R[:, 2]``).
+    """
+
+    center: jax.Array
+    axis: jax.Array
+    radius: jax.Array
+    half_length: jax.Array
+
+    @classmethod
+    def create(
+        cls,
+        center: ArrayLike,
+        radius: ArrayLike,
+        half_length: ArrayLike,
+        axis: ArrayLike | None = None,
+        rotation: ArrayLike | None = None,
+        dtype=None,
+    ) -> Cylinders:
+        """Cylinders along ``axis`` (non-zero vectors, one per cylinder or one for all), or
+        along the z axis of ``rotation`` (proper rotations), or along z when neither is given;
+        a ``ValueError`` names the argument otherwise."""
+        c = _floats(center, "center", (3,), dtype)
+        if axis is not None and rotation is not None:
+            raise ValueError("axis, rotation: give one of them (the axis is rotation[..., :, 2])")
+        if rotation is not None:
+            rot = _rotations(rotation, dtype)
+            _count("Cylinders", c, rot, axes=(2, 3))
+            direction = rot[..., :, 2]
+        else:
+            given = np.array([0.0, 0.0, 1.0]) if axis is None else axis
+            direction = _floats(_per_primitive(given, "axis", c.shape), "axis", (3,), dtype)
+        length = np.linalg.norm(direction.astype(float), axis=-1, keepdims=True)
+        if np.any(length == 0):
+            raise ValueError("axis must be non-zero vectors")
+        r = _floats(_per_primitive(radius, "radius", c.shape[:-1]), "radius", (), dtype)
+        h = _floats(
+            _per_primitive(half_length, "half_length", c.shape[:-1]), "half_length", (), dtype
+        )
+        unit = (direction / length).astype(c.dtype)
+        return cls(
+            jnp.asarray(c),
+            jnp.asarray(unit),
+            jnp.asarray(_nonnegative(r, "radius")),
+            jnp.asarray(_nonnegative(h, "half_length")),
+        )
+
+    @classmethod
+    def empty(cls, dtype=None) -> Cylinders:
+        return cls.create(np.zeros((0, 3)), np.zeros(0), np.zeros(0), dtype=dtype)
+
+    def __len__(self) -> int:
+        return self.radius.shape[-1]
 
 
 @jax.tree_util.register_dataclass

@@ -24,6 +24,7 @@ import io
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,6 +53,7 @@ def _load_model(source: str | os.PathLike):
             "reading a URDF needs the 'urdf' extra: pip install 'jaxkin[urdf]'"
         ) from exc
     text = os.fsdecode(source) if isinstance(source, bytes | os.PathLike) else source
+    data: io.BytesIO | str
     if isinstance(text, str) and text.lstrip("\ufeff \t\r\n").startswith("<"):
         path, data = Path("URDF text"), io.BytesIO(text.encode("utf-8"))
     else:
@@ -158,7 +160,7 @@ def body_from_urdf(
                 capsules.setdefault(link.name, []).append((_apply(pose, a), _apply(pose, b), r))
             elif geometry.mesh is not None:
                 mesh_path = _resolve(geometry.mesh.filename, path.parent, package_dirs)
-                mesh = trimesh.load(str(mesh_path), force="mesh")
+                mesh: Any = trimesh.load(str(mesh_path), force="mesh")  # a Trimesh
                 scale = geometry.mesh.scale
                 vertices = np.asarray(mesh.vertices) * (1.0 if scale is None else np.asarray(scale))
                 cover = mesh_cover(
@@ -182,7 +184,11 @@ def body_from_urdf(
         for name, parts in spheres.items()
     }
     capsule_data = {
-        name: tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
+        name: (
+            np.concatenate([a for a, _, _ in parts]),
+            np.concatenate([b for _, b, _ in parts]),
+            np.concatenate([r for _, _, r in parts]),
+        )
         for name, parts in capsules.items()
     }
     body = Body.create(links, sphere_data, capsule_data, dtype=dtype)

@@ -27,12 +27,12 @@ import jax.numpy as jnp
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _validate
+from .._execute import WHOLE, Kernel, Policy
 from .._geometry import concrete_scalars
 from .._numerics import computed_once, safe_sqrt
 from .._trig import cos_alone, sin_alone
 from ..jet import Jet
-from ..robot import Robot
 from ..status import Status
 
 __all__ = [
@@ -46,8 +46,8 @@ __all__ = [
     "any3",
     "as_coords",
     "centre_components",
-    "compiled",
     "components",
+    "constant_geometry_kernel",
     "cos_sin",
     "dot3",
     "far_away",
@@ -61,6 +61,8 @@ __all__ = [
     "rates_ok",
     "sanitise",
 ]
+
+DeltaRobot = Any  # a delta.Delta: the class sits above its kernels, which read its fields
 
 BRANCHES = ("out", "in")
 METHODS = ("analytic", "autodiff")
@@ -91,7 +93,7 @@ def radial(dtype) -> tuple[Array, Array]:
     return jnp.asarray(UX, dtype), jnp.asarray(UY, dtype)
 
 
-def params(robot: Robot, dtype) -> tuple[Array, ...]:
+def params(robot: DeltaRobot, dtype) -> tuple[Array, ...]:
     """The robot's fields (``FIELDS`` order) as scalars of ``dtype``."""
     return tuple(jnp.asarray(getattr(robot, f), dtype) for f in FIELDS)
 
@@ -108,7 +110,9 @@ def cos_sin(theta: Array) -> tuple[tuple[Array, ...], tuple[Array, ...]]:
     return tuple(rows[:3]), tuple(rows[3:])
 
 
-def centre_components(robot: Robot, theta: Array, cosines=None) -> tuple[tuple[Array, ...], ...]:
+def centre_components(
+    robot: DeltaRobot, theta: Array, cosines=None
+) -> tuple[tuple[Array, ...], ...]:
     """The sphere centres ``C_i = E_i - r_platform u_i`` as components ``C[i][k]`` (chain i,
     coordinate k), batch-shaped: ``p`` lies at distance ``l_rod`` from each.
 
@@ -144,11 +148,11 @@ def sanitise(x: Jet, fill: Array, rates: bool = True) -> tuple[Jet, Array]:
     vc = valid[..., None]
     p = jnp.where(vc, x.p, fill)
     if not rates:
-        return Jet(p, None, None), valid
+        return Jet.positions(p), valid
     return Jet(p, jnp.where(vc, x.v, 0.0), jnp.where(vc, x.a, 0.0)), valid
 
 
-def home(robot: Robot, dtype) -> Array:
+def home(robot: DeltaRobot, dtype) -> Array:
     """The platform position with every arm horizontal (``theta = 0``), ``(3,)``: a finite
     point substituted for invalid input."""
     r_base, r_platform, l_arm, l_rod, _, _ = params(robot, dtype)
@@ -157,7 +161,7 @@ def home(robot: Robot, dtype) -> Array:
     return jnp.stack([0.0 * z, 0.0 * z, jnp.where(z < 0, z, -l_rod)])
 
 
-def in_own_units(robot: Robot) -> tuple[Robot, Any]:
+def in_own_units(robot: DeltaRobot) -> tuple[DeltaRobot, Any]:
     """The robot with its lengths divided by ``l_arm + l_rod``, and that scale.
 
     The kernels work in these units, so no square or product of rates over- or underflows
@@ -186,7 +190,7 @@ def rates_ok(status: Array) -> Array:
     return (status == Status.OK) | (status == Status.OUT_OF_LIMITS)
 
 
-def frozen(robot: Robot) -> Robot | None:
+def frozen(robot: DeltaRobot) -> DeltaRobot | None:
     """The robot with Python-float fields when every field is a concrete scalar, else None."""
     values = concrete_scalars(robot, (*FIELDS, "link_radius"))
     if values is None:
@@ -194,35 +198,32 @@ def frozen(robot: Robot) -> Robot | None:
     return jax.tree.unflatten(jax.tree.structure(robot), list(values))
 
 
-def compiled(
+def constant_geometry_kernel(
     fn: Callable[..., Any],
-    static_argnames: tuple[str, ...] = (),
-    batched_argnames: tuple[str, ...] = (),
+    static: tuple[str, ...] = (),
+    batched: dict[str, int] | None = None,
 ) -> Callable[..., Any]:
-    """``jax.jit(fn)`` that compiles a concrete geometry in as constants.
+    """A ``Kernel`` of ``fn`` that compiles a concrete geometry in as constants.
 
     A geometry of Python numbers is a static argument (one compilation per robot, cached), so
     XLA folds it into the kernel; a traced or batched geometry (gradients with respect to the
     design, ``vmap`` over robots) takes the dynamic path.
 
-    With ``batched_argnames``, large batches are split across host threads
-    (``jaxkin._batching``) and the call takes the batch shape as the keyword ``batch``.
+    With ``batched`` (argument name -> core axes), small batches are padded and large ones
+    split across host threads (``Policy(pad=True, threads=True)``), and the call takes the
+    batch shape as the keyword ``batch``.
     """
-    if batched_argnames:
-        dynamic = _batching.PartsJit(fn, static_argnames, batched_argnames)
-        static = _batching.PartsJit(fn, ("robot", *static_argnames), batched_argnames)
-    else:
-        dynamic = jax.jit(fn, static_argnames=static_argnames)
-        static = jax.jit(fn, static_argnames=("robot", *static_argnames))
+    policy = Policy(pad=True, threads=True) if batched else WHOLE
+    dynamic = Kernel(fn, static=static, batched=batched, policy=policy)
+    constant = Kernel(fn, static=("robot", *static), batched=batched, policy=policy)
 
     @functools.wraps(fn)
-    def call(robot: Robot, *args: Any, **kwargs: Any) -> Any:
+    def call(robot: DeltaRobot, *args: Any, **kwargs: Any) -> Any:
         concrete = frozen(robot)
         if concrete is None:
             return dynamic(robot, *args, **kwargs)
-        return static(concrete, *args, **kwargs)
+        return constant(concrete, *args, **kwargs)
 
-    call.takes_batch = bool(batched_argnames)
     return call
 
 

@@ -37,12 +37,12 @@ from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..lie import cross_soa
 from ..result import FKResult, SolverResult
-from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
 from ._math import (
+    DeltaRobot,
     any3,
     centre_components,
-    compiled,
+    constant_geometry_kernel,
     cos_sin,
     finite3,
     home,
@@ -131,7 +131,7 @@ def _reduced_residual(p, planes, rod: tuple[Array, Array]) -> tuple[Array, Array
     return r_1, r_2, r_3
 
 
-def _default_guess(robot: Robot, centres: tuple[tuple[Array, ...], ...]) -> Array:
+def _default_guess(robot: DeltaRobot, centres: tuple[tuple[Array, ...], ...]) -> Array:
     """Centroid of the sphere centres, lowered by ``sqrt(max(l_rod^2 - spread, l_rod^2/4))``."""
     l_rod = jnp.asarray(robot.l_rod, centres[0][0].dtype)
     mean = [(centres[0][k] + centres[1][k] + centres[2][k]) / 3.0 for k in range(3)]
@@ -147,7 +147,7 @@ def _default_guess(robot: Robot, centres: tuple[tuple[Array, ...], ...]) -> Arra
 
 
 def _fk_newton(
-    robot: Robot, theta: Array, guess: Array | None, tol: float, max_iter: int, cosines=None
+    robot: DeltaRobot, theta: Array, guess: Array | None, tol: float, max_iter: int, cosines=None
 ):
     """Newton on ``_reduced_residual``; every reported field refers to the original ``r``.
 
@@ -243,7 +243,7 @@ def _fk_impl(
     ).astype(STATUS_DTYPE)
     ok = rates_ok(status)
     if not rates:
-        p_jet = Jet(sol.x, None, None)  # at rest: zero rates added by _fk_chunked or fk
+        p_jet = Jet.positions(sol.x)  # at rest: zero rates added by _fk_chunked or fk
     elif method == "analytic":
         p_jet = fk_rates(robot, theta, sol.x, ok, cosines)
     else:
@@ -256,7 +256,7 @@ def _fk_impl(
     )
 
 
-def _sphere_intersection(robot: Robot, theta: Array):
+def _sphere_intersection(robot: DeltaRobot, theta: Array):
     """Closed-form FK: lower and upper solutions, the circumcentre, ``n`` and the status parts.
 
     Written on components (batch-shaped arrays per coordinate), which XLA fuses into one loop;
@@ -288,7 +288,7 @@ def _sphere_intersection(robot: Robot, theta: Array):
     return lower, upper, jnp.stack(centre, -1), jnp.stack(n, -1), w, collinear
 
 
-def _fk_closed_form_impl(robot: Robot, theta: Array) -> ClosedFormFKResult:
+def _fk_closed_form_impl(robot: DeltaRobot, theta: Array) -> ClosedFormFKResult:
     robot, scale = in_own_units(robot)
     valid = finite3(theta)
     theta = jnp.where(valid[..., None], theta, 0.0)
@@ -319,7 +319,7 @@ def _fk_closed_form_impl(robot: Robot, theta: Array) -> ClosedFormFKResult:
     return ClosedFormFKResult(lower, upper, status)
 
 
-def _branch_impl(robot: Robot, theta: Array, p: Array) -> Array:
+def _branch_impl(robot: DeltaRobot, theta: Array, p: Array) -> Array:
     robot, scale = in_own_units(robot)
     p = p * (1.0 / jnp.asarray(scale, p.dtype))
     _, _, centre, n, _, _ = _sphere_intersection(robot, theta)
@@ -328,7 +328,7 @@ def _branch_impl(robot: Robot, theta: Array, p: Array) -> Array:
 
 
 def _fk_chunked(
-    robot: Robot,
+    robot: DeltaRobot,
     theta: Jet,
     guess,
     tol: float,
@@ -354,19 +354,22 @@ def _fk_chunked(
 
 # Warm-started FK (``jaxkin.delta.fk`` with a guess): the Newton loop runs on one core per
 # program, so large batches are split across host threads.
-fk_guess_jit = _batching.PaddedJit(
-    compiled(_fk_chunked, ("tol", "max_iter", "method", "rates", "zero_rates"), ("theta", "guess")),
+fk_guess_jit = constant_geometry_kernel(
+    _fk_chunked,
+    ("tol", "max_iter", "method", "rates", "zero_rates"),
     {"theta": 1, "guess": 1},
 )
-closed_form_jit = compiled(_fk_closed_form_impl)
-branch_jit = compiled(_branch_impl)
+closed_form_jit = constant_geometry_kernel(_fk_closed_form_impl)
+branch_jit = constant_geometry_kernel(_branch_impl)
 
 
-def fk_kernel(robot: Robot, theta: Jet, options: DeltaFKOptions, rates: bool) -> NewtonFKResult:
+def fk_kernel(
+    robot: DeltaRobot, theta: Jet, options: DeltaFKOptions, rates: bool
+) -> NewtonFKResult:
     """The robot protocol's FK kernel (``Delta.fk_kernel``): Newton from the default guess;
     at rest no rate is read or written (the pipeline writes the zero rates)."""
     tol = options.tolerance(theta.dtype)
-    theta = theta if rates else Jet(theta.p, None, None)
+    theta = theta if rates else Jet.positions(theta.p)
     return _fk_chunked(
         robot, theta, None, tol, options.max_iter, options.method, rates, zero_rates=False
     )

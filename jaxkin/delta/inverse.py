@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 from jax import Array
+from jax.typing import ArrayLike
 
 from .._numerics import safe_sqrt, singular_rtol
 from ..jet import Jet, lift
 from ..result import IKResult
-from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
 from ._math import (
+    DeltaRobot,
     any3,
     far_away,
     home,
@@ -46,7 +47,7 @@ from .options import DeltaIKOptions
 __all__ = ["ik_kernel"]
 
 
-def _ik_position(robot: Robot, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
+def _ik_position(robot: DeltaRobot, p: Array, branch: str) -> tuple[Array, Array, Array, Array]:
     """Actuator angles, their cosines and sines, and the signed inverse measure, ``(..., 3)``."""
     dtype = p.dtype
     r_base, r_platform, l_arm, l_rod, _, _ = params(robot, dtype)
@@ -87,7 +88,7 @@ def _ik_position(robot: Robot, p: Array, branch: str) -> tuple[Array, Array, Arr
     return theta, cos_theta, sin_theta, signed
 
 
-def _ik_status(robot: Robot, theta: Array, signed: Array, valid: Array) -> Array:
+def _ik_status(robot: DeltaRobot, theta: Array, signed: Array, valid: Array) -> Array:
     _, _, _, _, lo, hi = params(robot, theta.dtype)
     rtol = singular_rtol(theta.dtype)
     margin = jnp.minimum(jnp.minimum(signed[..., 0], signed[..., 1]), signed[..., 2])
@@ -108,7 +109,7 @@ def _ik_status(robot: Robot, theta: Array, signed: Array, valid: Array) -> Array
     ).astype(STATUS_DTYPE)
 
 
-def _ik_impl(robot: Robot, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
+def _ik_impl(robot: DeltaRobot, p: Jet, branch: str, method: str, rates: bool) -> IKResult:
     """Actuator angles (rates where ``rates``; else ``p.v``, ``p.a`` are None and the result's
     rates are 0) for platform positions ``p`` ``(..., 3)`` on ``branch`` ("out" or "in").
     """
@@ -121,10 +122,11 @@ def _ik_impl(robot: Robot, p: Jet, branch: str, method: str, rates: bool) -> IKR
     rest = home(robot, p.p.dtype)
     p = Jet(jnp.where(valid[..., None], p.p, rest), p.v, p.a)
     far = far_away(p.p)  # certainly unreachable: solved at the home pose instead, then flagged
+    fills: tuple[ArrayLike, ...] = (home(robot, p.p.dtype), 0.0, 0.0)
     p = Jet(
         *(
             None if x is None else jnp.where(far[..., None], fill, x)
-            for x, fill in zip((p.p, p.v, p.a), (home(robot, p.p.dtype), 0.0, 0.0), strict=True)
+            for x, fill in zip((p.p, p.v, p.a), fills, strict=True)
         )
     )
 
@@ -155,6 +157,8 @@ def _ik_impl(robot: Robot, p: Jet, branch: str, method: str, rates: bool) -> IKR
     return IKResult(theta_jet, status, margin)
 
 
-def ik_kernel(robot: Robot, p: Jet, branch: str, options: DeltaIKOptions, rates: bool) -> IKResult:
+def ik_kernel(
+    robot: DeltaRobot, p: Jet, branch: str, options: DeltaIKOptions, rates: bool
+) -> IKResult:
     """The robot protocol's IK kernel (``Delta.ik_kernel``): at rest no rate is read."""
-    return _ik_impl(robot, p if rates else Jet(p.p, None, None), branch, options.method, rates)
+    return _ik_impl(robot, p if rates else Jet.positions(p.p), branch, options.method, rates)

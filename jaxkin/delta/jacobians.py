@@ -29,9 +29,19 @@ from .._numerics import all_finite, computed_once, singular_rtol
 from ..jet import Jet
 from ..lie import cross_soa
 from ..result import SolverResult
-from ..robot import Robot
 from ..status import STATUS_DTYPE, Status
-from ._math import UX, UY, compiled, components, cos_sin, dot3, home, in_own_units, params
+from ._math import (
+    UX,
+    UY,
+    DeltaRobot,
+    components,
+    constant_geometry_kernel,
+    cos_sin,
+    dot3,
+    home,
+    in_own_units,
+    params,
+)
 
 __all__ = [
     "SingularityResult",
@@ -60,7 +70,7 @@ class SingularityResult(SolverResult):
     status: Array
 
 
-def constraint_jacobians(robot: Robot, p, cos_theta, sin_theta):
+def constraint_jacobians(robot: DeltaRobot, p, cos_theta, sin_theta):
     """Per chain ``i``: ``d_i = D_i - E_i`` (row i of ``J_p``), ``d_i . E_i'`` (``J_theta``),
     ``d_i . E_i''`` and ``E_i'``, all as components (batch-shaped arrays, see ``jaxkin.newton``).
 
@@ -89,7 +99,7 @@ def constraint_jacobians(robot: Robot, p, cos_theta, sin_theta):
     return d, jt, d_dd, d_elbow
 
 
-def ik_rates(robot: Robot, p: Jet, theta: Array, cosines, ok: Array) -> Jet:
+def ik_rates(robot: DeltaRobot, p: Jet, theta: Array, cosines, ok: Array) -> Jet:
     """``J_theta theta_dot = J_p p_dot`` row by row, and its time derivative for theta_ddot.
 
     ``cosines``: ``(cos theta, sin theta)``, each ``(..., 3)``; rates are 0 where not ``ok``.
@@ -109,7 +119,7 @@ def ik_rates(robot: Robot, p: Jet, theta: Array, cosines, ok: Array) -> Jet:
     return Jet(theta, jnp.stack(theta_dot, -1), jnp.stack(theta_ddot, -1))
 
 
-def fk_rates(robot: Robot, theta: Jet, p: Array, ok: Array, cosines) -> Jet:
+def fk_rates(robot: DeltaRobot, theta: Jet, p: Array, ok: Array, cosines) -> Jet:
     """``J_p p_dot = J_theta theta_dot`` and its time derivative, solved per sample.
 
     ``cosines``: ``cos_sin(theta.p)`` (components); rates are 0 where not ``ok``.
@@ -130,7 +140,7 @@ def fk_rates(robot: Robot, theta: Jet, p: Array, ok: Array, cosines) -> Jet:
     return Jet(p, jnp.stack(zero[:3], -1), jnp.stack(zero[3:], -1))
 
 
-def singularity_kernel(robot: Robot, p: Array, theta: Array) -> SingularityResult:
+def singularity_kernel(robot: DeltaRobot, p: Array, theta: Array) -> SingularityResult:
     """Both singularity measures at platform positions ``p`` and angles ``theta``, ``(..., 3)``
     each (same batch shape and dtype); non-finite input gives ``INVALID_INPUT``."""
     robot, scale = in_own_units(robot)
@@ -154,4 +164,4 @@ def singularity_kernel(robot: Robot, p: Array, theta: Array) -> SingularityResul
     return SingularityResult(inverse, direct, status)
 
 
-singularity_jit = compiled(singularity_kernel)
+singularity_jit = constant_geometry_kernel(singularity_kernel)

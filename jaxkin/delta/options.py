@@ -43,9 +43,7 @@ class DeltaFKOptions:
     def __post_init__(self) -> None:
         if self.tol is not None:
             object.__setattr__(self, "tol", _validate.positive_number(self.tol, "tol"))
-        max_iter = self.max_iter
-        if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
-            raise ValueError(f"max_iter must be a positive int, got {max_iter!r}")
+        object.__setattr__(self, "max_iter", _validate.count(self.max_iter, "max_iter"))
         _validate.choice(self.method, "method", METHODS)
 
     def tolerance(self, dtype) -> float:

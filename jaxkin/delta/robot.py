@@ -24,11 +24,12 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _batching, _validate, lie
+from .._execute import solve_fk, solve_ik
 from .._geometry import BOUND, LENGTH, NONNEGATIVE, geometry, number
 from ..collision.body import Body
 from ..jet import Jet
 from ..result import IKResult
-from ..robot import POINT, CompilePolicy, JointLimits, Robot, solve_fk, solve_ik
+from ..robot import POINT, CompilePolicy, JointLimits, Robot
 from ..status import Status
 from . import forward, inverse, jacobians
 from ._math import BRANCHES, JOINT_NAMES, UX, UY, as_coords, float_dtype
@@ -256,21 +257,20 @@ def fk(
     options = DeltaFKOptions(tol, max_iter, method)
     if guess is None:
         return solve_fk(robot, theta, options, name="theta")
-    rates = isinstance(theta, Jet)
-    if rates:
-        theta = _validate.as_jet(theta, "theta", coords=3)
+    if isinstance(theta, Jet):
+        rates, joints = True, _validate.as_jet(theta, "theta", coords=3)
     else:
-        theta = Jet(as_coords(theta, "theta"), None, None)
-    dtype = float_dtype(theta.p)
+        rates, joints = False, Jet.positions(as_coords(theta, "theta"))
+    dtype = float_dtype(joints.p)
     guess = jnp.asarray(guess, dtype)
     if guess.ndim == 0 or guess.shape[-1] != 3:
         raise ValueError(f"guess: expected shape (..., 3), got {tuple(guess.shape)}")
-    shape = _validate.batch_shape({"theta": theta.shape[:-1], "guess": guess.shape[:-1]})
-    theta = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)).astype(dtype), theta)
-    batch = theta.shape[:-1]
+    shape = _validate.batch_shape({"theta": joints.shape[:-1], "guess": guess.shape[:-1]})
+    joints = jax.tree.map(lambda x: jnp.broadcast_to(x, (*shape, 3)).astype(dtype), joints)
+    batch = joints.shape[:-1]
     outside = _batching.zero_rates_outside(rates, batch)
     result = forward.fk_guess_jit(
-        robot, theta, guess, options.tolerance(dtype), max_iter, method, rates, not outside,
+        robot, joints, guess, options.tolerance(dtype), max_iter, method, rates, not outside,
         batch=batch, pad=_batching.shared_geometry(robot),
     )  # fmt: skip
     return dataclasses.replace(result, x=Jet.constant(result.x.p)) if outside else result

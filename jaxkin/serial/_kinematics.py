@@ -46,7 +46,7 @@ __all__ = [
     "fk_rp",
     "follow_matrix",
     "joint_prefix_poses",
-    "joint_prefix_rows",
+    "joint_prefix_frames",
     "pose",
     "screws_fk_and_jacobian",
     "screws_fk_rp",
@@ -236,49 +236,33 @@ def apply_adjoint_inv(rot: Array, p: Array, twists: Array) -> Array:
 # ------------------------------------------------------------------ rows layout
 
 
-def joint_prefix_rows(chain: Any, q: Array) -> list[tuple[list[list[Any]], list[Any]]]:
-    """``joint_prefix_poses`` in the rows layout: for ``k = 0 ... m`` the rotation entries
-    ``R[i][j]`` and translation entries ``p[i]`` of ``exp([S_1] theta_1) ... exp([S_k]
-    theta_k)``, each an array of the batch shape of ``q`` (no ``(..., 4, 4)`` matrices, so a
-    caller placing points elementwise never reads a strided pose). The identity (``k = 0``)
-    is given as Python floats. Same closed form as ``_joint_exp`` (module docstring), products
-    written out entry by entry; the sines and cosines, and each prefix's 12 entries, are
-    stored once (``computed_once``: otherwise every entry's loop recomputes the whole chain
-    before it)."""
-    from .._numerics import computed_once
+def joint_prefix_frames(chain: Any, q: Array) -> tuple[Array, Array]:
+    """``joint_prefix_poses`` in the rows layout of the collision checks: for ``k = 0 ...
+    m`` the rotation ``(m + 1, 3, 3, B)`` and translation ``(m + 1, 3, B)`` of
+    ``exp([S_1] theta_1) ... exp([S_k] theta_k)`` at configurations ``q`` ``(B, n)``
+    (configurations minor). Same closed form as ``_joint_exp`` (module docstring), the
+    products written out entry by entry, one joint per step of a ``lax.scan``: the program
+    holds one joint's work whatever the chain's length."""
+    theta = angles(chain, q).T  # (m, B)
+    # every joint's sine and cosine at once: inside a step's fused loop each output entry
+    # would evaluate them again
+    sines, cosines = sincos(theta)
+    w, w2, v, wv, w2v = _screw_terms(chain.screws.astype(q.dtype))
+    size = q.shape[0]
+    eye = jnp.broadcast_to(jnp.eye(3, dtype=q.dtype)[:, :, None], (3, 3, size))
+    zero = jnp.zeros((3, size), q.dtype)
 
-    theta = angles(chain, q)
-    m = theta.shape[-1]
-    s_all, c_all = sincos(theta)
-    trig = computed_once(jnp.stack([theta, s_all, 1.0 - c_all], axis=0))
-    eye = [[1.0 if i == j else 0.0 for j in range(3)] for i in range(3)]
-    acc: tuple[list[list[Any]], list[Any]] = (eye, [0.0, 0.0, 0.0])
-    out = [acc]
-    for k in range(m):
-        screw = chain.screws[k]
-        w = lie.hat(screw[:3])
-        w2 = w @ w
-        v = screw[3:]
-        wv, w2v = w @ v, w2 @ v
-        t, s, omc = trig[0, ..., k], trig[1, ..., k], trig[2, ..., k]
-        rot = [
-            [(1.0 if i == j else 0.0) + s * w[i, j] + omc * w2[i, j] for j in range(3)]
-            for i in range(3)
-        ]
-        pos = [t * v[i] + omc * wv[i] + (t - s) * w2v[i] for i in range(3)]
+    def step(acc: tuple[Array, Array], joint: tuple[Array, ...]) -> tuple[Any, Any]:
+        w, w2, v, wv, w2v, t, s, c = joint
+        omc = 1.0 - c
+        rot = jnp.eye(3, dtype=t.dtype)[:, :, None] + s * w[:, :, None] + omc * w2[:, :, None]
+        pos = t * v[:, None] + omc * wv[:, None] + (t - s) * w2v[:, None]
         a_rot, a_pos = acc
-        if k > 0:
-            rot, pos = (
-                [
-                    [sum(a_rot[i][n] * rot[n][j] for n in range(3)) for j in range(3)]
-                    for i in range(3)
-                ],
-                [sum(a_rot[i][n] * pos[n] for n in range(3)) + a_pos[i] for i in range(3)],
-            )
-        entries = computed_once(jnp.stack([x for row in rot for x in row] + pos))
-        acc = (
-            [[entries[3 * i + j] for j in range(3)] for i in range(3)],
-            [entries[9 + i] for i in range(3)],
+        new = (
+            sum(a_rot[:, n, None] * rot[None, n] for n in range(3)),
+            sum(a_rot[:, n] * pos[None, n] for n in range(3)) + a_pos,
         )
-        out.append(acc)
-    return out
+        return new, new
+
+    _, (rots, poss) = jax.lax.scan(step, (eye, zero), (w, w2, v, wv, w2v, theta, sines, cosines))
+    return jnp.concatenate([eye[None], rots]), jnp.concatenate([zero[None], poss])

@@ -22,9 +22,12 @@ rotation angle of ``R_bd`` and ``|p_bd| = |p_d - p|`` the tool's distance to the
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import jax
 import jax.numpy as jnp
 from jax import Array
+from jax.typing import ArrayLike
 
 from .. import lie
 from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
@@ -42,9 +45,10 @@ __all__ = [
 ]
 
 
-def spd_solve(a: list[list[Array]], b: list[Array]) -> list[Array]:
-    """Solve ``a x = b`` for symmetric positive definite ``a`` (m x m nested lists of batch
-    arrays, lower triangle read) and ``b`` (m arrays), by an unrolled Cholesky factorisation."""
+def spd_solve(a: Sequence[Sequence[Array]], b: list[Array]) -> list[Array]:
+    """Solve ``a x = b`` for symmetric positive definite ``a`` (nested lists of batch arrays,
+    row ``i`` at least ``i + 1`` long: the lower triangle is read) and ``b`` (m arrays), by an
+    unrolled Cholesky factorisation."""
     m = len(b)
     tiny = float(jnp.finfo(jnp.result_type(b[0])).tiny) ** 0.5
     chol: dict[tuple[int, int], Array] = {}
@@ -80,9 +84,8 @@ def damped_step_soa(
     """The step (module docstring) for ``columns``, the ``n`` columns of ``J`` (each ``r``
     arrays), and ``twist`` (``r`` arrays); ``floor`` ``sqrt(eps)`` by default."""
     n, r = len(columns), len(twist)
-    gram = [[_dot(columns[i], columns[j]) if j <= i else None for j in range(n)] for i in range(n)]
-    trace = sum(gram[i][i] for i in range(1, n)) if n > 1 else 0.0
-    trace = gram[0][0] + trace
+    gram = [[_dot(columns[i], columns[j]) for j in range(i + 1)] for i in range(n)]  # lower
+    trace = gram[0][0] + (sum(gram[i][i] for i in range(1, n)) if n > 1 else 0.0)
     floor = singular_rtol(trace.dtype) if floor is None else floor
     mu = damping * damping + floor * trace
     if n <= r:
@@ -90,11 +93,11 @@ def damped_step_soa(
             gram[i][i] = gram[i][i] + mu
         return spd_solve(gram, [_dot(col, twist) for col in columns])
     rows = [[col[k] for col in columns] for k in range(r)]  # rows of J
-    outer = [[_dot(rows[i], rows[j]) if j <= i else None for j in range(r)] for i in range(r)]
+    outer = [[_dot(rows[i], rows[j]) for j in range(i + 1)] for i in range(r)]  # lower
     for i in range(r):
         outer[i][i] = outer[i][i] + mu
     lower = iter(_computed([outer[i][j] for i in range(r) for j in range(i + 1)]))
-    outer = [[next(lower) if j <= i else None for j in range(r)] for i in range(r)]
+    outer = [[next(lower) for j in range(i + 1)] for i in range(r)]
     y = _computed(spd_solve(outer, twist))
     return [_dot(col, y) for col in columns]
 
@@ -151,7 +154,7 @@ def damped_step_looped(
     return jnp.einsum("...ki,...k->...i", jac, solve(outer, twist))
 
 
-def limited(dq: Array, revolute: Array, max_step: Array) -> Array:
+def limited(dq: Array, revolute: ArrayLike, max_step: ArrayLike) -> Array:
     """``dq`` scaled, direction kept, so that no revolute joint moves more than ``max_step``."""
     largest = jnp.max(jnp.where(revolute, jnp.abs(dq), 0.0), axis=-1, keepdims=True)
     too_long = largest > max_step  # never true for max_step = inf (no limit)
@@ -163,9 +166,9 @@ def body_twist(rot: Array, p: Array, target: Array) -> tuple[list[Array], list[A
     rot_t = jnp.swapaxes(rot, -1, -2)
     rot_bd = rot_t @ target[..., :3, :3]
     p_bd = jnp.einsum("...ij,...j->...i", rot_t, target[..., :3, 3] - p)
-    p_bd = [p_bd[..., r] for r in range(3)]
-    twist = lie.se3_log_soa([[rot_bd[..., r, c] for c in range(3)] for r in range(3)], p_bd)
-    return twist, p_bd
+    p_rows = [p_bd[..., r] for r in range(3)]
+    twist = lie.se3_log_soa([[rot_bd[..., r, c] for c in range(3)] for r in range(3)], p_rows)
+    return list(twist), p_rows
 
 
 def rigid_target(target: Array) -> Array:

@@ -48,8 +48,9 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
-from .._geometry import BOUND, REAL, Geometry, geometry, label, number, static
+from .. import _validate
+from .._execute import Kernel, Policy
+from .._geometry import BOUND, REAL, Geometry, Numeric, geometry, label, number, static
 from .._numerics import eps, safe_norm
 from ..collision.body import Body, link_spheres
 from ..collision.check import chain_self_pairs
@@ -140,13 +141,13 @@ class Chain(Robot):
             ``k`` joints).
     """
 
-    screws: Array = number(REAL, (-1, 6))
-    home: Array = number(REAL, (4, 4))
-    multiplier: Array = number(REAL, (-1,))
-    offset: Array = number(REAL, (-1,))
-    lower: Array = number(BOUND, (-1,))
-    upper: Array = number(BOUND, (-1,))
-    velocity: Array = number(BOUND, (-1,))
+    screws: Numeric = number(REAL, (-1, 6))
+    home: Numeric = number(REAL, (4, 4))
+    multiplier: Numeric = number(REAL, (-1,))
+    offset: Numeric = number(REAL, (-1,))
+    lower: Numeric = number(BOUND, (-1,))
+    upper: Numeric = number(BOUND, (-1,))
+    velocity: Numeric = number(BOUND, (-1,))
     follows: tuple[int, ...] = static()
     joint_kinds: tuple[str, ...] = static()
     joint_names: tuple[str, ...] = label(default=())
@@ -167,7 +168,7 @@ class Chain(Robot):
     fk_policy: ClassVar = CompilePolicy(threads=True)
 
     @property
-    def target(self) -> Target:
+    def target(self) -> Target:  # type: ignore[override]  # a class attribute of other robots
         """``POSE`` (4x4 poses) or ``POINT`` (the tip's origin), after ``target_kind``."""
         return POINT if self.target_kind == "point" else POSE
 
@@ -297,16 +298,18 @@ class Chain(Robot):
         if joint_kinds is None and m and screws.shape[1:] == (6,):
             rotating = np.linalg.norm(screws[own, :3], axis=1) > 0.5
             joint_kinds = tuple("revolute" if r else "prismatic" for r in rotating)
-        bounds = [
+        low, high, speed = (
             np.full(n, fill) if x is None else np.asarray(x, dtype=float)
             for x, fill in ((lower, -np.inf), (upper, np.inf), (velocity, np.inf))
-        ]
+        )
         return cls(
             screws,
             home,
             multiplier,
             offset,
-            *bounds,
+            low,
+            high,
+            speed,
             follows=follows,
             joint_kinds=tuple(joint_kinds or ()),
             joint_names=tuple(joint_names or ()),
@@ -446,32 +449,33 @@ class Chain(Robot):
         carried = prefix[..., np.asarray(chain.links.moved_by, dtype=np.int32), :, :]
         return jnp.einsum("...lij,ljk->...lik", carried, chain.links.homes)
 
-    def link_frame_rows(self, q: Array) -> tuple[list, list[int], Array | None]:
+    def link_frame_rows(self, q: Array) -> tuple[tuple[Array, Array], tuple[int, ...], Any]:
         """``Robot.link_frame_rows``: the joint-prefix poses ``exp([S_1] theta_1) ...
-        exp([S_k] theta_k)``, ``k = 0 ... n``, entry by entry (``_kinematics.joint_prefix_rows``),
-        each link carried by its prefix at its home pose ``M_l`` (``links``)."""
+        exp([S_k] theta_k)``, ``k = 0 ... n`` (``_kinematics.joint_prefix_frames``), each link
+        carried by its prefix at its home pose ``M_l`` (``links``)."""
         chain = _validate.cast_leaves(self, q.dtype)
-        frames = _kinematics.joint_prefix_rows(chain, q)
+        frames = _kinematics.joint_prefix_frames(chain, q)
         if chain.links is None:
-            return frames, list(range(len(frames))), None
-        return frames, list(chain.links.moved_by), chain.links.homes
+            return frames, tuple(range(frames[0].shape[0])), None
+        return frames, tuple(chain.links.moved_by), chain.links.homes
 
     def collision_body(self) -> Body:
         """The body: from the URDF's ``<collision>`` elements for a chain read from a URDF
         (``collision.body_from_urdf``), else a skeleton of capsules of radius 0: link ``k``
         from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the projection of
         the previous point on the next axis, as ``reach()``), the last link to the tip; a
-        prismatic joint's travel is not covered. Links given spheres by
-        ``with_link_spheres`` have those instead."""
+        prismatic joint's travel is not covered. A body given by ``with_body`` replaces
+        either; links given spheres by ``with_link_spheres`` have those instead, the other
+        links keep their own (the URDF's, or the skeleton's when the URDF has no
+        ``<collision>`` elements)."""
         links = self.links
         spheres = dict(links.spheres) if links is not None else {}
+        if links is not None and links.body:  # with_body: the user's, in place of any other
+            given_spheres, given_capsules = (dict(part) for part in links.body)
+            body = Body.create(tuple(links.names), given_spheres, given_capsules)
+            return body.with_link_spheres(spheres) if spheres else body
         if links is not None and links.source:
-            read = body_from_urdf(links.source, link_spheres=spheres or None)
-            if read.body.links != tuple(links.names):
-                raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
-            if read.body.num_spheres + read.body.num_capsules:
-                return read.body
-            return _urdf_skeleton(links).with_link_spheres(spheres)
+            return _urdf_body(links, spheres)[0]
         screws = np.asarray(self.screws, float)
         current, points = np.zeros(3), [np.zeros(3)]
         for omega, v in zip(screws[:, :3], screws[:, 3:], strict=True):
@@ -492,9 +496,9 @@ class Chain(Robot):
         links = self.links
         if links is None or not links.source:
             return chain_self_pairs(self)
-        body = self.collision_body()
+        body, skeleton = _urdf_body(links, dict(links.spheres))
         pairs = self_collision_link_pairs(body, links.tree, links.disabled)
-        if links.spheres or body.num_spheres or body.capsule_radius.size == 0:
+        if not skeleton and (links.spheres or body.num_spheres or body.capsule_radius.size == 0):
             return pairs
         # a skeleton (no <collision> elements): its short links touch at q = 0
         return chain_self_pairs(self, candidates=pairs)
@@ -513,6 +517,34 @@ class Chain(Robot):
         merged = tuple({**dict(links.spheres), **own}.items())
         return self.replace(links=links.replace(spheres=merged))
 
+    def with_body(self, body: Body) -> Chain:
+        """This chain with ``body`` as its whole collision body (a spherised URDF's, cuRobo's
+        spheres through ``Body.create``, or any other), in place of the URDF's
+        ``<collision>`` elements, which are then not read. ``body.links`` must be the chain's
+        links in order (``collision_body().links``). The chain keeps host copies."""
+        if not isinstance(body, Body):
+            raise ValueError(f"body: expected a collision.Body, got {type(body).__name__}")
+        links = self.links
+        if links is None:
+            m = self.n_path_joints
+            homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
+            links = ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
+        if tuple(body.links) != tuple(links.names):
+            raise ValueError(
+                f"body: its links {tuple(body.links)} are not the chain's {tuple(links.names)}"
+            )
+        spheres, capsules = body.per_link()
+
+        def frozen(parts: dict) -> tuple:
+            copies = {name: tuple(np.array(x, dtype=np.float64) for x in arrays)
+                      for name, arrays in parts.items()}  # fmt: skip
+            for arrays in copies.values():
+                for arr in arrays:
+                    arr.setflags(write=False)
+            return tuple(copies.items())
+
+        return self.replace(links=links.replace(body=(frozen(spheres), frozen(capsules))))
+
     def with_link_radius(self, radius: float) -> Chain:
         """This chain (read from a URDF without ``<collision>`` elements) with the capsules of
         its skeleton body (link origin to each child joint's origin) of ``radius``."""
@@ -529,6 +561,22 @@ class Chain(Robot):
             raise ValueError("with_srdf: the chain was not read from a URDF")
         disabled = tuple((a, b) for a, b, _ in read_srdf_disabled(source))
         return self.replace(links=self.links.replace(disabled=self.links.disabled + disabled))
+
+
+def _urdf_body(links: ChainLinks, spheres: dict) -> tuple[Body, bool]:
+    """The body of a chain read from a URDF, the links of ``spheres`` given the user's own,
+    and whether the others' is the skeleton (the URDF has no ``<collision>`` elements)."""
+    read = body_from_urdf(links.source, link_spheres=spheres or None).body
+    if read.links != tuple(links.names):
+        raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
+
+    def has_own(body: Body, besides: dict) -> bool:  # primitives on a link not in besides
+        return any(body.links[k] not in besides for k in body.sphere_link + body.capsule_link)
+
+    # The URDF's own elements may all be on the user's links: then read it without the user's.
+    if has_own(read, spheres) or (spheres and has_own(body_from_urdf(links.source).body, {})):
+        return read, False
+    return _urdf_skeleton(links).with_link_spheres(spheres), True
 
 
 def _urdf_skeleton(links: ChainLinks) -> Body:
@@ -566,9 +614,14 @@ class ChainLinks(Geometry):
         spheres: label, the user's own spheres per link, ``((name, (centers, radii)), ...)``.
         disabled: label, link name pairs left out of self-collision (an SRDF's).
         radius: label, the skeleton's capsule radius for a URDF without ``<collision>``.
+        body: label, a whole body given by ``with_body``: ``(spheres, capsules)``, each
+            ``((link, arrays), ...)`` as ``Body.per_link`` gives them; empty for none.
+        held: label, the joints off the path not at 0, ``((name, position), ...)``
+            (``from_urdf(..., fixed=...)`` and the joints that mimic those): ``homes`` places
+            the links they carry there.
     """
 
-    homes: Array = number(REAL, (-1, 4, 4))
+    homes: Numeric = number(REAL, (-1, 4, 4))
     moved_by: tuple[int, ...] = static()
     names: tuple[str, ...] = label()
     source: str = label(default="")
@@ -576,6 +629,8 @@ class ChainLinks(Geometry):
     spheres: tuple = label(default=())
     disabled: tuple = label(default=())
     radius: float = label(default=0.0)
+    body: tuple = label(default=())
+    held: tuple = label(default=())
 
 
 _NUMERIC = ("screws", "home", "multiplier", "offset", "lower", "upper", "velocity")
@@ -587,9 +642,8 @@ def _jacobian_impl(chain: Chain, q: Array, which: str) -> Array:
 
 
 # Large batches split across host threads (memory-bound: 36-42 outputs per element).
-_jacobian_jit = _batching.PaddedJit(
-    _batching.PartsJit(_jacobian_impl, static_argnames=("which",), batched_argnames=("q",)),
-    {"q": 1},
+_jacobian_jit = Kernel(
+    _jacobian_impl, static=("which",), batched={"q": 1}, policy=Policy(pad=True, threads=True)
 )
 
 

@@ -34,7 +34,8 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import _validate, lie
-from .._geometry import REAL, Geometry, geometry, number, static
+from .._execute import Kernel
+from .._geometry import REAL, Geometry, Numeric, geometry, number, static
 from .._numerics import computed_once
 from .._trig import cos_alone, sin_alone
 from .chain import Chain
@@ -72,10 +73,10 @@ class DHTable(Geometry):
             ``"RRP"`` is accepted; None for all revolute.
     """
 
-    a: Array = number(REAL, (-1,))
-    alpha: Array = number(REAL, (-1,))
-    d: Array = number(REAL, (-1,))
-    theta: Array = number(REAL, (-1,), default=None)
+    a: Numeric = number(REAL, (-1,))
+    alpha: Numeric = number(REAL, (-1,))
+    d: Numeric = number(REAL, (-1,))
+    theta: Numeric = number(REAL, (-1,), default=None)
     joint_types: tuple[str, ...] = static(default=None)
 
     def _validate(self) -> None:
@@ -111,7 +112,7 @@ class DHTable(Geometry):
         joint_types: str | Sequence[str] | None = None,
     ) -> DHTable:
         """The constructor with keyword defaults (``theta`` zeros, every joint revolute)."""
-        return cls(a, alpha, d, theta, joint_types)
+        return cls(a, alpha, d, theta, joint_types)  # type: ignore[arg-type]  # _validate: a tuple
 
     @property
     def n_joints(self) -> int:
@@ -211,7 +212,7 @@ def screws(table: DHTable) -> tuple[Array, Array]:
     return jnp.stack(rows), frames[-1]
 
 
-_screws_jit = jax.jit(screws)
+_screws_jit = Kernel(screws)
 
 
 def from_dh(

@@ -31,7 +31,8 @@ import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
-from .. import _batching, _validate
+from .. import _validate
+from .._execute import Kernel, Policy
 from .._numerics import all_finite
 from ..result import SolverResult
 from ..status import STATUS_DTYPE, Status
@@ -159,9 +160,11 @@ def _ik_impl(
     return NewtonIKResult(q, converged, iterations, err, history, status)
 
 
-_ik_jit = _batching.PaddedJit(
-    jax.jit(_ik_impl, static_argnames=("max_iter", "frame")),
-    {"target": 2, "q0": 1},
+_ik_jit = Kernel(
+    _ik_impl,
+    static=("max_iter", "frame"),
+    batched={"target": 2, "q0": 1},
+    policy=Policy(pad=True),
     axes={"history": 1},
 )
 
@@ -208,8 +211,7 @@ def ik_newton(
     if not isinstance(chain, Chain):
         raise ValueError(f"chain: expected a serial.Chain, got {type(chain).__name__}")
     frame = _validate.choice(frame, "frame", FRAMES)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 0:
-        raise ValueError(f"max_iter must be a non-negative int, got {max_iter!r}")
+    max_iter = _validate.count(max_iter, "max_iter", minimum=0)
     target = jnp.asarray(target)
     q0 = jnp.asarray(q0)
     n = chain.n_joints
@@ -232,12 +234,12 @@ def ik_newton(
         upper = jnp.full((n,), jnp.inf, dtype)
     else:
         try:
-            lower, upper = limits
+            given_lower, given_upper = limits
         except (TypeError, ValueError):
             raise ValueError("limits: expected a pair (lower, upper) of (n,) arrays") from None
         try:
-            lower = jnp.broadcast_to(jnp.asarray(lower, dtype), (n,))
-            upper = jnp.broadcast_to(jnp.asarray(upper, dtype), (n,))
+            lower = jnp.broadcast_to(jnp.asarray(given_lower, dtype), (n,))
+            upper = jnp.broadcast_to(jnp.asarray(given_upper, dtype), (n,))
         except ValueError:
             raise ValueError(
                 f"limits: lower and upper must broadcast to ({n},), got "

@@ -53,7 +53,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .. import _batching, lie
+from .. import _batching, _validate, lie
 from .._numerics import all_finite, eps, isotropy, safe_sqrt
 from .._validate import is_concrete
 from ..jet import Jet
@@ -101,11 +101,6 @@ COMPILER_OPTIONS: tuple = (
 _TWO_PI = 2.0 * np.pi
 
 
-def _count(value: Any, name: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name} must be an int >= 1, got {value!r}")
-
-
 def _tolerance(value: Any, name: str) -> Any:
     """A positive finite tolerance as a float, or None; traced values pass (not user input)."""
     if value is None or not is_concrete(value):
@@ -146,7 +141,7 @@ class ChainIKOptions:
 
     def __post_init__(self) -> None:
         for name in ("restarts", "max_iter", "warm_iter", "path_lanes"):
-            _count(getattr(self, name), name)
+            object.__setattr__(self, name, _validate.count(getattr(self, name), name))
         for name in ("position_tol", "orientation_tol"):
             object.__setattr__(self, name, _tolerance(getattr(self, name), name))
         if not isinstance(self.use_limits, bool):

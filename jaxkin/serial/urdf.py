@@ -29,6 +29,14 @@ tip, an unsupported joint type, a zero axis, a mimic joint whose leader is not o
 ``target="point"`` builds a chain whose targets are the tip link's origin ``(3,)`` (position
 only: a leg's foot, a finger's tip, an arm of fewer than six joints), ``"pose"`` (the default)
 one whose targets are the tip's 4x4 pose.
+
+Joints off the path (a gripper's fingers) are held where ``fixed`` says, 0 otherwise:
+``fixed={"panda_finger_joint1": 0.04}`` opens the Panda's fingers, and a joint off the path
+that mimics a held one follows it (``panda_finger_joint2``: ``theta = multiplier *
+theta_leader + offset``), so the links they carry, and their collision bodies, are placed
+there (``Chain.link_poses``). Each value must lie within its joint's limits (the follower's
+too); a joint on the path, a fixed or unknown joint, or a mimic joint given directly is
+refused, naming the joint.
 """
 
 from __future__ import annotations
@@ -36,7 +44,9 @@ from __future__ import annotations
 import dataclasses
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 from xml.etree import ElementTree
 
 import numpy as np
@@ -147,9 +157,10 @@ def _joint(element) -> _Joint:
     )
 
 
-def _load(source: str | os.PathLike) -> _Robot:
+def _load(source: str | bytes | os.PathLike) -> _Robot:
     """The links and joints of a path or XML text (strict XML: no silent recovery), read by the
     standard library's XML parser: the kinematics need no mesh or scene-graph library."""
+    data: bytes
     if isinstance(source, bytes) and source.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
         data, where = source, "source (URDF text)"  # bytes: the parser reads BOM and encoding
     elif isinstance(source, str) and source.lstrip("\ufeff \t\r\n").startswith("<"):
@@ -298,7 +309,11 @@ def _limits(joint) -> tuple[float, float, float]:
 
 
 def from_urdf(
-    source: str | os.PathLike, tip_link: str, base_link: str | None = None, target: str = "pose"
+    source: str | os.PathLike,
+    tip_link: str,
+    base_link: str | None = None,
+    target: str = "pose",
+    fixed: Mapping[str, float] | None = None,
 ) -> Chain:
     """The chain from ``base_link`` to ``tip_link`` of a URDF (module docstring).
 
@@ -309,6 +324,8 @@ def from_urdf(
         target: ``"pose"``: targets are the tip's 4x4 poses; ``"point"``: the tip link's
             origin ``(3,)`` in the base frame (position-only IK, e.g. for a chain of fewer
             than six joints).
+        fixed: values of joints off the path, ``{joint name: position}`` (rad or length),
+            held there (the others at 0); the joints that mimic them follow.
 
     Returns:
         A ``serial.Chain`` (a robot of the protocol: ``jaxkin.ik``/``jaxkin.fk`` with 4x4
@@ -321,7 +338,8 @@ def from_urdf(
             joints, NaN or inf in a joint's numbers, an unknown link, no path from the base to
             the tip, no moving joint on it, a ``floating`` or ``planar`` joint on it, a zero
             axis, bad limits, a mimic joint whose leader is not a moving joint on the path or
-            whose value can never lie within its own limits, or an unknown ``target``.
+            whose value can never lie within its own limits, an unknown ``target``, or a
+            ``fixed`` entry that is not a moving joint off the path within its limits.
     """
     if target not in TARGETS:
         raise ValueError(f"target: expected one of {TARGETS}, got {target!r}")
@@ -400,7 +418,8 @@ def from_urdf(
                 f"joint {moving[i].name!r}: its limits leave no position for its leader "
                 f"{moving[leader].name!r}"
             )
-    links = _chain_links(robot, base_link, [joint.name for joint in moving], source)
+    held = _held_joints(robot, fixed, {joint.name for joint in path})
+    links = _chain_links(robot, base_link, [joint.name for joint in moving], source, held)
     return Chain(
         np.stack(rows),
         frame,
@@ -419,9 +438,89 @@ def from_urdf(
     )
 
 
-def _chain_links(robot, base_link: str, moving: list[str], source) -> ChainLinks:
-    """Every link's pose in the base frame with every joint at 0, and how many of the path's
-    moving joints (in ``moving`` order) carry it, for ``Chain.link_poses``."""
+def _held_joints(robot, fixed: Any, on_path: set[str]) -> dict[str, float]:
+    """The positions of the joints off the path: the user's (checked) and those of the
+    joints that mimic them (or an off-path joint held at 0); ``{}`` when nothing moves."""
+    if fixed is None:
+        fixed = {}
+    if not isinstance(fixed, Mapping):
+        raise ValueError(f"fixed: expected a mapping joint name -> position, got {fixed!r:.60}")
+    by_name = {joint.name: joint for joint in robot.joints}
+    off_path = sorted(
+        j.name
+        for j in robot.joints
+        if j.type in _MOVING and j.mimic is None and j.name not in on_path
+    )
+    held = {}
+    for name, value in fixed.items():
+        joint = by_name.get(name)
+        if joint is None:
+            raise ValueError(
+                f"fixed: no joint {name!r} in robot {robot.name!r} (joints off the path: "
+                f"{_listed(off_path)})"
+            )
+        if joint.type not in _MOVING:
+            raise ValueError(f"fixed: joint {name!r} is {joint.type}, not a moving joint")
+        if name in on_path:
+            raise ValueError(f"fixed: joint {name!r} is on the chain's path (a coordinate)")
+        if joint.mimic is not None:
+            raise ValueError(
+                f"fixed: joint {name!r} mimics {joint.mimic.joint!r}: give that joint's value"
+            )
+        held[name] = _within_limits(joint, value, "fixed")
+    # joints off the path that mimic a held joint (or one held at 0) follow it
+    for joint in robot.joints:
+        if joint.mimic is None or joint.name in on_path or joint.type not in _MOVING:
+            continue
+        leader, c, b, seen = joint, 1.0, 0.0, {joint.name}
+        while leader.mimic is not None and leader.mimic.joint in by_name:
+            c, b = c * leader.mimic.multiplier, c * leader.mimic.offset + b
+            leader = by_name[leader.mimic.joint]
+            if leader.name in seen or leader.name in on_path:
+                break
+            seen.add(leader.name)
+        else:
+            value = c * held.get(leader.name, 0.0) + b
+            if leader.name in held:
+                _within_limits(joint, value, f"fixed: {leader.name!r} = {held[leader.name]} moves")
+            if value != 0.0:
+                held[joint.name] = value
+    return {name: value for name, value in held.items() if value != 0.0}
+
+
+def _within_limits(joint, value: Any, where: str) -> float:
+    """A finite position of ``joint`` within its limits, or a ``ValueError`` naming it."""
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise ValueError(f"{where}: joint {joint.name!r} needs a number, got {value!r}")
+    value = float(value)
+    lower, upper, _ = _limits(joint)
+    if not np.isfinite(value) or not lower <= value <= upper:
+        raise ValueError(
+            f"{where}: joint {joint.name!r} = {value} lies outside its limits [{lower}, {upper}]"
+        )
+    return value
+
+
+def _motion(joint, value: float) -> np.ndarray:
+    """The transform of a joint at ``value`` in its own frame: a rotation about its axis, or a
+    translation along it."""
+    axis = _axis(joint)
+    motion = np.eye(4)
+    if joint.type == "prismatic":
+        motion[:3, 3] = value * axis
+        return motion
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    motion[:3, :3] = np.eye(3) + np.sin(value) * k + (1.0 - np.cos(value)) * (k @ k)
+    return motion
+
+
+def _chain_links(
+    robot, base_link: str, moving: list[str], source, held: dict[str, float] | None = None
+) -> ChainLinks:
+    """Every link's pose in the base frame with every path joint at 0 and the joints off the
+    path at ``held`` (else 0), and how many of the path's moving joints (in ``moving`` order)
+    carry it, for ``Chain.link_poses``."""
+    held = held or {}
     by_child = {joint.child: joint for joint in robot.joints}
     row = {name: i for i, name in enumerate(moving)}
     world: dict[str, np.ndarray] = {}
@@ -435,6 +534,8 @@ def _chain_links(robot, base_link: str, moving: list[str], source) -> ChainLinks
             else:
                 parent, k = place(joint.parent)
                 origin = np.eye(4) if joint.origin is None else np.asarray(joint.origin, float)
+                if joint.name in held:
+                    origin = origin @ _motion(joint, held[joint.name])
                 world[link] = parent @ origin
                 carried[link] = max(k, row[joint.name] + 1 if joint.name in row else 0)
         return world[link], carried[link]
@@ -446,4 +547,11 @@ def _chain_links(robot, base_link: str, moving: list[str], source) -> ChainLinks
     text = source if isinstance(source, str) else os.fsdecode(source)
     if not text.lstrip("\ufeff \t\r\n").startswith("<"):
         text = str(Path(text).resolve())  # a path: the body is read from it later
-    return ChainLinks(homes, tuple(carried[name] for name in names), names, text, tree)
+    return ChainLinks(
+        homes,
+        tuple(carried[name] for name in names),
+        names,
+        text,
+        tree,
+        held=tuple(sorted(held.items())),
+    )

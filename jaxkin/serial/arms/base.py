@@ -19,11 +19,12 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from ... import _batching, _validate
+from ..._execute import solve_fk, solve_ik
 from ...collision.body import Body
 from ...collision.check import chain_self_pairs
 from ...jet import Jet
 from ...result import FKResult, IKResult
-from ...robot import CompilePolicy, Robot, solve_fk, solve_ik
+from ...robot import CompilePolicy, Robot
 from ...status import Status
 from ..dh import DHTable, transforms
 from ..search import COMPILER_OPTIONS
@@ -42,6 +43,7 @@ class Arm(Robot, abstract=True):
     """
 
     joint_types: ClassVar[str]
+    link_radius: Any  # every arm's field (a bare annotation here: no field of Arm's own)
     reachable: ClassVar = (Status.OK, Status.SINGULAR)
     # Every branch is solved anyway: the branch is picked by a traced index, one program,
     # compiled with the chain search's XLA options (a first call in about half the time).

@@ -18,16 +18,18 @@ size where unreachable; -1 for invalid input.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 from jax import Array
 
-from ... import _batching, _validate
+from ... import _validate
+from ..._execute import Kernel, Policy
 from ..._numerics import isotropy, safe_norm
 from ...jet import Jet, lift
 from ...result import FKResult, IKResult, SolverResult, forward_result
-from ...robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE, Robot
+from ...robot import PLANAR_POINT, PLANAR_POSE, POINT, POSE
 from ...status import STATUS_DTYPE, Status
 from .. import _kinematics
 from .. import dh as _dh
@@ -40,6 +42,8 @@ __all__ = [
     "ik_all_kernel",
     "ik_branch_kernel",
 ]
+
+ArmRobot = Any  # an arms.base.Arm: the class sits above its kernels, which read its fields
 
 
 @jax.tree_util.register_dataclass
@@ -72,14 +76,14 @@ class ArmIKResult(SolverResult):
 FAR = 1e6
 
 
-def _placeholder_target(robot: Robot, dtype) -> Array:
+def _placeholder_target(robot: ArmRobot, dtype) -> Array:
     """A finite target substituted for non-finite input before any math."""
     if robot.target.shape == (4, 4):
         return jnp.eye(4, dtype=dtype)
     return jnp.zeros(robot.target.shape, dtype)
 
 
-def _split_target(robot: Robot, target: Array) -> tuple[Array, Array | None]:
+def _split_target(robot: ArmRobot, target: Array) -> tuple[Array, Array | None]:
     """The length coordinates of a target, and its angular rest (None for a point)."""
     if robot.target.shape == (4, 4):
         return target[..., :3, 3], target
@@ -88,7 +92,9 @@ def _split_target(robot: Robot, target: Array) -> tuple[Array, Array | None]:
     return target, None
 
 
-def _join_target(robot: Robot, lengths: Array, target: Array | None) -> Array:
+def _join_target(robot: ArmRobot, lengths: Array, target: Array | None) -> Array:
+    if target is None:  # a point
+        return lengths
     if robot.target.shape == (4, 4):
         return target.at[..., :3, 3].set(lengths)
     if robot.target.name == "planar pose":
@@ -96,7 +102,7 @@ def _join_target(robot: Robot, lengths: Array, target: Array | None) -> Array:
     return lengths
 
 
-def ik_all_kernel(robot: Robot, target: Array) -> ArmIKResult:
+def ik_all_kernel(robot: ArmRobot, target: Array) -> ArmIKResult:
     """Every branch, in units of the arm's size (no overflow or underflow at any scale)."""
     dtype = target.dtype
     n_target = len(robot.target.shape)
@@ -127,10 +133,10 @@ def ik_all_kernel(robot: Robot, target: Array) -> ArmIKResult:
     return ArmIKResult(q, valid, status, robot.branches)
 
 
-ik_all_jit = _batching.PaddedJit(jax.jit(ik_all_kernel), {})
+ik_all_jit = Kernel(ik_all_kernel, policy=Policy(pad=True))
 
 
-def _task(robot: Robot, q: Array) -> Array:
+def _task(robot: ArmRobot, q: Array) -> Array:
     """The forward kinematics in the form of the arm's targets, ``(..., *target.shape)``."""
     frame = _dh.transforms(robot.dh_table(q.dtype), q)
     if robot.target is PLANAR_POINT:
@@ -143,7 +149,7 @@ def _task(robot: Robot, q: Array) -> Array:
     return frame
 
 
-def _position(x: Array, robot: Robot) -> Array:
+def _position(x: Array, robot: ArmRobot) -> Array:
     """The position part of a target, ``(..., 2 or 3)``."""
     if robot.target is PLANAR_POSE:
         return x[..., :2]
@@ -152,7 +158,7 @@ def _position(x: Array, robot: Robot) -> Array:
     return x
 
 
-def _scaled_jacobian(robot: Robot, q: Array, scale: Array) -> tuple[Array, Array]:
+def _scaled_jacobian(robot: ArmRobot, q: Array, scale: Array) -> tuple[Array, Array]:
     """The task Jacobian in units of the arm's size, ``(..., m, n)``, and the end point.
 
     From the space Jacobian of the arm's PoE chain (one pass): the end point's velocity is
@@ -177,7 +183,7 @@ def _scaled_jacobian(robot: Robot, q: Array, scale: Array) -> tuple[Array, Array
     return rows, p
 
 
-def _margin(robot: Robot, q: Array, target: Array, status: Array) -> Array:
+def _margin(robot: ArmRobot, q: Array, target: Array, status: Array) -> Array:
     """``isotropy`` of the scaled task Jacobian where solved (0 at a singularity); where the
     target is unreachable minus the distance from the placeholder's end point to the target in
     units of the arm's size (at most 1); -1 for invalid input."""
@@ -195,7 +201,7 @@ def _margin(robot: Robot, q: Array, target: Array, status: Array) -> Array:
     ).astype(dtype)
 
 
-def ik_branch_kernel(robot: Robot, target: Jet, index: Array, rates: bool) -> IKResult:
+def ik_branch_kernel(robot: ArmRobot, target: Jet, index: Array, rates: bool) -> IKResult:
     """One branch, ``robot.branches[index]`` (``index`` an ``int32`` scalar, possibly traced),
     with joint rates by ``jaxkin.lift`` of ``ik_all_kernel`` where ``rates`` (else ``target``'s
     rates are not read and the result's are 0) and the margin (module docstring)."""
@@ -218,6 +224,6 @@ def ik_branch_kernel(robot: Robot, target: Jet, index: Array, rates: bool) -> IK
     return IKResult(q, status, _margin(robot, q.p, target.p, status))
 
 
-def fk_kernel(robot: Robot, q: Jet, rates: bool) -> FKResult:
+def fk_kernel(robot: ArmRobot, q: Jet, rates: bool) -> FKResult:
     """The arm's FK in the form of its targets (rates by ``jaxkin.lift`` where ``rates``)."""
     return forward_result(lambda joints: _task(robot, joints), q, rates, len(robot.target.shape))

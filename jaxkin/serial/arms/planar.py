@@ -35,7 +35,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from ..._geometry import LENGTH, NONNEGATIVE, geometry, number
+from ..._geometry import LENGTH, NONNEGATIVE, Numeric, geometry, number
 from ...robot import PLANAR_POINT, PLANAR_POSE
 from ..dh import DHTable
 from ._kit import dh, status_from, two_link, wrap_angle
@@ -55,9 +55,9 @@ class Planar2R(Arm):
         l2: length of link 2 (elbow to tip), positive scalar.
     """
 
-    l1: Array = number(LENGTH)
-    l2: Array = number(LENGTH)
-    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
+    l1: Numeric = number(LENGTH)
+    l2: Numeric = number(LENGTH)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RR"
     branches: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")
@@ -86,10 +86,10 @@ class Planar3R(Arm):
         l3: link 3 length (wrist joint to end point), positive scalar.
     """
 
-    l1: Array = number(LENGTH)
-    l2: Array = number(LENGTH)
-    l3: Array = number(LENGTH)
-    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
+    l1: Numeric = number(LENGTH)
+    l2: Numeric = number(LENGTH)
+    l3: Numeric = number(LENGTH)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRR"
     branches: ClassVar[tuple[str, ...]] = ("elbow_up", "elbow_down")

@@ -30,7 +30,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from ..._geometry import LENGTH, NONNEGATIVE, REAL, geometry, number
+from ..._geometry import LENGTH, NONNEGATIVE, REAL, Numeric, geometry, number
 from ..._numerics import computed_once, safe_sqrt, singular_rtol
 from ..._trig import atan2, sincos
 from ...robot import POSE
@@ -83,13 +83,13 @@ class Puma560(Arm):
         d6: tool offset along the last joint axis, finite (0).
     """
 
-    d1: Array = number(REAL, default=0.0)
-    a2: Array = number(LENGTH, default=0.4318)
-    a3: Array = number(REAL, default=0.0203)
-    d3: Array = number(REAL, default=0.15005)
-    d4: Array = number(REAL, default=0.4318)
-    d6: Array = number(REAL, default=0.0)
-    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
+    d1: Numeric = number(REAL, default=0.0)
+    a2: Numeric = number(LENGTH, default=0.4318)
+    a3: Numeric = number(REAL, default=0.0203)
+    d3: Numeric = number(REAL, default=0.15005)
+    d4: Numeric = number(REAL, default=0.4318)
+    d6: Numeric = number(REAL, default=0.0)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRRRRR"
     branches: ClassVar[tuple[str, ...]] = _branch_names(
@@ -166,10 +166,10 @@ class Stanford(Arm):
         d6: tool offset along the last joint axis, finite scalar (default 0).
     """
 
-    d1: Array = number(REAL)
-    a2: Array = number(NONNEGATIVE)
-    d6: Array = number(REAL, default=0.0)
-    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
+    d1: Numeric = number(REAL)
+    a2: Numeric = number(NONNEGATIVE)
+    d6: Numeric = number(REAL, default=0.0)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRPRRR"
     branches: ClassVar[tuple[str, ...]] = _branch_names(("front", "back"), ("noflip", "flip"))

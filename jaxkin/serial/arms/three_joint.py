@@ -30,7 +30,7 @@ from typing import ClassVar
 import jax.numpy as jnp
 from jax import Array
 
-from ..._geometry import LENGTH, NONNEGATIVE, geometry, number
+from ..._geometry import LENGTH, NONNEGATIVE, Numeric, geometry, number
 from ..._numerics import safe_sqrt, singular_rtol
 from ...robot import POINT
 from ..dh import DHTable
@@ -50,10 +50,10 @@ class Anthropomorphic(Arm):
         l3: forearm length ``a_3`` (elbow to wrist), positive scalar.
     """
 
-    l1: Array = number(LENGTH)
-    l2: Array = number(LENGTH)
-    l3: Array = number(LENGTH)
-    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
+    l1: Numeric = number(LENGTH)
+    l2: Numeric = number(LENGTH)
+    l3: Numeric = number(LENGTH)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRR"
     branches: ClassVar[tuple[str, ...]] = ("front_up", "front_down", "back_up", "back_down")
@@ -91,8 +91,8 @@ class Cylindrical(Arm):
         h: column height (base to the radial slide at ``q3 = 0``), scalar ``>= 0``.
     """
 
-    h: Array = number(NONNEGATIVE)
-    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
+    h: Numeric = number(NONNEGATIVE)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RPP"
     branches: ClassVar[tuple[str, ...]] = ("front",)
@@ -126,8 +126,8 @@ class Spherical(Arm):
         h: shoulder height (base to the elevation axis), scalar ``>= 0``.
     """
 
-    h: Array = number(NONNEGATIVE)
-    link_radius: Array = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
+    h: Numeric = number(NONNEGATIVE)
+    link_radius: Numeric = number(NONNEGATIVE, default=0.0)  # collision body (Arm)
 
     joint_types: ClassVar[str] = "RRP"
     branches: ClassVar[tuple[str, ...]] = ("front", "back")

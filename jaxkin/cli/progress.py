@@ -1,22 +1,28 @@
-"""A tiny progress bar on stderr for long sweeps and optimisations (no dependencies).
+"""The command line's progress bar on stderr, for file solves and workspace sweeps.
 
 ``bar(total, desc)`` returns an object with ``update(n)`` and ``close()`` (also a context
-manager), the subset of ``tqdm``'s interface that jaxkin uses. It is *active* only when the
-stream (default ``sys.stderr``) is a terminal and ``enabled`` is not False, so logs, pipes,
-CI and ``--quiet`` stay clean; ``enabled=True`` forces it on any stream. When active it uses
-``tqdm`` if that is importable (never a dependency) and otherwise draws its own one-line bar::
+manager), the subset of ``tqdm``'s interface that the command uses. It is *active* only when
+the stream (default ``sys.stderr``) is a terminal and ``enabled`` is not False, so logs, pipes,
+CI and ``--quiet`` stay clean; ``enabled=True`` forces it on any stream. When active it is a
+``tqdm`` bar (the ``cli`` extra: ``pip install 'jaxkin[cli]'``); where tqdm is not installed
+the command draws its own one-line bar::
 
     workspace [###########.........]  55%  510k/928k  2.1 s
 
 redrawn in place with a carriage return at most every ``min_interval`` seconds, and ended with
-a newline by ``close()``.
+a newline by ``close()``. ``reporting(desc)`` gives a library call (``workspace.sweep``,
+``optimize.optimize``) its ``progress(done, total)`` callback, drawn as such a bar.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
+from collections.abc import Callable, Iterator
 from typing import IO, Any
+
+__all__ = ["NullBar", "TextBar", "bar", "is_active", "reporting"]
 
 
 class NullBar:
@@ -107,7 +113,7 @@ def is_active(enabled: bool | None = None, stream: IO[str] | None = None) -> boo
 def bar(
     total: int, desc: str = "", enabled: bool | None = None, stream: IO[str] | None = None
 ) -> Any:
-    """A progress bar for ``total`` units of work (``tqdm`` if importable, else ``TextBar``).
+    """A progress bar for ``total`` units of work (``tqdm`` if installed, else ``TextBar``).
 
     Args:
         total: the number of units ``update`` will count up to.
@@ -120,7 +126,30 @@ def bar(
         return NullBar()
     stream = sys.stderr if stream is None else stream
     try:
-        from tqdm import tqdm  # optional, never a dependency
+        from tqdm import tqdm  # the cli extra
     except ImportError:
         return TextBar(total, desc, stream)
     return tqdm(total=total, desc=desc, file=stream, unit_scale=True, leave=True)
+
+
+@contextlib.contextmanager
+def reporting(
+    desc: str, enabled: bool | None = None, stream: IO[str] | None = None
+) -> Iterator[Callable[[int, int], None]]:
+    """A library call's progress callback ``progress(done, total)`` drawn as a ``bar`` of
+    ``total`` units (made at the first call, advanced to ``done`` at each), closed on exit."""
+    meter: Any = None
+    shown = 0
+
+    def progress(done: int, total: int) -> None:
+        nonlocal meter, shown
+        if meter is None:
+            meter = bar(total, desc, enabled, stream)
+        meter.update(done - shown)
+        shown = done
+
+    try:
+        yield progress
+    finally:
+        if meter is not None:
+            meter.close()

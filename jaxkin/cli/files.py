@@ -1,4 +1,4 @@
-"""Trajectory files (the ``jaxkin`` command, ``jaxkin.plot``): CSV and NPZ, rates, safe writing.
+"""The command line's trajectory files: CSV and NPZ, rates, safe writing.
 
 Formats (one row per sample; the two formats hold the same columns):
 
@@ -18,12 +18,13 @@ trajectory) and the rate columns are optional. Rates come as whole sets: ``vx, v
 ``ax, ay, az`` for Cartesian coordinates, ``<name>_dot`` and ``<name>_ddot`` otherwise. Rates a
 file does not give are computed by a cubic spline in ``t`` per candidate (``complete_rates``).
 
-Writing (``write_table``, or ``table_writer`` part by part) is atomic: the file is written to a
-temporary file in the target's directory and renamed over the target (``os.replace``) only
-when complete, so an existing file is never truncated or half-written by a failed or
-interrupted run. Output paths are checked first (``output_target``, ``check_outputs``): a
-symlink writes its target, a named pipe or character device is written into, and a
-read-only file, a directory, a socket, a block device or an unwritable directory is refused.
+Writing (``write_table``, or ``table_writer`` part by part) is atomic (``atomic_write`` of
+``jaxkin._output``): the file is written to a temporary file in the target's directory and
+renamed over the target (``os.replace``) only when complete, so an existing file is never
+truncated or half-written by a failed or interrupted run. Output paths are checked first
+(``output_target``, ``check_outputs``): a symlink writes its target, a named pipe or
+character device is written into, and a read-only file, a directory, a socket, a block
+device or an unwritable directory is refused.
 Floats are written in the shortest form that reads back to the same value (``repr``). CSV is
 read in blocks of ``READ_BLOCK`` rows and written part by part, so the text of a file is
 never held whole.
@@ -39,9 +40,7 @@ import csv
 import dataclasses
 import math
 import os
-import stat
 import sys
-import tempfile
 import zipfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -50,8 +49,9 @@ from typing import IO, Any
 import jax
 import numpy as np
 
-from . import _batching, _splines, _validate, lie
-from ._progress import bar
+from .. import _batching, _splines, _validate, lie
+from .._output import InputError, atomic_write, given, one_line, output_target
+from .progress import bar
 
 __all__ = [
     "CARTESIAN",
@@ -85,26 +85,6 @@ __all__ = [
 
 CARTESIAN = ("x", "y", "z")
 READ_BLOCK = 1 << 16  # CSV rows parsed as text before they become floats
-
-
-class InputError(ValueError):
-    """A file that cannot be used; the message is one line, naming the file (and line)."""
-
-
-class _Given(type(Path())):  # type: ignore[misc]
-    """A path that prints as the user spelled it (``./a.csv``, not ``a.csv``)."""
-
-    _given: str | None = None
-
-    def __str__(self) -> str:
-        return self._given if self._given is not None else super().__str__()
-
-
-def given(path: str | os.PathLike) -> Path:
-    """``Path(path)`` that keeps the user's spelling for messages."""
-    result = _Given(path)
-    result._given = os.fspath(path)
-    return result
 
 
 def rate_names(names: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -192,7 +172,7 @@ def _read_npz(path: Path, wanted: Sequence[str]) -> Table:
     except InputError:
         raise
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise InputError(f"{path}: not a readable .npz archive ({_one_line(exc)})") from None
+        raise InputError(f"{path}: not a readable .npz archive ({one_line(exc)})") from None
     data: dict[str, np.ndarray] = {}
     length = None
     for name, arr in arrays.items():
@@ -235,7 +215,7 @@ def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text CSV file (binary data?)") from None
     except OSError as exc:
-        raise InputError(f"{path}: cannot read ({_one_line(exc)})") from None
+        raise InputError(f"{path}: cannot read ({one_line(exc)})") from None
 
 
 def _read_csv(path: Path, wanted: Sequence[str]) -> Table:
@@ -315,11 +295,6 @@ def _to_float(path: Path, name: str, cells: list[str], lines: np.ndarray) -> np.
                 f"{path}:{lines[i]}: column {name!r}: not a number: {cell[:40]!r}"
             ) from None
     return out
-
-
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip().splitlines()
-    return text[0] if text else type(exc).__name__
 
 
 # ------------------------------------------------------------------------------- trajectories
@@ -458,66 +433,6 @@ def trajectory_columns(
 # ------------------------------------------------------------------------------------ writing
 
 
-def _kind(mode: int) -> str:
-    """What a ``stat`` mode names, for messages."""
-    for test, name in (
-        (stat.S_ISDIR, "a directory"),
-        (stat.S_ISFIFO, "a named pipe"),
-        (stat.S_ISCHR, "a character device"),
-        (stat.S_ISBLK, "a block device"),
-        (stat.S_ISSOCK, "a socket"),
-    ):
-        if test(mode):
-            return name
-    return "not a regular file"
-
-
-def _streams_in_place(mode: int) -> bool:
-    """Named pipes and character devices (``/dev/null``, a terminal) are written into."""
-    return stat.S_ISFIFO(mode) or stat.S_ISCHR(mode)
-
-
-def output_target(path: str | os.PathLike) -> Path:
-    """The file an output ``path`` writes, after checking it can be written; before any work.
-
-    A symlink is followed to its target (the link stays, its target gets the data). The
-    target is a regular file, written atomically (``atomic_write``), or a named pipe or
-    character device (``/dev/null``, a terminal), written into directly; anything else is
-    refused, as is a read-only file (never replaced) and a directory where a temporary file
-    cannot be created (checked by creating and removing one).
-
-    Raises:
-        InputError: naming ``path``: empty, a directory, a socket or block device, read-only,
-            or its directory missing or not writable.
-    """
-    if not os.fspath(path):
-        raise InputError("'': an empty name, expected an output file name")
-    path = given(path)
-    try:
-        mode = os.stat(path).st_mode  # follows links, /dev/stdout's included
-    except FileNotFoundError:
-        mode = None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write ({_one_line(exc)})") from None
-    if mode is not None and not stat.S_ISREG(mode):
-        if _streams_in_place(mode):
-            return path
-        raise InputError(f"{path}: is {_kind(mode)}, expected an output file name")
-    target = Path(os.path.realpath(path))
-    if mode is not None and (not os.access(target, os.W_OK) or not mode & 0o222):
-        raise InputError(f"{path}: is read-only; make it writable or choose another name")
-    directory = target.parent
-    if not directory.is_dir():
-        raise InputError(f"{path}: cannot write: directory {directory} does not exist")
-    try:  # the one reliable test of a writable directory (permissions, ACLs, read-only mounts)
-        fd, probe = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=directory)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write in {directory} ({_one_line(exc)})") from None
-    return target
-
-
 def check_output_path(path: str | os.PathLike) -> Path:
     """The directory an output file ``path`` would be written in (``output_target``)."""
     return output_target(path).parent
@@ -566,50 +481,6 @@ def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any]) -> dict
         except InputError as exc:
             raise InputError(f"{option} {exc}") from None
     return targets
-
-
-@contextlib.contextmanager
-def atomic_write(path: str | os.PathLike, mode: str = "w") -> Iterator[IO[Any]]:
-    """Open a temporary file beside ``path``'s target; on success rename it over the target.
-
-    ``path`` is checked first (``output_target``: a symlink writes its target; a read-only
-    file, a directory, a socket or a block device are refused). On any exception (including
-    ``KeyboardInterrupt``, and SIGTERM under the command line) the temporary file is removed
-    and the target is left exactly as it was. The new file gets the permissions of the file it
-    replaces, or the usual ``0o666 & ~umask`` for a new file. A named pipe or a character
-    device (``/dev/null``) is written into directly: there is nothing to replace.
-
-    Raises:
-        InputError: ``path`` cannot be written (``output_target``).
-    """
-    path = given(path)
-    target = output_target(path)
-    kwargs = {"newline": "", "encoding": "utf-8"} if "b" not in mode else {}
-    if target.exists() and _streams_in_place(os.stat(target).st_mode):
-        with open(target, mode, **kwargs) as f:
-            yield f
-        return
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write ({_one_line(exc)})") from None
-    try:
-        try:
-            mode_bits = target.stat().st_mode & 0o777
-        except OSError:
-            umask = os.umask(0)
-            os.umask(umask)
-            mode_bits = 0o666 & ~umask
-        os.chmod(tmp, mode_bits)
-        with os.fdopen(fd, mode, **kwargs) as f:
-            yield f
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
 
 
 def _format_column(values: np.ndarray) -> list[str]:
@@ -677,7 +548,8 @@ def table_writer(
         output_target(path)  # fail before the work, as the CSV writer does
         yield keep
         with atomic_write(path, "wb") as f:
-            np.savez(f, **{k: np.concatenate(v) for k, v in parts.items()})
+            columns: dict[str, Any] = {k: np.concatenate(v) for k, v in parts.items()}
+            np.savez(f, **columns)
         return
     with atomic_write(path, "w") as f:
         yield csv_part(f)
@@ -721,16 +593,19 @@ def complete_rates(traj: Trajectory, end: str) -> tuple[np.ndarray, ...]:
 def check_times(traj: Trajectory, valid: np.ndarray, why: str, hint: str = "") -> None:
     """Raise ``InputError`` at the first valid row of a candidate whose ``t`` does not
     increase strictly over the previous valid row of that candidate (``why``: what needs it)."""
-    group = traj.candidate if traj.candidate is not None else np.zeros(len(traj.t), np.int64)
+    t = traj.t
+    if t is None:  # rows at rest, no times
+        return
+    group = traj.candidate if traj.candidate is not None else np.zeros(len(t), np.int64)
     for label in np.unique(group[valid]):
         rows = np.flatnonzero(valid & (group == label))
-        bad = np.flatnonzero(np.diff(traj.t[rows]) <= 0)
+        bad = np.flatnonzero(np.diff(t[rows]) <= 0)
         if bad.size:
             row = rows[bad[0] + 1]
             name = f"candidate {label}: " if traj.candidate is not None else ""
             raise InputError(
                 f"{traj.table.where(row)}: {name}t must increase strictly {why} "
-                f"(t = {traj.t[row]:g} after {traj.t[rows[bad[0]]]:g}){hint}"
+                f"(t = {t[row]:g} after {t[rows[bad[0]]]:g}){hint}"
             )
 
 
@@ -840,21 +715,21 @@ class NotContiguous(Exception):
     """A candidate's rows are not one block of the file: it cannot be streamed."""
 
 
-def _joined(parts: Sequence[Trajectory]) -> Trajectory:
-    """Consecutive parts of one file as one ``Trajectory``."""
-    parts = [part for part in parts if part is not None]
-    if len(parts) == 1:
-        return parts[0]
-    first = parts[0]
+def _joined(parts: Sequence[Trajectory | None]) -> Trajectory:
+    """Consecutive parts of one file as one ``Trajectory`` (None parts left out)."""
+    given = [part for part in parts if part is not None]
+    if len(given) == 1:
+        return given[0]
+    first = given[0]
 
     def cat(name: str) -> np.ndarray | None:
-        values = [getattr(part, name) for part in parts]
+        values = [getattr(part, name) for part in given]
         return None if values[0] is None else np.concatenate(values)
 
-    lines = None if first.table.lines is None else np.concatenate([x.table.lines for x in parts])
+    lines = None if first.table.lines is None else np.concatenate([x.table.lines for x in given])
     table = dataclasses.replace(first.table, lines=lines)
-    fields = {name: cat(name) for name in ("t", "candidate", "p", "v", "a")}
-    return Trajectory(table, first.names, **fields)
+    p = np.concatenate([part.p for part in given])
+    return Trajectory(table, first.names, cat("t"), cat("candidate"), p, cat("v"), cat("a"))
 
 
 def _rows_of(traj: Trajectory, rows: slice) -> Trajectory:

@@ -1,0 +1,110 @@
+"""An independent re-check of planned motions: Pinocchio places the spheres, NumPy measures.
+
+Written apart from jaxkin's collision layer: Pinocchio reads the spherised URDF's kinematics
+and its ``<collision>`` spheres (``buildModelFromUrdf``, ``buildGeomFromUrdf``) and places
+them (``updateGeometryPlacements``); the signed distances are written here in NumPy, with the
+scene's cylinders exact (``jaxkin`` holds them in enclosing boxes):
+
+- sphere (centre ``p``, radius ``r``) to box: ``u = R^T (p - c)``, ``e = |u| - h``,
+  ``|max(e, 0)| + min(max_i e_i, 0) - r``;
+- to cylinder (centre ``c``, unit axis ``a``, half height ``h``, radius ``R``): ``z = (p - c)
+  . a``, ``rho = |p - c - z a|``, outside ``|(max(rho - R, 0), max(|z| - h, 0))|``, inside
+  ``-min(R - rho, h - |z|)``, minus ``r``;
+- to sphere: ``|p - p'| - r - r'``; self pairs the same between the links jaxkin checks (its
+  SRDF and adjacency pairs, by name).
+
+A configuration is free when every distance is positive. ``dense_states`` samples a path at
+``8 x`` the planner's resolution: straight edges at joint steps of at most ``1 / (8 x 32)``, a
+spline (natural cubic through the knots in chord length, SciPy's ``CubicSpline``, not
+jaxkin's) at parameter steps that bound the joint step the same way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mbm_problems import HERE, TIPS  # noqa: F401
+
+
+class Reference:
+    """The independent checker of one robot (``"panda"`` or ``"ur5"``)."""
+
+    def __init__(self, name: str, link_pairs: list[tuple[str, str]], joint_names) -> None:
+        import pinocchio as pin
+
+        urdf = str(HERE / f"{name}_spherized.urdf")
+        self.pin = pin
+        self.model = pin.buildModelFromUrdf(urdf)
+        self.geom = pin.buildGeomFromUrdf(self.model, urdf, pin.GeometryType.COLLISION)
+        self.data = self.model.createData()
+        self.gdata = pin.GeometryData(self.geom)
+        self.radius = np.array([g.geometry.radius for g in self.geom.geometryObjects])
+        frames = self.model.frames
+        self.link = [frames[g.parentFrame].name for g in self.geom.geometryObjects]
+        self.index = [self.model.getJointId(j) for j in joint_names]
+        self.q_index = [self.model.joints[i].idx_q for i in self.index]
+        pairs = []
+        names = np.array(self.link)
+        for a, b in link_pairs:
+            ia, ib = np.flatnonzero(names == a), np.flatnonzero(names == b)
+            pairs += [(i, j) for i in ia for j in ib]
+        self.pairs = np.array(pairs, int).reshape(-1, 2)
+
+    def centres(self, q: np.ndarray) -> np.ndarray:
+        """Sphere centres ``(S, 3)`` at joints ``q``."""
+        pin = self.pin
+        full = pin.neutral(self.model)
+        full[self.q_index] = q
+        pin.forwardKinematics(self.model, self.data, full)
+        pin.updateGeometryPlacements(self.model, self.data, self.geom, self.gdata)
+        return np.array([m.translation for m in self.gdata.oMg])
+
+    def clearance(self, q: np.ndarray, solids) -> float:
+        """The smallest signed distance at ``q`` (world and self)."""
+        p = self.centres(q)
+        r = self.radius
+        out = [np.inf]
+        if len(solids.box_center):
+            u = np.einsum("bji,sbj->sbi", solids.box_rotation, p[:, None] - solids.box_center)
+            e = np.abs(u) - solids.box_half
+            outside = np.linalg.norm(np.maximum(e, 0.0), axis=-1)
+            inside = np.minimum(np.max(e, axis=-1), 0.0)
+            out.append(np.min(outside + inside - r[:, None]))
+        if len(solids.cylinder_center):
+            rel = p[:, None] - solids.cylinder_center
+            z = np.einsum("sci,ci->sc", rel, solids.cylinder_axis)
+            rho = np.linalg.norm(rel - z[..., None] * solids.cylinder_axis, axis=-1)
+            dr = rho - solids.cylinder_radius
+            dz = np.abs(z) - solids.cylinder_half_height
+            outside = np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0))
+            inside = np.minimum(np.maximum(dr, dz), 0.0)
+            out.append(np.min(outside + inside - r[:, None]))
+        if len(solids.sphere_center):
+            d = np.linalg.norm(p[:, None] - solids.sphere_center, axis=-1)
+            out.append(np.min(d - r[:, None] - solids.sphere_radius))
+        if len(self.pairs):
+            i, j = self.pairs.T
+            out.append(np.min(np.linalg.norm(p[i] - p[j], axis=-1) - r[i] - r[j]))
+        return float(min(out))
+
+
+def dense_states(knots: np.ndarray, smooth: bool, resolution: float = 8 * 32.0) -> np.ndarray:
+    """States along a path's knots ``(K, n)``: straight edges, or the natural cubic spline in
+    chord length when ``smooth``, at most ``1 / resolution`` apart (module docstring)."""
+    steps = np.linalg.norm(np.diff(knots, axis=0), axis=-1)
+    if len(knots) < 2:
+        return knots
+    if not smooth:
+        out = [knots[:1]]
+        for a, b, length in zip(knots[:-1], knots[1:], steps, strict=True):
+            k = max(1, int(np.ceil(length * resolution)))
+            t = np.arange(1, k + 1)[:, None] / k
+            out.append(a + t * (b - a))
+        return np.concatenate(out)
+    from scipy.interpolate import CubicSpline
+
+    s = np.concatenate([[0.0], np.cumsum(np.maximum(steps, 1e-9))])
+    spline = CubicSpline(s, knots, bc_type="natural")
+    fine = np.linspace(0.0, s[-1], 4097)
+    speed = np.max(np.linalg.norm(spline(fine, 1), axis=-1))
+    count = max(2, int(np.ceil(s[-1] * speed * resolution)) + 1)
+    return spline(np.linspace(0.0, s[-1], count))

@@ -1,0 +1,512 @@
+"""``motion.plan``: from a start to goals among obstacles, then short, smooth and timed.
+
+One call plans ``B`` problems (a start each; goals as joint configurations, or as targets the
+inverse kinematics turns into collision-free configurations, ``goals.ik_goals``) in a world
+shared by all or one world per problem:
+
+1. host checks: finite input (else ``INVALID_INPUT``), a start within the limits and free
+   (else ``INVALID_START``), at least one free goal within the limits (else ``INVALID_GOAL``,
+   or ``UNREACHABLE_GOAL`` for targets);
+2. the search (``search.search_kernel``, one compiled program: RRT-Connect lanes over a queue
+   of problems), returning each solved problem's path;
+3. the simplification (``simplify.simplify_kernel``, one compiled program over the problems:
+   shortcuts, then a natural cubic spline re-checked, or the shortcut polygon);
+4. the time-optimal timing of the result within the joints' speed and acceleration limits
+   (TOPP-RA, ``jaxkin.timing.retime``) sampled every ``period``: a spline is followed as it is,
+   the polygon with a stop at each corner (its pieces ``q = y0 + (3 tau^2 - 2 tau^3)(y1 -
+   y0)``: straight, at rest at both ends).
+
+Every compiled program is a pure kernel plus one ``jax.jit`` at module level; a repeated call
+with the same shapes (problems, goals per problem, obstacles per kind) and options compiles
+nothing new.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import time
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+from .. import timing
+from .._splines import hermite
+from ..collision import World
+from . import collider
+from .bound import motion_bound
+from .edges import MODES
+from .goals import ik_goals
+from .search import SearchConfig, SearchResult, search_kernel
+from .simplify import Checker, Simplified, simplify_kernel
+from .space import JointSpace, joint_space
+from .status import MotionStatus
+
+__all__ = ["MotionOptions", "MotionPlan", "plan", "plan_kernels"]
+
+
+@dataclasses.dataclass(frozen=True)
+class MotionOptions:
+    """Options of ``plan`` (each also a keyword of ``plan``).
+
+    Attributes:
+        mode: ``"certified"`` (default: edges covered by clearance balls, nothing slips
+            through) or ``"discrete"`` (states ``1 / resolution`` apart, as VAMP and OMPL).
+        range: the longest edge the search adds (joint distance, ``space`` module).
+        resolution: states per unit of joint distance in discrete mode (VAMP's 32).
+        lanes: RRT-Connects advanced per iteration (``search``).
+        capacity: nodes per tree.
+        max_iterations: lane iterations per problem before ``NO_PATH``.
+        path_points: waypoints per path buffer.
+        simplify: shortcut and smooth the path.
+        spline_states: states that check the spline.
+        period: control period of the sampled trajectory (the limits' time unit); None: no
+            timing.
+        grid: grid points of the timing per path.
+        velocity, acceleration: joint limits of the timing, ``(n,)``; None: the robot's
+            (``joint_limits``), a missing acceleration limit taken as 4 times the speed limit
+            (full speed in a quarter of the time unit), a missing speed limit as 1 per time
+            unit (rad, or the robot's size for a prismatic joint).
+        goals_per_target: goal configurations kept per target (IK goals).
+        seed: of the search's random samples.
+    """
+
+    mode: str = "certified"
+    range: float = 1.0
+    resolution: float = 32.0
+    lanes: int = 4
+    capacity: int = 1024
+    max_iterations: int = 40000
+    path_points: int = 128
+    simplify: bool = True
+    spline_states: int = 512
+    period: float | None = 0.01
+    grid: int = 200
+    velocity: Any = None
+    acceleration: Any = None
+    goals_per_target: int = 4
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        for name in ("range", "resolution"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number, got {value!r}")
+        for name in (
+            "lanes",
+            "capacity",
+            "max_iterations",
+            "path_points",
+            "spline_states",
+            "grid",
+            "goals_per_target",
+        ):
+            value = getattr(self, name)
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int)
+                or value < 2 - (name in ("lanes", "goals_per_target", "max_iterations"))
+            ):
+                raise ValueError(
+                    f"{name} must be a positive integer (>= 2 for sizes), got {value!r}"
+                )
+        if self.grid < self.path_points:
+            # every knot is a grid point of the timing
+            raise ValueError(
+                f"grid ({self.grid}) must be at least path_points ({self.path_points})"
+            )
+        if self.capacity % min(64, self.capacity):
+            raise ValueError(f"capacity must be below 64 or a multiple of 64, got {self.capacity}")
+        if self.period is not None and not (
+            isinstance(self.period, int | float) and math.isfinite(self.period) and self.period > 0
+        ):
+            raise ValueError(f"period must be a positive number or None, got {self.period!r}")
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool):
+            raise ValueError(f"seed must be an int, got {self.seed!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class MotionPlan:
+    """The result of ``plan`` per problem (NumPy, leading axis ``B``).
+
+    Attributes:
+        status: ``int8`` ``MotionStatus`` codes ``(B,)``.
+        path: the search's path ``(B, P, n)``; ``path_count (B,)`` waypoints (rows past it
+            repeat the last one); unwrapped for continuous joints.
+        simplified: the shortcut polygon or the spline's knots ``(B, P, n)``,
+            ``simplified_count (B,)``; ``smooth (B,)`` True where the spline passed its check
+            (then the trajectory follows the spline through these knots, else the polygon).
+        goal: the goal configuration reached ``(B, n)``.
+        iterations: lane iterations the search spent ``(B,)``.
+        certified: ``(B,)`` the path and its smoothing were certified (certified mode with a
+            proved speed bound, ``bound.MotionBound.proved``).
+        trajectory: ``timing.RetimedTrajectory`` sampled every ``period`` (None without a
+            period): ``q`` a Jet ``(B, T, n)``, ``valid``, ``count``; ``duration (B,)``.
+        timing_status: ``jaxkin.Status`` of the timing ``(B,)`` (``OK``, ``UNTIMEABLE``).
+        seconds: wall time of the stages of this call (``"search"``, ``"simplify"``,
+            ``"timing"``), each program run to completion (compilation included on a first
+            call).
+    """
+
+    status: np.ndarray
+    path: np.ndarray
+    path_count: np.ndarray
+    simplified: np.ndarray
+    simplified_count: np.ndarray
+    smooth: np.ndarray
+    goal: np.ndarray
+    iterations: np.ndarray
+    certified: np.ndarray
+    trajectory: Any
+    duration: np.ndarray
+    timing_status: np.ndarray
+    seconds: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def solved(self) -> np.ndarray:
+        return self.status == MotionStatus.SOLVED
+
+
+# ------------------------------------------------------------------------ compiled kernels
+def _evaluate(robot, body, pairs, world, mode, dtype):
+    def run(q):
+        if mode == "discrete":
+            return None, None, collider.free(robot, body, pairs, q, world)
+        return collider.clearances(robot, body, pairs, q, world)
+
+    return run
+
+
+def _simplify_all(
+    robot,
+    body,
+    pairs,
+    world,
+    space,
+    bound,
+    path,
+    count,
+    tol,
+    resolution,
+    slots,
+    mode,
+    states,
+    shared_world,
+):
+    """``simplify_kernel`` for every problem ``(B, P, n)``."""
+
+    def one(wd, p, c):
+        evaluate = _evaluate(robot, body, pairs, wd, mode, p.dtype)
+        check = Checker(evaluate, space, bound, mode, tol)
+        return simplify_kernel(check, p, c, slots, resolution, states)
+
+    axes = (None if shared_world else 0, 0, 0)
+    return jax.vmap(one, in_axes=axes)(world, path, count)
+
+
+_search_jit = jax.jit(search_kernel, static_argnames=("config",))
+_simplify_jit = jax.jit(_simplify_all, static_argnames=("slots", "mode", "states", "shared_world"))
+
+
+def plan_kernels():
+    """The compiled programs ``(search, simplify)`` (for benchmarks that time them apart)."""
+    return _search_jit, _simplify_jit
+
+
+# ------------------------------------------------------------------------ host side
+def _as_array(x: Any, name: str) -> np.ndarray:
+    try:
+        out = np.array(x, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name}: expected real numbers, got {type(x).__name__}") from error
+    return out
+
+
+def _worlds(world: Any, b: int) -> tuple[Any, bool]:
+    if isinstance(world, World):
+        return world, True
+    if isinstance(world, list | tuple):
+        if len(world) != b:
+            raise ValueError(f"world: {len(world)} worlds for {b} problems")
+        return collider.stack_worlds(list(world)), False
+    raise ValueError(
+        f"world: expected a collision.World or one per problem, got {type(world).__name__}"
+    )
+
+
+def _limits(
+    robot: Any, options: MotionOptions, space: JointSpace, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    limits = robot.joint_limits()
+    v = np.asarray(limits.velocity if options.velocity is None else options.velocity, float)
+    v = np.broadcast_to(v, (n,)).copy()
+    scale = 1.0 / np.asarray(space.weight, float)
+    v = np.where(np.isfinite(v), v, scale)
+    a = np.asarray(
+        limits.acceleration if options.acceleration is None else options.acceleration, float
+    )
+    a = np.broadcast_to(a, (n,)).copy()
+    a = np.where(np.isfinite(a), a, 4.0 * v)
+    if np.any(v <= 0) or np.any(a <= 0):
+        raise ValueError("velocity and acceleration limits must be positive")
+    return v, a
+
+
+@functools.partial(jax.jit, static_argnames=("grid",))
+def _joint_paths(
+    knots: Array, s: Array, slopes: Array, count: Array, grid: int
+) -> timing.JointPath:
+    """The ``JointPath`` grid ``(B, grid)`` of each spline (every knot a grid point, the
+    other points shared among the pieces in proportion to their parameter length)."""
+
+    def one(knots, s, slopes, count):
+        p = knots.shape[0]
+        live = jnp.arange(p - 1) < count - 1
+        h = jnp.where(live, jnp.diff(s), 0.0)
+        total = jnp.maximum(jnp.sum(h), 1e-30)
+        inner = grid - 1 - (count - 1)
+        share = jnp.where(live, 1.0 + jnp.floor(h / total * inner), 0.0)
+        share = share.at[jnp.maximum(count - 2, 0)].add(grid - 1 - jnp.sum(share))
+        ends = jnp.cumsum(share)
+        k = jnp.arange(grid)
+        piece = jnp.clip(jnp.searchsorted(ends, k, side="right"), 0, p - 2)
+        piece = jnp.where(k >= grid - 1, jnp.maximum(count - 2, 0), piece)
+        begin = ends[piece] - share[piece]
+        tau = jnp.where(k >= grid - 1, 1.0, (k - begin) / jnp.maximum(share[piece], 1.0))
+        hp = jnp.where(h[piece] > 0, h[piece], 1.0)[:, None]
+        y0, y1 = knots[piece], knots[piece + 1]
+        m0, m1 = slopes[piece], slopes[piece + 1]
+        q, dq, ddq = hermite(y0, m0, y1, m1, hp, tau[:, None])
+        param = s[piece] + tau * jnp.where(live[piece], h[piece], 0.0)
+        # a path of one point (start = goal): a strictly increasing grid at rest
+        param = jnp.where(count > 1, param, k.astype(param.dtype))
+        return param, q, dq, ddq
+
+    param, q, dq, ddq = jax.vmap(one)(knots, s, slopes, count)
+    return timing.JointPath(param, q, dq, ddq)
+
+
+def _prepare(robot, options):
+    """Host side, cached on the robot per mode: body, pairs, space, bound."""
+    cached = robot.__dict__.get("_motion_prepared")
+    if cached is not None:
+        return cached
+    body, pairs = collider.prepare(robot, True)
+    space = joint_space(robot)
+    bound = motion_bound(robot, body, pairs.link_pairs)
+    prepared = (body, pairs, space, bound)
+    object.__setattr__(robot, "_motion_prepared", prepared)
+    return prepared
+
+
+def plan(
+    robot: Any,
+    start: Any,
+    world: Any,
+    goal: Any = None,
+    target: Any = None,
+    options: MotionOptions | None = None,
+    **option_values: Any,
+) -> MotionPlan:
+    """Plan motions from ``start`` to ``goal`` configurations or ``target`` poses (module
+    docstring).
+
+    Args:
+        robot: a robot of the protocol with a collision body.
+        start: ``(n,)`` or ``(B, n)`` joint configurations (robot units).
+        world: a ``collision.World`` shared by every problem, or a list of ``B`` worlds.
+        goal: joint configurations ``(n,)``, ``(B, n)`` or ``(B, G, n)`` (several goals per
+            problem: the plan reaches one of them).
+        target: instead of ``goal``, targets of the robot's IK (``robot.target``:
+            ``(*target)`` or ``(B, *target)``).
+        options: ``MotionOptions``; or its fields as keywords.
+
+    Returns:
+        ``MotionPlan`` (NumPy arrays).
+
+    Raises:
+        ValueError: neither or both of ``goal`` and ``target``, shapes that do not match the
+            robot, a bad world or option (naming it).
+    """
+    if options is None:
+        options = MotionOptions(**option_values)
+    elif option_values:
+        options = dataclasses.replace(options, **option_values)
+    if not isinstance(options, MotionOptions):
+        raise ValueError(f"options: expected MotionOptions, got {type(options).__name__}")
+    for method in ("collision_body", "link_poses", "joint_limits"):
+        if not callable(getattr(robot, method, None)):
+            raise ValueError(
+                f"robot: expected a jaxkin robot with {method}(), got {type(robot).__name__}"
+            )
+    if (goal is None) == (target is None):
+        raise ValueError("give exactly one of goal (joint configurations) and target (IK targets)")
+    n = robot.n_joints
+    starts = _as_array(start, "start")
+    if starts.ndim not in (1, 2) or starts.shape[-1] != n:
+        raise ValueError(f"start: expected shape (n,) or (B, n) with n = {n}, got {starts.shape}")
+    starts = starts.reshape(-1, n)
+    b = starts.shape[0]
+    body, pairs, space_np, bound = _prepare(robot, options)
+    dtype = jnp.result_type(float)
+    space = space_np.astype(dtype)
+    bound = bound.astype(dtype)
+    worlds, shared = _worlds(world, b)
+    worlds = worlds.astype(dtype)
+
+    def free_fn(q):
+        q = jnp.asarray(q, dtype)
+        if shared:
+            return np.asarray(_free_jit(robot, body, pairs, q, worlds))
+        return np.asarray(_free_batched_jit(robot, body, pairs, q, worlds))
+
+    status = np.full(b, int(MotionStatus.SOLVED), np.int8)
+    finite_start = np.all(np.isfinite(starts), -1)
+    starts_safe = np.where(np.isfinite(starts), starts, 0.0)
+    limits = robot.joint_limits()
+    inside = np.asarray(limits.contains(starts_safe), bool)
+    if target is not None:
+        shape = tuple(robot.target.shape)
+        t = _as_array(target, "target")
+        if t.shape == shape:
+            t = np.broadcast_to(t, (b, *shape))
+        if t.shape != (b, *shape):
+            raise ValueError(f"target: expected shape {shape} or ({b}, *{shape}), got {t.shape}")
+        finite_goal = np.all(np.isfinite(t.reshape(b, -1)), -1)
+        goals, goal_count = ik_goals(
+            robot,
+            np.where(np.isfinite(t), t, 0.0),
+            starts_safe,
+            space,
+            free_fn,
+            options.goals_per_target,
+        )
+        no_goal = MotionStatus.UNREACHABLE_GOAL
+    else:
+        g = _as_array(goal, "goal")
+        if g.shape == (n,):
+            g = np.broadcast_to(g, (b, 1, n))
+        elif g.ndim == 2 and g.shape == (b, n):
+            g = g[:, None]
+        if g.ndim != 3 or g.shape[0] != b or g.shape[2] != n:
+            raise ValueError(
+                f"goal: expected shape (n,), (B, n) or (B, G, n) with B = {b}, n = {n}, "
+                f"got {g.shape}"
+            )
+        finite_goal = np.all(np.isfinite(g), (-1, -2))
+        g = np.where(np.isfinite(g), g, 0.0)
+        good = np.asarray(limits.contains(g), bool) & np.asarray(free_fn(g), bool)
+        order = np.argsort(~good, axis=1, kind="stable")
+        goals = np.take_along_axis(g, order[..., None], 1)
+        goal_count = np.sum(good, 1).astype(np.int32)
+        no_goal = MotionStatus.INVALID_GOAL
+    start_free = np.asarray(free_fn(starts_safe[:, None]), bool)[:, 0]
+    status = np.where(goal_count == 0, int(no_goal), status)
+    status = np.where(~(inside & start_free), int(MotionStatus.INVALID_START), status)
+    status = np.where(~(finite_start & finite_goal), int(MotionStatus.INVALID_INPUT), status)
+    status = status.astype(np.int8)
+    queue = np.flatnonzero(status == MotionStatus.SOLVED).astype(np.int32)
+    if queue.size == 0:
+        queue = np.zeros(1, np.int32)  # nothing to search: the loop never runs
+    scale = float(np.asarray(robot.length_scale()))
+    tol = 64.0 * float(jnp.finfo(dtype).eps) * (1.0 + scale)
+    slots = max(2, math.ceil(options.range * options.resolution))
+    slots = ((slots + 3) // 4) * 4  # a multiple of the coarse stage's rake
+    config = SearchConfig(
+        options.lanes, options.capacity, slots, options.path_points, options.mode, shared
+    )
+    seconds = {}
+    clock = time.perf_counter()
+    max_loops = int(options.max_iterations) * b // max(1, options.lanes) + 2 * b + 16
+    common = (robot, body, pairs, worlds, space, bound)
+    found: SearchResult = _search_jit(
+        *common,
+        jnp.asarray(starts_safe, dtype),
+        jnp.asarray(goals, dtype),
+        jnp.asarray(goal_count),
+        jnp.asarray(status),
+        jnp.asarray(queue),
+        jax.random.PRNGKey(options.seed),
+        jnp.asarray(options.range, dtype),
+        jnp.int32(options.max_iterations),
+        jnp.int32(min(max_loops, 2**31 - 1)),
+        jnp.asarray(tol, dtype),
+        config=config,
+    )
+    status = np.asarray(found.status)
+    seconds["search"] = time.perf_counter() - clock
+    clock = time.perf_counter()
+    path, count = found.path, found.count
+    solved = status == MotionStatus.SOLVED
+    if options.simplify:
+        from .simplify import SHORTCUTS
+
+        simple: Simplified = _simplify_jit(
+            *common,
+            path,
+            count,
+            jnp.asarray(tol, dtype),
+            jnp.asarray(options.resolution, dtype),
+            slots=(SHORTCUTS + 1) * slots,
+            mode=options.mode,
+            states=options.spline_states,
+            shared_world=shared,
+        )
+    else:
+        from .simplify import chord_parameters
+
+        s = jax.vmap(lambda p, c: chord_parameters(p, c, space))(path, count)
+        simple = Simplified(path, count, s, jnp.zeros_like(path), jnp.zeros(count.shape, bool))
+    jax.block_until_ready(simple)
+    seconds["simplify"] = time.perf_counter() - clock
+    clock = time.perf_counter()
+    path_np = np.asarray(path)
+    count_np = np.asarray(count)
+    goal_reached = path_np[np.arange(b), np.maximum(count_np - 1, 0)]
+    trajectory, duration, timing_status = None, np.zeros(b), np.zeros(b, np.int8)
+    if options.period is not None:
+        v, a = _limits(robot, options, space_np, n)
+        jp = _joint_paths(simple.path, simple.knots_s, simple.slopes, simple.count, options.grid)
+        timed = timing.retime(jp, jnp.asarray(v, dtype), jnp.asarray(a, dtype))
+        duration = np.where(solved, np.asarray(timed.duration), 0.0)
+        timing_status = np.asarray(timed.status)
+        trajectory = timing.sample(
+            jp,
+            timed,
+            options.period,
+            num=int(np.floor(np.max(duration, initial=0.0) / options.period)) + 1,
+        )
+    seconds["timing"] = time.perf_counter() - clock
+    return MotionPlan(
+        status=status.astype(np.int8),
+        path=path_np,
+        path_count=count_np,
+        simplified=np.asarray(simple.path),
+        simplified_count=np.asarray(simple.count),
+        smooth=np.asarray(simple.smooth) & solved,
+        goal=goal_reached,
+        iterations=np.asarray(found.iterations),
+        certified=solved & (options.mode == "certified") & bound.proved,
+        trajectory=trajectory,
+        duration=duration,
+        timing_status=timing_status,
+        seconds=seconds,
+    )
+
+
+def _free_kernel(robot, body, pairs, q, world):
+    return collider.free(robot, body, pairs, q, world)
+
+
+def _free_batched_kernel(robot, body, pairs, q, world):
+    return jax.vmap(lambda qq, wd: collider.free(robot, body, pairs, qq, wd))(q, world)
+
+
+_free_jit = jax.jit(_free_kernel)
+_free_batched_jit = jax.jit(_free_batched_kernel)

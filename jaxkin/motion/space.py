@@ -1,0 +1,112 @@
+"""The joint space a motion is planned in: the sampling box, continuous joints, the metric.
+
+A robot's joint coordinates mix angles (rad) and lengths (the robot's unit). Distances are
+measured in units of the robot's own size: with ``L = robot.length_scale()`` and ``w_j = 1``
+for a revolute joint, ``1 / L`` for a prismatic one::
+
+    d(a, b) = sqrt( sum_j (w_j delta_j)^2 ),   delta_j = b_j - a_j, wrapped to [-pi, pi)
+                                                for a continuous joint
+
+so a planner's range and resolution (states per unit of ``d``) mean the same on a SCARA in
+millimetres and on an arm in metres. A continuous joint (revolute, no position limits) is
+taken the short way round: ``delta_j`` is wrapped, the states of an edge are ``a + t delta``,
+and the path returned is unwrapped (consecutive waypoints differ by the wrapped step, so a
+continuous joint may end a full turn away from the goal's coordinate, at the same angle).
+Other joints are sampled within their limits; a prismatic joint without limits has no box to
+sample and is refused on the host (``joint_space``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import Array
+
+__all__ = ["JointSpace", "joint_space"]
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class JointSpace:
+    """The sampling box and metric of a robot's joints (arrays ``(n,)``).
+
+    Attributes:
+        lower, upper: the box sampled (the limits; ``[-pi, pi)`` for a continuous joint).
+        weight: ``w_j`` of the metric (1 for revolute joints, ``1 / length_scale`` for
+            prismatic ones).
+        continuous: 1.0 for a continuous joint (wrapped), 0.0 otherwise.
+    """
+
+    lower: Array
+    upper: Array
+    weight: Array
+    continuous: Array
+
+    def astype(self, dtype: Any) -> JointSpace:
+        return jax.tree.map(lambda x: jnp.asarray(x, dtype), self)
+
+    def wrap(self, delta: Array) -> Array:
+        """``delta`` with its continuous entries wrapped to ``[-pi, pi)``."""
+        wrapped = jnp.mod(delta + jnp.pi, 2.0 * jnp.pi) - jnp.pi
+        return jnp.where(self.continuous > 0, wrapped, delta)
+
+    def step(self, a: Array, b: Array) -> Array:
+        """The joint step from ``a`` to ``b`` (continuous joints the short way round)."""
+        return self.wrap(b - a)
+
+    def norm(self, delta: Array) -> Array:
+        """``d`` of a step ``delta (..., n)``, ``(...)``."""
+        x = delta * self.weight
+        return jnp.sqrt(jnp.sum(x * x, axis=-1))
+
+    def distance(self, a: Array, b: Array) -> Array:
+        return self.norm(self.step(a, b))
+
+    def canonical(self, q: Array) -> Array:
+        """``q`` with continuous joints wrapped into ``[-pi, pi)`` (tree nodes are stored so)."""
+        return jnp.where(self.continuous > 0, self.wrap(q), q)
+
+    def sample(self, key: Array, shape: tuple[int, ...]) -> Array:
+        """Uniform configurations in the box, ``(*shape, n)``."""
+        u = jax.random.uniform(key, (*shape, self.lower.shape[0]), self.lower.dtype)
+        return self.lower + u * (self.upper - self.lower)
+
+    def unwrap(self, path: Array) -> Array:
+        """A path ``(..., K, n)`` of wrapped waypoints as a continuous one: each waypoint the
+        previous one plus the wrapped step (the first kept)."""
+        steps = self.step(path[..., :-1, :], path[..., 1:, :])
+        return jnp.concatenate(
+            [path[..., :1, :], path[..., :1, :] + jnp.cumsum(steps, axis=-2)], axis=-2
+        )
+
+
+def joint_space(robot: Any) -> JointSpace:
+    """Host side: the ``JointSpace`` of a robot of the protocol (``joint_limits``,
+    ``joint_types``, ``length_scale``), float64 NumPy arrays.
+
+    Raises:
+        ValueError: a prismatic joint without finite limits (no box to sample).
+    """
+    limits = robot.joint_limits()
+    lower = np.asarray(limits.lower, float).reshape(-1)
+    upper = np.asarray(limits.upper, float).reshape(-1)
+    types = robot.joint_types
+    prismatic = np.array([t == "P" for t in types])
+    unbounded = ~(np.isfinite(lower) & np.isfinite(upper))
+    bad = np.flatnonzero(unbounded & prismatic)
+    if bad.size:
+        name = robot.joint_names[bad[0]]
+        raise ValueError(
+            f"robot: the prismatic joint {name!r} of {type(robot).__name__} has no finite "
+            "limits, so the planner has no box to sample (give the robot limits)"
+        )
+    continuous = unbounded & ~prismatic
+    lower = np.where(continuous, -np.pi, lower)
+    upper = np.where(continuous, np.pi, upper)
+    scale = float(np.asarray(robot.length_scale()))
+    weight = np.where(prismatic, 1.0 / scale, 1.0)
+    return JointSpace(lower, upper, weight, continuous.astype(float))

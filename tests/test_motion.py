@@ -1,0 +1,440 @@
+"""jaxkin.motion: the joint space, the speed bound, certified and discrete edges, the scene
+and MotionBenchMaker readers, and plans on small robots re-checked densely.
+
+The planner's programs take tens of seconds to compile; the tests that plan are in the slow
+tier, the default tier checks the pieces (each a small program or host code)."""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+import sys
+import tarfile
+import textwrap
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxkin import collision, delta, motion, scara, serial
+from jaxkin.motion import bound as mbound
+from jaxkin.motion import collider, edges
+from jaxkin.motion.space import joint_space
+
+ROOT = Path(__file__).resolve().parents[1]
+# the planner's sizes in the tests: small programs
+SMALL = dict(lanes=2, capacity=256, path_points=32, spline_states=256, grid=64)
+
+
+# ----------------------------------------------------------------------------- joint space
+def test_continuous_joints_take_the_short_way_round():
+    space = joint_space(serial.Planar2R(1.0, 0.8)).astype(jnp.float64)
+    a, b = jnp.array([3.0, 0.0]), jnp.array([-3.0, 0.5])
+    step = np.asarray(space.step(a, b))
+    assert np.allclose(step, [2 * np.pi - 6.0, 0.5], atol=1e-12)
+    path = jnp.stack([a, space.canonical(a + step)])
+    unwrapped = np.asarray(space.unwrap(path))
+    assert np.allclose(unwrapped[1], [3.0 + 2 * np.pi - 6.0, 0.5], atol=1e-12)
+
+
+def test_prismatic_joints_count_in_units_of_the_robots_size():
+    limits = scara.JointLimits(np.array([-2.0, -2.0, 0.0]), np.array([2.0, 2.0, 150.0]))
+    robot = scara.Scara(150.0, 80.0, 50.0, limits=limits)
+    space = joint_space(robot)
+    assert np.allclose(space.weight, [1.0, 1.0, 1.0 / float(robot.length_scale())])
+    assert np.all(space.continuous == 0)
+
+
+def test_a_prismatic_joint_without_limits_is_refused_naming_it():
+    with pytest.raises(ValueError, match="'l3'"):
+        joint_space(scara.Scara(150.0, 80.0, 50.0))
+
+
+# ----------------------------------------------------------------------------- speed bound
+def _displacement(robot, body, q0, dq, steps=257):
+    """The largest path length of any primitive point along ``q0 + t dq`` (dense)."""
+    links = np.asarray(body.sphere_link + body.capsule_link)
+    pts = np.concatenate(
+        [np.asarray(body.sphere_center).reshape(-1, 3), np.asarray(body.capsule_a).reshape(-1, 3)]
+    )
+    t = np.linspace(0.0, 1.0, steps)[:, None, None]
+    q = jnp.asarray(q0[None] + t * dq[None])
+    poses = np.asarray(robot.link_poses(q))[..., links, :, :]
+    placed = np.einsum("tbpij,pj->tbpi", poses[..., :3, :3], pts) + poses[..., :3, 3]
+    return np.linalg.norm(np.diff(placed, axis=0), axis=-1).sum(0)  # (B, P)
+
+
+@pytest.mark.parametrize(
+    "robot",
+    [
+        serial.Planar3R(1.0, 0.7, 0.4, link_radius=0.05),
+        serial.Anthropomorphic(0.3, 0.25, 0.2, link_radius=0.02),
+        scara.Scara(
+            150.0,
+            80.0,
+            50.0,
+            link_radius=4.0,
+            limits=scara.JointLimits(np.array([-2.0, -2.0, 0.0]), np.array([2.0, 2.0, 120.0])),
+        ),
+    ],
+    ids=["planar3r", "anthropomorphic", "scara"],
+)
+def test_the_speed_bound_is_proved_and_holds_on_random_steps(robot):
+    """Every primitive's path length along random steps is within its row's bound."""
+    body, pairs = collider.prepare(robot)
+    bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    assert bound.proved
+    space = joint_space(robot)
+    rng = np.random.default_rng(0)
+    q0 = space.lower + rng.uniform(size=(64, robot.n_joints)) * (space.upper - space.lower)
+    dq = rng.normal(size=q0.shape) * 0.5 / np.asarray(space.weight)
+    moved = _displacement(robot, body, q0, dq)
+    prims, _ = mbound.part_speeds(bound, jnp.asarray(dq))
+    capped = np.asarray(prims)[:, : moved.shape[1]]
+    # the dense path length is a lower bound of the motion: within the bound, and the bound
+    # not loose by more than the sqrt(n) of summing joints
+    assert np.all(moved <= capped * (1 + 1e-9) + 1e-12)
+    assert np.max(moved / np.maximum(capped, 1e-12)) > 0.2
+
+
+@pytest.mark.slow
+def test_a_closed_chain_gets_a_sampled_bound():
+    robot = delta.Delta.paper()
+    body, pairs = collider.prepare(robot)
+    bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    assert not bound.proved
+    assert np.all(np.isfinite(np.asarray(bound.rows)))
+
+
+# ----------------------------------------------------------------------------- edges
+def _planar_scene():
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.05)
+    world = collision.World.create(
+        spheres=collision.Spheres.create([[1.2, 0.6, 0.0], [-0.2, 1.3, 0.0]], [0.25, 0.2])
+    )
+    return robot, world
+
+
+def _evaluators(robot, world, mode):
+    body, pairs = collider.prepare(robot)
+
+    def evaluate(q):
+        if mode == "discrete":
+            return None, None, collider.free(robot, body, pairs, q, world)
+        return collider.clearances(robot, body, pairs, q, world)
+
+    return body, pairs, evaluate
+
+
+def test_rake_order_visits_every_state_coarse_first():
+    order = edges.rake_order(32)
+    assert sorted(order.tolist()) == list(range(33))
+    assert order[:3].tolist() == [0, 32, 16]
+
+
+@pytest.mark.slow
+def test_a_grazing_edge_slips_between_discrete_states_and_is_caught_certified():
+    """The tip of the arm sweeps past a small ball: between two of the coarse discrete states
+    it touches the ball (a dense check finds the contact), the discrete edge check misses it,
+    the certified one does not certify the edge past it."""
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.01)
+    a = np.array([0.0, 0.0])
+    d = np.array([1.0, 0.0])  # joint 1 sweeps 1 rad
+    body, pairs = collider.prepare(robot)
+    # a ball just reached by the tip at t = 0.53 (between the states t = 0.5 and 0.5625)
+    tip = 1.8 * np.array([np.cos(0.53), np.sin(0.53), 0.0])
+    world = collision.World.create(spheres=collision.Spheres.create([tip * 1.012], 0.012))
+    dense = np.linspace(0.0, 1.0, 4001)[:, None] * d + a
+    assert np.any(np.asarray(collision.check(robot, dense, world).collides))
+    bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    tol = jnp.asarray(1e-12)
+    out = {}
+    for mode in edges.MODES:
+        _, _, evaluate = _evaluators(robot, world, mode)
+        check = jax.jit(
+            lambda a, d, e=evaluate, m=mode: edges.edge_check(e, bound, a, d, 16, m, tol)
+        )
+        out[mode] = float(check(jnp.asarray(a[None]), jnp.asarray(d[None]))[0])
+    assert out["discrete"] == 1.0  # the 17 states miss the ball
+    assert out["certified"] < 0.53  # certified only up to before the contact
+
+
+def test_certified_prefixes_are_free_under_a_dense_check():
+    robot, world = _planar_scene()
+    body, pairs, evaluate = _evaluators(robot, world, "certified")
+    bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    rng = np.random.default_rng(1)
+    a = rng.uniform(-np.pi, np.pi, (64, 2))
+    ok = ~np.asarray(collision.check(robot, a, world).collides)
+    a = a[ok]
+    d = rng.normal(size=a.shape) * 0.8
+    check = jax.jit(
+        lambda a, d: edges.edge_check(evaluate, bound, a, d, 32, "certified", jnp.asarray(1e-12))
+    )
+    t_good = np.asarray(check(jnp.asarray(a), jnp.asarray(d)))
+    assert np.any(t_good >= 1.0) and np.any(t_good < 1.0)
+    s = np.linspace(0.0, 1.0, 2001)
+    states = a[:, None] + (s[None, :, None] * t_good[:, None, None]) * d[:, None]
+    clearance = np.asarray(collision.check(robot, states, world).clearance)
+    assert np.min(clearance) > 0
+
+
+# ----------------------------------------------------------------------------- worlds
+def test_padding_worlds_changes_no_clearance():
+    robot, _ = _planar_scene()
+    w1 = collision.World.create(
+        spheres=collision.Spheres.create([[1.2, 0.6, 0.0]], 0.25),
+        boxes=collision.Boxes.create([[0.0, -1.0, 0.0]], [[0.3, 0.1, 0.1]]),
+    )
+    w2 = collision.World.create(
+        spheres=collision.Spheres.create([[1.2, 0.6, 0.0], [-0.3, 1.2, 0.0]], [0.25, 0.1])
+    )
+    stacked = collider.stack_worlds([w1, w2])
+    q = np.random.default_rng(2).uniform(-np.pi, np.pi, (50, 2))
+    for i, w in enumerate((w1, w2)):
+        padded = jax.tree.map(lambda x, i=i: x[i], stacked)
+        got = np.asarray(collision.check(robot, q, padded).clearance)
+        want = np.asarray(collision.check(robot, q, w).clearance)
+        assert np.allclose(got, want, rtol=0, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- scene reader
+SCENE = textwrap.dedent(
+    """\
+    name: ""
+    world:
+      collision_objects:
+        - id: table
+          primitives:
+            - type: box
+              dimensions: [1.0, 0.5, 0.1]
+          primitive_poses:
+            - position: [0.5, 0, 0.2]
+              orientation: [0, 0, 0.7071067811865476, 0.7071067811865476]
+        - id: can
+          pose: {position: [0, 0, 1.0], orientation: [0, 0, 0, 1]}
+          primitives:
+            - type: cylinder
+              dimensions: [0.2, 0.05]
+          primitive_poses:
+            - position: [0.1, 0, 0]
+              orientation: [0.7071067811865476, 0, 0, 0.7071067811865476]
+        - id: ball
+          primitives: [{type: sphere, dimensions: [0.1]}]
+          primitive_poses: [{position: [0, 1, 0], orientation: [0, 0, 0, 1]}]
+    """
+)
+
+
+def test_a_moveit_scene_reads_as_solids_and_a_world():
+    pytest.importorskip("yaml")
+    solids = motion.read_scene(SCENE)
+    assert np.allclose(solids.box_center, [[0.5, 0.0, 0.2]])
+    assert np.allclose(solids.box_half, [[0.5, 0.25, 0.05]])
+    # turned by 90 degrees about z: the box's x axis along the world's y
+    assert np.allclose(solids.box_rotation[0][:, 0], [0.0, 1.0, 0.0], atol=1e-12)
+    # the cylinder's axis (local z) turned by 90 degrees about x: along -y
+    assert np.allclose(solids.cylinder_center, [[0.1, 0.0, 1.0]])
+    assert np.allclose(solids.cylinder_axis, [[0.0, -1.0, 0.0]], atol=1e-12)
+    assert np.allclose(solids.cylinder_half_height, [0.1]) and np.allclose(
+        solids.cylinder_radius, [0.05]
+    )
+    world = motion.world_from_solids(solids)
+    assert len(world.boxes) == 2 and len(world.spheres) == 1 and len(world.capsules) == 0
+    # the cylinder's box holds it: points on its rims and its axis' ends are inside, and it
+    # reaches no further along the axis than the cylinder
+    box = world.boxes
+    axis, centre = solids.cylinder_axis[0], solids.cylinder_center[0]
+    radial = np.cross(axis, [0.0, 0.0, 1.0])
+    radial /= np.linalg.norm(radial)
+    inside = [centre + s * 0.1 * axis + 0.05 * radial for s in (-1, 1)]
+    inside += [centre + s * 0.1 * axis for s in (-1, 1)]
+    beyond = centre + 0.1001 * axis
+    d = collision.distance.sphere_box(
+        np.array(inside + [beyond]), 0.0, box.center[1], box.rotation[1], box.half_extents[1]
+    )
+    assert np.all(np.asarray(d)[:4] <= 1e-12) and float(d[4]) > 0
+
+
+def test_a_scene_with_a_bad_primitive_names_it():
+    pytest.importorskip("yaml")
+    bad = SCENE.replace("dimensions: [0.2, 0.05]", "dimensions: [0.2, -0.05]")
+    with pytest.raises(ValueError, match="can.primitives"):
+        motion.read_scene(bad)
+
+
+def _mbm_module():
+    spec = importlib.util.spec_from_file_location(
+        "mbm_problems", ROOT / "benchmarks/mbm_problems.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+REQUEST = textwrap.dedent(
+    """\
+    group_name: arm
+    start_state:
+      joint_state:
+        name: [a, b, finger]
+        position: [0.1, -0.2, 0.04]
+    goal_constraints:
+      - joint_constraints:
+          - {joint_name: b, position: 0.5}
+          - {joint_name: a, position: -1.5}
+    """
+)
+
+
+def test_the_mbm_reader_pairs_scenes_and_requests(tmp_path):
+    pytest.importorskip("yaml")
+    mbm = _mbm_module()
+    archive = tmp_path / "problems.tar.bz2"
+    with tarfile.open(archive, "w:bz2") as tar:
+        for name, text in [
+            ("problems/box_robot/scene0002.yaml", SCENE),
+            ("problems/box_robot/request0002.yaml", REQUEST),
+            ("problems/cage_robot/scene0001.yaml", SCENE.replace("0.5, 0, 0.2", "0.5, 0, 0.3")),
+            ("problems/cage_robot/request0001.yaml", REQUEST),
+        ]:
+            data = text.encode()
+            info = tarfile.TarInfo(name)
+            info.size = len(data)
+            tar.addfile(info, io.BytesIO(data))
+    sets = mbm.read_problems(archive, ("a", "b"))
+    assert sorted(sets) == ["box", "cage"]
+    (p,) = sets["box"]
+    assert p.index == 2 and np.allclose(p.start, [0.1, -0.2]) and np.allclose(p.goal, [-1.5, 0.5])
+    assert np.allclose(sets["cage"][0].solids.box_center, [[0.5, 0.0, 0.3]])
+    with pytest.raises(ValueError, match="missing"):
+        mbm.read_problems(archive, ("a", "c"))
+
+
+# ----------------------------------------------------------------------------- options
+def test_options_name_what_is_wrong():
+    robot, world = _planar_scene()
+    with pytest.raises(ValueError, match="mode"):
+        motion.MotionOptions(mode="fast")
+    with pytest.raises(ValueError, match="grid"):
+        motion.MotionOptions(grid=16, path_points=32)
+    with pytest.raises(ValueError, match="exactly one"):
+        motion.plan(robot, [0.0, 0.0], world)
+    with pytest.raises(ValueError, match="start"):
+        motion.plan(robot, [0.0, 0.0, 0.0], world, goal=[1.0, 0.0])
+    assert "SOLVED" in motion.describe(0)
+
+
+# ----------------------------------------------------------------------------- plans
+def _dense_free(robot, world, knots, steps=64):
+    """Every straight edge between the knots checked at ``steps`` states per 0.1 rad."""
+    out = []
+    for a, b in zip(knots[:-1], knots[1:], strict=True):
+        k = max(2, int(np.ceil(np.linalg.norm(b - a) * steps * 10)))
+        out.append(a + np.linspace(0.0, 1.0, k)[:, None] * (b - a))
+    states = np.concatenate(out)
+    return float(np.min(np.asarray(collision.check(robot, states, world).clearance)))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", edges.MODES)
+def test_a_planar_arm_plans_around_obstacles(mode):
+    robot, world = _planar_scene()
+    start, goal = np.array([0.0, 0.3]), np.array([2.5, 0.4])
+    small = dict(SMALL, mode=mode)
+    result = motion.plan(robot, start, world, goal=goal, **small)
+    assert result.status[0] == motion.MotionStatus.SOLVED
+    k = int(result.path_count[0])
+    path = result.path[0, :k]
+    assert np.allclose(path[0], start)
+    space = joint_space(robot)
+    assert float(space.distance(jnp.asarray(path[-1]), jnp.asarray(goal))) < 1e-9
+    assert _dense_free(robot, world, path) > 0
+    simple = result.simplified[0, : int(result.simplified_count[0])]
+    assert _dense_free(robot, world, simple) > 0
+    assert bool(result.certified[0]) == (mode == "certified")
+    traj = result.trajectory
+    n_valid = int(traj.count[0])
+    q = np.asarray(traj.q.p[0, :n_valid])
+    assert np.allclose(q[0], start, atol=1e-9)
+    # the last sample is within one period of the end, where the arm comes to rest
+    assert float(space.distance(jnp.asarray(q[-1]), jnp.asarray(goal))) < 1e-3
+    # the timed trajectory is free too (densely along its samples)
+    assert float(np.min(np.asarray(collision.check(robot, q, world).clearance))) > 0
+    # the same shapes again: nothing compiles
+    before = motion.planner._search_jit._cache_size()
+    motion.plan(robot, start + 0.01, world, goal=goal, **small)
+    assert motion.planner._search_jit._cache_size() == before
+
+
+@pytest.mark.slow
+def test_invalid_problems_get_their_status():
+    robot, world = _planar_scene()
+    inside = np.array([0.6, 0.0])  # the forearm in the first ball
+    starts = np.array([[0.0, 0.3], inside, [np.nan, 0.0], [0.0, 0.3]])
+    goals = np.array([[2.5, 0.4], [2.5, 0.4], [2.5, 0.4], inside])
+    result = motion.plan(robot, starts, world, goal=goals, **SMALL, period=None)
+    names = motion.status_names(result.status).tolist()
+    assert names == ["SOLVED", "INVALID_START", "INVALID_INPUT", "INVALID_GOAL"]
+
+
+@pytest.mark.slow
+def test_a_target_point_becomes_collision_free_ik_goals():
+    """Both elbow solutions of the planar arm are candidate goals; the plan reaches one whose
+    tip is on the target."""
+    import jaxkin
+
+    robot, world = _planar_scene()
+    target = np.array([-0.9, 0.9])
+    start = np.array([0.0, 0.3])
+    result = motion.plan(robot, start, world, target=target, **SMALL, period=None)
+    assert result.status[0] == motion.MotionStatus.SOLVED
+    tip = np.asarray(jaxkin.fk(robot, result.goal[0]).x.p)
+    assert np.allclose(tip[:2], target, atol=1e-9)
+    far = np.array([3.0, 0.0])
+    unreachable = motion.plan(robot, start, world, target=far, **SMALL, period=None)
+    assert unreachable.status[0] == motion.MotionStatus.UNREACHABLE_GOAL
+
+
+@pytest.mark.slow
+def test_the_motion_command_writes_a_timed_trajectory(tmp_path):
+    pytest.importorskip("yaml")
+    from jaxkin import cli
+
+    scene_file = tmp_path / "scene.yaml"
+    scene_file.write_text(
+        "world:\n  collision_objects:\n    - id: ball\n"
+        "      primitives: [{type: sphere, dimensions: [0.25]}]\n"
+        "      primitive_poses: [{position: [1.2, 0.6, 0.0], orientation: [0, 0, 0, 1]}]\n"
+    )
+    out = tmp_path / "motion.csv"
+    argv = [
+        "motion",
+        "planar-2r",
+        "--l1",
+        "1",
+        "--l2",
+        "0.8",
+        "--link-radius",
+        "0.05",
+        "--from",
+        "0,0.3",
+        "--to",
+        "2.5,0.4",
+        "--world",
+        str(scene_file),
+        "-o",
+        str(out),
+    ]
+    assert cli.main(argv) == 0
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[:3] == ["t", "q1", "q2"] and table.shape[1] == 7
+    assert np.allclose(table[0, 1:3], [0.0, 0.3]) and np.all(np.diff(table[:, 0]) > 0)
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.05)
+    world = motion.world_from_solids(motion.read_scene(scene_file))
+    assert not np.any(np.asarray(collision.check(robot, table[:, 1:3], world).collides))
+    assert cli.main([*argv[:-6], "--to", "2.5", "--world", str(scene_file), "-o", str(out)]) == 2
