@@ -33,7 +33,7 @@ import mbm_problems  # noqa: E402
 from mbm_recheck import Reference, dense_states  # noqa: E402
 
 from jaxkin import collision  # noqa: E402
-from jaxkin.motion import collider, plan, world_from_solids  # noqa: E402
+from jaxkin.motion import collider, plan  # noqa: E402
 from jaxkin.motion.status import MotionStatus, status_names  # noqa: E402
 
 VAMP = {  # median / mean / p95 planning, mean simplification (us), solved / valid
@@ -53,9 +53,9 @@ def _length(path: np.ndarray, count: int) -> float:
     return float(np.sum(np.linalg.norm(np.diff(path[:count], axis=0), axis=-1)))
 
 
-def _recheck(ref: Reference, knots: np.ndarray, smooth: bool, solids) -> float:
+def _recheck(ref: Reference, knots: np.ndarray, smooth: bool, world) -> float:
     states = dense_states(knots, smooth)
-    return min(ref.clearance(q, solids) for q in states)
+    return min(ref.clearance(q, world) for q in states)
 
 
 def run_ompl(robot, world, start, goal, range_: float, budget: float = 10.0):
@@ -120,7 +120,7 @@ def main(argv=None) -> int:
     robot = mbm_problems.robot(args.robot)
     sets = mbm_problems.problems(args.robot)
     chosen = [p for s in mbm_problems.SCENES for p in sets[s][: args.per_scene]]
-    worlds = [world_from_solids(p.solids, "float32") for p in chosen]
+    worlds = [p.world.astype("float32") for p in chosen]
     stacked = collider.stack_worlds(worlds)
     padded = [jax.tree.map(lambda x, i=i: x[i], stacked) for i in range(len(chosen))]
     options = dict(
@@ -157,8 +157,8 @@ def main(argv=None) -> int:
             if not args.no_recheck:
                 raw = r.path[0][: int(r.path_count[0])]
                 simple = r.simplified[0][: int(r.simplified_count[0])]
-                row["recheck_raw"] = _recheck(ref, raw, False, p.solids)
-                row["recheck_simple"] = _recheck(ref, simple, bool(r.smooth[0]), p.solids)
+                row["recheck_raw"] = _recheck(ref, raw, False, p.world)
+                row["recheck_simple"] = _recheck(ref, simple, bool(r.smooth[0]), p.world)
         rows.append(row)
         print(json.dumps(row), flush=True)
     batch = None

@@ -5,10 +5,11 @@ Planning Datasets", RA-L 2022] poses, per robot, seven scenes of 100 problems ea
 (``table_pick``, ``table_under_pick``, ``box``, ``bookshelf_small``, ``bookshelf_tall``,
 ``bookshelf_thin``, ``cage``). VAMP [Thomason, Kingston & Kavraki, ICRA 2024] ships them as
 ``problems.tar.bz2`` archives of MoveIt YAML files, ``problems/<scene>_<robot>/sceneNNNN.yaml``
-(a ``PlanningScene``: boxes, cylinders, spheres) and ``requestNNNN.yaml`` (a
-``MotionPlanRequest``: ``start_state.joint_state`` and one ``goal_constraints`` entry of joint
-constraints). The archives, the spherised URDFs and the SRDFs in ``benchmarks/mbm/`` are VAMP's
-data (Apache-2.0, ``benchmarks/mbm/LICENSE``); this reader is the project's own.
+(a ``PlanningScene``: boxes, cylinders, spheres, read exactly by
+``collision.read_moveit_scene``'s reader) and ``requestNNNN.yaml`` (a ``MotionPlanRequest``:
+``start_state.joint_state`` and one ``goal_constraints`` entry of joint constraints). The
+archives, the spherised URDFs and the SRDFs in ``benchmarks/mbm/`` are VAMP's data
+(Apache-2.0, ``benchmarks/mbm/LICENSE``); this reader is the project's own.
 """
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxkin import serial
-from jaxkin.motion import scene
+from jaxkin import collision, serial
+from jaxkin.collision.moveit import scene_world
 
 HERE = Path(__file__).resolve().parent / "mbm"
 SCENES = (
@@ -40,12 +41,13 @@ RANGES = {"panda": 1.0, "ur5": 1.5}
 
 @dataclasses.dataclass(frozen=True)
 class Problem:
-    """One problem: ``scene`` and ``index`` (the file number), the ``solids`` of its world,
-    ``start`` and ``goal`` joint configurations in the robot's joint order."""
+    """One problem: ``scene`` and ``index`` (the file number), its ``world`` (float64: boxes,
+    spheres and exact cylinders), ``start`` and ``goal`` joint configurations in the robot's
+    joint order."""
 
     scene: str
     index: int
-    solids: scene.SceneSolids
+    world: collision.World
     start: np.ndarray
     goal: np.ndarray
 
@@ -81,6 +83,7 @@ def read_problems(archive: Path | str, joint_names: tuple[str, ...]) -> dict[str
             name = re.sub(r"_[^_]+$", "", parts[-2])  # "<scene>_<robot>"
             key = (name, int(match.group(2)))
             data = yaml.safe_load(tar.extractfile(member).read())
+            data = (Path(archive) / member.name, data)
             (scenes if match.group(1) == "scene" else requests)[key] = data
     if set(scenes) != set(requests):
         odd = sorted(set(scenes) ^ set(requests))[:3]
@@ -88,9 +91,10 @@ def read_problems(archive: Path | str, joint_names: tuple[str, ...]) -> dict[str
     out: dict[str, list[Problem]] = {}
     for key in sorted(scenes):
         where = f"{archive}: {key[0]} {key[1]}"
-        start, goal = request_configurations(requests[key], joint_names, where)
-        solids = scene.read_scene(scenes[key])
-        out.setdefault(key[0], []).append(Problem(key[0], key[1], solids, start, goal))
+        start, goal = request_configurations(requests[key][1], joint_names, where)
+        path, document = scenes[key]
+        world = scene_world(document, path, "float64")
+        out.setdefault(key[0], []).append(Problem(key[0], key[1], world, start, goal))
     return out
 
 
@@ -102,5 +106,9 @@ def robot(name: str) -> serial.Chain:
 
 
 def problems(name: str) -> dict[str, list[Problem]]:
-    """The robot's archive in ``benchmarks/mbm/``."""
-    return read_problems(HERE / f"{name}_problems.tar.bz2", robot(name).joint_names)
+    """The robot's archive in ``benchmarks/mbm/``, its worlds in float64 whatever JAX's
+    default (the re-check reads them exactly)."""
+    import jax
+
+    with jax.enable_x64(True):
+        return read_problems(HERE / f"{name}_problems.tar.bz2", robot(name).joint_names)

@@ -2,8 +2,8 @@
 
 Written apart from jaxkin's collision layer: Pinocchio reads the spherised URDF's kinematics
 and its ``<collision>`` spheres (``buildModelFromUrdf``, ``buildGeomFromUrdf``) and places
-them (``updateGeometryPlacements``); the signed distances are written here in NumPy, with the
-scene's cylinders exact (``jaxkin`` holds them in enclosing boxes):
+them (``updateGeometryPlacements``); the signed distances are written here in NumPy (the
+obstacles' arrays only are read from the problem's ``collision.World``):
 
 - sphere (centre ``p``, radius ``r``) to box: ``u = R^T (p - c)``, ``e = |u| - h``,
   ``|max(e, 0)| + min(max_i e_i, 0) - r``;
@@ -58,29 +58,32 @@ class Reference:
         pin.updateGeometryPlacements(self.model, self.data, self.geom, self.gdata)
         return np.array([m.translation for m in self.gdata.oMg])
 
-    def clearance(self, q: np.ndarray, solids) -> float:
+    def clearance(self, q: np.ndarray, world) -> float:
         """The smallest signed distance at ``q`` (world and self)."""
         p = self.centres(q)
         r = self.radius
         out = [np.inf]
-        if len(solids.box_center):
-            u = np.einsum("bji,sbj->sbi", solids.box_rotation, p[:, None] - solids.box_center)
-            e = np.abs(u) - solids.box_half
+        boxes, cylinders, spheres = world.boxes, world.cylinders, world.spheres
+        if len(boxes):
+            rotation, centre = np.asarray(boxes.rotation), np.asarray(boxes.center)
+            u = np.einsum("bji,sbj->sbi", rotation, p[:, None] - centre)
+            e = np.abs(u) - np.asarray(boxes.half_extents)
             outside = np.linalg.norm(np.maximum(e, 0.0), axis=-1)
             inside = np.minimum(np.max(e, axis=-1), 0.0)
             out.append(np.min(outside + inside - r[:, None]))
-        if len(solids.cylinder_center):
-            rel = p[:, None] - solids.cylinder_center
-            z = np.einsum("sci,ci->sc", rel, solids.cylinder_axis)
-            rho = np.linalg.norm(rel - z[..., None] * solids.cylinder_axis, axis=-1)
-            dr = rho - solids.cylinder_radius
-            dz = np.abs(z) - solids.cylinder_half_height
+        if len(cylinders):
+            axis = np.asarray(cylinders.axis)
+            rel = p[:, None] - np.asarray(cylinders.center)
+            z = np.einsum("sci,ci->sc", rel, axis)
+            rho = np.linalg.norm(rel - z[..., None] * axis, axis=-1)
+            dr = rho - np.asarray(cylinders.radius)
+            dz = np.abs(z) - np.asarray(cylinders.half_length)
             outside = np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0))
             inside = np.minimum(np.maximum(dr, dz), 0.0)
             out.append(np.min(outside + inside - r[:, None]))
-        if len(solids.sphere_center):
-            d = np.linalg.norm(p[:, None] - solids.sphere_center, axis=-1)
-            out.append(np.min(d - r[:, None] - solids.sphere_radius))
+        if len(spheres):
+            d = np.linalg.norm(p[:, None] - np.asarray(spheres.center), axis=-1)
+            out.append(np.min(d - r[:, None] - np.asarray(spheres.radius)))
         if len(self.pairs):
             i, j = self.pairs.T
             out.append(np.min(np.linalg.norm(p[i] - p[j], axis=-1) - r[i] - r[j]))

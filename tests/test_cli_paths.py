@@ -618,8 +618,8 @@ def test_plan_with_a_world_file(tmp_path, capsys):
     radius), so it keeps at least 7 mm clear and stays feasible; the arcs of 90 and 120 mm
     reach past the post's radius while sweeping across the -x axis (the tip, then the
     forearm from the elbow to the tip) and fail with COLLISION; --ranking gets each
-    candidate's clearance. Joint-space candidates are checked too. A world with cylinders, a
-    missing file and a bad entry are one-line errors naming the file."""
+    candidate's clearance. Joint-space candidates are checked too, and the post as a cylinder
+    gives the same verdicts. A missing file and a bad entry are one-line errors naming the file."""
     t = np.linspace(0.0, 2.0, 21)
     src = candidates_file(tmp_path / "c.csv", t, ARCS)
     post = {"name": "post", "center": [-90.0, 0.0, 0.0], "half_extents": [3, 3, 500]}
@@ -649,13 +649,19 @@ def test_plan_with_a_world_file(tmp_path, capsys):
     assert code == 0, err
     jr = read(tmp_path / "jr.csv", names)
     assert jr["failure"].tolist() == ["COLLISION", ""] and jr["first_failure"][0] == 0
-    world["cylinders"] = [{"center": [0, 0, 0], "radius": 1, "half_length": 1}]
-    (tmp_path / "cyl.json").write_text(json.dumps(world))
-    code, _, err = run(capsys, *argv, "--world", tmp_path / "cyl.json")
-    assert code == 2 and "cylinders are not yet supported" in err
+    # the same post as an upright cylinder of radius 3 (inside the box): the same verdicts
+    cylinder = {"center": [-90.0, 0.0, 0.0], "radius": 3, "half_length": 500, "axis": [0, 0, 1]}
+    cyl = {"units": "mm", "boxes": [], "cylinders": [cylinder]}
+    (tmp_path / "cyl.json").write_text(json.dumps(cyl))
+    code, _, err = run(
+        capsys, *argv[:-1], tmp_path / "cyl_rank.csv", "--world", tmp_path / "cyl.json"
+    )
+    assert code == 0, err
+    by_cylinder = read(tmp_path / "cyl_rank.csv", names)
+    assert by_cylinder["failure"].tolist() == ["COLLISION", "UNREACHABLE", "", "COLLISION"]
+    assert by_cylinder["clearance"][2] >= ranking["clearance"][2]
     code, _, err = run(capsys, *argv, "--world", tmp_path / "none.json")
     assert code == 2 and "--world" in err and "no such world file" in err
-    world.pop("cylinders")
     world["boxes"][0]["half_extents"] = [3, 3]
     (tmp_path / "bad.json").write_text(json.dumps(world))
     code, _, err = run(capsys, *argv, "--world", tmp_path / "bad.json")

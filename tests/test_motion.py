@@ -1,5 +1,5 @@
-"""jaxkin.motion: the joint space, the speed bound, certified and discrete edges, the scene
-and MotionBenchMaker readers, and plans on small robots re-checked densely.
+"""jaxkin.motion: the joint space, the speed bound, certified and discrete edges, worlds per
+problem, the MotionBenchMaker reader, and plans on small robots re-checked densely.
 
 The planner's programs take tens of seconds to compile; the tests that plan are in the slow
 tier, the default tier checks the pieces (each a small program or host code)."""
@@ -183,24 +183,36 @@ def test_certified_prefixes_are_free_under_a_dense_check():
 
 # ----------------------------------------------------------------------------- worlds
 def test_padding_worlds_changes_no_clearance():
+    """Worlds of every kind, each lacking some kind another has, stacked: every kind padded to
+    a multiple of the bucket, every clearance as in the world alone."""
     robot, _ = _planar_scene()
     w1 = collision.World.create(
         spheres=collision.Spheres.create([[1.2, 0.6, 0.0]], 0.25),
         boxes=collision.Boxes.create([[0.0, -1.0, 0.0]], [[0.3, 0.1, 0.1]]),
     )
     w2 = collision.World.create(
-        spheres=collision.Spheres.create([[1.2, 0.6, 0.0], [-0.3, 1.2, 0.0]], [0.25, 0.1])
+        spheres=collision.Spheres.create([[1.2, 0.6, 0.0], [-0.3, 1.2, 0.0]], [0.25, 0.1]),
+        cylinders=collision.Cylinders.create([[-1.0, -0.4, 0.0]], 0.2, 0.3, axis=[1.0, 0.0, 1.0]),
     )
-    stacked = collider.stack_worlds([w1, w2])
+    w3 = collision.World.create(
+        capsules=collision.Capsules.create([[0.5, -1.2, 0.0]], [[0.9, -1.0, 0.0]], 0.1)
+    )
+    stacked = collider.stack_worlds([w1, w2, w3])
+    bucket = collision.OBSTACLE_BUCKET
+    assert stacked.spheres.radius.shape == (3, bucket)
+    assert stacked.capsules.radius.shape == (3, bucket)
+    assert stacked.boxes.half_extents.shape == (3, bucket, 3)
+    assert stacked.cylinders.radius.shape == (3, bucket)
+    assert stacked.halfspaces.offset.shape == (3, 0)
     q = np.random.default_rng(2).uniform(-np.pi, np.pi, (50, 2))
-    for i, w in enumerate((w1, w2)):
+    for i, w in enumerate((w1, w2, w3)):
         padded = jax.tree.map(lambda x, i=i: x[i], stacked)
         got = np.asarray(collision.check(robot, q, padded).clearance)
         want = np.asarray(collision.check(robot, q, w).clearance)
         assert np.allclose(got, want, rtol=0, atol=1e-12)
 
 
-# ----------------------------------------------------------------------------- scene reader
+# ----------------------------------------------------------------------------- MotionBenchMaker
 SCENE = textwrap.dedent(
     """\
     name: ""
@@ -226,43 +238,6 @@ SCENE = textwrap.dedent(
           primitive_poses: [{position: [0, 1, 0], orientation: [0, 0, 0, 1]}]
     """
 )
-
-
-def test_a_moveit_scene_reads_as_solids_and_a_world():
-    pytest.importorskip("yaml")
-    solids = motion.read_scene(SCENE)
-    assert np.allclose(solids.box_center, [[0.5, 0.0, 0.2]])
-    assert np.allclose(solids.box_half, [[0.5, 0.25, 0.05]])
-    # turned by 90 degrees about z: the box's x axis along the world's y
-    assert np.allclose(solids.box_rotation[0][:, 0], [0.0, 1.0, 0.0], atol=1e-12)
-    # the cylinder's axis (local z) turned by 90 degrees about x: along -y
-    assert np.allclose(solids.cylinder_center, [[0.1, 0.0, 1.0]])
-    assert np.allclose(solids.cylinder_axis, [[0.0, -1.0, 0.0]], atol=1e-12)
-    assert np.allclose(solids.cylinder_half_height, [0.1]) and np.allclose(
-        solids.cylinder_radius, [0.05]
-    )
-    world = motion.world_from_solids(solids)
-    assert len(world.boxes) == 2 and len(world.spheres) == 1 and len(world.capsules) == 0
-    # the cylinder's box holds it: points on its rims and its axis' ends are inside, and it
-    # reaches no further along the axis than the cylinder
-    box = world.boxes
-    axis, centre = solids.cylinder_axis[0], solids.cylinder_center[0]
-    radial = np.cross(axis, [0.0, 0.0, 1.0])
-    radial /= np.linalg.norm(radial)
-    inside = [centre + s * 0.1 * axis + 0.05 * radial for s in (-1, 1)]
-    inside += [centre + s * 0.1 * axis for s in (-1, 1)]
-    beyond = centre + 0.1001 * axis
-    d = collision.distance.sphere_box(
-        np.array(inside + [beyond]), 0.0, box.center[1], box.rotation[1], box.half_extents[1]
-    )
-    assert np.all(np.asarray(d)[:4] <= 1e-12) and float(d[4]) > 0
-
-
-def test_a_scene_with_a_bad_primitive_names_it():
-    pytest.importorskip("yaml")
-    bad = SCENE.replace("dimensions: [0.2, 0.05]", "dimensions: [0.2, -0.05]")
-    with pytest.raises(ValueError, match="can.primitives"):
-        motion.read_scene(bad)
 
 
 def _mbm_module():
@@ -309,7 +284,9 @@ def test_the_mbm_reader_pairs_scenes_and_requests(tmp_path):
     assert sorted(sets) == ["box", "cage"]
     (p,) = sets["box"]
     assert p.index == 2 and np.allclose(p.start, [0.1, -0.2]) and np.allclose(p.goal, [-1.5, 0.5])
-    assert np.allclose(sets["cage"][0].solids.box_center, [[0.5, 0.0, 0.3]])
+    cage = sets["cage"][0].world
+    assert np.allclose(cage.boxes.center, [[0.5, 0.0, 0.3]])
+    assert len(cage.cylinders) == 1 and np.allclose(cage.cylinders.axis, [[0.0, -1.0, 0.0]])
     with pytest.raises(ValueError, match="missing"):
         mbm.read_problems(archive, ("a", "c"))
 
@@ -365,9 +342,9 @@ def test_a_planar_arm_plans_around_obstacles(mode):
     # the timed trajectory is free too (densely along its samples)
     assert float(np.min(np.asarray(collision.check(robot, q, world).clearance))) > 0
     # the same shapes again: nothing compiles
-    before = motion.planner._search_jit._cache_size()
+    before = motion.planner._search_jit.jitted._cache_size()
     motion.plan(robot, start + 0.01, world, goal=goal, **small)
-    assert motion.planner._search_jit._cache_size() == before
+    assert motion.planner._search_jit.jitted._cache_size() == before
 
 
 @pytest.mark.slow
@@ -435,6 +412,6 @@ def test_the_motion_command_writes_a_timed_trajectory(tmp_path):
     assert header[:3] == ["t", "q1", "q2"] and table.shape[1] == 7
     assert np.allclose(table[0, 1:3], [0.0, 0.3]) and np.all(np.diff(table[:, 0]) > 0)
     robot = serial.Planar2R(1.0, 0.8, link_radius=0.05)
-    world = motion.world_from_solids(motion.read_scene(scene_file))
+    world = collision.read_moveit_scene(scene_file)
     assert not np.any(np.asarray(collision.check(robot, table[:, 1:3], world).collides))
     assert cli.main([*argv[:-6], "--to", "2.5", "--world", str(scene_file), "-o", str(out)]) == 2

@@ -514,4 +514,4 @@ def _example(robot: Any, batch: Any, core: tuple, dtype: Any, rates: bool, name:
     a handle is compiled for; ``ValueError`` naming ``batch`` or ``dtype``."""
     batch = batch_shape(batch)
     zeros = np.zeros((*batch, *core), handle_dtype(dtype))
-    return Jet(zeros, zeros, zeros) if rates else zeros
+    return Jet(zeros, zeros, zeros) if rates else zeros  # type: ignore[arg-type]  # host data

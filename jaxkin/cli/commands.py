@@ -535,7 +535,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 q = [np.asarray(x)[place, :count] for x in (jet.p, jet.v, jet.a)]
             else:
                 at_samples.append(int(labels[index]))
-                t = traj.t[take[index]]
+                t = np.asarray(traj.t)[take[index]]
                 jet = evaluation.q
                 q = [np.asarray(x)[index] for x in (jet.p, jet.v, jet.a)]
             written = {"rank": np.full(len(t), place + 1)}

@@ -9,7 +9,7 @@ import numpy as np
 
 from .. import motion
 from . import files
-from .commands import robot_from_args, set_dtype
+from .commands import _world, robot_from_args, set_dtype
 from .robots import CliError
 
 __all__ = ["cmd_motion"]
@@ -19,18 +19,18 @@ def cmd_motion(args: argparse.Namespace) -> int:
     set_dtype(args.dtype)
     robot = robot_from_args(args)
     if args.srdf:
+        with_srdf = getattr(robot, "with_srdf", None)
+        if with_srdf is None:
+            raise CliError(f"--srdf is an option of URDF arms, not of {args.kind}")
         try:
-            robot = robot.with_srdf(args.srdf)
-        except (AttributeError, ValueError) as exc:
+            robot = with_srdf(args.srdf)
+        except ValueError as exc:
             raise CliError(f"--srdf {args.srdf}: {exc}") from None
     if args.link_radius is not None:
         if "link_radius" not in getattr(robot, "__dataclass_fields__", {}):
             raise CliError(f"--link-radius is not an option of {args.kind}")
         robot = robot.replace(link_radius=args.link_radius)
-    try:
-        world = motion.world_from_solids(motion.read_scene(args.world))
-    except (OSError, ValueError) as exc:
-        raise CliError(f"--world {args.world}: {exc}") from None
+    world = _world(args.world)
     n = robot.n_joints
     for flag, q in (("--from", args.start), ("--to", args.goal)):
         if len(q) != n:

@@ -164,17 +164,23 @@ def _add_motion_parser(sub: Any) -> None:
         "motion",
         help="plan a collision-free motion among a scene's obstacles; write it timed",
         description="Plan a motion of the robot from joints --from to joints --to among the "
-        "obstacles of a MoveIt planning scene (YAML: boxes, spheres, cylinders; --world), "
+        "obstacles of a world file or a MoveIt planning scene (YAML: boxes, spheres, "
+        "cylinders; --world), "
         "shorten and smooth it, time it within the joints' speed and acceleration limits and "
         "write it sampled every --period: columns t, the joints, their rates and "
-        "accelerations. Needs PyYAML (the motion extra).",
+        "accelerations. A YAML file needs PyYAML (the yaml extra).",
         epilog="example: jaxkin motion planar-2r --l1 1 --l2 0.8 --link-radius 0.05 "
         "--from 0,0.3 --to 2.5,0.4 --world scene.yaml -o motion.csv",
     )
     _add_robot_options(p, with_branch=False)
     p.add_argument("--from", dest="start", type=_numbers, required=True, metavar="Q[,Q...]")
     p.add_argument("--to", dest="goal", type=_numbers, required=True, metavar="Q[,Q...]")
-    p.add_argument("--world", required=True, metavar="FILE.yaml", help="MoveIt planning scene")
+    p.add_argument(
+        "--world",
+        required=True,
+        metavar="FILE",
+        help="a world file (.json, .yaml) or a MoveIt planning scene (.yaml)",
+    )
     p.add_argument("-o", "--output", required=True, metavar="FILE.csv", help="written atomically")
     p.add_argument(
         "--srdf", metavar="FILE", help="urdf: pairs the SRDF leaves out of self-collision"

@@ -165,7 +165,7 @@ class CheckResult:
 
 
 def chain_self_pairs(
-    robot: CollisionRobot, apart: int = 2, candidates: Any = None
+    robot: Any, apart: int = 2, candidates: Any = None
 ) -> tuple[tuple[int, int], ...]:
     """Self-collision pairs of a robot whose links form a chain in ``body.links`` order: links
     at least ``apart`` positions apart (or the given ``candidates``), both with geometry, not
@@ -189,9 +189,9 @@ def chain_self_pairs(
             "contact at q = 0, so they need its geometry as values, not traced (pass "
             "self_collision=False to differentiate in its link_radius or lengths)"
         )
-    distance = np.asarray(distance)
-    touching = 64.0 * np.finfo(distance.dtype).eps * float(robot.length_scale())
-    return tuple(p for p, d in zip(candidates, distance, strict=True) if d > touching)
+    distances = np.asarray(distance)
+    touching = 64.0 * np.finfo(distances.dtype).eps * float(robot.length_scale())
+    return tuple(p for p, d in zip(candidates, distances, strict=True) if d > touching)
 
 
 def prepare(robot: CollisionRobot, self_collision: bool = True) -> tuple[Body, SelfPairs]:
@@ -406,7 +406,7 @@ def _check_robot(robot: Any) -> CollisionRobot:
     return robot
 
 
-def _as_q(robot: CollisionRobot, q: ArrayLike, name: str = "q") -> Array:
+def _as_q(robot: CollisionRobot, q: Any, name: str = "q") -> Array:
     if not isinstance(q, jax.Array):
         q = np.asarray(q)
     # complex q would lose its imaginary part, boolean q is no joint coordinate

@@ -55,6 +55,7 @@ subgradients or zero.
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -570,7 +571,9 @@ def _arc_depth(taus: tuple, frame: tuple, shapes: tuple) -> jax.Array:
     big_a, big_b, cos_psi, ex, ey = frame
     p0, v0, d, c, axis, radius, half = shapes
     sg = jax.lax.stop_gradient
-    best = pick = up = None
+    best: Any = None  # the first side's values, then the better side's
+    pick: Any = None
+    up: Any = None
     for side, tau in zip((1.0, -1.0), taus, strict=True):
         tau = sg(tau)
         # the ellipse (A xi, +-B s)'s outward normal (B xi, +-A s), times (1 + tau^2) / 2

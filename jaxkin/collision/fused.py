@@ -21,6 +21,7 @@ World obstacles are taken unbatched (arrays ``(m, ...)``): for a world per confi
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -231,6 +232,11 @@ def world_and_self(
     return WorldAndSelf(world_value, world_code, own_value, own_code)
 
 
+def _world_test(distance: Any, kind: int, prims: tuple, obstacle: tuple, j: Any) -> jax.Array:
+    """``distance(kind, prims, obstacle)``: one obstacle's test in ``loop_world``'s shape."""
+    return distance(kind, prims, obstacle)
+
+
 def primitive_clearances(
     placed: Placed, world: World, pairs: SelfPairs | None
 ) -> tuple[jax.Array, jax.Array]:
@@ -251,9 +257,7 @@ def primitive_clearances(
         carry = jnp.full((prims[-1].shape[0], size), big, dtype)
         for kind, _, arrays in kinds:
             carry = loop_world(
-                lambda obstacle, j, kind=kind, prims=prims, distance=distance: distance(
-                    kind, prims, obstacle
-                ),
+                functools.partial(_world_test, distance, kind, prims),
                 arrays,
                 carry,
                 jnp.minimum,
@@ -262,7 +266,7 @@ def primitive_clearances(
         parts.append(carry)
     link_pairs = len(pairs.link_pairs) if pairs is not None else 0
     own = jnp.full((link_pairs, size), big, dtype)
-    if link_pairs:
+    if pairs is not None and link_pairs:
         tests = _self_tests(placed)
         lists = ((pairs.ss, pairs.ss_pair), (pairs.sc, pairs.sc_pair), (pairs.cc, pairs.cc_pair))
         for test, ((first, second), of_pair) in zip(tests, lists, strict=True):

@@ -141,7 +141,9 @@ def _point_cloud(entry: Mapping, where: str, folder: Path, dtype) -> Spheres:
         points = entry["points"]
     voxel = _numbers(entry["voxel"], where, "voxel", ())
     point_radius = _numbers(entry.get("point_radius", 0.0), where, "point_radius", ())
-    return point_cloud_spheres(np.asarray(points, dtype=float), voxel, point_radius, dtype)
+    return point_cloud_spheres(
+        np.asarray(points, dtype=float), float(voxel), float(point_radius), dtype
+    )
 
 
 def _builders(folder: Path) -> dict[str, Callable[[Mapping, str], Any]]:
@@ -296,8 +298,13 @@ def read_world(path: str | os.PathLike, units: str | None = None, dtype=None) ->
                     message if message.startswith(where) else f"{where}: {message}"
                 ) from None
     parts["spheres"] += parts.pop("point_clouds")
-    kinds = {"spheres": Spheres, "capsules": Capsules, "boxes": Boxes, "cylinders": Cylinders,
-             "halfspaces": HalfSpaces}  # fmt: skip
+    kinds: dict[str, Any] = {
+        "spheres": Spheres,
+        "capsules": Capsules,
+        "boxes": Boxes,
+        "cylinders": Cylinders,
+        "halfspaces": HalfSpaces,
+    }
     given = {}
     for kind, cls in kinds.items():
         if not parts[kind]:

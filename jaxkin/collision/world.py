@@ -184,7 +184,7 @@ def _obstacle_args(world: World) -> list[tuple[int, tuple[jax.Array, ...]]]:
     """Each non-empty kind of obstacle with its arrays, given a new axis for the robot
     primitives: ``(kind, arrays (..., 1, m_kind, ...))``."""
     w, c = world, world.cylinders
-    kinds = [
+    kinds: list[tuple[int, Any, tuple[jax.Array, ...]]] = [
         (SPHERE, w.spheres, (w.spheres.center, w.spheres.radius)),
         (CAPSULE, w.capsules, (w.capsules.a, w.capsules.b, w.capsules.radius)),
         (BOX, w.boxes, (w.boxes.center, w.boxes.rotation, w.boxes.half_extents)),

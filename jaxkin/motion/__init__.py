@@ -9,7 +9,6 @@
 - ``search``: RRT-Connect lanes in one ``lax.while_loop``.
 - ``simplify``: shortcuts and a re-checked spline.
 - ``goals``: targets to collision-free goal configurations (IK).
-- ``scene``: worlds from MoveIt planning scenes (YAML).
 - ``collider``: the one adapter to the collision layer.
 """
 
@@ -18,8 +17,6 @@ from .bound import motion_bound as motion_bound
 from .planner import MotionOptions as MotionOptions
 from .planner import MotionPlan as MotionPlan
 from .planner import plan as plan
-from .scene import read_scene as read_scene
-from .scene import world_from_solids as world_from_solids
 from .space import JointSpace as JointSpace
 from .space import joint_space as joint_space
 from .status import MotionStatus as MotionStatus
@@ -36,7 +33,5 @@ __all__ = [
     "joint_space",
     "motion_bound",
     "plan",
-    "read_scene",
     "status_names",
-    "world_from_solids",
 ]

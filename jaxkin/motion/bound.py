@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from .._execute import Kernel
 from .space import joint_space
 
 __all__ = ["MotionBound", "motion_bound", "part_speeds", "speed_bound"]
@@ -224,7 +225,7 @@ def _sampled_rows(robot: Any, body: Any, space: Any) -> tuple[np.ndarray, np.nda
         poses = robot.link_poses(q)
         return jnp.einsum("pij,pj->pi", poses[links, :3, :3], points) + poses[links, :3, 3]
 
-    jac = jax.jit(jax.vmap(jax.jacfwd(placed)))(jnp.asarray(q, dtype))  # (S, P, 3, n)
+    jac = Kernel(jax.vmap(jax.jacfwd(placed)))(jnp.asarray(q, dtype))  # (S, P, 3, n)
     ok = np.asarray(jax.vmap(robot.placeable)(jnp.asarray(q, dtype)), bool)
     speed = np.linalg.norm(np.asarray(jac, float), axis=-2)[ok]  # (S', P, n)
     speed = np.where(np.isfinite(speed), speed, np.inf)

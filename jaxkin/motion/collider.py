@@ -3,19 +3,19 @@
 Every question the planner asks about collisions goes through this module, so that a change
 of the collision kernels is one edit here:
 
+- ``COMPILER_OPTIONS``: the XLA options of the checks' programs (``collision.rows``), for every
+  program of the planner that runs them.
 - ``prepare(robot)``: host side, once per robot: the body and the self-collision pairs
   (``collision.prepare``).
 - ``free(robot, body, pairs, q, world)``: per configuration ``q (..., n)``, is the robot clear
   of the world and itself (``collision.collides_kernel``, the verdict alone)?
-- ``clearance(robot, body, pairs, q, world)``: per configuration, the smallest signed
-  distance robot-world and self (``collision.check_kernel``; 0 where the configuration is not
-  finite or the robot does not assemble), for conservative advancement.
 - ``clearances(robot, body, pairs, q, world)``: per configuration the signed distance of each
-  body primitive to its nearest obstacle and of each checked self link pair
-  (``collision.nearest_obstacles``, ``collision.self_distances``), for conservative
-  advancement with one speed bound per link and per pair (``bound``).
+  body primitive to the world and of each checked self link pair
+  (``collision.clearances_kernel``), for conservative advancement with one speed bound per
+  link and per pair (``bound``).
 - ``stack_worlds(worlds)``: one world per problem as one ``World`` with a leading problem axis
-  (every kind padded to the largest count without changing any distance).
+  (every kind padded to a common count, a multiple of ``collision.OBSTACLE_BUCKET``, without
+  changing any distance).
 
 All but ``prepare`` and ``stack_worlds`` are pure and traceable (any leading batch axes of
 ``q``; the world without batch axes: under ``vmap`` over problems it is one world per lane).
@@ -34,7 +34,10 @@ from jax import Array
 from .. import collision
 from ..collision import World
 
-__all__ = ["clearance", "free", "prepare", "stack_worlds"]
+__all__ = ["COMPILER_OPTIONS", "clearances", "free", "prepare", "stack_worlds"]
+
+# XLA options of every program that runs the checks (the CPU's older fusion emitters)
+COMPILER_OPTIONS = collision.rows.COMPILER_OPTIONS
 
 
 def prepare(robot: Any, self_collision: bool = True) -> tuple[Any, Any]:
@@ -47,83 +50,70 @@ def free(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> Array:
     return ~collision.collides_kernel(robot, body, pairs, q, world, 0.0).collides
 
 
-def clearance(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> tuple[Array, Array]:
-    """``(clearance, free)`` per configuration ``q (..., n)``: the smallest signed distance
-    (robot-world and self) and whether it is positive (and ``q`` finite and placeable)."""
-    result = collision.check_kernel(robot, body, pairs, q, world, 0.0)
-    return result.clearance, ~result.collides
-
-
 def clearances(
     robot: Any, body: Any, pairs: Any, q: Array, world: World
 ) -> tuple[Array, Array, Array]:
-    """``(primitives (..., ns + nc), self_pairs (..., len(pairs.link_pairs)), placed (...))``:
+    """``(primitives (..., S + C), self_pairs (..., len(pairs.link_pairs)), placed (...))``:
     each primitive's signed distance to the world (spheres then capsules; the dtype's largest
     value without obstacles), each link pair's smallest signed distance, and whether ``q`` is
-    finite and the robot assembles there (where it is not, the distances are placeholders)."""
-    dtype = q.dtype
-    valid = jnp.all(jnp.isfinite(q), -1)
-    q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
-    placed = valid & robot.placeable(q_safe)
-    body, world = body.astype(dtype), world.astype(dtype)
-    spheres, capsules = body.place(robot.link_poses(q_safe).astype(dtype))
-    near_s, near_c = collision.nearest_obstacles(spheres, capsules, world)
-    prims = jnp.concatenate([near_s.distance, near_c.distance], -1)
-    if pairs.link_pairs:
-        own = collision.self_distances(spheres, capsules, pairs)
-    else:
-        own = jnp.zeros(q.shape[:-1] + (0,), dtype)
-    return prims, own, placed
+    finite and the robot assembles there (where it is not, the distances are placeholders):
+    ``collision.clearances_kernel``."""
+    return collision.clearances_kernel(robot, body, pairs, q, world)
 
 
-_KINDS = ("spheres", "capsules", "boxes", "halfspaces")
+_KINDS = tuple(f.name for f in dataclasses.fields(World))
 
 
 def _pad_kind(kind: str, items: Any, count: int, world: World, far: np.ndarray) -> dict:
     """The arrays of one obstacle kind of one world padded to ``count`` rows by obstacles that
-    change no distance: copies of its first row; for a kind it lacks, a point (radius 0) at an
-    interior point of another of its obstacles (anything touching it touches that obstacle,
-    and its distance is never smaller), or at ``far`` in an empty world."""
+    change no distance: copies of its last row (as ``World.bucketed``); for a kind it lacks, a
+    point (no extent) at an interior point of another of its obstacles (anything touching it
+    touches that obstacle, and its distance is never smaller), or at ``far`` in an empty
+    world."""
     fields = {f: np.asarray(getattr(items, f)) for f in items.__dataclass_fields__}
     have = next(iter(fields.values())).shape[0]
     if have == count:
         return fields
     if have:
         return {
-            f: np.concatenate([v, np.repeat(v[:1], count - have, 0)]) for f, v in fields.items()
+            f: np.concatenate([v, np.repeat(v[-1:], count - have, 0)]) for f, v in fields.items()
         }
     inside = far
-    for other in ("boxes", "spheres", "capsules"):
+    for other in ("boxes", "spheres", "cylinders", "capsules"):
         rows = getattr(world, other)
         if len(rows):
             inside = np.asarray(rows.center if other != "capsules" else rows.a)[0]
             break
+    point = np.tile(inside, (count, 1))
+    zero = np.zeros(count)
     if kind == "spheres":
-        return {"center": np.tile(inside, (count, 1)), "radius": np.zeros(count)}
+        return {"center": point, "radius": zero}
     if kind == "capsules":
-        return {
-            "a": np.tile(inside, (count, 1)),
-            "b": np.tile(inside, (count, 1)),
-            "radius": np.zeros(count),
-        }
+        return {"a": point, "b": point, "radius": zero}
     if kind == "boxes":
-        return {
-            "center": np.tile(inside, (count, 1)),
-            "rotation": np.tile(np.eye(3), (count, 1, 1)),
-            "half_extents": np.zeros((count, 3)),
-        }
+        rotation = np.tile(np.eye(3), (count, 1, 1))
+        return {"center": point, "rotation": rotation, "half_extents": np.zeros((count, 3))}
+    if kind == "cylinders":
+        axis = np.tile([0.0, 0.0, 1.0], (count, 1))
+        return {"center": point, "axis": axis, "radius": zero, "half_length": zero}
     raise ValueError("world: a half-space cannot be padded into a world that has none")
 
 
 def stack_worlds(worlds: list[World], far: float = 100.0) -> World:
     """Host side: the worlds of ``B`` problems as one ``World`` whose arrays have a leading
-    axis ``B`` (``_pad_kind``); ``far`` places the padding of an empty world."""
+    axis ``B``, each kind padded to the largest count rounded up to a multiple of
+    ``collision.OBSTACLE_BUCKET`` (``_pad_kind``: worlds within the same buckets share a
+    compiled program); ``far`` places the padding of an empty world."""
     if not worlds:
         raise ValueError("worlds: expected at least one collision.World")
     for i, w in enumerate(worlds):
         if not isinstance(w, World):
             raise ValueError(f"worlds[{i}]: expected a collision.World, got {type(w).__name__}")
+        if w.batched():
+            raise ValueError(f"worlds[{i}]: expected a world without batch axes")
+    bucket = collision.OBSTACLE_BUCKET
     counts = {k: max(len(getattr(w, k)) for w in worlds) for k in _KINDS}
+    counts = {k: -(-c // bucket) * bucket for k, c in counts.items()}
     if counts["halfspaces"] and any(not len(w.halfspaces) for w in worlds):
         # a half-space no obstacle contains: the far one below everything
         worlds = [
@@ -137,15 +127,12 @@ def stack_worlds(worlds: list[World], far: float = 100.0) -> World:
     point = np.array([0.0, 0.0, -far])
     stacked = {}
     for kind in _KINDS:
-        if not counts[kind]:
-            stacked[kind] = getattr(worlds[0], kind)
+        if not counts[kind]:  # an empty kind gets the leading axis too
+            stacked[kind] = jax.tree.map(
+                lambda x: jnp.broadcast_to(x, (len(worlds), *x.shape)), getattr(worlds[0], kind)
+            )
             continue
         rows = [_pad_kind(kind, getattr(w, kind), counts[kind], w, point) for w in worlds]
         cls = type(getattr(worlds[0], kind))
         stacked[kind] = cls(**{f: jnp.asarray(np.stack([r[f] for r in rows])) for f in rows[0]})
-    empty = [k for k in _KINDS if not counts[k]]
-    for k in empty:  # an empty kind gets the leading axis too
-        stacked[k] = jax.tree.map(
-            lambda x: jnp.broadcast_to(x, (len(worlds), *x.shape)), stacked[k]
-        )
     return World(**stacked)
