@@ -295,9 +295,9 @@ def _window(robot: Robot, path: Jet, real: Any, index: int, carry: dict | None):
     if carry is None:
         p, turns = plan.unwrapped(raw, revolute), plan.unwrapping_turns(raw, revolute)
     else:  # prefixed with the previous window's last sample, which is dropped again
-        joined = jnp.concatenate([carry["raw"][:, None, :], raw], axis=1)
-        p = plan.unwrapped(joined, revolute, carry["turns"])[:, 1:]
-        turns = plan.unwrapping_turns(joined, revolute, carry["turns"])[:, 1:]
+        behind = jnp.concatenate([carry["raw"][:, None, :], raw], axis=1)
+        p = plan.unwrapped(behind, revolute, carry["turns"])[:, 1:]
+        turns = plan.unwrapping_turns(behind, revolute, carry["turns"])[:, 1:]
     low, high = plan.solved_range(p, status == Status.OK)
     axes = tuple(range(2, path.p.ndim))
     nonzero = (path.v != 0) | (path.a != 0)

@@ -487,8 +487,7 @@ def _search(
     if slots is not None and size > slots:
         flat = (target.reshape(size, 4, 4), starts.reshape(size, *starts.shape[-2:]))
         quota = None if quota is None else jnp.broadcast_to(quota, batch).ravel()
-        queue = (done.ravel(), status.ravel(), slots, per_element, quota)
-        q, status = _queued(runs, *flat, *queue)
+        q, status = _queued(runs, *flat, done.ravel(), status.ravel(), slots, per_element, quota)
         return q.reshape(*batch, -1), status.reshape(batch)
 
     def body(state: _InStep) -> _InStep:
