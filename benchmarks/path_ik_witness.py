@@ -44,7 +44,7 @@ def run(name: str, count: int, samples: int, rng: np.random.Generator, spread: f
     jax.block_until_ready(ev.feasible)
     again = time.perf_counter() - start
     feasible = np.asarray(ev.feasible)
-    answer = tuple(np.asarray(x) for x in (ev.q.p, ev.q.v, ev.q.a))
+    answer = tuple(np.asarray(x, float) for x in (ev.q.p, ev.q.v, ev.q.a))
     check = wp.check_answers(arm, chain, answer, p, v, dt)
     good = (
         (check["pose"] <= 1e-8)

@@ -618,9 +618,16 @@ def _solution_jvp(primals: tuple, tangents: tuple) -> tuple[Array, Array]:
 
 
 def _finish(
-    prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool, column_scale=None
+    prep: _Prepared,
+    goal: Array,
+    q_unit: Array,
+    status: Array,
+    rates: bool,
+    given: tuple[Array, Array] | None = None,
 ) -> IKResult:
-    """Joint rates, margins and implicit derivatives at the solutions (module docstring)."""
+    """Joint rates, margins and implicit derivatives at the solutions (module docstring);
+    ``given``: the rates ``(q_dot, q_ddot)`` in the chain's units (``serial.track``'s), used
+    in place of the least-norm ones."""
     unit, g, scale, target = prep.unit, prep.g, prep.scale, prep.safe
     dtype = q_unit.dtype
     ok = status == Status.OK
@@ -640,14 +647,13 @@ def _finish(
         # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
         velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
         rows = rows[3:] if point else rows
-        weighted = column_scale is not None and jac.shape[-1] > jac.shape[-2]
-        jac_w = jac * column_scale[..., None, :] if weighted else jac
-        q_dot = _step.damped_step_looped(jac_w, velocity * rows, zero, floor)
-        q_dot = q_dot * column_scale if weighted else q_dot
-        jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
-        drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _step.damped_step_looped(jac_w, acceleration * rows - drift, zero, floor)
-        q_ddot = q_ddot * column_scale if weighted else q_ddot
+        if given is None:
+            q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
+            jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
+            drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
+            q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
+        else:
+            q_dot, q_ddot = given
         okc = ok[..., None]
     q = q_unit / g
     # Back in the chain's units a joint at its limit may pass it by an ulp: moved back (values

@@ -15,9 +15,15 @@ tip origin's velocity and acceleration in the base frame):
   J_dot q_dot)``, with ``J`` the body Jacobian (a point: the tip origin's, base frame) and
   ``W = diag(w_j)``, ``w_j = (u_j - l_j)^2 / (4 (u_j - q_j)(q_j - l_j))`` (1 at the middle of
   the limits ``[l_j, u_j]``, growing without bound towards them: a joint near a limit moves
-  less; 1 for a joint without limits or a revolute one whose range is a turn or more). For a
-  chain with no more joints than target rows the weights change nothing (``J`` square or the
-  least-squares solution unique). The returned rates are these (``search._finish``).
+  less; 1 for a joint without limits or a revolute one whose range is a turn or more). A
+  redundant chain's velocity also moves, in the weighted null space of ``J``, towards the
+  middle of its limits [Liegeois 1977]: ``q_dot += z - W^-1/2 (J W^-1/2)^+ J z``,
+  ``z_j = -NULL_GAIN s c_j`` with ``c_j = 2 (q_j - m_j) / (u_j - l_j)`` (0 for the
+  unweighted joints) and ``s = max_j |q_dot_j|`` of the least-norm velocity (so a target at
+  rest keeps the joints at rest, and the motion per unit of path does not depend on its
+  timing); ``J q_dot = V`` still. For a chain with no more joints than target rows the
+  weights and ``z`` change nothing (``J`` square or the least-squares solution unique). The
+  returned rates are these, those of the lane kept (``search._finish``'s ``given``).
 * **Time.** The kernel is given no sampling period: each step's ``dt`` is estimated from the
   targets, ``dt = <xi, M> / <M, M>`` with ``xi = log(G_prev^-1 G_t)`` (the step's body twist)
   and ``M = (V_prev + V_t) / 2`` (0 at rest).
@@ -73,6 +79,7 @@ __all__ = [
     "DIRECT_ITER",
     "JUMP_RTOL",
     "MAX_STEP",
+    "NULL_GAIN",
     "SETTLE_ITER",
     "SETTLE_RTOL",
     "SUBSTEPS",
@@ -101,6 +108,9 @@ LANE_RUNS = 3
 DUPLICATE_TOL = 1e-6
 # The largest weight of a joint's speed (at or beyond a limit).
 WEIGHT_CAP = 250.0
+# A redundant chain's null-space motion away from the limits: at most this fraction of the
+# largest joint speed the target's motion asks for (0 at rest).
+NULL_GAIN = 0.5
 
 _TWO_PI = 2.0 * np.pi
 
@@ -142,11 +152,13 @@ class _Lanes:
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class _Loop:
-    """The ``lax.while_loop`` state: the lanes, every lane's joints ``(B, K, T, n)`` and
-    status ``(B, K, T)`` per sample so far, and the updates taken (int32 scalar)."""
+    """The ``lax.while_loop`` state: the lanes, every lane's joints and rates ``(B, K, T,
+    n)`` and status ``(B, K, T)`` per sample so far, and the updates taken (int32 scalar)."""
 
     lanes: _Lanes
     q: Array
+    q_dot: Array
+    q_ddot: Array
     code: Array
     steps: Array
 
@@ -172,6 +184,36 @@ def _weighted_step(jac: Array, rhs: Array, damping: Array, floor: float, scale: 
     if jac.shape[-1] <= jac.shape[-2]:
         return _step.damped_step_looped(jac, rhs, damping, floor)
     return scale * _step.damped_step_looped(jac * scale[..., None, :], rhs, damping, floor)
+
+
+def _centred(q: Array, box: Any) -> Array:
+    """``(..., n)``: each joint's offset from the middle of its limits in half ranges, ``2 (q_j
+    - m_j) / (u_j - l_j)`` (0 for the joints ``_weights_scale`` leaves unweighted)."""
+    finite = jnp.isfinite(box.lower) & jnp.isfinite(box.upper)
+    span = jnp.where(finite, box.upper - box.lower, 1.0)
+    weighted = finite & ~(box.revolute & (span >= _TWO_PI))
+    middle = jnp.where(weighted, 0.5 * (box.lower + box.upper), 0.0)
+    return jnp.where(weighted, 2.0 * (q - middle) / span, 0.0)
+
+
+def _rates(unit: Any, box: Any, x: Array, kin: tuple, vel: Array, acc: Array) -> tuple:
+    """The joint rates ``(q_dot, q_ddot)`` ``(..., n)`` at joints ``x`` (module docstring):
+    ``kin`` the residual's Jacobian, the tip rotation and the joints' body Jacobian there;
+    a redundant chain's with the null-space motion ``z`` away from its limits."""
+    jac, rot, jac_theta = kin
+    dtype = x.dtype
+    scale = _weights_scale(x, box)
+    zero = jnp.zeros(x.shape[:-1], dtype)
+    v_rhs, _ = _rate_rows(unit, rot, jac_theta, vel, acc, jnp.zeros_like(x))
+    q_dot = _weighted_step(jac, v_rhs, zero, eps(dtype), scale)
+    if jac.shape[-1] > jac.shape[-2]:
+        speed = jnp.max(jnp.abs(q_dot), axis=-1, keepdims=True)
+        z = -NULL_GAIN * speed * _centred(x, box)
+        back = _weighted_step(jac, jnp.einsum("...ij,...j->...i", jac, z), zero, eps(dtype), scale)
+        q_dot = q_dot + z - back
+    _, a_rhs = _rate_rows(unit, rot, jac_theta, vel, acc, q_dot)
+    q_ddot = _weighted_step(jac, a_rhs, zero, eps(dtype), scale)
+    return q_dot, q_ddot
 
 
 def _room(low: Array, high: Array, box: Any) -> Array:
@@ -272,11 +314,7 @@ def _follow(runs: Any, targets: tuple, lanes: _Lanes, warm_iter: int, v_max: Arr
         jac = _kinematics.couple(unit, jac_theta)
         twist, jac_res, err_rot, err_pos = search._residual(unit, x, target, (rot, p, jac))
         scale = _weights_scale(x, box)
-        zero = jnp.zeros(ln.fail.shape, dtype)
-        v_rhs, _ = _rate_rows(unit, rot, jac_theta, vel, acc, jnp.zeros_like(x))
-        q_dot = _weighted_step(jac_res, v_rhs, zero, eps(dtype), scale)
-        _, a_rhs = _rate_rows(unit, rot, jac_theta, vel, acc, q_dot)
-        q_ddot = _weighted_step(jac_res, a_rhs, zero, eps(dtype), scale)
+        q_dot, q_ddot = _rates(unit, box, x, (jac_res, rot, jac_theta), vel, acc)
         moved = x - ln.q
         moved = jnp.where(box.revolute, moved - _TWO_PI * jnp.round(moved / _TWO_PI), moved)
         predicted = dt * (ln.q_dot + q_dot) / 2 + dt * dt * (ln.q_ddot - q_ddot) / 12
@@ -337,6 +375,8 @@ def _follow(runs: Any, targets: tuple, lanes: _Lanes, warm_iter: int, v_max: Arr
         return _Loop(
             lanes,
             loop.q.at[at].set(q_new, mode="drop"),
+            loop.q_dot.at[at].set(jnp.where(okn, q_dot, 0.0), mode="drop"),
+            loop.q_ddot.at[at].set(jnp.where(okn, q_ddot, 0.0), mode="drop"),
             loop.code.at[at].set(code, mode="drop"),
             loop.steps + 1,
         )
@@ -352,7 +392,8 @@ def _follow(runs: Any, targets: tuple, lanes: _Lanes, warm_iter: int, v_max: Arr
     shape = lanes.fail.shape
     q_all = jnp.zeros((*shape, size, lanes.q.shape[-1]), dtype)
     code_all = jnp.full((*shape, size), Status.NOT_CONVERGED, STATUS_DTYPE)
-    return jax.lax.while_loop(cond, body, _Loop(lanes, q_all, code_all, jnp.int32(0)))
+    start = _Loop(lanes, q_all, q_all, q_all, code_all, jnp.int32(0))
+    return jax.lax.while_loop(cond, body, start)
 
 
 def _first_lanes(prep: Any, runs: Any, budget: Any, count: int) -> Array:
@@ -454,12 +495,14 @@ def solve_paths(
     latest = jnp.max(lanes.fail, axis=-1, keepdims=True)
     choice = jnp.argmax(jnp.where(lanes.fail == latest, room, -jnp.inf), axis=-1)
     code = jnp.take_along_axis(end.code, choice[:, None, None], axis=1)[:, 0]
-    q = jnp.take_along_axis(end.q, choice[:, None, None, None], axis=1)[:, 0]
-    q, code = q.reshape(*batch, size, n), code.reshape(*batch, size)
+    q, q_dot, q_ddot = (
+        jnp.take_along_axis(x, choice[:, None, None, None], axis=1)[:, 0].reshape(*batch, size, n)
+        for x in (end.q, end.q_dot, end.q_ddot)
+    )
+    code = code.reshape(*batch, size)
     code = jnp.where(prep.done, prep.status, code)
     turned = search._turned(q, box, box.lower, box.upper)
     within = jnp.all((turned >= box.lower) & (turned <= box.upper), axis=-1)
     solved = code == Status.OK
     code = jnp.where(solved & ~within, Status.OUT_OF_LIMITS, code).astype(STATUS_DTYPE)
-    scale = _weights_scale(turned, box)
-    return search._finish(prep, prep.goal, turned, code, True, scale)
+    return search._finish(prep, prep.goal, turned, code, True, (q_dot, q_ddot))

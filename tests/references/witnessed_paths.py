@@ -17,21 +17,13 @@ against the targets' velocity through Pinocchio's Jacobian (``J q_dot = V``).
 
 from __future__ import annotations
 
-import importlib.metadata
-
 import numpy as np
 
-ROBOTS = importlib.metadata.distribution("example-robot-data").locate_file(
-    "cmeel.prefix/share/example-robot-data/robots"
-)
-# (URDF, tip link): the arms of the tests and the benchmark.
-ARMS = {
-    "kinova": ("kinova_description/robots/kinova.urdf", "j2s6s200_end_effector"),
-    "xarm7": ("xarm_description/urdf/xarm7.urdf", "link_eef"),
-    "panda": ("panda_description/urdf/panda.urdf", "panda_hand"),
-    "z1": ("z1_description/urdf/z1.urdf", "gripperStator"),
-    "ur5": ("ur_description/urdf/ur5_robot.urdf", "tool0"),
-}
+from tests.test_chain_search import _ROBOTS as ROBOTS
+from tests.test_chain_search import REAL_CHAINS
+
+# (URDF, tip link): the arms of the tests and the benchmark (the base is each file's root).
+ARMS = {name: REAL_CHAINS[name][::2] for name in ("kinova", "xarm7", "panda", "z1", "ur5")}
 # The witness's control points stay this fraction of each joint's range inside its limits.
 MARGIN = 0.1
 # Its control points move at most this far (rad, or the chain's length) from the first.
