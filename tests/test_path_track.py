@@ -19,17 +19,18 @@ import pytest
 from jaxkin import paths, plan, serial
 from jaxkin.status import Status
 
+from .helpers import compilations
 from .references import witnessed_paths as wp
 
 
-def _solve(name: str, count: int, samples: int, seed: int, narrow: float = 0.0):
+def _solve(name: str, count: int, samples: int, draw: int, narrow: float = 0.0):
     """``plan.evaluate`` of ``count`` witnessed pose paths of arm ``name``; ``narrow``: each
     finite limit moved this fraction of its range inwards (after the witnesses are made, so
     that they may leave them). Returns the evaluation and the independent check."""
     urdf, tip = wp.ARMS[name]
     chain = serial.from_urdf(str(wp.ROBOTS / urdf), tip)
     arm = wp.Arm(name, list(chain.joint_names))
-    (q, q_dot, q_ddot), dt = wp.witnesses(chain, count, samples, np.random.default_rng(seed))
+    (q, q_dot, q_ddot), dt = wp.witnesses(chain, count, samples, np.random.default_rng(draw))
     p, v, a = wp.pose_path(arm, q, q_dot, q_ddot)
     if narrow:
         lower, upper = np.asarray(chain.lower), np.asarray(chain.upper)
@@ -57,10 +58,15 @@ def _assert_honest(ev, check, pose_tol: float = 1e-8, rate_tol: float = 1e-6) ->
 @pytest.mark.parametrize("name", ["kinova", "xarm7"])
 def test_witnessed_paths_are_feasible(name):
     """Four witnessed paths of 32 samples on each of the two arms: every one feasible, every
-    answer honest."""
-    ev, _, check = _solve(name, 4, 32, seed=11)
+    answer honest; four other paths of the same shapes compile nothing new."""
+    ev, _, check = _solve(name, 4, 32, draw=11)
     assert np.all(ev.feasible), np.asarray(ev.status)
     _assert_honest(ev, check)
+    with compilations() as count:
+        again, _, check = _solve(name, 4, 32, draw=12)
+    assert count.n == 0, count.events
+    assert np.all(again.feasible), np.asarray(again.status)
+    _assert_honest(again, check)
 
 
 @pytest.mark.slow
@@ -68,7 +74,7 @@ def test_witnessed_paths_are_feasible(name):
 def test_witnessed_paths_sweep(name):
     """40 witnessed paths of 64 samples per arm, the held-out arms too, their control points
     up to 1.6 rad apart: at least 95 % feasible, every feasible answer honest."""
-    ev, _, check = _solve(name, 40, 64, seed=sum(map(ord, name)))
+    ev, _, check = _solve(name, 40, 64, draw=sum(map(ord, name)))
     assert np.mean(ev.feasible) >= 0.95, np.asarray(ev.first_failure)
     _assert_honest(ev, check)
 
@@ -79,7 +85,7 @@ def test_narrowed_limits_give_no_feasible_answer_outside_them(name):
     """Limits narrowed by 30 % of each range on each side, after the witnesses were made
     within 10 % of them: a feasible answer stays within the narrowed limits (the others are
     ``OUT_OF_LIMITS``, ``DISCONTINUOUS`` or ``NOT_CONVERGED``, none ``OK`` throughout)."""
-    ev, chain, check = _solve(name, 16, 32, seed=5, narrow=0.3)
+    ev, chain, check = _solve(name, 16, 32, draw=5, narrow=0.3)
     _assert_honest(ev, check)
     status = np.asarray(ev.status)
     assert not np.all(ev.feasible)
