@@ -5,7 +5,8 @@ pairs) of one configuration and of a batch of 1,024 (with the checks' XLA option
 serial chain of ``n`` revolute joints (random screws, links about 0.3 long), ``k`` spheres
 spread over its links with their self pairs (links two or more apart), and a world of ``m``
 spheres and ``m`` boxes, float32, JAX's persistent cache off; seconds of
-``lower().compile()`` in a process of its own per row, so no row reuses another's programs.
+``lower().compile()``, wall / process CPU time (the latter moves less with the machine's
+load), in a process of its own per row, so no row reuses another's programs.
 Prints a Markdown table
 (``docs/performance.md``, "Compile time against size")::
 
@@ -38,7 +39,11 @@ def _row(joints: int, spheres: int, obstacles: int) -> str:
     import numpy as np
 
     from jaxkin import collision, serial
-    from jaxkin.collision.rows import COMPILER_OPTIONS
+
+    try:
+        from jaxkin.collision.rows import COMPILER_OPTIONS
+    except ImportError:  # a checkout from before the rows layout, for comparison
+        COMPILER_OPTIONS = ()
 
     rng = np.random.default_rng(joints * 1000 + spheres + obstacles)
     axes = rng.normal(size=(joints, 3))
@@ -76,9 +81,9 @@ def _row(joints: int, spheres: int, obstacles: int) -> str:
                 lambda q, w, kernel=kernel: kernel(chain, body, pairs, q, w, 0.0),
                 compiler_options=dict(COMPILER_OPTIONS),
             )
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             fn.lower(q, world).compile()
-            cells.append(f"{time.perf_counter() - start:.2f}")
+            cells.append(f"{time.perf_counter() - start:.2f} / {time.process_time() - cpu:.2f}")
     load = os.getloadavg()[0]
     prims = f"{body.num_spheres} spheres, {pairs.num_primitive_pairs} self pairs"
     return f"| {joints} | {prims} | {2 * obstacles} | " + " | ".join(cells) + f" | {load:.1f} |"

@@ -54,8 +54,7 @@ def _length(path: np.ndarray, count: int) -> float:
 
 
 def _recheck(ref: Reference, knots: np.ndarray, smooth: bool, world) -> float:
-    states = dense_states(knots, smooth)
-    return min(ref.clearance(q, world) for q in states)
+    return float(np.min(ref.clearances(dense_states(knots, smooth), world)))
 
 
 def run_ompl(robot, world, start, goal, range_: float, budget: float = 10.0):

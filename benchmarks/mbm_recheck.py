@@ -48,6 +48,10 @@ class Reference:
             ia, ib = np.flatnonzero(names == a), np.flatnonzero(names == b)
             pairs += [(i, j) for i in ia for j in ib]
         self.pairs = np.array(pairs, int).reshape(-1, 2)
+        # each sphere's centre in its parent joint's frame (a sphere needs no rotation)
+        objects = self.geom.geometryObjects
+        self.parent = np.array([g.parentJoint for g in objects], int)
+        self.local = np.array([g.placement.translation for g in objects]).reshape(-1, 3)
 
     def centres(self, q: np.ndarray) -> np.ndarray:
         """Sphere centres ``(S, 3)`` at joints ``q``."""
@@ -60,34 +64,58 @@ class Reference:
 
     def clearance(self, q: np.ndarray, world) -> float:
         """The smallest signed distance at ``q`` (world and self)."""
-        p = self.centres(q)
+        return float(self.clearances(np.asarray(q)[None], world)[0])
+
+    def joint_centres(self, q: np.ndarray) -> np.ndarray:
+        """``centres`` from Pinocchio's joint placements alone: ``R_j c + t_j`` per sphere."""
+        pin = self.pin
+        full = pin.neutral(self.model)
+        full[self.q_index] = q
+        pin.forwardKinematics(self.model, self.data, full)
+        rotation = np.array([m.rotation for m in self.data.oMi])[self.parent]
+        translation = np.array([m.translation for m in self.data.oMi])[self.parent]
+        return np.einsum("sij,sj->si", rotation, self.local) + translation
+
+    def clearances(self, states: np.ndarray, world, block: int = 256) -> np.ndarray:
+        """The smallest signed distance (world and self) per state ``(K, n) -> (K,)``:
+        Pinocchio places the joints state by state, NumPy the spheres and the distances of
+        a block of states at once."""
+        out = []
+        for start in range(0, len(states), block):
+            p = np.stack([self.joint_centres(q) for q in states[start : start + block]])
+            out.append(self._measure(p, world))
+        return np.concatenate(out) if out else np.zeros(0)
+
+    def _measure(self, p: np.ndarray, world) -> np.ndarray:
+        """Per state the smallest signed distance of sphere centres ``p (K, S, 3)``."""
         r = self.radius
-        out = [np.inf]
+        out = [np.full(p.shape[0], np.inf)]
         boxes, cylinders, spheres = world.boxes, world.cylinders, world.spheres
         if len(boxes):
             rotation, centre = np.asarray(boxes.rotation), np.asarray(boxes.center)
-            u = np.einsum("bji,sbj->sbi", rotation, p[:, None] - centre)
+            u = np.einsum("bji,ksbj->ksbi", rotation, p[:, :, None] - centre)
             e = np.abs(u) - np.asarray(boxes.half_extents)
             outside = np.linalg.norm(np.maximum(e, 0.0), axis=-1)
             inside = np.minimum(np.max(e, axis=-1), 0.0)
-            out.append(np.min(outside + inside - r[:, None]))
+            out.append(np.min(outside + inside - r[:, None], axis=(1, 2)))
         if len(cylinders):
             axis = np.asarray(cylinders.axis)
-            rel = p[:, None] - np.asarray(cylinders.center)
-            z = np.einsum("sci,ci->sc", rel, axis)
+            rel = p[:, :, None] - np.asarray(cylinders.center)
+            z = np.einsum("ksci,ci->ksc", rel, axis)
             rho = np.linalg.norm(rel - z[..., None] * axis, axis=-1)
             dr = rho - np.asarray(cylinders.radius)
             dz = np.abs(z) - np.asarray(cylinders.half_length)
             outside = np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0))
             inside = np.minimum(np.maximum(dr, dz), 0.0)
-            out.append(np.min(outside + inside - r[:, None]))
+            out.append(np.min(outside + inside - r[:, None], axis=(1, 2)))
         if len(spheres):
-            d = np.linalg.norm(p[:, None] - np.asarray(spheres.center), axis=-1)
-            out.append(np.min(d - r[:, None] - np.asarray(spheres.radius)))
+            d = np.linalg.norm(p[:, :, None] - np.asarray(spheres.center), axis=-1)
+            out.append(np.min(d - r[:, None] - np.asarray(spheres.radius), axis=(1, 2)))
         if len(self.pairs):
             i, j = self.pairs.T
-            out.append(np.min(np.linalg.norm(p[i] - p[j], axis=-1) - r[i] - r[j]))
-        return float(min(out))
+            d = np.linalg.norm(p[:, i] - p[:, j], axis=-1) - r[i] - r[j]
+            out.append(np.min(d, axis=1))
+        return np.min(np.stack(out), axis=0)
 
 
 def dense_states(knots: np.ndarray, smooth: bool, resolution: float = 8 * 32.0) -> np.ndarray:

@@ -1,8 +1,9 @@
-"""Cylinders: the primitive, exact signed distances (hand-derived values, gradients, float32),
-the world's per-primitive query, and the batched checks' refusal until they take them.
+"""Cylinders: the primitive, exact signed distances (hand-derived values, an independent
+reference in every regime, eager and jitted, gradients, float32), the world's per-primitive
+query, and the batched checks that take them.
 
 The cross-checks against coal and against an independent minimisation of the penetration
-depth are in tests/test_collision_coal.py (slow tier).
+depth over the whole sphere of directions are in tests/test_collision_coal.py (slow tier).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from jaxkin import costs, plan, scara
 from jaxkin.collision import distance as sd
 
 from .helpers import compilations, gradient_against_differences
+from .references import cylinders as reference
 
 Z = np.array([0.0, 0.0, 1.0])
 O = np.zeros(3)
@@ -115,15 +117,20 @@ DEGENERATE = [
     (v(0, 0, 0.5), v(0, 0, 0.5), O, Z, 0.0, 1.0),  # a point on a segment
     (0.9 * EY - 5 * DH, 0.9 * EY + 5 * DH, O, Z, 1.0, 1.0),  # through, past the rim
     (v(1, -1, 1), v(1, 1, 1), O, Z, 1.0, 1.0),  # tangent to the rim
+    (v(0, 0, 2), v(0, 0, 2), O, Z, 1.0, 1.0),  # a point on the axis, apart
+    (v(0, 0, 1), v(0, 0, 3), O, Z, 1.0, 1.0),  # along the axis, touching a cap
+    (v(0, 0, -0.5), v(0, 0, 0.5), O, Z, 1.0, 1.0),  # along the axis, inside
+    (v(2, 0, -0.5), v(2, 0, 0.5), O, Z, 1.0, 1.0),  # parallel, beside the side
+    (v(0.5, 0, 1), v(0.5, 0, 1), O, Z, 1.0, 1.0),  # a point on a cap
 ]
 
 
 def test_gradients_finite_everywhere():
-    """All the cases in one batch (each row its own pair): the gradient of the sum is each
-    pair's gradient."""
+    """All the cases in one batch (each row its own pair), with 8 pairs of each of the
+    reference's regimes: the gradient of the sum is each pair's gradient."""
     rows = [np.stack([np.broadcast_to(np.asarray(case[k], float), np.shape(DEGENERATE[0][k]))
                       for case in DEGENERATE]) for k in range(6)]  # fmt: skip
-    args = [jnp.asarray(x) for x in rows]
+    args = [jnp.asarray(np.concatenate(x)) for x in zip(rows, _regime_pairs(8), strict=True)]
 
     def total(fn, *xs):
         return jnp.sum(fn(*xs))
@@ -131,9 +138,45 @@ def test_gradients_finite_everywhere():
     segment = jax.jit(jax.grad(lambda *x: total(sd.segment_cylinder, *x), argnums=range(6)))
     point = jax.jit(jax.grad(lambda *x: total(sd.point_cylinder, *x), argnums=range(5)))
     values = np.asarray(jax.jit(sd.segment_cylinder)(*args))
-    assert np.all(np.isfinite(values)) and np.all(values <= 0.5 + 1e-15)
+    assert np.all(np.isfinite(values)) and np.all(values[: len(DEGENERATE)] <= 1.0 + 1e-15)
     for grads in (segment(*args), point(args[0], *args[2:])):
         assert all(np.all(np.isfinite(np.asarray(g))) for g in grads)
+
+
+def _regime_pairs(per_regime: int) -> tuple[np.ndarray, ...]:
+    rng = np.random.default_rng(12)
+    parts = [reference.pairs(rng, per_regime, regime) for regime in reference.REGIMES]
+    return tuple(np.concatenate(x) for x in zip(*parts, strict=True))
+
+
+def test_segment_cylinder_against_the_reference_in_every_regime():
+    """336 segment-cylinder pairs, 24 in each of the reference's regimes (random, parallel and
+    perpendicular to the axis, exactly or nearly, through the axis, within a hair's breadth of
+    the rim, a cap or the side, points, radius or length 0, the rim problem's double root,
+    along the axis): jitted and eager, each equals the independent reference
+    (tests/references/cylinders.py: the minimum along the segment where apart, the support
+    function's minimum over +-axis and its two great circles where overlapping) to 1e-14 of
+    the pair's size, and the two agree to 1e-14 (main's bisection differed between them by
+    up to the cylinder's size); float32 equals float64 on the same inputs to 3e-6 of the size.
+    """
+    pairs = _regime_pairs(24)
+    a, b, _, _, radius, half = pairs
+    size = np.maximum.reduce([radius, half, np.linalg.norm(b - a, axis=1)])
+    # support <= sd <= along, equal to along where apart (a disk's crossing gives 0 to rounding)
+    along = reference.along(*pairs)
+    want = np.where(along > 1e-14 * size, along, reference.support(*pairs))
+    assert 0.25 < np.mean(want > 0) < 0.75
+    jitted = np.asarray(jax.jit(sd.segment_cylinder)(*pairs))
+    eager = np.asarray(sd.segment_cylinder(*pairs))
+    for got in (jitted, eager):
+        np.testing.assert_array_less(np.abs(got - want), 1e-14 * size)
+    np.testing.assert_array_less(np.abs(jitted - eager), 1e-14 * size)
+
+    rounded = [np.asarray(x, np.float32) for x in pairs]
+    low = jax.jit(sd.segment_cylinder)(*rounded)
+    assert low.dtype == jnp.float32
+    high = np.asarray(jax.jit(sd.segment_cylinder)(*[x.astype(np.float64) for x in rounded]))
+    np.testing.assert_array_less(np.abs(np.asarray(low, np.float64) - high), 3e-6 * size)
 
 
 def _capsule_cylinder_unit(a, b, r, center, axis, radius, half):

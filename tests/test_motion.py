@@ -39,6 +39,31 @@ def test_continuous_joints_take_the_short_way_round():
     assert np.allclose(unwrapped[1], [3.0 + 2 * np.pi - 6.0, 0.5], atol=1e-12)
 
 
+def test_the_nearest_node_is_the_brute_force_one_for_every_tree_size():
+    """The search's nearest neighbour (coordinate-major trees, a scan compiled per size
+    class, wrapped joints) against NumPy's brute force over the live nodes, for trees in
+    each size class and lanes that need no answer."""
+    from jaxkin.motion import search
+
+    space = joint_space(serial.Planar2R(1.0, 0.8)).astype(jnp.float64)  # both joints wrap
+    rng = np.random.default_rng(3)
+    cap, w = 512, 4
+    nodes = rng.uniform(-np.pi, np.pi, (2, 2, 2, cap))  # (teams, trees, n, N)
+    team, grow = np.array([0, 0, 1, 1]), np.array([0, 1, 1, 0])
+    target = rng.uniform(-np.pi, np.pi, (w, 2))
+    nearest = jax.jit(lambda *args: search._nearest(args[0], team, *args[1:]))
+    for sizes in ([5, 40, 1, 64], [65, 3, 200, 10], [300, 512, 2, 7]):
+        size = np.array(sizes)
+        need = np.array([True, True, False, True])
+        near, q = nearest(jnp.asarray(nodes), grow, size, target, space, need)
+        for i in np.flatnonzero(need):
+            tree = nodes[team[i], grow[i], :, : size[i]].T
+            step = np.mod(tree - target[i] + np.pi, 2 * np.pi) - np.pi
+            want = int(np.argmin(np.sum(step * step, -1)))
+            assert int(near[i]) == want
+            assert np.allclose(np.asarray(q[i]), tree[want], atol=0)
+
+
 def test_prismatic_joints_count_in_units_of_the_robots_size():
     limits = scara.JointLimits(np.array([-2.0, -2.0, 0.0]), np.array([2.0, 2.0, 150.0]))
     robot = scara.Scara(150.0, 80.0, 50.0, limits=limits)
@@ -122,7 +147,7 @@ def _evaluators(robot, world, mode):
 
     def evaluate(q):
         if mode == "discrete":
-            return None, None, collider.free(robot, body, pairs, q, world)
+            return collider.free(robot, body, pairs, q, world)
         return collider.clearances(robot, body, pairs, q, world)
 
     return body, pairs, evaluate
@@ -149,12 +174,16 @@ def test_a_grazing_edge_slips_between_discrete_states_and_is_caught_certified():
     dense = np.linspace(0.0, 1.0, 4001)[:, None] * d + a
     assert np.any(np.asarray(collision.check(robot, dense, world).collides))
     bound = mbound.motion_bound(robot, body, pairs.link_pairs)
-    tol = jnp.asarray(1e-12)
+    rows = mbound.speed_rows(bound, body)
+    space = joint_space(robot)
+    tol, resolution = jnp.asarray(1e-12), jnp.asarray(16.0)
     out = {}
     for mode in edges.MODES:
         _, _, evaluate = _evaluators(robot, world, mode)
         check = jax.jit(
-            lambda a, d, e=evaluate, m=mode: edges.edge_check(e, bound, a, d, 16, m, tol)
+            lambda a, d, e=evaluate, m=mode: edges.edge_check(
+                e, rows, a, d, 16, 8, m, tol, resolution, space
+            )
         )
         out[mode] = float(check(jnp.asarray(a[None]), jnp.asarray(d[None]))[0])
     assert out["discrete"] == 1.0  # the 17 states miss the ball
@@ -165,13 +194,18 @@ def test_certified_prefixes_are_free_under_a_dense_check():
     robot, world = _planar_scene()
     body, pairs, evaluate = _evaluators(robot, world, "certified")
     bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    rows = mbound.speed_rows(bound, body)
+    space = joint_space(robot)
+    tol, resolution = jnp.asarray(1e-12), jnp.asarray(32.0)
     rng = np.random.default_rng(1)
     a = rng.uniform(-np.pi, np.pi, (64, 2))
     ok = ~np.asarray(collision.check(robot, a, world).collides)
     a = a[ok]
     d = rng.normal(size=a.shape) * 0.8
     check = jax.jit(
-        lambda a, d: edges.edge_check(evaluate, bound, a, d, 32, "certified", jnp.asarray(1e-12))
+        lambda a, d: edges.edge_check(
+            evaluate, rows, a, d, 32, 8, "certified", tol, resolution, space
+        )
     )
     t_good = np.asarray(check(jnp.asarray(a), jnp.asarray(d)))
     assert np.any(t_good >= 1.0) and np.any(t_good < 1.0)
@@ -345,6 +379,27 @@ def test_a_planar_arm_plans_around_obstacles(mode):
     before = motion.planner._search_jit.jitted._cache_size()
     motion.plan(robot, start + 0.01, world, goal=goal, **small)
     assert motion.planner._search_jit.jitted._cache_size() == before
+
+
+@pytest.mark.slow
+def test_many_problems_each_keep_their_own_simplified_path():
+    """More problems than a simplification group (sorted by waypoint count, simplified in
+    groups, put back): each problem's simplified path runs from its own start to its own
+    goal, free under a dense check."""
+    robot, world = _planar_scene()
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-np.pi, np.pi, (200, 2))
+    q = q[~np.asarray(collision.check(robot, q, world).collides)]
+    b = motion.planner.SIMPLIFY_GROUP + 3
+    starts, goals = q[:b], q[b : 2 * b]
+    result = motion.plan(robot, starts, world, goal=goals, **SMALL, period=None)
+    space = joint_space(robot)
+    for i in range(b):
+        assert result.status[i] == motion.MotionStatus.SOLVED
+        simple = result.simplified[i, : int(result.simplified_count[i])]
+        assert float(space.distance(jnp.asarray(simple[0]), jnp.asarray(starts[i]))) < 1e-9
+        assert float(space.distance(jnp.asarray(simple[-1]), jnp.asarray(goals[i]))) < 1e-9
+        assert _dense_free(robot, world, simple) > 0
 
 
 @pytest.mark.slow

@@ -7,13 +7,16 @@
 - ``world``: ``World`` and ``nearest_obstacles`` (per robot primitive, the smallest signed
   distance over the world and which obstacle).
 - ``body``: ``Body``, spheres and capsules attached to links; ``Body.place(link_poses)``.
-- ``urdf``: ``body_from_urdf`` (``<collision>`` elements; meshes covered by spheres).
+- ``urdf``: ``read_collision`` (a URDF's ``<collision>`` elements and mesh files, read once)
+  and ``body_from_urdf`` (their covers as a ``Body``; spherised URDFs as their spheres).
+- ``cover``: conservative sphere covers of meshes and boxes with an overshoot bound; the
+  former sphere-and-capsule covers; capsule covers of boxes.
+- ``triangles``: host-side triangle geometry (subdivision, exact distances, parts, pairs).
 - ``body_files``: bodies as other planners' files: cuRobo's sphere lists
   (``read_sphere_lists``), spherised URDFs (``spherized_urdf``; read by ``body_from_urdf``).
 - ``scene``: world files (JSON, YAML): ``read_world``, ``write_world``.
 - ``moveit``: MoveIt planning scenes (YAML) as a ``World``: ``read_moveit_scene``; a motion
   plan request's start and goals: ``read_moveit_request``.
-- ``cover``: conservative sphere and capsule covers of meshes, capsule covers of boxes.
 - ``pairs``: self-collision link pairs (adjacency, SRDF ``disable_collisions``),
   ``self_distances``, ``propose_disabled``.
 - ``check``: ``check(robot, q, world)``, a robot's configurations against the world and
@@ -39,6 +42,7 @@ from .check import prepare as prepare
 from .cover import MeshCover as MeshCover
 from .cover import SphereCover as SphereCover
 from .cover import box_capsules as box_capsules
+from .cover import box_sphere_cover as box_sphere_cover
 from .cover import mesh_cover as mesh_cover
 from .cover import mesh_sphere_cover as mesh_sphere_cover
 from .fused import Clearance as Clearance
@@ -66,7 +70,9 @@ from .protocol import CollisionRobot as CollisionRobot
 from .scene import read_world as read_world
 from .scene import write_world as write_world
 from .urdf import UrdfBody as UrdfBody
+from .urdf import UrdfCollision as UrdfCollision
 from .urdf import body_from_urdf as body_from_urdf
+from .urdf import read_collision as read_collision
 from .verdict import Verdict as Verdict
 from .verdict import collides as collides
 from .verdict import collides_kernel as collides_kernel
@@ -105,11 +111,13 @@ __all__ = [
     "SphereCover",
     "Spheres",
     "UrdfBody",
+    "UrdfCollision",
     "Verdict",
     "World",
     "adjacent_links",
     "body_from_urdf",
     "box_capsules",
+    "box_sphere_cover",
     "check",
     "check_kernel",
     "clearances_kernel",
@@ -124,6 +132,7 @@ __all__ = [
     "point_cloud_spheres",
     "prepare",
     "propose_disabled",
+    "read_collision",
     "read_moveit_request",
     "read_moveit_scene",
     "read_sphere_lists",

@@ -6,12 +6,29 @@ radii are array leaves (a different radius or a moved sphere does not recompile,
 be differentiated); the link of each primitive and the link names are static. ``place`` maps
 the primitives to the world given every link's pose, for any leading batch of configurations;
 the robot that owns the body supplies those poses.
+
+The coarse level: a few bounding spheres per link (``bound_*``), each containing a static group
+of that link's primitives (``sphere_bound``, ``capsule_bound``), for a pass that rules out
+most pairs before the primitives are tested (``place_bounds``; the batched checks do not run
+it yet). A link's primitives form one
+group, split in two at the median along the principal axis of their centres while the two
+halves' bounding volumes together are at most half the whole's (a long link gets a few, a
+compact one a single sphere), at most ``MAX_BOUNDS`` per link. A bounding sphere's centre is
+the middle of its group's bounding box, its radius ``max |c - g| + r`` over the group's spheres
+and capsule end points (a capsule's farthest point from ``g`` is an end point's), so it
+contains every primitive of its group.
+
+``save`` and ``load``: a body as a NumPy ``.npz`` archive (read without pickle), so covers
+computed once per robot serve every later process.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
+import tempfile
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -21,7 +38,10 @@ from numpy.typing import ArrayLike  # host data: lists too
 
 from .primitives import Capsules, Spheres, _sphere_arrays
 
-__all__ = ["Body"]
+__all__ = ["MAX_BOUNDS", "Body"]
+
+MAX_BOUNDS = 8  # bounding spheres per link at most
+_FORMAT = 1  # version of the saved archive
 
 
 def _link_points(x: ArrayLike, name: str) -> np.ndarray:
@@ -71,6 +91,58 @@ def link_spheres(
     return out
 
 
+def _bounding(
+    s_c: np.ndarray, s_r: np.ndarray, c_a: np.ndarray, c_b: np.ndarray, c_r: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """The sphere ``(g, R)`` holding the spheres ``(s_c, s_r)`` and capsules ``(c_a, c_b,
+    c_r)``: ``g`` the middle of their bounding box, ``R`` the exact largest reach from ``g``."""
+    lo = np.concatenate([s_c - s_r[:, None], c_a - c_r[:, None], c_b - c_r[:, None]])
+    hi = np.concatenate([s_c + s_r[:, None], c_a + c_r[:, None], c_b + c_r[:, None]])
+    g = 0.5 * (lo.min(axis=0) + hi.max(axis=0))
+    reach = np.concatenate(
+        [
+            np.linalg.norm(s_c - g, axis=1) + s_r,
+            np.maximum(np.linalg.norm(c_a - g, axis=1), np.linalg.norm(c_b - g, axis=1)) + c_r,
+        ]
+    )
+    return g, float(reach.max())
+
+
+def _groups(
+    s_c: np.ndarray, s_r: np.ndarray, c_a: np.ndarray, c_b: np.ndarray, c_r: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """One link's primitives in groups (module docstring): ``(sphere indices, capsule
+    indices)`` per group."""
+    mid = np.concatenate([s_c, 0.5 * (c_a + c_b)])
+    ns = len(s_c)
+
+    def ball(members: np.ndarray) -> float:
+        s, c = members[members < ns], members[members >= ns] - ns
+        return _bounding(s_c[s], s_r[s], c_a[c], c_b[c], c_r[c])[1]
+
+    groups = [np.arange(len(mid))]
+    while len(groups) < MAX_BOUNDS:
+        best = None
+        for k, members in enumerate(groups):
+            if len(members) < 2:
+                continue
+            centred = mid[members] - mid[members].mean(axis=0)
+            axis = np.linalg.svd(centred, full_matrices=False)[2][0]
+            along = centred @ axis
+            lower = along <= np.median(along)
+            if lower.all():
+                continue
+            halves = (members[lower], members[~lower])
+            gain = (ball(halves[0]) ** 3 + ball(halves[1]) ** 3) / ball(members) ** 3
+            if gain <= 0.5 and (best is None or gain < best[0]):
+                best = (gain, k, halves)
+        if best is None:
+            break
+        _, k, halves = best
+        groups[k : k + 1] = list(halves)
+    return [(m[m < ns], m[m >= ns] - ns) for m in groups]
+
+
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class Body:
@@ -83,6 +155,13 @@ class Body:
         capsule_radius: ``(nc,)``.
         sphere_link, capsule_link: static tuples of link indices, one per primitive.
         links: static tuple of link names (all links of the robot, with or without geometry).
+        bound_center: ``(nb, 3)``, the coarse level's bounding spheres (module docstring), in
+            the frame of link ``links[bound_link[j]]``.
+        bound_radius: ``(nb,)``.
+        bound_link: static tuple of link indices, one per bounding sphere (a link's are
+            consecutive, links in increasing order).
+        sphere_bound, capsule_bound: static tuples, per primitive the index of the bounding
+            sphere that contains it.
     """
 
     sphere_center: jax.Array
@@ -93,6 +172,11 @@ class Body:
     sphere_link: tuple[int, ...] = dataclasses.field(metadata={"static": True})
     capsule_link: tuple[int, ...] = dataclasses.field(metadata={"static": True})
     links: tuple[str, ...] = dataclasses.field(metadata={"static": True})
+    bound_center: jax.Array = None  # type: ignore[assignment]
+    bound_radius: jax.Array = None  # type: ignore[assignment]
+    bound_link: tuple[int, ...] = dataclasses.field(default=(), metadata={"static": True})
+    sphere_bound: tuple[int, ...] = dataclasses.field(default=(), metadata={"static": True})
+    capsule_bound: tuple[int, ...] = dataclasses.field(default=(), metadata={"static": True})
 
     @classmethod
     def create(
@@ -133,21 +217,55 @@ class Body:
             c_a.append(np.asarray(cap.a))
             c_b.append(np.asarray(cap.b))
             c_r.append(np.asarray(cap.radius))
+
+        def stack(parts: list[np.ndarray], tail: tuple[int, ...]) -> np.ndarray:
+            return np.concatenate(parts) if parts else np.zeros((0, *tail))
+
+        spheres_ = (stack(s_c, (3,)), stack(s_r, ()), tuple(s_link))
+        capsules_ = (stack(c_a, (3,)), stack(c_b, (3,)), stack(c_r, ()), tuple(c_link))
+        return cls._assemble(links, spheres_, capsules_, dtype)
+
+    @classmethod
+    def _assemble(cls, links: tuple[str, ...], spheres: tuple, capsules: tuple, dtype) -> Body:
+        """A body from host arrays ``spheres = (centers, radii, link)`` and ``capsules = (a, b,
+        radii, link)`` (checked), its coarse level computed link by link."""
+        s_c, s_r, s_link = spheres
+        c_a, c_b, c_r, c_link = capsules
+        s_of, c_of = np.asarray(s_link, np.int64), np.asarray(c_link, np.int64)
+        b_c: list[np.ndarray] = []
+        b_r: list[float] = []
+        b_link: list[int] = []
+        s_bound, c_bound = np.zeros(len(s_of), np.int64), np.zeros(len(c_of), np.int64)
+        for k in sorted(set(s_link) | set(c_link)):
+            s_idx, c_idx = np.flatnonzero(s_of == k), np.flatnonzero(c_of == k)
+            parts = (s_c[s_idx], s_r[s_idx], c_a[c_idx], c_b[c_idx], c_r[c_idx])
+            for s_in, c_in in _groups(*parts):
+                s_bound[s_idx[s_in]], c_bound[c_idx[c_in]] = len(b_r), len(b_r)
+                g, r = _bounding(
+                    s_c[s_idx[s_in]], s_r[s_idx[s_in]], *(x[c_idx[c_in]] for x in (c_a, c_b, c_r))
+                )
+                b_c.append(g)
+                b_r.append(r * (1.0 + 1e-6))  # survives rounding to float32
+                b_link.append(k)
         dtype = dtype or jnp.result_type(float)
 
-        def stack(parts: list[np.ndarray], tail: tuple[int, ...]) -> jax.Array:
-            arr = np.concatenate(parts) if parts else np.zeros((0, *tail))
-            return jnp.asarray(arr, dtype=dtype)
+        def arr(x: Any, tail: tuple[int, ...] = ()) -> jax.Array:
+            return jnp.asarray(np.asarray(x, dtype=float).reshape(-1, *tail), dtype=dtype)
 
         return cls(
-            stack(s_c, (3,)),
-            stack(s_r, ()),
-            stack(c_a, (3,)),
-            stack(c_b, (3,)),
-            stack(c_r, ()),
-            tuple(s_link),
-            tuple(c_link),
-            links,
+            arr(s_c, (3,)),
+            arr(s_r),
+            arr(c_a, (3,)),
+            arr(c_b, (3,)),
+            arr(c_r),
+            tuple(int(i) for i in s_link),
+            tuple(int(i) for i in c_link),
+            tuple(links),
+            arr(b_c, (3,)),
+            arr(b_r),
+            tuple(b_link),
+            tuple(int(i) for i in s_bound),
+            tuple(int(i) for i in c_bound),
         )
 
     @classmethod
@@ -159,17 +277,33 @@ class Body:
         geometry (a robot's lengths under ``jit``)."""
         a, b = jnp.asarray(a), jnp.asarray(b)
         dtype = jnp.result_type(a, b, radius, float)
+        a, b = a.astype(dtype), b.astype(dtype)
         radius = jnp.broadcast_to(jnp.asarray(radius, dtype), (len(capsule_link),))
+        # the coarse level: one bounding sphere per link (traceable arrays, static grouping)
+        owners = sorted(set(capsule_link))
+        group = np.asarray([owners.index(k) for k in capsule_link], dtype=np.int32)
+        lo = jax.ops.segment_min(jnp.minimum(a, b) - radius[:, None], group, len(owners))
+        hi = jax.ops.segment_max(jnp.maximum(a, b) + radius[:, None], group, len(owners))
+        g = 0.5 * (lo + hi)
+        ends = jnp.maximum(
+            jnp.linalg.norm(a - g[group], axis=-1), jnp.linalg.norm(b - g[group], axis=-1)
+        )
+        reach = jax.ops.segment_max(ends + radius, group, len(owners)) * (1.0 + 1e-6)
         empty = jnp.zeros((0, 3), dtype)
         return cls(
             empty,
             jnp.zeros((0,), dtype),
-            a.astype(dtype),
-            b.astype(dtype),
+            a,
+            b,
             radius,
             (),
             tuple(capsule_link),
             tuple(links),
+            g.reshape(-1, 3),
+            reach.reshape(-1),
+            tuple(owners),
+            (),
+            tuple(int(i) for i in group),
         )
 
     @property
@@ -252,3 +386,117 @@ class Body:
             jnp.broadcast_to(self.capsule_radius.astype(dtype), (*batch, self.num_capsules)),
         )
         return spheres, capsules
+
+    @property
+    def num_bounds(self) -> int:
+        return len(self.bound_link)
+
+    def place_bounds(self, link_poses: jax.Array) -> Spheres:
+        """The coarse level's bounding spheres in the world frame, given every link's pose
+        ``(..., len(links), 4, 4)``: ``Spheres`` of shape ``(..., nb, 3)``."""
+        coarse = Body(
+            self.bound_center, self.bound_radius, self.capsule_a[:0], self.capsule_b[:0],
+            self.capsule_radius[:0], self.bound_link, (), self.links,
+            self.bound_center[:0], self.bound_radius[:0],
+        )  # fmt: skip
+        return coarse.place(link_poses)[0]
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the body to ``path``, a NumPy ``.npz`` archive of its fields (``load`` reads
+        it back equal, without pickle); the file is replaced whole or not at all."""
+        leaves = jax.tree.leaves(self)
+        if any(isinstance(x, jax.core.Tracer) for x in leaves):
+            raise ValueError("Body.save: the body's arrays must be values, not traced")
+        arrays = {"format": np.array(_FORMAT), "links": np.array(self.links, dtype=str)}
+        for field in dataclasses.fields(self):
+            if field.name != "links":
+                value = getattr(self, field.name)
+                static = field.metadata.get("static")
+                arrays[field.name] = np.asarray(value, np.int64) if static else np.asarray(value)
+        target = Path(path)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, allow_pickle=False, **arrays)
+            os.replace(tmp, target)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Body:
+        """A body written by ``save``; a ``ValueError`` naming the file when it is not one
+        (unreadable, another format, inconsistent counts or indices, values that are not
+        finite, negative radii, a primitive outside its bounding sphere)."""
+        where = f"Body.load: {os.fspath(path)!r}"
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                arrays = {key: data[key] for key in data.files}
+        except (OSError, ValueError, EOFError) as exc:
+            raise ValueError(f"{where}: not a readable body archive ({exc})") from None
+        names = [field.name for field in dataclasses.fields(cls)]
+        missing = [name for name in ["format", *names] if name not in arrays]
+        if missing or arrays["format"].shape != () or int(arrays["format"]) != _FORMAT:
+            raise ValueError(f"{where}: not a body archive of format {_FORMAT} (missing {missing})")
+        try:
+            return cls._checked(arrays)
+        except (ValueError, TypeError, IndexError) as exc:
+            raise ValueError(f"{where}: {exc}") from None
+
+    @classmethod
+    def _checked(cls, arrays: dict) -> Body:
+        """A body from the archive's arrays, each checked (``load``)."""
+        links = tuple(str(x) for x in arrays["links"].reshape(-1))
+        statics: dict[str, Any] = {}
+        for field in dataclasses.fields(cls):
+            if field.metadata.get("static") and field.name != "links":
+                values = arrays[field.name]
+                if values.ndim != 1 or not np.issubdtype(values.dtype, np.integer):
+                    raise ValueError(f"{field.name}: expected integers")
+                statics[field.name] = tuple(int(i) for i in values)
+        data = {}
+        for field in dataclasses.fields(cls):
+            if not field.metadata.get("static"):
+                value = arrays[field.name]
+                if not np.issubdtype(value.dtype, np.floating) or not np.all(np.isfinite(value)):
+                    raise ValueError(f"{field.name}: expected finite floats")
+                data[field.name] = value
+        counts = {
+            "sphere": (len(statics["sphere_link"]), len(statics["sphere_bound"])),
+            "capsule": (len(statics["capsule_link"]), len(statics["capsule_bound"])),
+            "bound": (len(statics["bound_link"]),) * 2,
+        }
+        shapes = {
+            "sphere_center": ("sphere", 3),
+            "sphere_radius": ("sphere", None),
+            "capsule_a": ("capsule", 3),
+            "capsule_b": ("capsule", 3),
+            "capsule_radius": ("capsule", None),
+            "bound_center": ("bound", 3),
+            "bound_radius": ("bound", None),
+        }
+        for name, (kind, tail) in shapes.items():
+            n, m = counts[kind]
+            want = (n,) if tail is None else (n, tail)
+            if n != m or data[name].shape != want:
+                raise ValueError(f"{name}: shape {data[name].shape}, expected {want}")
+            if tail is None and np.any(data[name] < 0):
+                raise ValueError(f"{name}: negative radii")
+        for name in ("sphere_link", "capsule_link", "bound_link"):
+            if not all(0 <= i < len(links) for i in statics[name]):
+                raise ValueError(f"{name}: a link index out of range")
+        for kind, ends in (("sphere", ("sphere_center",)), ("capsule", ("capsule_a", "capsule_b"))):
+            bound = np.asarray(statics[f"{kind}_bound"], np.int64)
+            if np.any(bound < 0) or np.any(bound >= counts["bound"][0]):
+                raise ValueError(f"{kind}_bound: an index out of range")
+            if np.any(
+                np.asarray(statics["bound_link"], np.int64)[bound] != statics[f"{kind}_link"]
+            ):
+                raise ValueError(f"{kind}_bound: a bounding sphere of another link")
+            g, r = data["bound_center"][bound], data["bound_radius"][bound]
+            for end in ends:
+                reach = np.linalg.norm(data[end] - g, axis=-1) + data[f"{kind}_radius"]
+                if np.any(reach > r * (1 + 1e-5)):
+                    raise ValueError(f"{kind}_bound: a primitive outside its bounding sphere")
+        fields: dict[str, Any] = {name: jnp.asarray(value) for name, value in data.items()}
+        return cls(**fields, **statics, links=links)

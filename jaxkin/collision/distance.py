@@ -1,5 +1,5 @@
-"""Exact signed distances between collision primitives, in closed form (cylinders: bisection
-to rounding).
+"""Exact signed distances between collision primitives, in closed form (segment-cylinder:
+but for a quartic's root, found by Newton's method to rounding).
 
 Every function here works on plain arrays and broadcasts numpy-style over leading axes (the last
 axis of a point is its 3 coordinates; a rotation is ``(..., 3, 3)``), so one call evaluates a
@@ -38,11 +38,12 @@ outside), so every pair reduces to a point or segment against the other shape:
 - point/segment against half-space: ``min(n . a, n . b) - o``;
 - point against cylinder: the rectangle ``rho <= r, |z| <= h`` in the half-plane of the
   point's distance ``rho`` from the axis and its height ``z``, as point against box;
-- segment against cylinder: apart, bisection on the sign of the slope of the convex, C1
-  squared distance along the segment (the closest point of a line to a circle solves a
-  quartic); overlapping, the smallest support value of ``cylinder - segment`` over the
-  normals of its smooth boundary: the caps, the side, and the rims seen along the segment
-  (half-ellipses, bisection on their convex part). See ``segment_cylinder``.
+- segment against cylinder: the smallest support value of ``cylinder - segment`` over the
+  normals of its smooth boundary (the caps, the side, and the rims seen along the segment,
+  quarter ellipses whose nearest point solves a quartic: Newton's method from a closed-form
+  start) is the depth where they overlap; apart, the distance is an end's (the sign of the
+  convex squared distance's slope at the ends says which) or the segment's line's (the
+  largest of minus those support values). See ``segment_cylinder``.
 
 Gradients: the closest-point parameters are minimisers, so (Danskin's theorem) the gradient of
 the distance is its partial gradient at fixed parameters; they are computed under
@@ -55,7 +56,6 @@ subgradients or zero.
 from __future__ import annotations
 
 import functools
-from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -370,13 +370,6 @@ def _vunit(x: list) -> list:
     return _times(x, _safe_ratio(1.0, _vnorm(x)))
 
 
-def _bisection_steps(dtype) -> int:
-    """Halvings of a unit bracket down to a quarter of the dtype's epsilon: a minimiser
-    located to that, of a function that is L-Lipschitz in the parameter, is exact to
-    ``L eps / 4`` (54 in float64, 25 in float32)."""
-    return int(jnp.finfo(dtype).nmant) + 2
-
-
 def _point_cylinder(v: list, axis: list, radius: jax.Array, half: jax.Array) -> jax.Array:
     """``point_cylinder`` of ``v = p - center`` in coordinate lists."""
     q_r = _vnorm(_vcross(axis, v)) - radius
@@ -400,46 +393,273 @@ def point_cylinder(
     return _point_cylinder(_sub(_vec(p), _vec(center)), _vec(axis), radius, half)
 
 
-def _gap_slope(t, w0, wd, z0, dz, radius, half):
-    """``g'(t) / 2`` for the squared distance ``g(t)`` from the segment's point ``p(t)`` to
-    the cylinder: ``max(rho - r, 0) rho' + max(|z| - h, 0) sign(z) z'``, with ``rho(t) = |w0 +
-    t wd|`` (``w = axis x (p - c)``; ``rho > 0`` where its term counts) and ``z(t) = z0 + t
-    dz``."""
-    w = _add(w0, _times(wd, t))
-    rho = _vnorm(w)
-    z = z0 + t * dz
-    radial = jnp.maximum(rho - radius, 0.0) * _safe_ratio(_vdot(w, wd), rho)
+# Newton steps taken for every pair in one fused pass; a loop finishes the few pairs that
+# have not converged by then (at most _ARC_MAX_STEPS steps in all)
+_ARC_STEPS = 10
+_ARC_MAX_STEPS = 64
+
+
+def _arc_nudge(dtype) -> float:
+    """The relative size of the perturbations that keep the rim problem regular (``eps^2``):
+    far below rounding in the result, which they move only to second order."""
+    return float(jnp.finfo(dtype).eps) ** 2
+
+
+def _cube_root_above(y: jax.Array) -> jax.Array:
+    """A power of two in ``[cbrt(y), 2 cbrt(y))`` for ``y >= 0`` (``2^-42`` below float32's
+    normal range), from the exponent bits of ``y`` in float32: ``2^ceil((e + 1) / 3)`` for
+    ``y in [2^e, 2^(e + 1))``. ``jnp.cbrt`` is a scalar library call on CPU; this is four
+    integer operations (rounding to float32 never lowers the binade)."""
+    bits = jax.lax.bitcast_convert_type(y.astype(jnp.float32), jnp.int32)
+    # exponent field E = e + 127 -> ceil((E - 126) / 3) + 127 = (E + 2) // 3 + 85
+    power = jax.lax.div((bits >> 23) + 2, jnp.int32(3)) + 85  # truncation: E + 2 > 0
+    return jax.lax.bitcast_convert_type(power << 23, jnp.float32).astype(y.dtype)
+
+
+def _binade(y: jax.Array) -> jax.Array:
+    """The power of two ``2^floor(log2 y)`` for normal ``y > 0`` (0 for 0 and subnormals): the
+    exponent bits of ``y`` with its mantissa cleared. Scaling by it is exact."""
+    info = jnp.finfo(y.dtype)
+    integer = jnp.int32 if info.bits == 32 else jnp.int64
+    mask = ((1 << info.nexp) - 1) << info.nmant
+    bits = jax.lax.bitcast_convert_type(y, integer) & jnp.asarray(mask, integer)
+    return jax.lax.bitcast_convert_type(bits, y.dtype)
+
+
+def _rim_frame(v0: list, d: list, axis: list):
+    """The plane perpendicular to the segment, in vectors of the same length ``L^2 M`` (``L =
+    |d|``, ``m = axis x d``, ``M = |m|``): ``m' = L^2 m - (m . d) d`` (``m`` made orthogonal to
+    ``d`` again after rounding, which matters when ``m`` is mostly rounding: a segment nearly
+    along the axis) and ``L n``, ``n = d x m``. Returns ``m', n, m . m, d . d, |axis . d|`` and
+    the line's coordinates ``v0 . m', v0 . n``."""
+    m = _vcross(axis, d)
+    dd, md = _vdot(d, d), _vdot(m, d)
+    m_ = _sub(_times(m, dd), _times(d, md))
+    n = _vcross(d, m)
+    return m_, n, _vdot(m, m), dd, jnp.abs(_vdot(axis, d)), _vdot(v0, m_), _vdot(v0, n)
+
+
+def _arc_problem(v0: list, d: list, axis: list, radius, half):
+    """The rim problem of ``segment_cylinder`` in closed form: ``lo``, the coefficients ``B
+    u, c3, c1`` of the quartic ``S``, Newton's start (``_arc_parameter``) and ``B / A`` (as
+    ``|axis . d| + nudge`` and ``L``).
+
+    Projected along the segment (``_rim_frame``) the rim is the ellipse ``A = r, B = r |axis .
+    d| / L`` about ``(0, H)``, ``H = h M / L``, and the segment's line is the point ``(p, q) =
+    (|v0 . m'| / (L^2 M), |v0 . n| / (L M))`` (folded), ``u = q - H``. The quartic's roots do
+    not change when its coefficients are scaled: by ``L^2 M`` here, which leaves a single
+    square root, ``M``. Lengths are in units of ``s``, the power of two at most ``r + h``
+    (float32's range; exact, so the frame is the one ``_arc_normal`` computes from the
+    unscaled vectors, which matters where it is mostly rounding). Two regularising nudges of
+    relative size ``eps^2`` (``_arc_nudge``): ``|axis . d| + eps^2 |d|_1`` for ``|axis . d|``
+    (a flat rim, ``B = 0``, has a fan of normals at its ends; the nudged ellipse's normal
+    there is the limit of those of ``B > 0``) and ``r + eps^2 s`` for ``r`` (the same for a
+    rim of radius 0). Every expensive operation here (square roots, divisions) has a single
+    use: XLA then fuses the whole pass into one loop.
+    """
+    tiny = _arc_nudge(jnp.result_type(radius))
+    # a power of two: the frame is then exactly the one _arc_normal computes unscaled (when
+    # it is mostly rounding, a segment nearly along the axis, another rounding would turn it)
+    size = _binade(radius + half)
+    unit = 1.0 / jnp.where(size > 0.0, size, 1.0)
+    v0, d = _times(v0, unit), _times(d, unit)
+    r, h = radius * unit + tiny, half * unit
+    _, _, mm, dd, along, v0m, v0n = _rim_frame(v0, d, axis)
+    nudge = tiny * (jnp.abs(d[0]) + jnp.abs(d[1]) + jnp.abs(d[2]))
+    flat = along + nudge
+    bu = r * flat * (jnp.abs(v0n) - h * mm)
+    # (A^2 - B^2) (L M)^2 / M, with L^2 - (|a.d| + nudge)^2 = M^2 - nudge (2 |a.d| + nudge)
+    spread = r * r * jnp.sqrt(mm) * jnp.maximum(mm - nudge * (2.0 * along + nudge), 0.0)
+    ap = r * jnp.abs(v0m)
+    c3, c1 = 2.0 * (spread + ap), 2.0 * (ap - spread)
+    # below the rim's centre by more than (A^2 - B^2) / B the arc's convex part is its top
+    lo = jnp.where(-bu > spread, 1.0, 0.0)
+    positive = c3 > 0.0
+    c3_ = jnp.where(positive, c3, 1.0)
+    # S >= c3 t^3 + c1 t - B u when u >= 0 (and S >= c3 t^3 + c1 t when u < 0), whose
+    # largest root is at most cbrt(B u / c3) + sqrt(-c1 / c3), and at most B u / c1 when c1 > 0
+    rising = c1 > 0.0
+    ratio = jnp.where(rising, bu / jnp.where(rising, c1, 1.0), 2.0)
+    start = _cube_root_above(jnp.maximum(bu, 0.0) / c3_) + jnp.sqrt(jnp.maximum(-c1, 0.0) / c3_)
+    start = jnp.where(positive, jnp.clip(jnp.minimum(start, ratio), lo, 1.0), 1.0)
+    return lo, bu, c3, c1, start, flat, dd
+
+
+def _arc_newton(x, lo, bu, c3, c1):
+    """One Newton step on ``S(tau) = B u tau^4 + c3 tau^3 + c1 tau - B u`` (``_arc_parameter``),
+    kept in ``[lo, 1]``; where ``S > 0`` but ``S' <= 0`` there is no root left of ``x`` and
+    the step goes to ``lo``."""
+    s = ((bu * x + c3) * x * x + c1) * x - bu
+    ds = (4.0 * bu * x + 3.0 * c3) * x * x + c1
+    rising = ds > 0.0
+    step = jnp.where(rising, s / jnp.where(rising, ds, 1.0), jnp.where(s > 0.0, 2.0, 0.0))
+    return jnp.clip(x - step, lo, 1.0)
+
+
+def _half_angle(x, y):
+    """``tan(atan2(y, x) / 2)`` for ``x, y >= 0``, without cancellation: ``y / (x + |(x, y)|)``
+    (0 at ``x = y = 0``: a segment of length 0, whose rim problem is empty)."""
+    den = x + jnp.sqrt(x * x + y * y)
+    positive = den > 0.0
+    return jnp.where(positive, y / jnp.where(positive, den, 1.0), 0.0)
+
+
+def _normal_of_point(tau, flat, dd):
+    """``tan(alpha / 2)`` of the normal ``(B (1 - tau^2), 2 A tau)`` at the ellipse's point
+    ``tau`` (``B / A = flat / sqrt(dd)``)."""
+    return _half_angle(flat * (1.0 - tau * tau), 2.0 * jnp.sqrt(dd) * tau)
+
+
+def _point_of_normal(t, flat, dd):
+    """The inverse of ``_normal_of_point``: ``tan(phi / 2)`` for ``tan(phi) = (B / A)
+    tan(alpha)``."""
+    return _half_angle(jnp.sqrt(dd) * (1.0 - t * t), 2.0 * t * flat)
+
+
+def _code(t, done):
+    """``t`` where ``done``, else ``-1 - t`` (``t`` in ``[0, 1]``), with ``t`` used once (an
+    expensive operation with two uses splits XLA's fusion)."""
+    return jnp.where(done, 0.0, -1.0) + jnp.where(done, 1.0, -1.0) * t
+
+
+def _arc_parameter(problem, tol: float) -> jax.Array:
+    """The normal's parameter ``t = tan(alpha / 2) in [0, 1]`` at the point ``(A cos phi, B sin
+    phi)`` of a quarter ellipse (``A >= B >= 0``) nearest to ``(p, u)``, ``p >= 0``, where the
+    squared distance has a local minimum (``phi = 0`` if it has none; ``phi = pi / 2`` when the
+    rim's convex part is its top, see below). ``problem()`` returns ``_arc_problem``'s values;
+    it is called again inside the loop, so that nothing but ``t`` is stored between passes.
+
+    In ``tau = tan(phi / 2)`` the slope of the squared distance, times ``(1 + tau^2)^2 / 2``,
+    is the quartic ``S(tau) = B u tau^4 + c3 tau^3 + c1 tau - B u`` with ``c3 = 2 (A^2 - B^2 +
+    A p) >= 0`` and ``c1 = 2 (A p - A^2 + B^2)``; ``S(1) = 4 A p >= 0``. Its second derivative
+    ``12 tau (B u tau + c3 / 2)`` is >= 0 on ``[0, 1]`` unless ``-B u > A^2 - B^2``; then
+    (``lo = 1``) the squared distance is concave in ``xi = cos phi`` wherever it is not convex
+    (``B |u| / (A^2 - B^2) > sin^3 phi``, the sign of its second derivative ``A^2 - B^2 + B u /
+    sin^3 phi``) and its only candidates are the arc's ends, the top and the side's end
+    (already a candidate of the side). Otherwise ``S`` is convex and the local minimum is its
+    largest root, where ``S`` turns positive (none: the distance grows along the whole arc,
+    ``tau = 0``). Newton's method on a convex function from a point right of its largest
+    root, with ``S >= 0``, stays right of it and converges monotonically. The start is such a
+    point in closed form: ``S`` minus its quartic term, ``B u tau^4 >= 0`` (when ``u < 0`` the
+    quartic and constant terms add ``B |u| (1 - tau^4) >= 0``), is the cubic ``c3 tau^3 + c1
+    tau - B max(u, 0)``, whose largest root is at most ``cbrt(B u / c3) + sqrt(-c1 / c3)``
+    and at most ``B u / c1`` when ``c1 > 0`` (and within a factor 2 of the smaller bound); the
+    cube root is bounded by a power of two (``_cube_root_above``). The start is tight where
+    the quartic term is negligible, which is where Newton's method from afar would be slow
+    (near the evolute's cusp ``p = (A^2 - B^2) / A, u = 0`` the root is near 0 and ``S``
+    nearly cubic). A pair has converged when a step moves ``tau`` by at most ``tol tau``
+    (``tol = sqrt(eps)``): the convergence is quadratic, so ``tau`` is then exact to about
+    ``eps tau``; where it is only linear (a double root, at the cusp) the support value is
+    flat to fourth order in ``tau``. ``_ARC_STEPS`` steps for every pair in one fused pass,
+    then a ``lax.while_loop`` until every pair has converged (at most ``_ARC_MAX_STEPS``
+    steps), each pair stopping at its own convergence: no pair's result depends on the
+    others. The result is the normal's parameter ``t``, computed with the same ``B / A`` as
+    ``tau`` (``_normal_of_point``): near a flat rim's end (``B`` of the order of rounding,
+    where ``tau`` is proportional to ``B``) the normal does not depend on ``B``, while ``B``
+    recomputed elsewhere would differ by its own size. Between the passes ``t`` alone is
+    stored, as ``-1 - t`` while not converged.
+    """
+    lo, bu, c3, c1, x, flat, dd = problem()
+    for _ in range(_ARC_STEPS - 1):
+        x = _arc_newton(x, lo, bu, c3, c1)
+    new = _arc_newton(x, lo, bu, c3, c1)
+    coded = _code(_normal_of_point(new, flat, dd), jnp.abs(new - x) <= tol * new)
+
+    def unfinished(state):
+        k, coded = state
+        return (k < _ARC_MAX_STEPS) & jnp.any(coded < 0.0)
+
+    def step(state):
+        k, coded = state
+        lo, bu, c3, c1, _, flat, dd = problem()
+        going = coded < 0.0
+        x = _point_of_normal(jnp.where(going, -1.0 - coded, coded), flat, dd)
+        new = _arc_newton(x, lo, bu, c3, c1)
+        t = _code(_normal_of_point(new, flat, dd), jnp.abs(new - x) <= tol * new)
+        return k + 1, jnp.where(going, t, coded)
+
+    def finish(coded):
+        return jax.lax.while_loop(unfinished, step, (jnp.int32(_ARC_STEPS), coded))[1]
+
+    # the loop inside a branch: XLA hoists the loop's invariants (the problem) out of the
+    # loop, and would otherwise compute and store them for every pair on every call
+    coded = jax.lax.cond(jnp.any(coded < 0.0), finish, lambda coded: coded, coded)
+    return jnp.where(coded < 0.0, -1.0 - coded, coded)
+
+
+def _arc_normal(v0: list, d: list, axis: list, t) -> list:
+    """The normal at the arc's point, unnormalised: ``(1 - t^2) m' + 2 t L (L n)`` up to the
+    fold's signs (``sign(v0 . m')``, ``sign(v0 . n)``), ``m'`` and ``L n`` of length ``L^2
+    M`` (``_rim_frame``)."""
+    m_, n, _, dd, _, v0m, v0n = _rim_frame(v0, d, axis)
+    sx = jnp.where(v0m >= 0.0, 1.0, -1.0) * (1.0 - t * t)
+    sy = jnp.where(v0n >= 0.0, 2.0, -2.0) * t * jnp.sqrt(dd)
+    return [sx * x + sy * y for x, y in zip(m_, n, strict=True)]
+
+
+@jax.custom_jvp
+def _arc_support(v0: list, d: list, axis: list, radius, half, t) -> jax.Array:
+    """``h_M(w) / |w|``, the support value of ``cylinder - segment`` at the normal ``w`` of the
+    rim's projection (``_arc_normal``): ``(-v0 . w + h |axis . w| + r |axis x w| + max(0, -d .
+    w)) / |w|``, computed from the vector itself, so a true support value whatever the
+    rounding of the frame (0 where ``w = 0``, a segment along the axis or of length 0). Its
+    derivative is that of the distance from the rim's point to the segment's line
+    (``_arc_distance``), which has the same value at the minimiser (Danskin's theorem over the
+    rim's points; ``h_M`` itself is not differentiable in ``d`` there, the normal being
+    perpendicular to ``d``)."""
+    w = _arc_normal(v0, d, axis, t)
+    top = (
+        -_vdot(v0, w)
+        + half * jnp.abs(_vdot(axis, w))
+        + radius * _vnorm(_vcross(axis, w))
+        + jnp.maximum(-_vdot(d, w), 0.0)
+    )
+    sq = _vdot(w, w)
+    valid = sq > 0.0
+    return jnp.where(valid, top / jnp.sqrt(jnp.where(valid, sq, 1.0)), 0.0)
+
+
+def _arc_distance(v0: list, d: list, axis: list, radius, half, t) -> jax.Array:
+    """The distance from the rim's point of normal parameter ``t`` to the segment's line: the
+    point ``c + sy h a + r (sx cos phi e1 + sy sin phi e2)`` (``e1 = a x d / |.|``, ``e2 =
+    sign(a . d) a x e1``; ``sx, sy`` the fold's signs; ``tan phi = |a . d| / L tan alpha``)."""
+    sg = jax.lax.stop_gradient
+    _, _, _, dd, along, v0m, v0n = _rim_frame(*([sg(x) for x in y] for y in (v0, d, axis)))
+    sx = jnp.where(v0m >= 0.0, 1.0, -1.0)
+    sy = jnp.where(v0n >= 0.0, 1.0, -1.0)
+    turn = jnp.where(sg(_vdot(axis, d)) >= 0.0, 1.0, -1.0)
+    x, y = jnp.sqrt(dd) * (1.0 - t * t), 2.0 * t * along
+    length = jnp.sqrt(x * x + y * y)
+    flat = length == 0.0
+    cos_phi = jnp.where(flat, 1.0, x / jnp.where(flat, 1.0, length))
+    sin_phi = jnp.where(flat, 0.0, y / jnp.where(flat, 1.0, length))
+    e1 = _vunit(_vcross(axis, d))
+    e2 = _times(_vcross(axis, e1), turn)
+    rim = _add(
+        _times(axis, sy * half),
+        _add(_times(e1, radius * sx * cos_phi), _times(e2, radius * sy * sin_phi)),
+    )
+    return _vnorm(_vcross(_sub(rim, v0), _vunit(d)))
+
+
+@_arc_support.defjvp
+def _arc_support_jvp(primals, tangents):
+    value = _arc_support(*primals)
+    t = primals[-1]
+    _, slope = jax.jvp(lambda *x: _arc_distance(*x, t), primals[:-1], tangents[:-1])
+    return value, jnp.where(value >= 0.0, 1.0, -1.0) * slope
+
+
+def _end_slope(z: jax.Array, w: list, wd: list, dz: jax.Array, radius, half) -> jax.Array:
+    """The sign of ``g'`` at an end of the segment, ``g(t)`` the squared distance from
+    ``p(t)`` to the cylinder: that of ``max(1 - r / rho, 0) (w . wd) + max(|z| - h, 0) sign(z)
+    dz`` (``w = axis x v``, ``rho = |w|``, ``z = axis . v`` of that end)."""
+    sq = _vdot(w, w)
+    positive = sq > 0.0
+    # r / rho through one reciprocal square root (inf on the axis: no radial term)
+    near = jnp.where(positive, radius * jax.lax.rsqrt(jnp.where(positive, sq, 1.0)), jnp.inf)
+    radial = jnp.maximum(1.0 - near, 0.0) * _vdot(w, wd)
     return radial + jnp.maximum(jnp.abs(z) - half, 0.0) * jnp.sign(z) * dz
-
-
-def _gap(t, w0, wd, z0, dz, radius, half):
-    """``g(t)``: the squared distance from ``p(t)`` to the cylinder (0 inside)."""
-    rho = _vnorm(_add(w0, _times(wd, t)))
-    z = z0 + t * dz
-    return jnp.maximum(rho - radius, 0.0) ** 2 + jnp.maximum(jnp.abs(z) - half, 0.0) ** 2
-
-
-def _arc_angle(tau: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """``(cos phi, sin phi)`` for ``phi = pi / 2 + 2 atan(tau)`` (``tau in [-1, 1]`` covers
-    ``[0, pi]``; ``d phi / d tau`` lies in ``[1, 2]``, so a bracket on ``tau`` is one on
-    ``phi``), without trigonometry."""
-    den = 1.0 + tau * tau
-    return -2.0 * tau / den, (1.0 - tau * tau) / den
-
-
-def _arc_slope(tau, a_, b_, p, u):
-    """A positive multiple of ``f'(phi)`` for ``f(phi) = (A cos phi - p)^2 + (B sin phi -
-    u)^2``, the squared distance from ``(p, u)`` to the point of a half-ellipse at ``phi =
-    pi / 2 + 2 atan(tau)`` (``_arc_angle``), as a polynomial in ``tau``: ``f'(phi) / 2 = (B
-    sin - u) B cos - (A cos - p) A sin`` times ``(1 + tau^2)^2``."""
-    den, cos, sin = 1.0 + tau * tau, -2.0 * tau, 1.0 - tau * tau
-    return (b_ * sin - u * den) * b_ * cos - (a_ * cos - p * den) * a_ * sin
-
-
-def _halve(lo: jax.Array, hi: jax.Array, up: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """The half of ``[lo, hi]`` that holds the minimiser, by the slope's sign at the middle."""
-    mid = 0.5 * (lo + hi)
-    return jnp.where(up, lo, mid), jnp.where(up, mid, hi)
 
 
 def segment_cylinder(
@@ -453,154 +673,94 @@ def segment_cylinder(
     """Signed distance from segments ``a``-``b`` to solid cylinders; minus the penetration
     depth where they overlap.
 
-    Apart: ``g(t) = dist(p(t), C)^2`` along ``p(t) = a + t (b - a)`` is convex and C1 (the
-    squared distance to a convex set), so its minimiser is bracketed by bisection on the sign
-    of ``g'`` (``_bisection_steps`` halvings; the distance is ``|b - a|``-Lipschitz in ``t``,
-    so the value is exact to ``|b - a| eps / 4``). The closest point of the rim circle to a
-    line is a root of a quartic: no closed form.
+    The signed distance of convex shapes is ``-min_n h_M(n)`` over unit ``n``, ``h_M`` the
+    support function of ``M = C - S``, ``h_M(n) = -v0 . n + h |axis . n| + r |axis x n| +
+    max(0, -d . n)`` (``v0 = a - c``, ``d = b - a``): minus the distance from the
+    origin to ``M`` outside, its depth inside. The minimising ``n`` is the normal of a smooth
+    boundary point of ``M`` (from inside, the largest ball touches one; from outside, the
+    nearest point's), and ``M``'s smooth patches have three families of normals: the axis
+    (the caps: ``h - min z_i``, ``h + max z_i``), perpendicular to the axis (the side, swept
+    by an end; the best is ``r - min_t rho(t)``, ``rho`` the distance from the axis along the
+    segment, closed form) and perpendicular to the segment (the rims swept along it).
 
-    Overlapping: the depth is ``min_n h_M(n)`` over unit ``n`` (``_support_difference``), the
-    distance from the origin to the boundary of ``M = C - S`` (a disk plus the parallelogram
-    of the axis and ``-S``). Its nearest boundary point seen from inside is a smooth point of
-    ``M`` (the ball of that radius touches there), whose normal is ``+-axis`` (a cap: ``h -
-    min z_i`` and ``h + max z_i``), perpendicular to the axis (the side: ``r - min_t
-    rho(t)``, closed form) or perpendicular to the segment. The last family is the 2-D depth
-    of the segment's projection ``P`` along itself in the projected cylinder, two
-    half-ellipses (the caps' rims, semi-axes ``A = r`` and ``B = r |cos psi|``, centres
-    ``+-H``, ``H = h sin psi``, ``psi`` the angle of axis and segment) joined by straight
-    sides: the squared distance ``f(phi) = (A cos phi - p)^2 + (B sin phi - u)^2`` to a rim
-    (``u`` the height of ``P`` above its centre) is, in ``xi = cos phi``, convex on ``[-1,
-    1]`` when ``u >= 0`` and, when ``u < 0``, convex on ``|xi| <= sqrt(1 - (B |u| / (A^2 -
-    B^2))^(2/3))`` and concave outside it (``f''(xi) = 2 (A^2 - B^2) + 2 B u / s^3``, ``s =
-    sqrt(1 - xi^2)``), so its minimum is at ``xi = +-1`` or found by bisection on the convex
-    part. The depth is the smallest of these candidates, each an exact support value (a valid
-    upper bound whatever the rounding of the arcs' frame).
+    The last family is two-dimensional: projected along the segment, the cylinder is the
+    stadium of an ellipse (semi-axes ``A = r`` along ``ex = axis x d / |.|`` and ``B = r |cos
+    psi|``, ``psi`` the angle of axis and segment) swept by ``+-H`` along ``ey = d x ex / |.|``
+    (``H = h sin psi``), and the segment's line is the point ``P``. By the stadium's
+    symmetries ``P`` folds to ``(p, q) >= 0``; its nearest boundary point is on the straight
+    side (normal ``ex``: the side family again) or on the upper arc, a point of the quarter
+    ellipse about ``(0, H)`` nearest to ``(p, u = q - H)``: closed form but for a quartic's
+    root, found by Newton's method from a closed-form start (``_arc_parameter``). The arc's
+    value is ``h_M`` at that point's normal, in closed form (``_arc_support``): a true support
+    value whatever the parameter, and, ``h_M`` being stationary there, in error only to
+    second order in the parameter's.
 
-    Gradients: the parameters are located under ``stop_gradient`` and the value evaluated from
-    them (Danskin's theorem). ``a, b, center, axis``: ``(..., 3)`` (unit ``axis``); ``radius,
-    half``: ``(...)``; returns ``(...)``.
+    Overlapping (every candidate > 0: the candidates include a separating direction whenever
+    the shapes are apart, see below), the depth is the smallest candidate. Apart, ``g(t)``,
+    the squared distance along the segment, is convex: when its slope at ``t = 0`` is >= 0
+    the distance is the point ``a``'s, at ``t = 1`` <= 0 the point ``b``'s, and otherwise the
+    nearest point is inside the segment, the normal there is perpendicular to it and the
+    distance is the line's, ``-min h_M`` over that family: the stadium's straight side (the
+    line's distance from the axis minus ``r``) or ``-arc``. Every candidate is an attained
+    support value, so minus each bounds the distance from below, and the value taken is minus
+    the smallest candidate, as where they overlap (``-side``, the segment's own distance from
+    the axis minus ``r``, is at least the line's and needs no frame): exact where the frame
+    is well defined, and where it is mostly rounding (a segment nearly along the axis) the
+    arc's problem and its normal are posed in the same frame, in which the projected rims are
+    nearly circles: off only by ``h`` times rounding. Every branch is continuous across its
+    boundary: no decision on a quantity that is zero to rounding changes the value by more
+    than rounding. Separating candidates: apart, the nearest point of the segment is inside
+    it (the line misses the cylinder: a negative value in the family perpendicular to the
+    segment) or an end; then the line enters the cylinder behind that end through a cap
+    (every point of the segment is beyond that cap's plane: a cap's value < 0) or the side
+    (``rho`` is convex and grows past the exit: the side's value < 0), or misses it.
+
+    Gradients: the parameters (``tau``, the point nearest the axis) are located under
+    ``stop_gradient`` and the value evaluated from them (Danskin's theorem); the arc's
+    gradient is that of the distance from its rim point to the segment's line. Every
+    expensive operation has a single use, so that XLA fuses the value into one loop over the
+    pairs (and the rim's parameter into another). ``a, b, center, axis``: ``(..., 3)`` (unit
+    ``axis``); ``radius, half``: ``(...)``; returns ``(...)``.
     """
     shape = jnp.broadcast_shapes(a.shape[:-1], b.shape[:-1], center.shape[:-1], axis.shape[:-1])
     shape = jnp.broadcast_shapes(shape, jnp.shape(radius), jnp.shape(half))
     dtype = jnp.result_type(a, b, center, axis, radius, half, float)
     sg = jax.lax.stop_gradient
-    p0, p1, c, ax = (_vec(jnp.asarray(x, dtype)) for x in (a, b, center, axis))
-    radius, half = jnp.asarray(radius, dtype), jnp.asarray(half, dtype)
-    v0, d = _sub(p0, c), _sub(p1, p0)
-    z0, z1 = _vdot(ax, v0), _vdot(ax, _sub(p1, c))
+    a, b, center, axis, radius, half = (
+        jnp.asarray(x, dtype) for x in (a, b, center, axis, radius, half)
+    )
+
+    def problem():  # from the inputs themselves: the loop stores nothing else
+        p0, c = _vec(sg(a)), _vec(sg(center))
+        v0, d = _sub(p0, c), _sub(_vec(sg(b)), p0)
+        return _arc_problem(v0, d, _vec(sg(axis)), sg(radius), sg(half))
+
+    tau = _arc_parameter(problem, float(jnp.finfo(dtype).eps) ** 0.5)
+    p0, p1, c, ax = _vec(a), _vec(b), _vec(center), _vec(axis)
+    v0, v1, d = _sub(p0, c), _sub(p1, c), _sub(p1, p0)
+    z0, z1 = _vdot(ax, v0), _vdot(ax, v1)
     w0, wd = _vcross(ax, v0), _vcross(ax, d)
+    mm = _vdot(wd, wd)
 
-    # the arcs' frame: ex along axis x d, ey = d^ x ex (axis . ey = sin psi >= 0), both
-    # orthogonal to d (ex made so again after rounding)
-    d_hat = _vunit([sg(x) for x in d])
-    axs = [sg(x) for x in ax]
-    cos_psi = _vdot(axs, d_hat)
-    ex = _vunit(_vcross(axs, d_hat))
-    ex = _vunit(_sub(ex, _times(d_hat, _vdot(ex, d_hat))))
-    ey = _vcross(d_hat, ex)
-    sin_psi = _vdot(axs, ey)
+    # the caps; the side (the best radial normal: the segment's point nearest the axis)
+    caps = jnp.minimum(half - jnp.minimum(z0, z1), half + jnp.maximum(z0, z1))
+    t_side = sg(jnp.clip(_safe_ratio(-_vdot(w0, wd), mm), 0.0, 1.0))
+    side = radius - _vnorm(_add(w0, _times(wd, t_side)))
+    m_, _, _, _, _, _, _ = _rim_frame([sg(x) for x in v0], [sg(x) for x in d], [sg(x) for x in ax])
+    valid = _vdot(m_, m_) > 0.0  # a segment of length > 0, not along the axis
+    arc = _arc_support(v0, d, ax, radius, half, tau)
+
+    # the smallest support value: the depth, and apart, when the nearest point is inside the
+    # segment, minus the distance
+    least = jnp.minimum(jnp.minimum(caps, side), jnp.where(valid, arc, jnp.inf))
+    dz, w0s, wds = sg(z1 - z0), [sg(x) for x in w0], [sg(x) for x in wd]
     r_, h_ = sg(radius), sg(half)
-    big_a, big_b, big_h = r_, r_ * jnp.abs(cos_psi), h_ * sin_psi
-    v0s = [sg(x) for x in v0]
-    p, q = _vdot(v0s, ex), _vdot(v0s, ey)
-    heights = (q - big_h, -(q + big_h))  # of P above the upper rim's centre, the lower's
-    spread = (r_ * sin_psi) ** 2  # A^2 - B^2
-    tau_max = []
-    for u in heights:
-        ratio = jnp.where(
-            spread > 0.0, jnp.minimum(_safe_ratio(big_b * jnp.abs(u), spread), 1.0), 1.0
-        )
-        # the convex part: sin phi >= ratio^(1/3), |tau| <= (1 - k) / (1 + k), k = tan(phi_0/2)
-        sin_0 = jnp.cbrt(ratio)
-        k = sin_0 / (1.0 + jnp.sqrt(jnp.maximum(1.0 - sin_0 * sin_0, 0.0)))
-        tau_max.append(jnp.broadcast_to(jnp.where(u >= 0.0, 1.0, (1.0 - k) / (1.0 + k)), shape))
-
-    gap = ([sg(x) for x in w0], [sg(x) for x in wd], sg(z0), sg(z1 - z0), r_, h_)
-
-    def halve(_, brackets):
-        (t_lo, t_hi), upper, lower = brackets
-        t_mid = 0.5 * (t_lo + t_hi)
-        slopes = [_arc_slope(0.5 * (lo + hi), big_a, big_b, p, u) > 0.0
-                  for (lo, hi), u in zip((upper, lower), heights, strict=True)]  # fmt: skip
-        return (
-            _halve(t_lo, t_hi, _gap_slope(t_mid, *gap) > 0.0),
-            _halve(*upper, slopes[0]),
-            _halve(*lower, slopes[1]),
-        )
-
-    zeros = jnp.zeros(shape, dtype)
-    start = ((zeros, zeros + 1.0), *((-t, t) for t in tau_max))
-    (t_lo, t_hi), upper, lower = jax.lax.fori_loop(0, _bisection_steps(dtype), halve, start)
-
-    # apart: the distance at the bracket's lower end, which stays in the segment's part inside
-    # the cylinder when there is one (g' = 0 exactly there)
-    t = sg(t_lo)
-    apart = _gap(t, *gap) > 0.0
-    distance = _point_cylinder(_add(v0, _times(d, t)), ax, radius, half)
-
-    # overlapping: the caps, the side, the arcs (their ends, +-ex, are the side's normals)
-    depth = jnp.minimum(half - jnp.minimum(z0, z1), half + jnp.maximum(z0, z1))
-    t_side = sg(jnp.clip(_safe_ratio(-_vdot(w0, wd), _vdot(wd, wd)), 0.0, 1.0))
-    depth = jnp.minimum(depth, radius - _vnorm(_add(w0, _times(wd, t_side))))
-    valid = (r_ > 0.0) & (sin_psi > 0.0)
-    arcs = _arc_depth(
-        (upper[0], lower[0]), (big_a, big_b, cos_psi, ex, ey), (p0, v0, d, c, ax, radius, half)
-    )
-    depth = jnp.where(valid, jnp.minimum(depth, arcs), depth)
-    return jnp.broadcast_to(jnp.where(apart, distance, -jnp.maximum(depth, 0.0)), shape)
-
-
-def _support_difference(n: list, v0: list, d: list, axis: list, radius, half) -> jax.Array:
-    """``h_M(n)``, the support function of the Minkowski difference ``M = cylinder -
-    segment`` (``v0 = a0 - c``, ``d = a1 - a0``): ``-v0 . n + h |axis . n| + r |axis x n| +
-    max(0, -d . n)``, for any unit ``n``; the penetration depth is its minimum over ``n``."""
-    return (
-        -_vdot(v0, n)
-        + half * jnp.abs(_vdot(axis, n))
-        + radius * _vnorm(_vcross(axis, n))
-        + jnp.maximum(-_vdot(d, n), 0.0)
-    )
-
-
-def _arc_depth(taus: tuple, frame: tuple, shapes: tuple) -> jax.Array:
-    """The smaller support value ``h_M(n)`` at the outward normals ``n`` of the upper and the
-    lower projected rim at ``taus`` (``_arc_angle``), with the gradient of the distance from
-    that rim point to the segment's line (the same value at the minimiser; the arcs' points
-    are the rim's, a set that does not depend on the parameters once parametrised by
-    ``tau``)."""
-    big_a, big_b, cos_psi, ex, ey = frame
-    p0, v0, d, c, axis, radius, half = shapes
-    sg = jax.lax.stop_gradient
-    best: Any = None  # the first side's values, then the better side's
-    pick: Any = None
-    up: Any = None
-    for side, tau in zip((1.0, -1.0), taus, strict=True):
-        tau = sg(tau)
-        # the ellipse (A xi, +-B s)'s outward normal (B xi, +-A s), times (1 + tau^2) / 2
-        nx, ny = -big_b * tau, side * 0.5 * big_a * (1.0 - tau * tau)
-        length = jnp.sqrt(nx * nx + ny * ny)
-        flat = length == 0.0  # a flat rim's end: any unit normal gives a valid support value
-        nx, length = jnp.where(flat, 1.0, nx), jnp.where(flat, 1.0, length)
-        n = [sg((nx * e_x + ny * e_y) / length) for e_x, e_y in zip(ex, ey, strict=True)]
-        support = sg(_support_difference(n, v0, d, axis, radius, half))
-        if best is None:
-            best, pick, up = support, tau, jnp.ones_like(tau)
-        else:
-            better = support < best
-            best = jnp.where(better, support, best)
-            pick, up = jnp.where(better, tau, pick), jnp.where(better, -1.0, up)
-    # the rim point r = c +- h axis + r (xi e1 +- s e2) in a frame that moves with the
-    # parameters (e2 . ey = cos psi)
-    e1 = _vunit(_vcross(axis, d))
-    e2 = _vcross(axis, e1)
-    xi, s = _arc_angle(pick)
-    turn = jnp.where(sg(cos_psi) >= 0.0, 1.0, -1.0)
-    rim = _add(
-        _add(c, _times(axis, up * half)),
-        _add(_times(e1, radius * xi), _times(e2, radius * up * turn * s)),
-    )
-    line = _vnorm(_vcross(_sub(rim, p0), _vunit(d)))
-    return best + line - sg(line)
+    slope_a = _end_slope(sg(z0), w0s, wds, dz, r_, h_)
+    slope_b = _end_slope(sg(z1), _add(w0s, wds), wds, dz, r_, h_)
+    first, end = slope_a >= 0.0, (slope_a >= 0.0) | (slope_b <= 0.0)
+    nearest = _point_cylinder([jnp.where(first, x, y) for x, y in zip(v0, v1, strict=True)],
+                              ax, radius, half)  # fmt: skip
+    return jnp.broadcast_to(jnp.where(end & (least <= 0.0), nearest, -least), shape)
 
 
 def sphere_cylinder(c: jax.Array, r: jax.Array, *cylinder: jax.Array) -> jax.Array:

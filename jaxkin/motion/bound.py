@@ -42,9 +42,10 @@ import numpy as np
 from jax import Array
 
 from .._execute import Kernel
+from . import collider
 from .space import joint_space
 
-__all__ = ["MotionBound", "motion_bound", "part_speeds", "speed_bound"]
+__all__ = ["MotionBound", "motion_bound", "part_speeds", "speed_bound", "speed_rows"]
 
 SAMPLES = 4096  # configurations of the sampled bound (closed chains)
 SAFETY = 1.5  # factor on the sampled bound
@@ -95,13 +96,25 @@ def part_speeds(bound: MotionBound, dq: Array) -> tuple[Array, Array]:
     return prims, pairs
 
 
+def speed_rows(bound: MotionBound, body: Any) -> Array:
+    """The rows ``(L + Q, n)`` of ``collider.clearances``' distances: each link with geometry
+    (``collider.link_groups``: its primitives share its row), then each self pair."""
+    first = collider.link_groups(body)[:, 0]
+    return jnp.concatenate([jnp.asarray(bound.prims)[first], jnp.asarray(bound.pairs)])
+
+
 def _twists(robot: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Link poses ``(L, 4, 4)`` and twists ``(L, n, 6)`` (``omega, v`` of ``dT/dq_j T^-1``)."""
-    q = jnp.asarray(q, jnp.float64 if jax.config.jax_enable_x64 else jnp.float32)
-    poses = np.asarray(robot.link_poses(q), float)
-    jac = np.asarray(jax.jacfwd(robot.link_poses)(q), float)  # (L, 4, 4, n)
+    """Per configuration ``q (K, n)`` the link poses ``(K, L, 4, 4)`` and twists ``(K, L, n,
+    6)`` (``omega, v`` of ``dT/dq_j T^-1``), in one compiled program."""
+
+    def poses_and_jacobian(x: Array) -> tuple[Array, Array]:
+        return robot.link_poses(x), jax.jacfwd(robot.link_poses)(x)
+
+    q_jax = jnp.asarray(q, jnp.result_type(float))  # float64 when x64 is on
+    poses, jac = Kernel(jax.vmap(poses_and_jacobian))(q_jax)  # (K, L, 4, 4), (K, L, 4, 4, n)
+    poses, jac = np.asarray(poses, float), np.asarray(jac, float)
     inv = np.linalg.inv(poses)
-    xi = np.einsum("lijn,ljk->lnik", jac, inv)
+    xi = np.einsum("klijn,kljm->klnim", jac, inv)
     omega = np.stack([xi[..., 2, 1], xi[..., 0, 2], xi[..., 1, 0]], -1)
     v = xi[..., :3, 3]
     return poses, np.concatenate([omega, v], -1)
@@ -120,18 +133,20 @@ def _centres(body: Any) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(points), np.concatenate(links)
 
 
-def _tree_rows(robot, body, poses, twists, space, scale) -> np.ndarray | None:
-    """Per-link proved rows ``(L, n)``, or None when the joints are not a tree of rigid
-    revolute/prismatic motions at this configuration."""
+def _tree_rows(robot, body, poses, twists, space, scale) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per-link proved rows ``(L, n)`` and which joints move which link ``(L, n)``, or None
+    when the joints are not a tree of rigid revolute/prismatic motions at this
+    configuration."""
     n_links, n = twists.shape[:2]
     size = np.linalg.norm(twists, axis=-1)
     moves = size > 1e-7 * (1.0 + scale)  # (L, n)
     types = robot.joint_types
-    axes = []
+    # per joint (kind, speed, unit axis or None, a point on the axis or the stroke)
+    axes: list[tuple[str, float, Any, Any]] = []
     for j in range(n):
         links = np.flatnonzero(moves[:, j])
         if not links.size:
-            axes.append(None)
+            axes.append(("-", 0.0, None, None))  # moves no link: in no chain
             continue
         xi = twists[links, j]
         if np.max(np.abs(xi - xi[0])) > 1e-6 * (1.0 + np.max(np.abs(xi[0]))):
@@ -141,12 +156,12 @@ def _tree_rows(robot, body, poses, twists, space, scale) -> np.ndarray | None:
             w = np.linalg.norm(omega)
             if w < 1e-9 or abs(np.dot(omega, v)) > 1e-6 * w * (np.linalg.norm(v) + scale):
                 return None  # not a pure rotation
-            axes.append(("R", w, omega / w, np.cross(omega, v) / (w * w)))
+            axes.append(("R", float(w), omega / w, np.cross(omega, v) / (w * w)))
         else:
             if np.linalg.norm(omega) > 1e-9:
                 return None
             stroke = float(space.upper[j] - space.lower[j])
-            axes.append(("P", np.linalg.norm(v), None, stroke))
+            axes.append(("P", float(np.linalg.norm(v)), None, stroke))
     sets = [frozenset(np.flatnonzero(moves[:, j]).tolist()) for j in range(n)]
     for i in range(n):
         for j in range(n):
@@ -163,7 +178,7 @@ def _tree_rows(robot, body, poses, twists, space, scale) -> np.ndarray | None:
             kind, speed, direction, extra = axes[j]
             if kind == "R":
                 foot = extra + direction * np.dot(point - extra, direction)
-                acc += np.linalg.norm(point - foot)
+                acc += float(np.linalg.norm(point - foot))
                 rows[link, j] = max(rows[link, j], speed * acc)
                 point = foot
             else:
@@ -184,27 +199,31 @@ def _pair_rows(link_rows: np.ndarray, moves: np.ndarray, pairs: Any, proved: boo
     return np.asarray(out).reshape(-1, link_rows.shape[1])
 
 
+def _proved_rows(
+    robot: Any, body: Any, space: Any, scale: float, probes: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``_tree_rows``' largest rows and moved links over the probe configurations, or None
+    when one of them is not a tree of rigid motions."""
+    rows, moves = None, None
+    for poses, twists in zip(*_twists(robot, probes), strict=True):
+        found = _tree_rows(robot, body, poses, twists, space, scale)
+        if found is None:
+            return None
+        rows = found[0] if rows is None else np.maximum(rows, found[0])
+        moves = found[1] if moves is None else moves | found[1]
+    return None if rows is None or moves is None else (rows, moves)
+
+
 def motion_bound(robot: Any, body: Any, link_pairs: Any) -> MotionBound:
     """Host side: the ``MotionBound`` of a robot of the protocol (module docstring)."""
     space = joint_space(robot)
     scale = float(np.asarray(robot.length_scale()))
     rng = np.random.default_rng(0)
-    probes = space.lower + rng.uniform(size=(_PROBES, len(space.lower))) * (
-        space.upper - space.lower
-    )
-    rows, moves = None, None
-    for q in probes:
-        poses, twists = _twists(robot, q)
-        found = _tree_rows(robot, body, poses, twists, space, scale)
-        if found is None:
-            rows = None
-            break
-        r, m = found
-        rows = r if rows is None else np.maximum(rows, r)
-        moves = m if moves is None else moves | m
-    proved = rows is not None and bool(np.all(np.isfinite(rows)))
-    if not proved:
-        rows, moves = _sampled_rows(robot, body, space)
+    lower, upper = np.asarray(space.lower), np.asarray(space.upper)
+    probes = lower + rng.uniform(size=(_PROBES, len(lower))) * (upper - lower)
+    found = _proved_rows(robot, body, space, scale, probes)
+    proved = found is not None and bool(np.all(np.isfinite(found[0])))
+    rows, moves = found if found is not None and proved else _sampled_rows(robot, body, space)
     pair_rows = _pair_rows(rows, moves, link_pairs, proved)
     prim_link = np.asarray(tuple(body.sphere_link) + tuple(body.capsule_link), int)
     return MotionBound(
@@ -219,7 +238,7 @@ def _sampled_rows(robot: Any, body: Any, space: Any) -> tuple[np.ndarray, np.nda
     q = space.lower + np.random.default_rng(1).uniform(size=(SAMPLES, n)) * (
         space.upper - space.lower
     )
-    dtype = jnp.float64 if jax.config.jax_enable_x64 else jnp.float32
+    dtype = jnp.result_type(float)  # float64 when x64 is on
 
     def placed(q):
         poses = robot.link_poses(q)

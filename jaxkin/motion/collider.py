@@ -10,9 +10,9 @@ of the collision kernels is one edit here:
 - ``free(robot, body, pairs, q, world)``: per configuration ``q (..., n)``, is the robot clear
   of the world and itself (``collision.collides_kernel``, the verdict alone)?
 - ``clearances(robot, body, pairs, q, world)``: per configuration the signed distance of each
-  body primitive to the world and of each checked self link pair
-  (``collision.clearances_kernel``), for conservative advancement with one speed bound per
-  link and per pair (``bound``).
+  link to the world and of each checked self link pair (``collision.clearances_kernel``,
+  grouped by ``link_groups``), for conservative advancement with one speed bound per link
+  and per pair (``bound.speed_rows``).
 - ``stack_worlds(worlds)``: one world per problem as one ``World`` with a leading problem axis
   (every kind padded to a common count, a multiple of ``collision.OBSTACLE_BUCKET``, without
   changing any distance).
@@ -34,7 +34,7 @@ from jax import Array
 from .. import collision
 from ..collision import World
 
-__all__ = ["COMPILER_OPTIONS", "clearances", "free", "prepare", "stack_worlds"]
+__all__ = ["COMPILER_OPTIONS", "clearances", "free", "link_groups", "prepare", "stack_worlds"]
 
 # XLA options of every program that runs the checks (the CPU's older fusion emitters)
 COMPILER_OPTIONS = collision.rows.COMPILER_OPTIONS
@@ -50,15 +50,29 @@ def free(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> Array:
     return ~collision.collides_kernel(robot, body, pairs, q, world, 0.0).collides
 
 
-def clearances(
-    robot: Any, body: Any, pairs: Any, q: Array, world: World
-) -> tuple[Array, Array, Array]:
-    """``(primitives (..., S + C), self_pairs (..., len(pairs.link_pairs)), placed (...))``:
-    each primitive's signed distance to the world (spheres then capsules; the dtype's largest
-    value without obstacles), each link pair's smallest signed distance, and whether ``q`` is
-    finite and the robot assembles there (where it is not, the distances are placeholders):
-    ``collision.clearances_kernel``."""
-    return collision.clearances_kernel(robot, body, pairs, q, world)
+def link_groups(body: Any) -> np.ndarray:
+    """Host side: the body's primitives (spheres, then capsules) grouped by link, ``(L, m)``
+    indices, one row per link with geometry in order of first appearance (shorter rows
+    repeat their last index): every primitive of a link moves with it, so a link's distance
+    to the world is the smallest of its primitives' (one speed bound per link, ``bound``)."""
+    links = np.asarray(tuple(body.sphere_link) + tuple(body.capsule_link), int)
+    order = list(dict.fromkeys(links.tolist()))
+    groups = [np.flatnonzero(links == k) for k in order]
+    width = max((len(g) for g in groups), default=1)
+    rows = [np.concatenate([g, np.repeat(g[-1:], width - len(g))]) for g in groups]
+    return np.asarray(rows, np.int32).reshape(len(groups), width)
+
+
+def clearances(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> tuple[Array, Array]:
+    """``(dist (..., L + Q), placed (...))`` per configuration ``q (..., n)``: each link's
+    signed distance to the world (the smallest of its primitives', ``link_groups`` order;
+    the dtype's largest value without obstacles), then each checked self link pair's
+    (``pairs.link_pairs``), and whether ``q`` is finite and the robot assembles there (where
+    it is not, the distances are placeholders): ``collision.clearances_kernel``."""
+    prims, own, placed = collision.clearances_kernel(robot, body, pairs, q, world)
+    groups = link_groups(body)
+    per_link = jnp.min(prims[..., groups], axis=-1) if groups.size else prims[..., :0]
+    return jnp.concatenate([per_link, own], axis=-1), placed
 
 
 _KINDS = tuple(f.name for f in dataclasses.fields(World))
@@ -120,7 +134,10 @@ def stack_worlds(worlds: list[World], far: float = 100.0) -> World:
             w
             if len(w.halfspaces)
             else dataclasses.replace(
-                w, halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [-far])
+                w,
+                halfspaces=collision.HalfSpaces.create(
+                    np.array([[0.0, 0.0, 1.0]]), np.array([-far])
+                ),
             )
             for w in worlds
         ]

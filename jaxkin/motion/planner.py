@@ -39,15 +39,18 @@ from .._execute import Kernel, Policy, kernel
 from .._splines import hermite
 from ..collision import World
 from . import collider
-from .bound import motion_bound
+from .bound import motion_bound, speed_rows
 from .edges import MODES
 from .goals import ik_goals
 from .search import SearchConfig, SearchResult, search_kernel
-from .simplify import Checker, Simplified, simplify_kernel
+from .simplify import SHORTCUTS, Checker, Simplified, chord_parameters, simplify_kernel
 from .space import JointSpace, joint_space
 from .status import MotionStatus
 
 __all__ = ["MotionOptions", "MotionPlan", "plan", "plan_kernels"]
+
+
+_AT_LEAST_ONE = ("lanes", "team", "chunk", "goals_per_target", "max_iterations")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,9 +62,12 @@ class MotionOptions:
             through) or ``"discrete"`` (states ``1 / resolution`` apart, as VAMP and OMPL).
         range: the longest edge the search adds (joint distance, ``space`` module).
         resolution: states per unit of joint distance in discrete mode (VAMP's 32).
-        lanes: RRT-Connects advanced per iteration (``search``).
+        lanes: moves (edges) in flight per iteration of the search (``search``).
+        team: lanes that grow one RRT-Connect (a multiple of it: ``lanes / team`` RRTs at
+            once, each problem one, idle ones restarting open problems).
+        chunk: states checked per lane per iteration (``edges``).
         capacity: nodes per tree.
-        max_iterations: lane iterations per problem before ``NO_PATH``.
+        max_iterations: edges checked per problem before ``NO_PATH``.
         path_points: waypoints per path buffer.
         simplify: shortcut and smooth the path.
         spline_states: states that check the spline.
@@ -80,6 +86,8 @@ class MotionOptions:
     range: float = 1.0
     resolution: float = 32.0
     lanes: int = 4
+    team: int = 4
+    chunk: int = 8
     capacity: int = 1024
     max_iterations: int = 40000
     path_points: int = 128
@@ -101,6 +109,8 @@ class MotionOptions:
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
         for name in (
             "lanes",
+            "team",
+            "chunk",
             "capacity",
             "max_iterations",
             "path_points",
@@ -112,7 +122,7 @@ class MotionOptions:
             if (
                 isinstance(value, bool)
                 or not isinstance(value, int)
-                or value < 2 - (name in ("lanes", "goals_per_target", "max_iterations"))
+                or value < 2 - (name in _AT_LEAST_ONE)
             ):
                 raise ValueError(
                     f"{name} must be a positive integer (>= 2 for sizes), got {value!r}"
@@ -175,13 +185,32 @@ class MotionPlan:
 
 
 # ------------------------------------------------------------------------ compiled kernels
-def _evaluate(robot, body, pairs, world, mode, dtype):
+def _evaluator(robot, body, pairs, world, mode):
+    """``states (..., n) ->`` ``free`` (discrete) or ``(dist, placed)`` (certified)."""
+
     def run(q):
         if mode == "discrete":
-            return None, None, collider.free(robot, body, pairs, q, world)
+            return collider.free(robot, body, pairs, q, world)
         return collider.clearances(robot, body, pairs, q, world)
 
     return run
+
+
+def _roots_kernel(robot, body, pairs, world, starts, goals, mode, shared_world):
+    """Per problem: whether the start ``(B,)`` and the goals ``(B, G)`` are free, and their
+    distances ``(B, 1 + G, R)`` (certified mode; ``R = 0`` discrete)."""
+
+    def one(wd, start, goal):
+        q = jnp.concatenate([start[None], goal])
+        out = _evaluator(robot, body, pairs, wd, mode)(q)
+        if mode == "discrete":
+            return out, jnp.zeros((q.shape[0], 0), q.dtype)
+        dist, placed = out
+        return placed & jnp.all(dist > 0, -1), dist
+
+    axes = (None if shared_world else 0, 0, 0)
+    free, clear = jax.vmap(one, in_axes=axes)(world, starts, goals)
+    return free[:, 0], free[:, 1:], clear
 
 
 def _simplify_all(
@@ -190,33 +219,45 @@ def _simplify_all(
     pairs,
     world,
     space,
-    bound,
+    rows,
     path,
     count,
     tol,
     resolution,
     slots,
+    chunk,
     mode,
     states,
     shared_world,
+    group,
 ):
-    """``simplify_kernel`` for every problem ``(B, P, n)``."""
+    """``simplify_kernel`` for every problem ``(B, P, n)``, ``group`` problems at a time (a
+    ``vmap`` within a group, a loop over the groups): the loops of a ``vmap`` run as long as
+    its longest element, so a group of similar paths (``plan`` sorts them by waypoint count)
+    wastes little, where one ``vmap`` of every problem runs each as long as the hardest."""
 
     def one(wd, p, c):
-        evaluate = _evaluate(robot, body, pairs, wd, mode, p.dtype)
-        check = Checker(evaluate, space, bound, mode, tol)
-        return simplify_kernel(check, p, c, slots, resolution, states)
+        evaluate = _evaluator(robot, body, pairs, wd, mode)
+        check = Checker(evaluate, space, rows, mode, tol, resolution, chunk)
+        return simplify_kernel(check, p, c, slots, states)
 
-    axes = (None if shared_world else 0, 0, 0)
-    return jax.vmap(one, in_axes=axes)(world, path, count)
+    if shared_world:
+        return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
+    return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
+
+
+SIMPLIFY_GROUP = 8  # problems simplified together (_simplify_all)
 
 
 # the collision loops inside the search and the simplification run their bodies 2-5x faster
 # with the CPU's older fusion emitters (collider.COMPILER_OPTIONS)
 _POLICY = Policy(pad=False, compiler_options=collider.COMPILER_OPTIONS)
 _search_jit = Kernel(search_kernel, static=("config",), policy=_POLICY)
+_roots_jit = Kernel(_roots_kernel, static=("mode", "shared_world"), policy=_POLICY)
 _simplify_jit = Kernel(
-    _simplify_all, static=("slots", "mode", "states", "shared_world"), policy=_POLICY
+    _simplify_all,
+    static=("slots", "chunk", "mode", "states", "shared_world", "group"),
+    policy=_POLICY,
 )
 
 
@@ -302,16 +343,33 @@ def _joint_paths(
     return timing.JointPath(param, q, dq, ddq)
 
 
-def _prepare(robot, options):
-    """Host side, cached on the robot per mode: body, pairs, space, bound."""
-    cached = robot.__dict__.get("_motion_prepared")
-    if cached is not None:
-        return cached
+@dataclasses.dataclass(frozen=True)
+class _Prepared:
+    """Host side, once per robot: its body and self pairs, its joint space (NumPy and in the
+    planner's dtype), its speed bound and rows (``bound.speed_rows``), its size."""
+
+    body: Any
+    pairs: Any
+    space_np: JointSpace
+    space: JointSpace
+    bound: Any
+    rows: Array
+    scale: float
+
+
+def _prepare(robot: Any, dtype: Any) -> _Prepared:
+    """``_Prepared`` of ``robot`` in ``dtype``, cached on the robot."""
+    cached = robot.__dict__.get("_motion_prepared", {})
+    key = np.dtype(dtype).name
+    if key in cached:
+        return cached[key]
     body, pairs = collider.prepare(robot, True)
     space = joint_space(robot)
-    bound = motion_bound(robot, body, pairs.link_pairs)
-    prepared = (body, pairs, space, bound)
-    object.__setattr__(robot, "_motion_prepared", prepared)
+    bound = motion_bound(robot, body, pairs.link_pairs).astype(dtype)
+    rows = jax.device_put(np.asarray(speed_rows(bound, body), dtype))
+    scale = float(np.asarray(robot.length_scale()))
+    prepared = _Prepared(body, pairs, space, space.astype(dtype), bound, rows, scale)
+    object.__setattr__(robot, "_motion_prepared", {**cached, key: prepared})
     return prepared
 
 
@@ -363,20 +421,20 @@ def plan(
         raise ValueError(f"start: expected shape (n,) or (B, n) with n = {n}, got {starts.shape}")
     starts = starts.reshape(-1, n)
     b = starts.shape[0]
-    body, pairs, space_np, bound = _prepare(robot, options)
     dtype = jnp.result_type(float)
-    space = space_np.astype(dtype)
-    bound = bound.astype(dtype)
+    prep = _prepare(robot, dtype)
+    body, pairs, space = prep.body, prep.pairs, prep.space
     worlds, shared = _worlds(world, b)
     worlds = worlds.astype(dtype)
 
-    def free_fn(q):
-        q = jnp.asarray(q, dtype)
-        if shared:
-            return np.asarray(_free_jit(robot, body, pairs, q, worlds))
-        return np.asarray(_free_batched_jit(robot, body, pairs, q, worlds))
+    def put(x: Any, kind: Any = None) -> Array:
+        return jax.device_put(np.asarray(x, dtype if kind is None else kind))
 
-    status = np.full(b, int(MotionStatus.SOLVED), np.int8)
+    def free_fn(q: np.ndarray) -> np.ndarray:
+        if shared:
+            return np.asarray(_free_jit(robot, body, pairs, put(q), worlds))
+        return np.asarray(_free_batched_jit(robot, body, pairs, put(q), worlds))
+
     finite_start = np.all(np.isfinite(starts), -1)
     starts_safe = np.where(np.isfinite(starts), starts, 0.0)
     limits = robot.joint_limits()
@@ -389,7 +447,7 @@ def plan(
         if t.shape != (b, *shape):
             raise ValueError(f"target: expected shape {shape} or ({b}, *{shape}), got {t.shape}")
         finite_goal = np.all(np.isfinite(t.reshape(b, -1)), -1)
-        goals, goal_count = ik_goals(
+        goals, ik_count = ik_goals(
             robot,
             np.where(np.isfinite(t), t, 0.0),
             starts_safe,
@@ -397,6 +455,7 @@ def plan(
             free_fn,
             options.goals_per_target,
         )
+        solution = np.arange(goals.shape[1])[None, :] < ik_count[:, None]
         no_goal = MotionStatus.UNREACHABLE_GOAL
     else:
         g = _as_array(goal, "goal")
@@ -410,69 +469,94 @@ def plan(
                 f"got {g.shape}"
             )
         finite_goal = np.all(np.isfinite(g), (-1, -2))
-        g = np.where(np.isfinite(g), g, 0.0)
-        good = np.asarray(limits.contains(g), bool) & np.asarray(free_fn(g), bool)
-        order = np.argsort(~good, axis=1, kind="stable")
-        goals = np.take_along_axis(g, order[..., None], 1)
-        goal_count = np.sum(good, 1).astype(np.int32)
+        goals = np.where(np.isfinite(g), g, 0.0)
+        solution = np.ones(goals.shape[:2], bool)
         no_goal = MotionStatus.INVALID_GOAL
-    start_free = np.asarray(free_fn(starts_safe[:, None]), bool)[:, 0]
+    seconds = {}
+    clock = time.perf_counter()
+    mode = options.mode
+    start_free, goal_free, root_clear = _roots_jit(
+        robot, body, pairs, worlds, put(starts_safe), put(goals), mode=mode, shared_world=shared
+    )
+    good = solution & np.asarray(limits.contains(goals), bool) & np.asarray(goal_free, bool)
+    # the free goals first (a stable order), their distances alike
+    order = np.argsort(~good, axis=1, kind="stable")
+    goals = np.take_along_axis(goals, order[..., None], 1)
+    root_clear = np.asarray(root_clear)
+    root_clear = np.concatenate(
+        [root_clear[:, :1], np.take_along_axis(root_clear[:, 1:], order[..., None], 1)], 1
+    )
+    goal_count = np.sum(good, 1).astype(np.int32)
+    status = np.full(b, int(MotionStatus.SOLVED), np.int8)
     status = np.where(goal_count == 0, int(no_goal), status)
-    status = np.where(~(inside & start_free), int(MotionStatus.INVALID_START), status)
+    start_ok = inside & np.asarray(start_free, bool)
+    status = np.where(~start_ok, int(MotionStatus.INVALID_START), status)
     status = np.where(~(finite_start & finite_goal), int(MotionStatus.INVALID_INPUT), status)
     status = status.astype(np.int8)
     queue = np.flatnonzero(status == MotionStatus.SOLVED).astype(np.int32)
     if queue.size == 0:
         queue = np.zeros(1, np.int32)  # nothing to search: the loop never runs
-    scale = float(np.asarray(robot.length_scale()))
-    tol = 64.0 * float(jnp.finfo(dtype).eps) * (1.0 + scale)
+    tol = 64.0 * float(jnp.finfo(dtype).eps) * (1.0 + prep.scale)
     slots = max(2, math.ceil(options.range * options.resolution))
-    slots = ((slots + 3) // 4) * 4  # a multiple of the coarse stage's rake
+    lanes = options.lanes
+    team = min(options.team, lanes)
+    if lanes % team:
+        raise ValueError(f"lanes ({lanes}) must be a multiple of team ({team})")
     config = SearchConfig(
-        options.lanes, options.capacity, slots, options.path_points, options.mode, shared
+        lanes, team, options.capacity, slots, options.chunk, options.path_points, mode, shared
     )
-    seconds = {}
-    clock = time.perf_counter()
-    max_loops = int(options.max_iterations) * b // max(1, options.lanes) + 2 * b + 16
-    common = (robot, body, pairs, worlds, space, bound)
+    rounds = -(-slots // options.chunk)
+    max_loops = (int(options.max_iterations) * b * rounds) // max(1, lanes) + 4 * b + 16
+    common = (robot, body, pairs, worlds, space, prep.rows)
     found: SearchResult = _search_jit(
         *common,
-        jnp.asarray(starts_safe, dtype),
-        jnp.asarray(goals, dtype),
-        jnp.asarray(goal_count),
-        jnp.asarray(status),
-        jnp.asarray(queue),
-        jax.random.PRNGKey(options.seed),
-        jnp.asarray(options.range, dtype),
-        jnp.int32(options.max_iterations),
-        jnp.int32(min(max_loops, 2**31 - 1)),
-        jnp.asarray(tol, dtype),
+        put(starts_safe),
+        put(goals),
+        put(goal_count, np.int32),
+        put(root_clear),
+        put(status, np.int8),
+        put(queue, np.int32),
+        put(_stream(options.seed), np.uint32),
+        put(options.range),
+        put(options.resolution),
+        put(options.max_iterations, np.int32),
+        put(min(max_loops, 2**31 - 1), np.int32),
+        put(tol),
         config=config,
     )
     status = np.asarray(found.status)
     seconds["search"] = time.perf_counter() - clock
+    seconds["loops"] = int(found.loops)
     clock = time.perf_counter()
     path, count = found.path, found.count
     solved = status == MotionStatus.SOLVED
     if options.simplify:
-        from .simplify import SHORTCUTS
-
-        simple: Simplified = _simplify_jit(
-            *common,
-            path,
-            count,
-            jnp.asarray(tol, dtype),
-            jnp.asarray(options.resolution, dtype),
+        # similar paths together (_simplify_all): the problems by waypoint count
+        order = np.argsort(np.asarray(count), kind="stable")
+        back = np.argsort(order)
+        pick = jnp.asarray(order)
+        sorted_worlds = worlds if shared else jax.tree.map(lambda x: x[pick], worlds)
+        simple_sorted: Simplified = _simplify_jit(
+            robot,
+            body,
+            pairs,
+            sorted_worlds,
+            space,
+            prep.rows,
+            path[pick],
+            count[pick],
+            put(tol),
+            put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
-            mode=options.mode,
+            chunk=options.chunk,
+            mode=mode,
             states=options.spline_states,
             shared_world=shared,
+            group=min(SIMPLIFY_GROUP, b),
         )
+        simple = jax.tree.map(lambda x: x[jnp.asarray(back)], simple_sorted)
     else:
-        from .simplify import chord_parameters
-
-        s = jax.vmap(lambda p, c: chord_parameters(p, c, space))(path, count)
-        simple = Simplified(path, count, s, jnp.zeros_like(path), jnp.zeros(count.shape, bool))
+        simple = _polygon_jit(path, count, space)
     jax.block_until_ready(simple)
     seconds["simplify"] = time.perf_counter() - clock
     clock = time.perf_counter()
@@ -481,9 +565,9 @@ def plan(
     goal_reached = path_np[np.arange(b), np.maximum(count_np - 1, 0)]
     trajectory, duration, timing_status = None, np.zeros(b), np.zeros(b, np.int8)
     if options.period is not None:
-        v, a = _limits(robot, options, space_np, n)
+        v, a = _limits(robot, options, prep.space_np, n)
         jp = _joint_paths(simple.path, simple.knots_s, simple.slopes, simple.count, options.grid)
-        timed = timing.retime(jp, jnp.asarray(v, dtype), jnp.asarray(a, dtype))
+        timed = timing.retime(jp, put(v), put(a))
         duration = np.where(solved, np.asarray(timed.duration), 0.0)
         timing_status = np.asarray(timed.status)
         trajectory = timing.sample(
@@ -502,12 +586,24 @@ def plan(
         smooth=np.asarray(simple.smooth) & solved,
         goal=goal_reached,
         iterations=np.asarray(found.iterations),
-        certified=solved & (options.mode == "certified") & bound.proved,
+        certified=solved & (mode == "certified") & prep.bound.proved,
         trajectory=trajectory,
         duration=duration,
         timing_status=timing_status,
         seconds=seconds,
     )
+
+
+def _stream(number: int) -> int:
+    """The sample stream of an option's integer (mixed by the golden-ratio increment)."""
+    return (number * 0x9E3779B9 + 0x7F4A7C15) & 0xFFFFFFFF
+
+
+@kernel
+def _polygon_jit(path: Array, count: Array, space: JointSpace) -> Simplified:
+    """The path as it is (no simplification): its polygon, chord parameters."""
+    s = jax.vmap(lambda p, c: chord_parameters(p, c, space))(path, count)
+    return Simplified(path, count, s, jnp.zeros_like(path), jnp.zeros(count.shape, bool))
 
 
 def _free_kernel(robot, body, pairs, q, world):

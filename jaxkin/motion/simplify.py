@@ -29,7 +29,6 @@ import jax.numpy as jnp
 from jax import Array
 
 from .._splines import hermite
-from .bound import MotionBound, part_speeds
 from .edges import ball_radius, covered_prefix, edge_check
 from .space import JointSpace
 
@@ -71,20 +70,24 @@ def _compact(path: Array, keep: Array) -> tuple[Array, Array]:
 
 
 class Checker(NamedTuple):
-    """What checks a path: ``evaluate(states) ->`` ``edges.edge_check``'s triple, the joint
-    space, the speed bound, the mode and the rounding tolerance."""
+    """What checks a path: ``evaluate(states (E, T, n))`` (``free`` in discrete mode,
+    ``(dist, placed)`` in certified mode: ``collider.clearances``), the joint space, the speed
+    rows (``bound.speed_rows``), the mode, the rounding tolerance, the resolution (discrete
+    mode) and the states per edge per round (``edges``)."""
 
     evaluate: Any
     space: JointSpace
-    bound: MotionBound
+    rows: Array
     mode: str
     tol: Array
+    resolution: Array
+    chunk: int
 
 
 def shortcut(check: Checker, path: Array, count: Array, slots: int) -> tuple[Array, Array]:
     """Vertex reduction (module docstring) of one path ``(P, n)`` with ``count`` waypoints.
     ``slots``: intervals for the longest candidate edge (``SHORTCUTS + 1`` path edges)."""
-    evaluate, space, bound, mode, tol = check
+    evaluate, space, rows, mode, tol, resolution, chunk = check
     p, n = path.shape
     m = SHORTCUTS
 
@@ -94,7 +97,9 @@ def shortcut(check: Checker, path: Array, count: Array, slots: int) -> tuple[Arr
         valid_j = j <= count - 1
         a = jnp.broadcast_to(path[i], (m, n))
         b = path[jnp.minimum(j, p - 1)]
-        good = edge_check(evaluate, bound, a, space.step(a, b), slots, mode, tol) >= 1.0
+        delta = space.step(a, b)
+        t_good = edge_check(evaluate, rows, a, delta, slots, chunk, mode, tol, resolution, space)
+        good = t_good >= 1.0
         good = good & valid_j
         best = jnp.where(jnp.any(good), jnp.max(jnp.where(good, j, 0)), i + 1)
         skipped = (jnp.arange(p) > i) & (jnp.arange(p) < best)
@@ -188,17 +193,16 @@ def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode
     return q, param, piece, enough
 
 
-def spline_check(evaluate, space, bound, knots, s, slopes, count, states, resolution, mode, tol):
+def spline_check(check: Checker, knots, s, slopes, count, states):
     """Per spline piece ``(P - 1,)``: bad (a state of it collides or is not covered)."""
+    evaluate, space, rows, mode, tol, resolution, _ = check
     p, n = knots.shape
     q, param, piece, enough = _spline_states(
         knots, s, slopes, count, states, space, resolution, mode
     )
-    parts = jax.tree.map(
-        lambda x: None if x is None else x[0], evaluate(q[None]), is_leaf=lambda x: x is None
-    )
+    result = jax.tree.map(lambda x: x[0], evaluate(q[None]))
     if mode == "discrete":
-        bad_state = ~parts[2]
+        bad_state = ~result
     else:
         seg = jnp.arange(p - 1)
         live = seg < count - 1
@@ -217,7 +221,8 @@ def spline_check(evaluate, space, bound, knots, s, slopes, count, states, resolu
             jnp.maximum(vmax, jnp.roll(vmax, 1, 0).at[0].set(0.0)),
             jnp.roll(vmax, -1, 0).at[-1].set(0.0),
         )
-        radius = ball_radius(parts, part_speeds(bound, near[piece] * span), tol)
+        speeds = jnp.abs(near[piece] * span) @ rows.T.astype(q.dtype)
+        radius = ball_radius(result[0], result[1], speeds, tol)
         lo = s[jnp.maximum(piece - 1, 0)] / span
         hi = s[jnp.minimum(piece + 2, count - 1)] / span
         good_to = covered_prefix(
@@ -259,30 +264,31 @@ def chord_parameters(path: Array, count: Array, space: JointSpace) -> Array:
 
 
 def simplify_kernel(
-    check: Checker, path: Array, count: Array, slots: int, resolution: Array, states: int
+    check: Checker, path: Array, count: Array, slots: int, states: int
 ) -> Simplified:
     """Shortcuts, then the spline (module docstring), for one path ``(P, n)``."""
-    evaluate, space, bound, mode, tol = check
+    space = check.space
     path, count = shortcut(check, path, count, slots)
     path = space.unwrap(path)
 
-    def round_(carry, _):
-        knots, k, done = carry
+    def round_(carry):
+        knots, k, done, stuck, rounds = carry
         s = chord_parameters(knots, k, space)
         slopes = spline_slopes(knots, s, k)
-        bad = spline_check(
-            evaluate, space, bound, knots, s, slopes, k, states, resolution, mode, tol
-        )
+        bad = spline_check(check, knots, s, slopes, k, states)
         ok = ~jnp.any(bad)
         new, new_k, fits = _insert_midpoints(knots, k, bad, space)
-        keep = done | ok | ~fits
+        keep = ok | ~fits
         knots2 = jnp.where(keep, knots, new)
         k2 = jnp.where(keep, k, new_k)
-        return (knots2, k2, done | ok), (ok | done)
+        return knots2, k2, ok, ~ok & ~fits, rounds + 1
 
-    (knots, k, done), _ = jax.lax.scan(
-        round_, (path, count, jnp.bool_(False)), None, SPLINE_ROUNDS + 1
-    )
+    def more(carry):
+        _, _, done, stuck, rounds = carry
+        return ~done & ~stuck & (rounds <= SPLINE_ROUNDS)
+
+    start = (path, count, jnp.bool_(False), jnp.bool_(False), jnp.int32(0))
+    knots, k, done, _, _ = jax.lax.while_loop(more, round_, start)
     s = chord_parameters(knots, k, space)
     slopes = spline_slopes(knots, s, k)
     return Simplified(

@@ -26,7 +26,21 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-__all__ = ["JointSpace", "joint_space"]
+__all__ = ["JointSpace", "hashed_uniform", "joint_space"]
+
+
+def hashed_uniform(stream: Array, index: Array, dtype: Any) -> Array:
+    """Uniform numbers in ``[0, 1)`` ``index.shape``: the integer hash of Wellons' lowbias32
+    (two multiply-xorshift rounds, full avalanche) of ``index`` mixed with ``stream`` by the
+    golden-ratio increment, its top 24 bits as the fraction. Counter-based: one draw per
+    index, no state, no loop (``jax.random``'s threefry is a loop on the CPU)."""
+    x = index.astype(jnp.uint32) * jnp.uint32(0x9E3779B9) + stream.astype(jnp.uint32)
+    x = x ^ (x >> 16)
+    x = x * jnp.uint32(0x7FEB352D)
+    x = x ^ (x >> 15)
+    x = x * jnp.uint32(0x846CA68B)
+    x = x ^ (x >> 16)
+    return (x >> 8).astype(dtype) * jnp.asarray(2.0**-24, dtype)
 
 
 @jax.tree_util.register_dataclass
@@ -39,20 +53,29 @@ class JointSpace:
         weight: ``w_j`` of the metric (1 for revolute joints, ``1 / length_scale`` for
             prismatic ones).
         continuous: 1.0 for a continuous joint (wrapped), 0.0 otherwise.
+        wraps: static, the robot has a continuous joint (without one nothing is wrapped).
+
+    ``joint_space`` gives float64 NumPy arrays (host side), ``astype`` JAX arrays of a dtype.
     """
 
-    lower: Array
-    upper: Array
-    weight: Array
-    continuous: Array
+    lower: Array | np.ndarray
+    upper: Array | np.ndarray
+    weight: Array | np.ndarray
+    continuous: Array | np.ndarray
+    wraps: bool = dataclasses.field(metadata=dict(static=True), default=True)
 
     def astype(self, dtype: Any) -> JointSpace:
         return jax.tree.map(lambda x: jnp.asarray(x, dtype), self)
 
-    def wrap(self, delta: Array) -> Array:
-        """``delta`` with its continuous entries wrapped to ``[-pi, pi)``."""
-        wrapped = jnp.mod(delta + jnp.pi, 2.0 * jnp.pi) - jnp.pi
-        return jnp.where(self.continuous > 0, wrapped, delta)
+    def wrap(self, delta: Array, axis: int = -1) -> Array:
+        """``delta`` with its continuous entries wrapped to ``[-pi, pi)``; ``axis``: the one
+        of the joints (``-1``: ``(..., n)``; ``-2``: coordinate-major ``(..., n, N)``)."""
+        if not self.wraps:
+            return delta
+        turn = 2.0 * jnp.pi
+        wrapped = delta - turn * jnp.floor((delta + jnp.pi) / turn)
+        continuous = self.continuous.reshape((-1,) + (1,) * (-1 - axis))
+        return jnp.where(continuous > 0, wrapped, delta)
 
     def step(self, a: Array, b: Array) -> Array:
         """The joint step from ``a`` to ``b`` (continuous joints the short way round)."""
@@ -70,10 +93,16 @@ class JointSpace:
         """``q`` with continuous joints wrapped into ``[-pi, pi)`` (tree nodes are stored so)."""
         return jnp.where(self.continuous > 0, self.wrap(q), q)
 
-    def sample(self, key: Array, shape: tuple[int, ...]) -> Array:
-        """Uniform configurations in the box, ``(*shape, n)``."""
-        u = jax.random.uniform(key, (*shape, self.lower.shape[0]), self.lower.dtype)
-        return self.lower + u * (self.upper - self.lower)
+    def sample_hashed(self, stream: Array, counter: Array, count: int) -> Array:
+        """``count`` configurations in the box ``(count, n)``, the ``counter``-th draw of
+        ``stream`` (``hashed_uniform``: a few integer operations, no loop)."""
+        n = self.lower.shape[0]
+        index = counter.astype(jnp.uint32) * jnp.uint32(count * n) + jnp.arange(
+            count * n, dtype=jnp.uint32
+        )
+        lower, upper = jnp.asarray(self.lower), jnp.asarray(self.upper)
+        u = hashed_uniform(stream, index, lower.dtype).reshape(count, n)
+        return lower + u * (upper - lower)
 
     def unwrap(self, path: Array) -> Array:
         """A path ``(..., K, n)`` of wrapped waypoints as a continuous one: each waypoint the
@@ -109,4 +138,4 @@ def joint_space(robot: Any) -> JointSpace:
     upper = np.where(continuous, np.pi, upper)
     scale = float(np.asarray(robot.length_scale()))
     weight = np.where(prismatic, 1.0 / scale, 1.0)
-    return JointSpace(lower, upper, weight, continuous.astype(float))
+    return JointSpace(lower, upper, weight, continuous.astype(float), bool(np.any(continuous)))

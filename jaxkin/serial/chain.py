@@ -55,7 +55,6 @@ from .._numerics import eps, safe_norm
 from ..collision.body import Body, link_spheres
 from ..collision.check import chain_self_pairs
 from ..collision.pairs import read_srdf_disabled, self_collision_link_pairs
-from ..collision.urdf import body_from_urdf
 from ..jet import Jet
 from ..result import FKResult, IKResult, forward_result
 from ..robot import POINT, POSE, CompilePolicy, JointLimits, Robot, Target, promoted
@@ -461,20 +460,21 @@ class Chain(Robot):
 
     def collision_body(self) -> Body:
         """The body: from the URDF's ``<collision>`` elements for a chain read from a URDF
-        (``collision.body_from_urdf``), else a skeleton of capsules of radius 0: link ``k``
-        from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the projection of
-        the previous point on the next axis, as ``reach()``), the last link to the tip; a
-        prismatic joint's travel is not covered. A body given by ``with_body`` replaces
-        either; links given spheres by ``with_link_spheres`` have those instead, the other
-        links keep their own (the URDF's, or the skeleton's when the URDF has no
-        ``<collision>`` elements)."""
+        (``collision.read_collision``: read with the chain, covered on the first call and kept,
+        ``collision.body_from_urdf``'s defaults), else a skeleton of capsules of radius 0: link
+        ``k`` from a point on joint ``k``'s axis to one on joint ``k + 1``'s (each the
+        projection of the previous point on the next axis, as ``reach()``), the last link to
+        the tip; a prismatic joint's travel is not covered. A body given by ``with_body``
+        (e.g. ``collision.Body.load`` of one saved once) replaces either; links given spheres
+        by ``with_link_spheres`` have those instead, the other links keep their own (the
+        URDF's, or the skeleton's when the URDF has no ``<collision>`` elements)."""
         links = self.links
         spheres = dict(links.spheres) if links is not None else {}
         if links is not None and links.body:  # with_body: the user's, in place of any other
             given_spheres, given_capsules = (dict(part) for part in links.body)
             body = Body.create(tuple(links.names), given_spheres, given_capsules)
             return body.with_link_spheres(spheres) if spheres else body
-        if links is not None and links.source:
+        if links is not None and links.collision is not None:
             return _urdf_body(links, spheres)[0]
         screws = np.asarray(self.screws, float)
         current, points = np.zeros(3), [np.zeros(3)]
@@ -488,15 +488,27 @@ class Chain(Robot):
         capsules = {name: ([points[k]], [points[k + 1]], [0.0]) for k, name in enumerate(names)}
         return Body.create(names, capsules=capsules).with_link_spheres(spheres)
 
+    def _links(self) -> ChainLinks:
+        """``links``, or the default links ``base, link1, ..., linkm`` carried by the first
+        ``k`` joints."""
+        if self.links is not None:
+            return self.links
+        m = self.n_path_joints
+        homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
+        return ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
+
     def self_collision_pairs(self) -> tuple[tuple[int, int], ...]:
         """A URDF chain: every pair of links with geometry but adjacent ones (parent and child,
         looking through links without geometry) and those an SRDF disables (``with_srdf``);
         for a skeleton body, those not in contact at ``q = 0`` either. Otherwise links at
         least two apart, not in contact at ``q = 0``."""
         links = self.links
-        if links is None or not links.source:
+        if links is None or links.collision is None:
             return chain_self_pairs(self)
-        body, skeleton = _urdf_body(links, dict(links.spheres))
+        if links.body:
+            body, skeleton = self.collision_body(), False
+        else:
+            body, skeleton = _urdf_body(links, dict(links.spheres))
         pairs = self_collision_link_pairs(body, links.tree, links.disabled)
         if not skeleton and (links.spheres or body.num_spheres or body.capsule_radius.size == 0):
             return pairs
@@ -508,11 +520,7 @@ class Chain(Robot):
         spheres: ``{link: (centers (k, 3), radii (k,) or one radius)}`` in that link's frame,
         finite, radii ``>= 0`` (a ``ValueError`` names the link otherwise). The chain keeps
         copies: editing the arrays afterwards does not change it."""
-        links = self.links
-        if links is None:
-            m = self.n_path_joints
-            homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
-            links = ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
+        links = self._links()
         own = link_spheres(spheres, tuple(links.names))
         merged = tuple({**dict(links.spheres), **own}.items())
         return self.replace(links=links.replace(spheres=merged))
@@ -520,15 +528,11 @@ class Chain(Robot):
     def with_body(self, body: Body) -> Chain:
         """This chain with ``body`` as its whole collision body (a spherised URDF's, cuRobo's
         spheres through ``Body.create``, or any other), in place of the URDF's
-        ``<collision>`` elements, which are then not read. ``body.links`` must be the chain's
+        ``<collision>`` elements, which are then not covered. ``body.links`` must be the chain's
         links in order (``collision_body().links``). The chain keeps host copies."""
         if not isinstance(body, Body):
             raise ValueError(f"body: expected a collision.Body, got {type(body).__name__}")
-        links = self.links
-        if links is None:
-            m = self.n_path_joints
-            homes = np.broadcast_to(np.eye(4), (m + 1, 4, 4))
-            links = ChainLinks(homes, tuple(range(m + 1)), _default_link_names(m))
+        links = self._links()
         if tuple(body.links) != tuple(links.names):
             raise ValueError(
                 f"body: its links {tuple(body.links)} are not the chain's {tuple(links.names)}"
@@ -566,17 +570,12 @@ class Chain(Robot):
 def _urdf_body(links: ChainLinks, spheres: dict) -> tuple[Body, bool]:
     """The body of a chain read from a URDF, the links of ``spheres`` given the user's own,
     and whether the others' is the skeleton (the URDF has no ``<collision>`` elements)."""
-    read = body_from_urdf(links.source, link_spheres=spheres or None).body
+    read = links.collision.body().body
     if read.links != tuple(links.names):
         raise ValueError("Chain.collision_body: the URDF's links differ from the chain's")
-
-    def has_own(body: Body, besides: dict) -> bool:  # primitives on a link not in besides
-        return any(body.links[k] not in besides for k in body.sphere_link + body.capsule_link)
-
-    # The URDF's own elements may all be on the user's links: then read it without the user's.
-    if has_own(read, spheres) or (spheres and has_own(body_from_urdf(links.source).body, {})):
-        return read, False
-    return _urdf_skeleton(links).with_link_spheres(spheres), True
+    if read.num_spheres + read.num_capsules == 0:
+        return _urdf_skeleton(links).with_link_spheres(spheres), True
+    return (read.with_link_spheres(spheres) if spheres else read), False
 
 
 def _urdf_skeleton(links: ChainLinks) -> Body:
@@ -609,11 +608,13 @@ class ChainLinks(Geometry):
         homes: each link's pose in the chain's base frame at ``theta = 0``, ``(L, 4, 4)``.
         moved_by: static, per link the number ``k`` of path joints that carry it (0 ... m).
         names: label, the link names (the order of ``collision_body().links``).
-        source: label, the URDF (path or text) whose ``<collision>`` elements make the body.
+        source: label, the URDF (its resolved path, or its text) the chain was read from.
         tree: label, the URDF's joints ``(parent, child, type)`` (adjacency).
         spheres: label, the user's own spheres per link, ``((name, (centers, radii)), ...)``.
         disabled: label, link name pairs left out of self-collision (an SRDF's).
         radius: label, the skeleton's capsule radius for a URDF without ``<collision>``.
+        collision: label, the URDF's collision geometry as read with the chain
+            (``collision.UrdfCollision``: covered once, on the first ``collision_body()``).
         body: label, a whole body given by ``with_body``: ``(spheres, capsules)``, each
             ``((link, arrays), ...)`` as ``Body.per_link`` gives them; empty for none.
         held: label, the joints off the path not at 0, ``((name, position), ...)``
@@ -629,6 +630,7 @@ class ChainLinks(Geometry):
     spheres: tuple = label(default=())
     disabled: tuple = label(default=())
     radius: float = label(default=0.0)
+    collision: Any = label(default=None)
     body: tuple = label(default=())
     held: tuple = label(default=())
 

@@ -1,7 +1,9 @@
 """URDF import: ``from_urdf(source, tip_link, base_link=None)`` -> a ``serial.Chain``.
 
-The file is read by the standard library's XML parser (links and joints only: no meshes,
-no scene graph, no optional dependency); this module only walks the joint tree. From the tip
+The file is read by the standard library's XML parser (no scene graph, no optional
+dependency); this module walks the joint tree. The ``<collision>`` elements and the mesh files
+they name are read at the same time (``collision.read_collision``): the chain's collision body
+comes from what was read then, covered once when it is first asked for. From the tip
 link up to the base link (the root link by default) every joint on the path is kept, side
 branches (fingers, sensors) are ignored. With ``T_j`` the composed joint origins from the base
 to joint ``j`` at ``theta = 0`` (fixed joints fold into it) and ``a_j`` the unit joint axis in
@@ -43,30 +45,18 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
-from xml.etree import ElementTree
 
 import numpy as np
 
+from ..collision.urdf import UrdfCollision, origin_matrix, read_collision, read_xml
 from .chain import TARGETS, Chain, ChainLinks
 
 __all__ = ["from_urdf"]
 
 _MOVING = ("revolute", "continuous", "prismatic")
-
-
-def _text_as_utf8(text: str) -> bytes:
-    """XML text (already decoded) as UTF-8 bytes, read as a file with the same content is: a
-    byte-order mark dropped, an XML declaration's ``encoding`` (e.g. ISO-8859-1, the file's
-    encoding, no longer the text's) replaced by UTF-8."""
-    text = text.lstrip("\ufeff")
-    text = re.sub(
-        r"""^(\s*<\?xml[^>]*?\bencoding\s*=\s*)(["']).*?\2""", r"\1\2UTF-8\2", text, count=1
-    )
-    return text.encode("utf-8")
 
 
 @dataclasses.dataclass
@@ -112,27 +102,6 @@ def _float(text: str | None) -> float | None:
     return None if text is None else float(text)
 
 
-def _origin(element) -> np.ndarray | None:
-    """``<origin xyz rpy>`` as a 4x4 transform ``Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)`` (fixed
-    axes x, y, z), each entry computed as trimesh's ``compose_matrix`` computes it."""
-    if element is None:
-        return None
-    xyz = [float(v) for v in element.get("xyz", "0 0 0").split()]
-    rpy = [float(v) for v in element.get("rpy", "0 0 0").split()]
-    if len(xyz) < 3 or len(rpy) < 3:
-        raise ValueError(f"<origin> needs three numbers in xyz and rpy, got {xyz} and {rpy}")
-    (si, sj, sk), (ci, cj, ck) = np.sin(rpy[:3]), np.cos(rpy[:3])
-    cc, cs, sc, ss = ci * ck, ci * sk, si * ck, si * sk
-    frame = np.eye(4)
-    frame[:3, :3] = [
-        [cj * ck, sj * sc - cs, sj * cc + ss],
-        [cj * sk, sj * ss + cc, sj * cs - sc],
-        [-sj, cj * si, cj * ci],
-    ]
-    frame[:3, 3] = xyz[:3]
-    return frame
-
-
 def _joint(element) -> _Joint:
     axis, limit, mimic = element.find("axis"), element.find("limit"), element.find("mimic")
     return _Joint(
@@ -140,7 +109,7 @@ def _joint(element) -> _Joint:
         type=element.get("type"),
         parent=element.find("parent").attrib["link"],
         child=element.find("child").attrib["link"],
-        origin=_origin(element.find("origin")),
+        origin=origin_matrix(element.find("origin")),
         axis=np.array(
             [float(v) for v in ("1 0 0" if axis is None else axis.get("xyz", "1 0 0")).split()]
         ),
@@ -157,36 +126,21 @@ def _joint(element) -> _Joint:
     )
 
 
-def _load(source: str | bytes | os.PathLike) -> _Robot:
+def _load(source: str | bytes | os.PathLike, package_dirs: Any) -> tuple[_Robot, UrdfCollision]:
     """The links and joints of a path or XML text (strict XML: no silent recovery), read by the
-    standard library's XML parser: the kinematics need no mesh or scene-graph library."""
-    data: bytes
-    if isinstance(source, bytes) and source.lstrip(b"\xef\xbb\xbf \t\r\n").startswith(b"<"):
-        data, where = source, "source (URDF text)"  # bytes: the parser reads BOM and encoding
-    elif isinstance(source, str) and source.lstrip("\ufeff \t\r\n").startswith("<"):
-        data, where = _text_as_utf8(source), "source (URDF text)"
-    else:
-        if isinstance(source, bytes):
-            source = os.fsdecode(source)
-        if not isinstance(source, str | os.PathLike):
-            raise ValueError(f"source: expected a URDF path or XML text, got {source!r}")
-        path = Path(source)
-        if not path.is_file():
-            raise ValueError(f"source: no such URDF file {str(path)!r}")
-        data, where = path.read_bytes(), f"source {str(path)!r}"
-    try:
-        root = ElementTree.fromstring(data)
-    except ElementTree.ParseError as exc:
-        raise ValueError(f"{where}: not well-formed XML ({exc})") from None
+    standard library's XML parser, and its collision geometry (``collision.read_collision``:
+    meshes read now, covered when a body is asked for)."""
+    root, where, folder = read_xml(source)
     try:  # NaN or inf in an origin is named per joint after loading (_check_numbers)
         with np.errstate(invalid="ignore", over="ignore"):
-            return _Robot(
+            robot = _Robot(
                 name=root.attrib["name"],
                 links=[_Link(link.attrib["name"]) for link in root.findall("link")],
                 joints=[_joint(joint) for joint in root.findall("joint")],
             )
     except Exception as exc:  # a malformed element: a missing attribute or a bad number
         raise ValueError(f"{where}: not a readable URDF ({type(exc).__name__}: {exc})") from None
+    return robot, read_collision(package_dirs=package_dirs, root=root, where=where, folder=folder)
 
 
 def _check_tree(robot) -> None:
@@ -314,6 +268,7 @@ def from_urdf(
     base_link: str | None = None,
     target: str = "pose",
     fixed: Mapping[str, float] | None = None,
+    package_dirs: Any = (),
 ) -> Chain:
     """The chain from ``base_link`` to ``tip_link`` of a URDF (module docstring).
 
@@ -326,6 +281,9 @@ def from_urdf(
             than six joints).
         fixed: values of joints off the path, ``{joint name: position}`` (rad or length),
             held there (the others at 0); the joints that mimic them follow.
+        package_dirs: folders searched first for ``package://`` meshes (one folder or a
+            sequence of them); the meshes are read now, their covers computed when the
+            chain's collision body is first asked for (``collision.read_collision``).
 
     Returns:
         A ``serial.Chain`` (a robot of the protocol: ``jaxkin.ik``/``jaxkin.fk`` with 4x4
@@ -343,7 +301,7 @@ def from_urdf(
     """
     if target not in TARGETS:
         raise ValueError(f"target: expected one of {TARGETS}, got {target!r}")
-    robot = _load(source)
+    robot, collision = _load(source, package_dirs)
     _check_tree(robot)
     _check_numbers(robot)
     path, base_link = _path_joints(robot, tip_link, base_link)
@@ -419,7 +377,9 @@ def from_urdf(
                 f"{moving[leader].name!r}"
             )
     held = _held_joints(robot, fixed, {joint.name for joint in path})
-    links = _chain_links(robot, base_link, [joint.name for joint in moving], source, held)
+    links = _chain_links(
+        robot, base_link, [joint.name for joint in moving], source, collision, held
+    )
     return Chain(
         np.stack(rows),
         frame,
@@ -515,7 +475,12 @@ def _motion(joint, value: float) -> np.ndarray:
 
 
 def _chain_links(
-    robot, base_link: str, moving: list[str], source, held: dict[str, float] | None = None
+    robot,
+    base_link: str,
+    moving: list[str],
+    source,
+    collision: UrdfCollision,
+    held: dict[str, float] | None = None,
 ) -> ChainLinks:
     """Every link's pose in the base frame with every path joint at 0 and the joints off the
     path at ``held`` (else 0), and how many of the path's moving joints (in ``moving`` order)
@@ -546,12 +511,13 @@ def _chain_links(
     tree = tuple((j.parent, j.child, j.type) for j in robot.joints)
     text = source if isinstance(source, str) else os.fsdecode(source)
     if not text.lstrip("\ufeff \t\r\n").startswith("<"):
-        text = str(Path(text).resolve())  # a path: the body is read from it later
+        text = str(Path(text).resolve())
     return ChainLinks(
         homes,
         tuple(carried[name] for name in names),
         names,
         text,
         tree,
+        collision=collision,
         held=tuple(sorted(held.items())),
     )
