@@ -264,19 +264,40 @@ def _window(robot: Robot, path: Jet, real: Any, index: int, carry: dict | None):
     padding), continuing ``carry`` (None for the first window). Returns the unwrapped joints
     (Jet ``(1, W, n)``, not yet shifted by ``within``'s whole turns), the statuses of the IK
     (``INVALID_INPUT`` on padding), margins, and the carry of the path so far: ``seed`` (the
-    joints the next window's IK starts from), the last sample's joints as solved (``raw``)
-    and its whole turns (``turns``), the range of the solved samples (``low``, ``high``) and
-    whether any sample moves (``moving``)."""
-    res = plan.path_ik(robot, path, index, seed=None if carry is None else carry["seed"])
+    joints the next window's IK starts from) and the target they solve (``target``: its
+    position and rates), the last sample's joints as solved (``raw``) and its whole turns
+    (``turns``), the range of the solved samples (``low``, ``high``) and whether any sample
+    moves (``moving``)."""
+    rows = (path.p, path.v, path.a)
+    if carry is None:
+        res = plan.path_ik(robot, path, index)
+    else:
+        # Prefixed with the seed's own target (dropped again): an iterative IK takes the path
+        # up there as the whole path's did (its rates, the time of the next step).
+        # Then padded, at rest, to a multiple of 16 samples (the widest vector of float32
+        # lanes): a sample in a remainder loop may round otherwise.
+        size = real.shape[1]
+        pad = -(size + 1) % 16
+        tail = (x[:, -1:] * keep for x, keep in zip(rows, (1.0, 0.0, 0.0), strict=True))
+        tail = (jnp.repeat(x, pad, axis=1) for x in tail)
+        pieces = zip(carry["target"], rows, tail, strict=True)
+        joined = Jet(*(jnp.concatenate([c[:, None], x, r], axis=1) for c, x, r in pieces))
+        res = plan.path_ik(robot, joined, index, seed=carry["seed"])
+        res = dataclasses.replace(
+            res,
+            q=res.q.map(lambda x: x[:, 1 : size + 1]),
+            status=res.status[:, 1 : size + 1],
+            margin=res.margin[:, 1 : size + 1],
+        )
     status = jnp.where(real, res.status, jnp.int8(Status.INVALID_INPUT))
     revolute = np.array([kind == "R" for kind in robot.joint_types])
     raw = res.q.p
     if carry is None:
         p, turns = plan.unwrapped(raw, revolute), plan.unwrapping_turns(raw, revolute)
     else:  # prefixed with the previous window's last sample, which is dropped again
-        joined = jnp.concatenate([carry["raw"][:, None, :], raw], axis=1)
-        p = plan.unwrapped(joined, revolute, carry["turns"])[:, 1:]
-        turns = plan.unwrapping_turns(joined, revolute, carry["turns"])[:, 1:]
+        behind = jnp.concatenate([carry["raw"][:, None, :], raw], axis=1)
+        p = plan.unwrapped(behind, revolute, carry["turns"])[:, 1:]
+        turns = plan.unwrapping_turns(behind, revolute, carry["turns"])[:, 1:]
     low, high = plan.solved_range(p, status == Status.OK)
     axes = tuple(range(2, path.p.ndim))
     nonzero = (path.v != 0) | (path.a != 0)
@@ -289,11 +310,19 @@ def _window(robot: Robot, path: Jet, real: Any, index: int, carry: dict | None):
     last = jnp.sum(real, axis=1) - 1
 
     def at(x, i):
-        return jnp.take_along_axis(x, i[:, None, None], axis=1)[:, 0]
+        index = i.reshape(-1, 1, *([1] * (x.ndim - 2)))
+        return jnp.take_along_axis(x, index, axis=1)[:, 0]
 
     before = raw[:, 0] if carry is None else carry["seed"]
+    solved = jnp.any(good, axis=1)
+    earlier = tuple(x[:, 0] for x in rows) if carry is None else carry["target"]
+    target = tuple(
+        jnp.where(solved.reshape(-1, *([1] * (x.ndim - 2))), at(x, last_good), e)
+        for x, e in zip(rows, earlier, strict=True)
+    )
     out = {
-        "seed": jnp.where(jnp.any(good, axis=1)[:, None], at(raw, last_good), before),
+        "seed": jnp.where(solved[:, None], at(raw, last_good), before),
+        "target": target,
         "raw": at(raw, last),
         "turns": at(turns, last),
         "low": low,

@@ -59,7 +59,7 @@ from ..jet import Jet
 from ..result import FKResult, IKResult, forward_result
 from ..robot import POINT, POSE, CompilePolicy, JointLimits, Robot, Target, promoted
 from ..status import Status
-from . import _kinematics, search
+from . import _kinematics, search, track
 from .search import ChainIKOptions
 
 __all__ = ["JOINT_KINDS", "TARGETS", "Chain", "ChainLinks", "body_jacobian", "space_jacobian"]
@@ -391,15 +391,18 @@ class Chain(Robot):
     def ik_path_kernel(
         self, path: Jet, index: Any, options: ChainIKOptions, seed: Any = None
     ) -> IKResult:
-        """The search along sampled paths ``(..., T, 4, 4)``: the first sample as
-        ``ik_kernel`` (or warm-started from ``seed``, the joints of the last solved sample
-        before it), every later one warm-started from the previous solution with
-        ``warm_iter`` updates (``search.solve_paths``)."""
+        """The IK along sampled paths ``(..., T, 4, 4)`` of ``serial.track``: ``path_lanes``
+        solutions of the first sample (or the joints ``seed`` of the last solved sample
+        before it) followed along the path with predicted, continuity-checked warm starts of
+        ``warm_iter`` updates, the lane that stays continuous and within the limits longest
+        kept; a redundant chain's rates are its weighted least-norm ones."""
         chain = _validate.cast_leaves(self, path.dtype)
-        budget = search.Budget(options.max_iter, options.restarts, options.warm_iter)
+        budget = search.Budget(
+            options.max_iter, options.restarts, options.warm_iter, lanes=options.path_lanes
+        )
         tols = _tolerances(chain, path.dtype, options)
         pose = self._as_pose(path)
-        return search.solve_paths(chain, pose, tols, budget, options.use_limits, seed)
+        return track.solve_paths(chain, pose, tols, budget, options.use_limits, seed)
 
     def _as_pose(self, target: Jet) -> Jet:
         """Point targets ``(..., 3)`` as the poses the search reads (identity rotation, the

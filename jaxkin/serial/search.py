@@ -34,13 +34,11 @@ In units of the chain's size and in the body frame, per element:
   formed): ``OK`` on ``|p_d - p| <= position_tol``, rates ``q_dot = J_p^+ p_dot`` with
   ``J_p = R J_b[3:]`` the tip origin's Jacobian in the base frame.
 
-``solve_paths`` warm-starts along sampled paths: the first sample as ``solve``, every further
-one from the previous solution (one run, then the unbounded run); a sample that fails keeps its
-status, and the next one starts from the last solution.
+The IK along sampled paths (``Chain.ik_path_kernel``) is ``serial.track``'s; it runs this search
+on a path's first sample.
 
-Every function here is pure and traceable (``solve`` and ``solve_paths`` are the kernels the
-chain robot compiles); the chain is read through its numeric fields, ``follows`` and
-``joint_kinds`` only.
+Every function here is pure and traceable (``solve`` is the kernel the chain robot compiles);
+the chain is read through its numeric fields, ``follows`` and ``joint_kinds`` only.
 """
 
 from __future__ import annotations
@@ -74,7 +72,6 @@ __all__ = [
     "Budget",
     "ChainIKOptions",
     "solve",
-    "solve_paths",
 ]
 
 # Levenberg-Marquardt damping ``mu = LM_WEIGHT |V|^2``: any positive weight keeps
@@ -123,8 +120,11 @@ class ChainIKOptions:
     Attributes:
         restarts: runs per element at most (>= 1), before the unbounded run.
         max_iter: updates per run (>= 1).
-        warm_iter: updates of a later path sample's run from the previous solution (the
-            planner's warm-started IK along paths).
+        warm_iter: updates of a path sample's Newton iterations from the prediction, and of
+            its retry along intermediate targets (the planner's IK along paths,
+            ``serial.track``).
+        path_lanes: solutions of a path's first sample followed along it side by side, the
+            best kept (``serial.track``).
         position_tol: length units; None for ``max(1e-10, 1000 eps) * chain.length_scale()``.
             A new value compiles nothing new.
         orientation_tol: rad; None for ``max(1e-10, 1000 eps)``.
@@ -134,12 +134,13 @@ class ChainIKOptions:
     restarts: int = 64
     max_iter: int = 12
     warm_iter: int = 20
+    path_lanes: int = 16
     position_tol: float | None = None
     orientation_tol: float | None = None
     use_limits: bool = True
 
     def __post_init__(self) -> None:
-        for name in ("restarts", "max_iter", "warm_iter"):
+        for name in ("restarts", "max_iter", "warm_iter", "path_lanes"):
             object.__setattr__(self, name, _validate.count(getattr(self, name), name))
         for name in ("position_tol", "orientation_tol"):
             object.__setattr__(self, name, _tolerance(getattr(self, name), name))
@@ -154,15 +155,17 @@ class Budget:
     Attributes:
         max_iter: updates per run.
         runs: runs per element at most, before the unbounded run.
-        warm_iter: updates of a warm-started run along a path (``solve_paths``).
+        warm_iter: updates per attempt of a path sample (``track.solve_paths``).
         slots: lanes of the work queue (``QUEUE_SLOTS``); a batch of at most this many
             elements iterates in step.
+        lanes: solutions of a path's first sample followed along it (``track.solve_paths``).
     """
 
     max_iter: int
     runs: int
     warm_iter: int
     slots: int = QUEUE_SLOTS
+    lanes: int = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -380,10 +383,13 @@ def _task_jacobian_rate(chain: Any, rot: Array, jac_theta: Array, q_dot: Array) 
     return rot @ (turning + rate[..., 3:, :])
 
 
-def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -> _Outcome:
+def _update(
+    runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array, quota: Array | None = None
+) -> _Outcome:
     """One projected Levenberg-Marquardt update of every lane. ``starts`` ``(..., S, n)``: the
     lane's first ``S`` runs' starts, projected onto the box as ``runs.seeds`` are (``_search``);
-    ``done``: lanes that take no part."""
+    ``done``: lanes that take no part; ``quota`` ``(...)``: bounded runs after which a lane
+    ends unsolved (None: ``runs.runs``, then the unbounded runs)."""
     box, q = runs.box, lane.q
     one = jnp.asarray(1.0, q.dtype)
     bounded = jnp.any(jnp.isfinite(box.lower) | jnp.isfinite(box.upper))
@@ -406,7 +412,8 @@ def _update(runs: _Runs, goal: Array, starts: Array, lane: _Lane, done: Array) -
     best_q = jnp.where(improve[..., None], q, lane.best_q)
     best = jnp.where(improve, score, lane.best)
     spent = (lane.k >= runs.max_iter) | escaped
-    ended = ~done & (solved | (spent & (lane.run >= last)))
+    final = lane.run >= last if quota is None else (lane.run >= last) | (lane.run >= quota - 1)
+    ended = ~done & (solved | (spent & final))
     # OUT_OF_LIMITS only when every unbounded run met the tolerances, each outside the limits.
     excluded = (free_runs > 0) & (outside >= free_runs)
     code = jnp.where(
@@ -453,14 +460,22 @@ def _fresh(q: Array) -> _Lane:
 
 
 def _search(
-    runs: _Runs, target: Array, starts: Array, done: Array, status: Array, slots: int | None
+    runs: _Runs,
+    target: Array,
+    starts: Array,
+    done: Array,
+    status: Array,
+    slots: int | None,
+    quota: Array | None = None,
 ) -> tuple[Array, Array]:
     """Projected Levenberg-Marquardt with restarts (module docstring), in units of the chain.
 
     ``target`` ``(..., 4, 4)``; ``starts`` ``(..., S, n)`` each element's first ``S`` runs'
     starts (``runs.seeds`` the later runs', rows below ``S`` unused); ``done``/``status``
-    preset elements (invalid, unreachable). Every element iterates in step until the last has
-    ended, or, with more elements than ``slots``, as a work queue of ``slots`` lanes. Returns
+    preset elements (invalid, unreachable); ``quota`` ``(...)`` (int32, or None): the bounded
+    runs after which an element ends unsolved (``_update``). Every element iterates in step
+    until the last has ended, or, with more elements than ``slots``, as a work queue of
+    ``slots`` lanes. Returns
     ``(q, status)``: ``OK``, ``OUT_OF_LIMITS``, ``NOT_CONVERGED`` or the preset status.
     """
     per_element = (runs.runs + runs.free_runs) * (runs.max_iter + 1) + 2
@@ -471,11 +486,12 @@ def _search(
     size = math.prod(batch)
     if slots is not None and size > slots:
         flat = (target.reshape(size, 4, 4), starts.reshape(size, *starts.shape[-2:]))
-        q, status = _queued(runs, *flat, done.ravel(), status.ravel(), slots, per_element)
+        quota = None if quota is None else jnp.broadcast_to(quota, batch).ravel()
+        q, status = _queued(runs, *flat, done.ravel(), status.ravel(), slots, per_element, quota)
         return q.reshape(*batch, -1), status.reshape(batch)
 
     def body(state: _InStep) -> _InStep:
-        out = _update(runs, target, starts, state.lane, state.done)
+        out = _update(runs, target, starts, state.lane, state.done, quota)
         status = jnp.where(out.ended, out.code, state.status)
         q = jnp.where(
             state.done[..., None], state.lane.q, jnp.where(out.ended[..., None], out.q, out.lane.q)
@@ -491,10 +507,10 @@ def _search(
     return final.lane.q, final.status
 
 
-def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: int):
+def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: int, quota=None):
     """``_search`` as a work queue (``_batching.work_queue``) over flat ``(B, ...)`` elements
-    (``starts`` projected). Each element gets the same updates as in step (the same starts and
-    seeds), so the same results."""
+    (``starts`` projected; ``quota`` ``(B,)`` or None, as ``_search``'s). Each element gets
+    the same updates as in step (the same starts and seeds), so the same results."""
     size = starts.shape[0]
 
     def fresh(slot: Array) -> _Lane:
@@ -503,7 +519,7 @@ def _queued(runs: _Runs, target, starts, done, status, slots: int, per_element: 
     def step(slot: Array, lane: _Lane):
         i = jnp.minimum(slot, size - 1)
         preset = done[i] | (slot >= size)  # invalid, unreachable, or idle
-        out = _update(runs, target[i], starts[i], lane, preset)
+        out = _update(runs, target[i], starts[i], lane, preset, None if quota is None else quota[i])
         # A preset element ends at once with its preset status and its start.
         finished = out.ended | (preset & (slot < size))
         q_out = jnp.where(out.ended[..., None], out.q, starts[i, 0])
@@ -601,8 +617,17 @@ def _solution_jvp(primals: tuple, tangents: tuple) -> tuple[Array, Array]:
     return q, jnp.where(ok[..., None], dq_dot, 0.0)
 
 
-def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: bool) -> IKResult:
-    """Joint rates, margins and implicit derivatives at the solutions (module docstring)."""
+def _finish(
+    prep: _Prepared,
+    goal: Array,
+    q_unit: Array,
+    status: Array,
+    rates: bool,
+    given: tuple[Array, Array] | None = None,
+) -> IKResult:
+    """Joint rates, margins and implicit derivatives at the solutions (module docstring);
+    ``given``: the rates ``(q_dot, q_ddot)`` in the chain's units (``serial.track``'s), used
+    in place of the least-norm ones."""
     unit, g, scale, target = prep.unit, prep.g, prep.scale, prep.safe
     dtype = q_unit.dtype
     ok = status == Status.OK
@@ -622,10 +647,13 @@ def _finish(prep: _Prepared, goal: Array, q_unit: Array, status: Array, rates: b
         # A point target's twists are (0, p_dot), (0, p_ddot) (base-frame axes): keep v.
         velocity, acceleration = (x[..., 3:] if point else x for x in _body_twists(target))
         rows = rows[3:] if point else rows
-        q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
-        jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
-        drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
-        q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
+        if given is None:
+            q_dot = _step.damped_step_looped(jac, velocity * rows, zero, floor)
+            jac_rate = _task_jacobian_rate(unit, rot, jac_theta, q_dot)
+            drift = jnp.einsum("...ij,...j->...i", jac_rate, q_dot)
+            q_ddot = _step.damped_step_looped(jac, acceleration * rows - drift, zero, floor)
+        else:
+            q_dot, q_ddot = given
         okc = ok[..., None]
     q = q_unit / g
     # Back in the chain's units a joint at its limit may pass it by an ulp: moved back (values
@@ -661,49 +689,3 @@ def solve(
     starts = _starts.first_starts(prep.unit, prep.goal, prep.box, prep.seeds)
     q, status = _search(runs, prep.goal, starts, prep.done, prep.status, budget.slots)
     return _finish(prep, prep.goal, q, status, rates)
-
-
-def solve_paths(
-    chain: Any,
-    path: Jet,
-    tols: tuple[Array, Array],
-    budget: Budget,
-    use_limits: bool,
-    seed: Array | None = None,
-) -> IKResult:
-    """The search along sampled paths ``(..., T, 4, 4)`` (module docstring), with rates.
-
-    ``seed`` ``(..., n)``: the joints (the chain's units) of the last solved sample before
-    the first, for a path solved in windows: the first sample is then warm-started from it,
-    as every later one is from the previous solution (None: the first sample as ``solve``).
-    """
-    prep = _prepare(chain, path, tols, use_limits, budget.runs)
-    if seed is None:
-        first = prep.goal[..., 0, :, :]
-        starts = _starts.first_starts(prep.unit, first, prep.box, prep.seeds)
-        runs = _runs(prep, budget.max_iter, budget.runs)
-        q, code = _search(runs, first, starts, prep.done[..., 0], prep.status[..., 0], budget.slots)
-    else:
-        batch = prep.goal.shape[:-3]
-        q = jnp.broadcast_to(jnp.asarray(seed, prep.g.dtype) * prep.g, (*batch, chain.n_joints))
-    warm = dataclasses.replace(_runs(prep, budget.warm_iter, 1), seeds=prep.seeds[:1], free_runs=1)
-
-    def step(previous, sample):
-        goal_t, done_t, status_t = sample
-        q_t, code_t = _search(warm, goal_t, previous[..., None, :], done_t, status_t, None)
-        solved = (code_t == Status.OK) | (code_t == Status.OUT_OF_LIMITS)
-        return jnp.where(solved[..., None], q_t, previous), (q_t, code_t)
-
-    skip = 1 if seed is None else 0  # the samples the scan warm-starts
-    rest = (
-        jnp.moveaxis(x[..., skip:, *([slice(None)] * k)], x.ndim - 1 - k, 0)
-        for x, k in ((prep.goal, 2), (prep.done, 0), (prep.status, 0))
-    )
-    _, (q_rest, code_rest) = jax.lax.scan(step, q, tuple(rest))
-    q_rest, code_rest = jnp.moveaxis(q_rest, 0, -2), jnp.moveaxis(code_rest, 0, -1)
-    if seed is None:
-        q = jnp.concatenate([q[..., None, :], q_rest], axis=-2)
-        code = jnp.concatenate([code[..., None], code_rest], axis=-1)
-    else:
-        q, code = q_rest, code_rest
-    return _finish(prep, prep.goal, q, code, True)
