@@ -120,13 +120,19 @@ def test_scara_long_path_windows_and_one_program_per_window_size(tmp_path, capsy
     assert status[300] == "INVALID_INPUT"
     assert set(np.delete(status, [*jumps, 300])) == {"OK", "OUT_OF_LIMITS"}
     assert np.nanmin(whole["theta1"]) < -np.pi
-    sizes = (planning._window_jit._cache_size(), planning._window_checks_jit._cache_size())
+    sizes = (
+        planning._window_jit.jitted._cache_size(),
+        planning._window_checks_jit.jitted._cache_size(),
+    )
     src = point_file(tmp_path / "short.csv", t[:777], p[:777], v[:777], a[:777])
     out = tmp_path / "short_out.csv"
     argv[argv.index("-i") + 1] = src
     code, _, err = run(capsys, *argv, "-o", out, "--chunk-size", 64)
     assert code == 0, err
-    assert (planning._window_jit._cache_size(), planning._window_checks_jit._cache_size()) == sizes
+    assert (
+        planning._window_jit.jitted._cache_size(),
+        planning._window_checks_jit.jitted._cache_size(),
+    ) == sizes
     assert read(out, ("status",))["status"].tolist() == status[:777].tolist()
 
 
