@@ -30,12 +30,13 @@ more than ``P`` waypoints is dropped and the lane restarts.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
 from jax import Array
 
+from ..status import NamedStatusRepr
 from . import collider
 from .bound import MotionBound
 from .edges import edge_check
@@ -71,11 +72,13 @@ class SearchConfig:
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
-class SearchResult:
+class SearchResult(NamedStatusRepr):
     """Per problem ``(B,)``: ``status`` (``MotionStatus``: ``SOLVED`` or ``NO_PATH``; the
     statuses given in ``status_in`` kept), ``path (B, P, n)`` (waypoints, unwrapped; rows
     past ``count`` repeat the last one), ``count`` (waypoints), ``iterations`` (lane
     iterations spent)."""
+
+    status_fields: ClassVar = {"status": MotionStatus}
 
     status: Array
     path: Array
