@@ -10,8 +10,8 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	{ $(BIN)/python -m pip install --quiet uv \
-	  && $(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[test,cli,plot,bench,urdf]'; } \
-	  || $(BIN)/python -m pip install --quiet -e '.[test,cli,plot,bench,urdf]'
+	  && $(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[test,cli,plot,bench,urdf,viewer]'; } \
+	  || $(BIN)/python -m pip install --quiet -e '.[test,cli,plot,bench,urdf,viewer]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -24,7 +24,6 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import jax.numpy as jnp
 import numpy as np
 
 from . import _validate, collision
@@ -510,7 +509,7 @@ def robot_scene(
     fig = _figure(figsize, dpi)
     ax = fig.add_subplot(projection="3d")
     colours = [f"C{k % 10}" for k in range(len(body.links))]
-    poses = np.asarray(robot.link_poses(jnp.asarray(q)))  # the default float dtype
+    poses = surfaces.link_poses(robot, q)
     points = [poses[:, :3, 3]]
     for shape in surfaces.body_surfaces(body, poses, segments):
         colour = colours[body.links.index(shape.name)]
@@ -521,9 +520,9 @@ def robot_scene(
         tool = robot.target.position(fk(robot, moves).x.p)
         ax.plot(*np.asarray(tool, float).T, "-", color="k", lw=1.2, gid="tool path")
         points.append(tool)
-        picks = np.linspace(0, len(moves) - 1, frames).round().astype(int) if frames else []
-        for k, index in enumerate(picks):
-            placed = np.asarray(robot.link_poses(jnp.asarray(moves[index])))
+        picks = np.linspace(0, len(moves) - 1, frames).round().astype(int)
+        every = surfaces.link_poses(robot, moves[picks])
+        for k, placed in enumerate(every):
             alpha = 0.08 + 0.22 * (k + 1) / len(picks)
             for shape in surfaces.body_surfaces(body, placed, segments):
                 colour = colours[body.links.index(shape.name)]

@@ -7,10 +7,11 @@ parallels as well): every vertex lies on the exact surface, so a drawing is the 
 within its chord error ``r (1 - cos(pi / segments))``.
 
 ``body_surfaces(body, link_poses)`` gives a robot body's primitives placed at one set of link
-poses (``robot.link_poses(q)``), ``link_surfaces(body)`` each link's in its own frame (a
-viewer moves the link), ``world_surfaces(world, extent)`` every obstacle; a half-space, which
-is unbounded, is drawn as the square of side ``2 extent`` of its plane centred on the point of
-the plane nearest the origin of the drawing (``center``).
+poses (``link_poses(robot, q)``: ``robot.link_poses(q)`` compiled, on the host),
+``link_surfaces(body)`` each link's in its own frame (a viewer moves the link),
+``world_surfaces(world, extent)`` every obstacle; a half-space, which is unbounded, is drawn
+as the square of side ``2 extent`` of its plane centred on the point of the plane nearest the
+origin of the drawing (``center``).
 """
 
 from __future__ import annotations
@@ -18,8 +19,10 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+import jax.numpy as jnp
 import numpy as np
 
+from .._execute import kernel
 from .body import Body
 from .world import World
 
@@ -30,6 +33,7 @@ __all__ = [
     "capsule",
     "cylinder",
     "halfspace",
+    "link_poses",
     "link_surfaces",
     "sphere",
     "world_surfaces",
@@ -66,7 +70,9 @@ def _grid_faces(rings: int, segments: int, offset: int = 0) -> np.ndarray:
     return np.concatenate([np.stack([a, b, d], -1), np.stack([a, d, c], -1)]).reshape(-1, 3)
 
 
-def _capped(rings: np.ndarray, bottom: np.ndarray, top: np.ndarray) -> np.ndarray:
+def _capped(
+    rings: np.ndarray, bottom: np.ndarray, top: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """A closed mesh: ``rings (R, S, 3)`` joined in order, each end closed by a fan to its
     pole (``bottom``, ``top``)."""
     count, segments = rings.shape[:2]
@@ -162,10 +168,21 @@ def halfspace(normal: Any, offset: float, center: Any = (0.0, 0.0, 0.0), extent=
     return Surface(foot + square @ rot.T, np.array([[0, 1, 2], [0, 2, 3]]))
 
 
+@kernel
+def _link_poses(robot: Any, q: Any) -> Any:
+    return robot.link_poses(q)
+
+
+def link_poses(robot: Any, q: Any) -> np.ndarray:
+    """Host side: ``robot.link_poses(q)`` ``(..., L, 4, 4)`` at joints ``q`` ``(..., n)`` in
+    the default float dtype, one compiled call (per robot class and shapes)."""
+    return np.asarray(_link_poses(robot, jnp.asarray(q)))
+
+
 def body_surfaces(body: Body, link_poses: Any, segments: int = SEGMENTS) -> list[Surface]:
     """A body's spheres and capsules placed at ``link_poses`` ``(len(body.links), 4, 4)``
     (one configuration: ``robot.link_poses(q)``), each named by its link."""
-    spheres, capsules = body.place(np.asarray(link_poses))
+    spheres, capsules = body.place(jnp.asarray(link_poses))
     out = []
     for i, link in enumerate(body.sphere_link):
         center, radius = np.asarray(spheres.center[i]), float(spheres.radius[i])
