@@ -491,20 +491,8 @@ def robot_scene(
         ValueError: a robot without a collision body (from the robot), ``q`` or ``motion``
             of the wrong shape, or neither given.
     """
-    n = robot.n_joints
     body = robot.collision_body()
-    moves = None
-    if motion is not None:
-        moves = np.asarray(_arrays(motion), float)
-        if moves.ndim != 2 or moves.shape[1] != n or len(moves) == 0:
-            raise ValueError(f"motion: expected joints of shape (T, {n}), got {moves.shape}")
-    if q is None:
-        if moves is None:
-            raise ValueError("q: give the joints to draw (or a motion)")
-        q = moves[-1]
-    q = np.asarray(_arrays(q), float)
-    if q.shape != (n,):
-        raise ValueError(f"q: expected joints of shape ({n},), got {q.shape}")
+    q, moves = surfaces.scene_joints(robot.n_joints, q, motion)
     frames = _validate.count(frames, "frames", minimum=0) if moves is not None else 0
     fig = _figure(figsize, dpi)
     ax = fig.add_subplot(projection="3d")
@@ -532,8 +520,7 @@ def robot_scene(
     if world is not None:
         if not isinstance(world, collision.World):
             raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
-        centre = (robot_points.max(0) + robot_points.min(0)) / 2.0
-        extent = max(float(np.ptp(robot_points, axis=0).max()) / 2.0, 1e-9)
+        centre, extent = surfaces.bounding_cube(robot_points)
         for shape in surfaces.world_surfaces(world, extent, centre, segments):
             _mesh(ax, shape, f"world {shape.name}", color="0.5", alpha=0.3, lw=0.2)
             if not shape.name.startswith("halfspace"):

@@ -192,32 +192,20 @@ def view(
         ValueError: ``q``, ``motion``, ``world`` or ``period`` not as described (named).
     """
     viser = _viser()
-    n = robot.n_joints
-    moves = None
-    if motion is not None:
-        moves = np.asarray(getattr(motion, "p", motion), float)
-        if moves.ndim != 2 or moves.shape[1] != n or len(moves) == 0:
-            raise ValueError(f"motion: expected joints of shape (T, {n}), got {moves.shape}")
+    start, moves = surfaces.scene_joints(robot.n_joints, q, motion, at_rest=True)
     if not (isinstance(period, int | float) and period > 0):
         raise ValueError(f"period must be a positive number of seconds, got {period!r}")
     port = _free_port(host) if port == 0 else port
     server = viser.ViserServer(host=host, port=port, verbose=False)
     try:
         viewer = Viewer(robot, server, f"http://{host}:{server.get_port()}", segments)
-        start = moves[-1] if q is None and moves is not None else q
-        viewer.show(np.zeros(n) if start is None else start)
         if world is not None:
-            points = [np.asarray(f.position) for f in viewer.frames.values()]
-            if moves is not None:
-                points += list(surfaces.link_poses(robot, moves)[..., :3, 3])
-            cloud = np.concatenate([np.reshape(p, (-1, 3)) for p in points])
-            centre = (cloud.max(0) + cloud.min(0)) / 2.0
-            extent = max(float(np.ptp(cloud, axis=0).max()), 1e-9)
-            viewer._add_world(world, centre, extent, segments)
+            placed = surfaces.link_poses(robot, start if moves is None else moves)
+            centre, extent = surfaces.bounding_cube(placed[..., :3, 3])
+            viewer._add_world(world, centre, 2.0 * extent, segments)
         if moves is not None:
             viewer._add_motion(moves, float(period))
-            if q is not None:
-                viewer.show(q)
+        viewer.show(start)
     except BaseException:
         server.stop()
         raise

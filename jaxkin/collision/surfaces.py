@@ -29,12 +29,14 @@ from .world import World
 __all__ = [
     "Surface",
     "body_surfaces",
+    "bounding_cube",
     "box",
     "capsule",
     "cylinder",
     "halfspace",
     "link_poses",
     "link_surfaces",
+    "scene_joints",
     "sphere",
     "world_surfaces",
 ]
@@ -177,6 +179,38 @@ def link_poses(robot: Any, q: Any) -> np.ndarray:
     """Host side: ``robot.link_poses(q)`` ``(..., L, 4, 4)`` at joints ``q`` ``(..., n)`` in
     the default float dtype, one compiled call (per robot class and shapes)."""
     return np.asarray(_link_poses(robot, jnp.asarray(q)))
+
+
+def scene_joints(n: int, q: Any, motion: Any, at_rest: bool = False) -> tuple[Any, Any]:
+    """The joints ``(n,)`` to draw a robot at and a motion's joints ``(T, n)`` (or None),
+    checked: ``q`` as given, else the motion's last sample, else zeros when ``at_rest``
+    (a ``Jet`` stands for its positions).
+
+    Raises:
+        ValueError: ``q`` or ``motion`` of another shape, or neither given without
+            ``at_rest`` (naming the argument).
+    """
+    moves = None
+    if motion is not None:
+        moves = np.asarray(getattr(motion, "p", motion), float)
+        if moves.ndim != 2 or moves.shape[1] != n or len(moves) == 0:
+            raise ValueError(f"motion: expected joints of shape (T, {n}), got {moves.shape}")
+    if q is None:
+        if moves is None and not at_rest:
+            raise ValueError("q: give the joints to draw (or a motion)")
+        q = np.zeros(n) if moves is None else moves[-1]
+    q = np.asarray(getattr(q, "p", q), float)
+    if q.shape != (n,):
+        raise ValueError(f"q: expected joints of shape ({n},), got {q.shape}")
+    return q, moves
+
+
+def bounding_cube(points: Any) -> tuple[np.ndarray, float]:
+    """``(centre (3,), half edge)`` of the smallest axis-aligned cube about ``points``
+    ``(..., 3)``: where a drawing's half-spaces are centred and how large they are."""
+    cloud = np.reshape(np.asarray(points, float), (-1, 3))
+    centre = (cloud.max(0) + cloud.min(0)) / 2.0
+    return centre, max(float(np.ptp(cloud, axis=0).max()) / 2.0, 1e-9)
 
 
 def body_surfaces(body: Body, link_poses: Any, segments: int = SEGMENTS) -> list[Surface]:
