@@ -835,9 +835,10 @@ def limit_violations(evaluation: Evaluation) -> LimitViolations:
     n = first.shape[0]
     rows = np.arange(n)
     at = np.maximum(first, 0)
-    out = status[rows, at] == Status.OUT_OF_LIMITS if status.size else np.zeros(n, bool)
-    out &= first >= 0
-    q = [_processes.to_host(x)[rows, at] for x in (evaluation.q.p, evaluation.q.v, evaluation.q.a)]
+    out = (status[rows, at] == Status.OUT_OF_LIMITS) & (first >= 0)
+    # the first failing samples' joints alone come to the host, not every candidate's path
+    picked = (jnp.arange(n), jnp.asarray(at))
+    q = [_processes.to_host(x[picked]) for x in (evaluation.q.p, evaluation.q.v, evaluation.q.a)]
     values = np.stack([q[0], q[0], np.abs(q[1]), np.abs(q[2])], axis=1)  # (N, 4, n)
     bounds = np.stack([np.asarray(x, float) for x in jax.tree.leaves(limits)])  # (4, n)
     sign = np.array([-1.0, 1.0, 1.0, 1.0])[:, None]  # q_min is passed from above
@@ -845,18 +846,18 @@ def limit_violations(evaluation: Evaluation) -> LimitViolations:
         excess = sign * (values - bounds)
         relative = np.where(excess > 0, excess / np.abs(bounds), -np.inf)
         relative = np.where((excess > 0) & (bounds == 0), np.inf, relative)
-    flat = relative.reshape(n, -1)
-    worst = np.argmax(flat, axis=1) if flat.size else np.zeros(n, np.int64)
+    flat = relative.reshape(n, bounds.size)
+    worst = np.argmax(flat, axis=1) if n else np.zeros(0, np.int64)
     kind, joint = np.divmod(worst, bounds.shape[1])
-    out &= flat[rows, worst] > -np.inf if flat.size else out
+    out &= flat[rows, worst] > -np.inf
     names = np.array(evaluation.joint_names or [f"joint {j}" for j in range(bounds.shape[1])])
     return LimitViolations(
         sample=np.where(first >= 0, first, -1),
         joint=np.where(out, joint, -1),
-        joint_name=np.where(out, names[joint] if names.size else "", "").astype(object),
+        joint_name=np.where(out, names[joint], "").astype(object),
         limit=np.where(out, np.array(LIMITS)[kind], "").astype(object),
-        value=np.where(out, values[rows, kind, joint] if values.size else np.nan, np.nan),
-        bound=np.where(out, bounds[kind, joint] if bounds.size else np.nan, np.nan),
+        value=np.where(out, values[rows, kind, joint], np.nan),
+        bound=np.where(out, bounds[kind, joint], np.nan),
         others=np.where(out, np.sum(flat > -np.inf, axis=1) - 1, 0),
     )
 

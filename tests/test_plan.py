@@ -193,6 +193,8 @@ def test_limit_violations_name_the_joint_and_the_limit():
     assert found.message(0) == "" and found.message(3) == ""
     assert found.message(1, ("rad", "rad", "mm")) == "theta1 |q_dot| 0.4 rad/s > v_max 0.3 rad/s"
     assert found.message(2) == "l3 q 85 > q_max 80"
+    none = plan.limit_violations(plan.evaluate(ROBOT, path[:0], limits=limits))
+    assert none.joint.shape == none.value.shape == (0,)
 
 
 def test_robot_own_joint_limits_apply():
