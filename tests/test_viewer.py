@@ -13,10 +13,11 @@ viser = pytest.importorskip("viser")
 msgpack = pytest.importorskip("msgspec.msgpack")
 zstandard = pytest.importorskip("zstandard")
 
+from scipy.spatial.transform import Rotation  # noqa: E402
 from websockets.sync.client import connect  # noqa: E402  (viser's dependency)
 
 from jaxkin import collision, serial, viewer  # noqa: E402
-from tests.test_plot import anthropomorphic_points  # noqa: E402
+from tests.test_plot import anthropomorphic_points, distance_to_segment  # noqa: E402
 
 
 def scene_names(url: str, wanted: set[str], timeout: float = 20.0) -> set[str]:
@@ -74,6 +75,14 @@ def test_viewer_serves_its_page_and_the_scene():
         shown.show(q)
         at = anthropomorphic_points(l1, l2, l3, q)
         np.testing.assert_allclose(shown.frames["link2"].position, at[2], atol=1e-6)
+        # the forearm's mesh, in its link's frame, placed by the frame's pose (scipy's
+        # quaternion, scalar last): at the capsule's radius from the elbow-wrist segment
+        frame = shown.frames["link3"]
+        w, x, y, z = frame.wxyz
+        turn = Rotation.from_quat([x, y, z, w]).as_matrix()
+        local = np.asarray(shown.nodes["/robot/link3/capsule_0"].vertices, float)
+        placed = local @ turn.T + frame.position
+        np.testing.assert_allclose(distance_to_segment(placed, at[2], at[3]), 0.03, atol=1e-6)
         with pytest.raises(ValueError, match=r"q: expected joints of shape \(3,\)"):
             shown.show(np.zeros(2))
 
