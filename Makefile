@@ -10,12 +10,16 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	{ $(BIN)/python -m pip install --quiet uv \
-	  && $(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[test,cli,plot,bench,urdf]'; } \
-	  || $(BIN)/python -m pip install --quiet -e '.[test,cli,plot,bench,urdf]'
+	  && $(BIN)/python -m uv pip install --quiet --python $(BIN)/python -e '.[test,cli,plot,bench,urdf,viewer]'; } \
+	  || $(BIN)/python -m pip install --quiet -e '.[test,cli,plot,bench,urdf,viewer]'
 	touch $(STAMP)
 
+# The demo's files go to examples/output/ (ignored by git), never the repository's root.
+DEMO_OUTPUT := examples/output
+
 demo: $(STAMP)
-	$(BIN)/jaxkin demo
+	mkdir -p $(DEMO_OUTPUT)
+	$(BIN)/jaxkin demo --output-dir $(DEMO_OUTPUT)
 
 # Two worker processes (pytest-xdist), one file per worker at a time so that a file's tests
 # share their compilations. The slow tests (`@pytest.mark.slow`) run with `make test-slow`.

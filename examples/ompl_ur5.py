@@ -57,9 +57,12 @@ class JaxkinMotionValidator:
     def __new__(cls, si, edge, n_joints):
         from ompl import base as ob
 
+        # The class must not refer to si: OMPL holds the validator, so a class that did would
+        # tie si to itself through C++ (a cycle Python's collector cannot see, which nanobind
+        # reports as leaked instances at exit).
         class Validator(ob.MotionValidator):
-            def __init__(self):
-                super().__init__(si)
+            def __init__(self, information):
+                super().__init__(information)
                 self.edges = 0
 
             def checkMotion(self, s1, s2, *last_valid):
@@ -68,7 +71,7 @@ class JaxkinMotionValidator:
                 self.edges += 1
                 return bool(edge(a, b).valid[0])
 
-        return Validator()
+        return Validator(si)
 
 
 def compiled_checks(robot, world):

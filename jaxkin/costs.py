@@ -32,6 +32,7 @@ from jax.typing import ArrayLike
 
 from . import _validate, collision, plan
 from .jet import Jet
+from .status import NamedStatusRepr
 
 __all__ = [
     "DEFAULT_COST",
@@ -52,7 +53,7 @@ __all__ = [
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
-class TrajectorySample:
+class TrajectorySample(NamedStatusRepr):
     """What a cost term sees: the IK of B candidate paths of T samples.
 
     Attributes:

@@ -104,6 +104,8 @@ from .status import STATUS_DTYPE, Status
 __all__ = [
     "Costs",
     "Evaluation",
+    "LIMITS",
+    "LimitViolations",
     "Limits",
     "STEP_RTOL",
     "RANKINGS",
@@ -115,6 +117,7 @@ __all__ = [
     "joint_scales",
     "joint_units",
     "limit_excess",
+    "limit_violations",
     "path_ik",
     "range_turns",
     "retime",
@@ -766,6 +769,96 @@ def with_context(
         space=space,
         limits=applied,
         joint_names=tuple(robot.joint_names),
+    )
+
+
+# The limits a sample is checked against, in the order ``limit_excess`` adds them.
+LIMITS = ("q_min", "q_max", "v_max", "a_max")
+_LIMIT_VALUES = ("q", "q", "|q_dot|", "|q_ddot|")
+
+
+@dataclasses.dataclass(frozen=True)
+class LimitViolations:
+    """Which joint limit each candidate passes at its first failing sample, when that
+    sample is ``OUT_OF_LIMITS`` (``limit_violations``). NumPy arrays ``(N,)``.
+
+    Attributes:
+        sample: the first failing sample (-1 where the candidate is feasible).
+        joint: the joint's index, -1 where the first failure is not ``OUT_OF_LIMITS``.
+        joint_name: its name ("" there).
+        limit: ``"q_min"``, ``"q_max"``, ``"v_max"`` or ``"a_max"`` ("" there).
+        value: what passed the limit there: ``q``, ``|q_dot|`` or ``|q_ddot|`` (NaN there).
+        bound: the limit applied (the robot's own or the user's, the tighter; NaN there).
+        others: how many more (joint, limit) pairs that sample passes.
+    """
+
+    sample: np.ndarray
+    joint: np.ndarray
+    joint_name: np.ndarray
+    limit: np.ndarray
+    value: np.ndarray
+    bound: np.ndarray
+    others: np.ndarray
+
+    def message(self, candidate: int, units: tuple[str, ...] | None = None) -> str:
+        """``"theta2 |q_dot| 2.5 > v_max 2"`` for one candidate ("" when it passes no
+        limit); ``units`` per joint (``"rad"``, ``"mm"``) adds the unit and its rate
+        (``rad/s``, ``rad/s^2``)."""
+        j = int(self.joint[candidate])
+        if j < 0:
+            return ""
+        kind = LIMITS.index(str(self.limit[candidate]))
+        unit = ""
+        if units is not None:
+            unit = " " + units[j] + ("", "", "/s", "/s^2")[kind]
+        sign = "<" if kind == 0 else ">"
+        text = (
+            f"{self.joint_name[candidate]} {_LIMIT_VALUES[kind]} {self.value[candidate]:.6g}"
+            f"{unit} {sign} {LIMITS[kind]} {self.bound[candidate]:.6g}{unit}"
+        )
+        more = int(self.others[candidate])
+        return text + (f" (and {more} more)" if more else "")
+
+
+def limit_violations(evaluation: Evaluation) -> LimitViolations:
+    """Host side: for each candidate whose first failing sample is ``OUT_OF_LIMITS``, the
+    joint and the limit it passes there (the one passed by the largest fraction of its bound,
+    ``(value - bound) / |bound|``, when several are), read from the joints the checks saw
+    (``evaluation.q``: unwrapped and shifted by whole turns) and the limits applied.
+
+    Raises:
+        ValueError: an evaluation without limits (not from ``evaluate``).
+    """
+    limits = evaluation.applied_limits()
+    first = _processes.to_host(evaluation.first_failure).astype(np.int64)
+    status = _processes.to_host(evaluation.status)
+    n = first.shape[0]
+    rows = np.arange(n)
+    at = np.maximum(first, 0)
+    out = (status[rows, at] == Status.OUT_OF_LIMITS) & (first >= 0)
+    # the first failing samples' joints alone come to the host, not every candidate's path
+    picked = (jnp.arange(n), jnp.asarray(at))
+    q = [_processes.to_host(x[picked]) for x in (evaluation.q.p, evaluation.q.v, evaluation.q.a)]
+    values = np.stack([q[0], q[0], np.abs(q[1]), np.abs(q[2])], axis=1)  # (N, 4, n)
+    bounds = np.stack([np.asarray(x, float) for x in jax.tree.leaves(limits)])  # (4, n)
+    sign = np.array([-1.0, 1.0, 1.0, 1.0])[:, None]  # q_min is passed from above
+    with np.errstate(divide="ignore", invalid="ignore"):
+        excess = sign * (values - bounds)
+        relative = np.where(excess > 0, excess / np.abs(bounds), -np.inf)
+        relative = np.where((excess > 0) & (bounds == 0), np.inf, relative)
+    flat = relative.reshape(n, bounds.size)
+    worst = np.argmax(flat, axis=1) if n else np.zeros(0, np.int64)
+    kind, joint = np.divmod(worst, bounds.shape[1])
+    out &= flat[rows, worst] > -np.inf
+    names = np.array(evaluation.joint_names or [f"joint {j}" for j in range(bounds.shape[1])])
+    return LimitViolations(
+        sample=np.where(first >= 0, first, -1),
+        joint=np.where(out, joint, -1),
+        joint_name=np.where(out, names[joint], "").astype(object),
+        limit=np.where(out, np.array(LIMITS)[kind], "").astype(object),
+        value=np.where(out, values[rows, kind, joint], np.nan),
+        bound=np.where(out, bounds[kind, joint], np.nan),
+        others=np.where(out, np.sum(flat > -np.inf, axis=1) - 1, 0),
     )
 
 

@@ -12,6 +12,10 @@ image is ``figsize * dpi`` pixels (no tight bounding box).
 * ``workspace_slices``, ``workspace_cloud``, ``workspace_overview``: the reachable voxels of a
   ``jaxkin.workspace.WorkspaceResult`` as z slices, as a 3-D point cloud, or both.
 * ``cost_curves``: optimisation cost against iteration (log scale by default).
+* ``robot_scene``: any robot with a collision body (a URDF arm, the analytic arms, the SCARA,
+  the Delta) in 3-D: its body's spheres and capsules at joints ``q`` (a colour per link), the
+  obstacles of a ``collision.World`` and a planned motion (the body at a few of its samples,
+  fainter towards the start, and the tool's path by forward kinematics).
 """
 
 from __future__ import annotations
@@ -22,8 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from . import _validate
+from . import _validate, collision
 from ._output import atomic_write
+from .collision import surfaces
 from .robot import fk
 from .status import Status
 
@@ -34,6 +39,7 @@ __all__ = [
     "delta_pose",
     "joint_trajectories",
     "require_matplotlib",
+    "robot_scene",
     "save",
     "scara_pose",
     "workspace_cloud",
@@ -437,4 +443,91 @@ def cost_curves(
     ax.grid(alpha=0.3, which="both")
     if len(costs) > 1:
         ax.legend(fontsize=8)
+    return _finish(fig, path)
+
+
+def _mesh(ax: Any, surface: Any, gid: str, **style: Any) -> Any:
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    polygons = Poly3DCollection(surface.vertices[surface.faces], **style)
+    polygons.set_gid(gid)
+    ax.add_collection3d(polygons)
+    return polygons
+
+
+def robot_scene(
+    robot: Any,
+    q: Any = None,
+    world: Any = None,
+    motion: Any = None,
+    frames: int = 4,
+    path: str | os.PathLike | None = None,
+    figsize: tuple[float, float] = (7.0, 6.5),
+    dpi: float = 100.0,
+    segments: int = 12,
+) -> Any:
+    """A robot's collision body, a world and a planned motion in 3-D.
+
+    Args:
+        robot: any robot with a collision body (``robot.collision_body()``,
+            ``robot.link_poses(q)``: ``collision.CollisionRobot``).
+        q: joints ``(n,)`` to draw the body at (solid); None with a ``motion``: its last
+            sample.
+        world: a ``collision.World`` (unbatched) whose obstacles are drawn in grey; its
+            half-spaces as squares about the robot, as large as the drawing.
+        motion: joints ``(T, n)`` (or a ``Jet``: its positions) of a planned motion: the
+            tool's path (``robot.target.position`` of ``jaxkin.fk``) and the body at
+            ``frames`` of its samples, evenly spaced, fainter towards the start.
+        frames: how many samples of the motion to draw the body at (0: the path alone).
+        path: where to save the figure, optional.
+        segments: meridians of each sphere and capsule's mesh (``collision.surfaces``).
+
+    Returns:
+        The ``Figure``. Its artists carry ``gid``s: ``"body <link>"`` (one mesh per
+        primitive at ``q``), ``"motion <k> <link>"`` (the body at the ``k``-th drawn
+        sample), ``"world <kind> <i>"``, ``"tool path"`` and ``"link origins"``.
+
+    Raises:
+        ValueError: a robot without a collision body (from the robot), ``q`` or ``motion``
+            of the wrong shape, or neither given.
+    """
+    body = robot.collision_body()
+    q, moves = surfaces.scene_joints(robot.n_joints, q, motion)
+    frames = _validate.count(frames, "frames", minimum=0) if moves is not None else 0
+    fig = _figure(figsize, dpi)
+    ax = fig.add_subplot(projection="3d")
+    colours = [f"C{k % 10}" for k in range(len(body.links))]
+    poses = surfaces.link_poses(robot, q)
+    points = [poses[:, :3, 3]]
+    for shape in surfaces.body_surfaces(body, poses, segments):
+        colour = colours[body.links.index(shape.name)]
+        _mesh(ax, shape, f"body {shape.name}", color=colour, alpha=0.55, lw=0)
+        points.append(shape.vertices)
+    ax.plot(*poses[:, :3, 3].T, "k.", ms=4, gid="link origins")
+    if moves is not None:
+        tool = robot.target.position(fk(robot, moves).x.p)
+        ax.plot(*np.asarray(tool, float).T, "-", color="k", lw=1.2, gid="tool path")
+        points.append(tool)
+        picks = np.linspace(0, len(moves) - 1, frames).round().astype(int)
+        every = surfaces.link_poses(robot, moves[picks])
+        for k, placed in enumerate(every):
+            alpha = 0.08 + 0.22 * (k + 1) / len(picks)
+            for shape in surfaces.body_surfaces(body, placed, segments):
+                colour = colours[body.links.index(shape.name)]
+                _mesh(ax, shape, f"motion {k} {shape.name}", color=colour, alpha=alpha, lw=0)
+                points.append(shape.vertices)
+    robot_points = np.concatenate(points)
+    if world is not None:
+        if not isinstance(world, collision.World):
+            raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
+        centre, extent = surfaces.bounding_cube(robot_points)
+        for shape in surfaces.world_surfaces(world, extent, centre, segments):
+            _mesh(ax, shape, f"world {shape.name}", color="0.5", alpha=0.3, lw=0.2)
+            if not shape.name.startswith("halfspace"):
+                points.append(shape.vertices)
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    ax.set_title(f"{type(robot).__name__} at q = (" + ", ".join(f"{x:.3g}" for x in q) + ")")
+    _equal_3d(ax, np.concatenate(points))
     return _finish(fig, path)

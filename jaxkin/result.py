@@ -17,13 +17,14 @@ from jax import Array
 
 from ._numerics import all_finite
 from .jet import Jet, lift
-from .status import STATUS_DTYPE, Status, describe
+from .status import STATUS_DTYPE, NamedStatusRepr, Status, describe
 
 __all__ = ["FKResult", "IKResult", "SolverResult", "forward_result"]
 
 
-class SolverResult:
-    """Mixin for frozen result dataclasses that carry a per-element ``status`` array."""
+class SolverResult(NamedStatusRepr):
+    """Mixin for frozen result dataclasses that carry a per-element ``status`` array (their
+    repr names the codes: ``status=Array([OK, UNREACHABLE], dtype=int8)``)."""
 
     status: Array
 

@@ -104,6 +104,16 @@ class Target:
     coordinates: tuple[str, ...]
     is_point: bool
 
+    def position(self, x: Any) -> np.ndarray:
+        """Host side: the tool's position in 3-D, ``(..., 3)``, of targets ``x`` ``(...,
+        *shape)`` (a pose's translation; a planar target's ``x, y`` at ``z = 0``)."""
+        x = np.asarray(x)
+        if self.shape == (4, 4):
+            return x[..., :3, 3]
+        if self.shape == (3,) and self.is_point:
+            return x
+        return np.concatenate([x[..., :2], np.zeros_like(x[..., :1])], axis=-1)
+
 
 PLANAR_POINT = Target("planar point", (2,), ("x", "y"), True)
 POINT = Target("point", (3,), ("x", "y", "z"), True)

@@ -11,16 +11,21 @@ inverse kinematics switched solution).
 
 from __future__ import annotations
 
+import dataclasses
 import enum
+from typing import Any, ClassVar
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.typing import ArrayLike
 
 __all__ = [
     "STATUS_DTYPE",
+    "NamedStatusRepr",
     "Status",
     "describe",
+    "named_codes",
     "status_names",
 ]
 
@@ -91,3 +96,48 @@ def status_names(status: ArrayLike) -> np.ndarray:
     codes = np.asarray(status)
     names = np.array([s.name for s in Status], dtype=object)
     return names[codes]
+
+
+def named_codes(value: Any, codes: type[enum.IntEnum]) -> str | None:
+    """``Array([OK, COLLISION], dtype=int8)``: the repr of a concrete array of ``codes``
+    (an ``IntEnum``) with each code's name in place of its number (a number where it is no
+    code); None for anything else (a tracer, floats, None), whose own repr serves."""
+    if isinstance(value, jax.core.Tracer) or not isinstance(value, jax.Array | np.ndarray):
+        return None
+    if not np.issubdtype(value.dtype, np.integer):
+        return None
+    numbers = np.asarray(value)
+    known = {int(c): c.name for c in codes}
+    names = np.vectorize(lambda c: known.get(int(c), str(int(c))), otypes=[object])(numbers)
+    prefix = "Array(" if isinstance(value, jax.Array) else "array("
+    text = np.array2string(names, separator=", ", formatter={"all": str}, prefix=prefix)
+    return f"{prefix}{text}, dtype={numbers.dtype})"
+
+
+class NamedStatusRepr:
+    """Mixin for result dataclasses: their repr shows status codes by name.
+
+    ``status_fields`` maps field names to their code enum (``{"status": Status}`` by
+    default); every other field prints as the dataclass would print it. A subclass that
+    defines no ``__repr__`` of its own gets this one (``@dataclass`` keeps a class's own
+    ``__repr__``), so that a result prints ``status=Array([OK, COLLISION], dtype=int8)``
+    rather than the bare codes.
+    """
+
+    status_fields: ClassVar[dict[str, type[enum.IntEnum]]] = {"status": Status}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "__repr__" not in cls.__dict__:
+            cls.__repr__ = NamedStatusRepr.__repr__  # type: ignore[method-assign]
+
+    def __repr__(self) -> str:
+        parts = []
+        for field in dataclasses.fields(self):  # type: ignore[arg-type]
+            if not field.repr:
+                continue
+            value = getattr(self, field.name)
+            codes = self.status_fields.get(field.name)
+            named = None if codes is None else named_codes(value, codes)
+            parts.append(f"{field.name}={named if named is not None else repr(value)}")
+        return f"{type(self).__qualname__}({', '.join(parts)})"

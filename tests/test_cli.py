@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import jaxkin
 from jaxkin import Jet, Robot, cli, delta, scara, serial
 from jaxkin.cli import commands, demo, progress
 from jaxkin.cli import files as kio
@@ -354,9 +355,48 @@ def test_robot_registry_lists_the_command_robots():
         "cylindrical",
         "spherical",
         "planar-2r",
+        "puma560",
+        "stanford",
         "urdf",
     ]
     assert ROBOTS["scara"].unit == "mm" and ROBOTS["delta"].unit == "cm"
+
+
+@pytest.mark.parametrize(
+    "kind, options, robot",
+    [
+        ("puma560", ["--robot", "paper"], serial.Puma560()),
+        ("stanford", ["--d1", 0.4, "--a2", 0.3, "--d6", 0.1], serial.Stanford(0.4, 0.3, 0.1)),
+    ],
+)
+def test_six_joint_arms_round_trip_through_pose_files(tmp_path, capsys, kind, options, robot):
+    """fk of a joint path writes the arm's poses (the library's FK); ik on the branch the
+    joints lie on gives them back with their rates (linear joints: constant speeds)."""
+    t = np.linspace(0.0, 1.0, 11)
+    speeds = np.array([0.3, 0.2, -0.1, 0.05, 0.1, 0.2])
+    q = np.array([0.2, -0.5, 0.3, 0.1, 0.6, -0.2]) + t[:, None] * speeds
+    kio.write_table(
+        tmp_path / "q.csv", {"t": t} | {n: q[:, j] for j, n in enumerate(robot.joint_names)}
+    )
+    code, _, err = run(
+        capsys, "fk", kind, *options, "-i", tmp_path / "q.csv", "-o", tmp_path / "x.csv"
+    )
+    assert code == 0, err
+    x = load(tmp_path / "x.csv")
+    pose = np.asarray(jaxkin.fk(robot, q).x.p)
+    np.testing.assert_allclose(columns(x, "xyz"), pose[:, :3, 3], rtol=0, atol=1e-12)
+    every = serial.ik_all_branches(robot, pose[0]).q
+    branch = robot.branches[int(np.argmin(np.abs(wrap(np.asarray(every) - q[0])).max(-1)))]
+    code, _, err = run(
+        capsys, "ik", kind, *options, "--branch", branch, "-i", tmp_path / "x.csv",
+        "-o", tmp_path / "back.csv",
+    )  # fmt: skip
+    assert code == 0, err
+    back = load(tmp_path / "back.csv")
+    assert set(back["status"]) == {"OK"}
+    np.testing.assert_allclose(wrap(columns(back, robot.joint_names) - q), 0.0, atol=1e-9)
+    rates = columns(back, [n + "_dot" for n in robot.joint_names])
+    np.testing.assert_allclose(rates, np.broadcast_to(speeds, q.shape), atol=1e-6)
 
 
 # ------------------------------------------------------------------------------ NaN rows

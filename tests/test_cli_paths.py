@@ -354,6 +354,17 @@ def scara_xy(q):
     )
 
 
+def doubled_joint_candidates(path, t):
+    """Two joint-space candidates of the paper SCARA, lines in time: the second moves each
+    joint twice as fast (theta1 0.4 rad/s). Returns the file, its columns and the first's
+    joints ``(T, 3)``."""
+    joints = {"candidate": np.repeat([0, 1], len(t)), "t": np.r_[t, t]}
+    q = np.stack([0.3 + 0.2 * t, 1.0 - 0.1 * t, 60.0 + 5 * t], -1)
+    for j, n in enumerate(JOINTS):
+        joints[n] = np.r_[q[:, j], 2 * q[:, j]]
+    return write(path, joints), joints, q
+
+
 @pytest.mark.slow
 def test_plan_by_cost_joint_space_and_errors(tmp_path, capsys):
     """``--by cost`` without rate bounds writes the cheapest at the file's samples; a file of
@@ -369,11 +380,7 @@ def test_plan_by_cost_joint_space_and_errors(tmp_path, capsys):
     assert set(best["candidate"]) == {11} and best["t"].tolist() == t.tolist()
     code, _, err = run(capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "d.csv")
     assert code == 2 and "theta1, theta2, l3 have none" in err and "--a-max" in err
-    joints = {"candidate": np.repeat([0, 1], 21), "t": np.r_[t, t]}
-    q = np.stack([0.3 + 0.2 * t, 1.0 - 0.1 * t, 60.0 + 5 * t], -1)
-    for j, n in enumerate(JOINTS):
-        joints[n] = np.r_[q[:, j], 2 * q[:, j]]
-    src = write(tmp_path / "j.csv", joints)
+    src, joints, q = doubled_joint_candidates(tmp_path / "j.csv", t)
     code, _, err = run(
         capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "jb.csv", "-k", 2,
         "--v-max", "0.3,1,50", "--a-max", "10,10,500", "--ranking", tmp_path / "jr.csv",
@@ -392,6 +399,28 @@ def test_plan_by_cost_joint_space_and_errors(tmp_path, capsys):
     uneven = write(tmp_path / "u.csv", {k: v[:-1] for k, v in joints.items()})
     code, _, err = run(capsys, "plan", "scara", *PAPER, "-i", uneven, "-o", tmp_path / "u2.csv")
     assert code == 2 and "same number of samples" in err
+
+
+def test_plan_names_the_joint_and_the_limit_passed(tmp_path, capsys):
+    """Per-joint speed bounds (rad/s, rad/s, mm/s): candidate 1's theta1 moves at 0.4 rad/s
+    over its 0.3; the ranking names the joint, the limit, the value and the bound, and stderr
+    says it with units."""
+    src, _, _ = doubled_joint_candidates(tmp_path / "j.csv", np.linspace(0.0, 2.0, 21))
+    code, _, err = run(
+        capsys, "plan", "scara", *PAPER, "-i", src, "-o", tmp_path / "b.csv",
+        "--v-max", "0.3,1,50", "--a-max", "10,10,500", "--ranking", tmp_path / "r.csv",
+    )  # fmt: skip
+    assert code == 0, err
+    names = ("candidate", "failure", "joint", "limit", "value", "bound")
+    ranking = read(tmp_path / "r.csv", names)
+    assert ranking["failure"].tolist() == ["", "OUT_OF_LIMITS"]
+    assert ranking["joint"].tolist() == ["", "theta1"] and ranking["limit"][1] == "v_max"
+    np.testing.assert_allclose([ranking["value"][1], ranking["bound"][1]], [0.4, 0.3], rtol=1e-9)
+    assert np.isnan(ranking["value"][0])
+    assert (
+        "1 candidate OUT_OF_LIMITS; the first, candidate 1, at sample 0 (t 0): "
+        "theta1 |q_dot| 0.4 rad/s > v_max 0.3 rad/s" in err
+    )
 
 
 URDF_ARM = """<robot name="arm">

@@ -168,6 +168,35 @@ def test_position_and_velocity_limits_are_enforced():
     assert np.all(ev_v.costs.limit_violation[~np.asarray(ev_v.feasible)] > 0)
 
 
+def test_limit_violations_name_the_joint_and_the_limit():
+    """Joint-space lines with known rates: candidate 0 within every bound, 1 passes theta1's
+    speed bound from the start, 2 leaves l3's range at its fourth sample, 3 is DISCONTINUOUS
+    (no limit named); values and bounds are the lines' own numbers."""
+    t = np.linspace(0.0, 1.0, 11)[:, None]
+    start = np.array([0.3, 1.0, 60.0])
+    rates = np.array([[0.2, -0.1, 5.0], [0.4, -0.1, 5.0], [0.2, -0.1, 50.0], [0.2, -0.1, 5.0]])
+    q = start + t * rates[:, None, :]  # (4, 11, 3)
+    q[3, 6:, 1] += 1.0  # a jump no rate explains
+    v = np.broadcast_to(rates[:, None, :], q.shape)
+    path = paths.Path.from_jet(Jet.of(q, v, np.zeros_like(q)), 0.1, "joint")
+    limits = plan.Limits.create(3, q_max=[np.inf, np.inf, 80.0], v_max=[0.3, 1.0, 100.0])
+    ev = plan.evaluate(ROBOT, path, limits=limits)
+    np.testing.assert_array_equal(ev.first_failure, [-1, 0, 5, 6])
+    assert ev.status[3, 6] == Status.DISCONTINUOUS
+    found = plan.limit_violations(ev)
+    assert found.joint.tolist() == [-1, 0, 2, -1]
+    assert found.joint_name.tolist() == ["", "theta1", "l3", ""]
+    assert found.limit.tolist() == ["", "v_max", "q_max", ""]
+    np.testing.assert_allclose(found.value[1:3], [0.4, 60.0 + 50.0 * 0.5], rtol=1e-12)
+    np.testing.assert_array_equal(found.bound[1:3], [0.3, 80.0])
+    assert np.isnan(found.value[[0, 3]]).all() and found.sample.tolist() == [-1, 0, 5, 6]
+    assert found.message(0) == "" and found.message(3) == ""
+    assert found.message(1, ("rad", "rad", "mm")) == "theta1 |q_dot| 0.4 rad/s > v_max 0.3 rad/s"
+    assert found.message(2) == "l3 q 85 > q_max 80"
+    none = plan.limit_violations(plan.evaluate(ROBOT, path[:0], limits=limits))
+    assert none.joint.shape == none.value.shape == (0,)
+
+
 def test_robot_own_joint_limits_apply():
     """A theta1 range on the robot fails the same samples as the same cap given to the
     planner (both compared with the unlimited joints)."""

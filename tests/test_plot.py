@@ -175,3 +175,103 @@ def test_cli_plots(tmp_path, capsys):
     )
     check_png(ws, 1300, 600)
     capsys.readouterr()
+
+
+# ------------------------------------------------------------------ robots, worlds, motions
+def anthropomorphic_points(l1, l2, l3, q):
+    """Base, shoulder, elbow and wrist of the anthropomorphic arm [Lopez-Villagomez], written
+    out: the shoulder ``l1`` above the base, the upper arm ``l2`` and the forearm ``l3`` in the
+    vertical plane at azimuth ``q1``, elevated by ``q2`` and ``q2 + q3``."""
+    q1, q2, q3 = q
+    along = np.array([np.cos(q1), np.sin(q1)])
+    shoulder = np.array([0.0, 0.0, l1])
+    elbow = shoulder + l2 * np.r_[np.cos(q2) * along, np.sin(q2)]
+    wrist = elbow + l3 * np.r_[np.cos(q2 + q3) * along, np.sin(q2 + q3)]
+    return np.stack([np.zeros(3), shoulder, elbow, wrist])
+
+
+def mesh_points(collection):
+    # matplotlib 3.11 keeps a Poly3DCollection's 3-D polygons in _faces (no public getter)
+    return np.asarray(collection._faces, float).reshape(-1, 3)
+
+
+def distance_to_segment(points, a, b):
+    t = np.clip((points - a) @ (b - a) / np.dot(b - a, b - a), 0.0, 1.0)
+    return np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=-1)
+
+
+def test_robot_scene_draws_the_body_world_and_motion_where_fk_puts_them(tmp_path):
+    """The Agg figure's meshes: each link's capsule at distance r from the segment between
+    the written-out joint positions, its poles ``r`` past the ends; the box's corners; the
+    tool path through the written-out wrist at every sample; the body at the motion's
+    samples; a PNG of the requested size."""
+    from jaxkin import collision, serial
+
+    l1, l2, l3, r = 0.3, 0.25, 0.2, 0.03
+    arm = serial.Anthropomorphic(l1, l2, l3, link_radius=r)
+    centre, half = np.array([0.3, 0.2, 0.2]), np.array([0.05, 0.06, 0.2])
+    world = collision.World.create(
+        boxes=collision.Boxes.create(center=[centre], half_extents=[half]),
+        halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [0.0]),
+    )
+    motion = np.linspace([0.0, 0.3, 0.5], [1.2, 0.6, 0.9], 30)
+    q = np.array([0.4, 0.5, 0.7])
+    fig = plot.robot_scene(arm, q, world, motion, frames=3, path=tmp_path / "scene.png")
+    ax = fig.axes[0]
+    meshes = {c.get_gid(): mesh_points(c) for c in ax.collections}
+    joints = anthropomorphic_points(l1, l2, l3, q)
+    for k in (1, 2, 3):
+        a, b = joints[k - 1], joints[k]
+        points = meshes[f"body link{k}"]
+        np.testing.assert_allclose(distance_to_segment(points, a, b), r, rtol=0, atol=1e-12)
+        u = (b - a) / np.linalg.norm(b - a)
+        for pole in (a - r * u, b + r * u):
+            assert np.min(np.linalg.norm(points - pole, axis=-1)) < 1e-12
+    for k, index in enumerate((0, 14, 29)):  # first, middle (14.5 rounded to even), last
+        at = anthropomorphic_points(l1, l2, l3, motion[index])
+        points = meshes[f"motion {k} link3"]
+        np.testing.assert_allclose(distance_to_segment(points, at[2], at[3]), r, atol=1e-12)
+    corners = centre + half * np.array(
+        [[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    )
+    drawn = np.unique(meshes["world box 0"].round(12), axis=0)  # 12 triangles, 8 corners
+    np.testing.assert_allclose(drawn, np.unique(corners.round(12), axis=0), atol=1e-12)
+    np.testing.assert_allclose(meshes["world halfspace 0"][:, 2], 0.0, atol=1e-12)  # the floor
+    lines = {line.get_gid(): np.stack(line.get_data_3d(), -1) for line in ax.lines}
+    wrists = np.stack([anthropomorphic_points(l1, l2, l3, m)[3] for m in motion])
+    np.testing.assert_allclose(lines["tool path"], wrists, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lines["link origins"][1:3], joints[1:3], atol=1e-12)
+    check_png(tmp_path / "scene.png", 700, 650)
+
+
+def test_robot_scene_of_a_urdf_arm_and_its_errors():
+    """A URDF chain's skeleton capsules (``with_link_radius``) drawn at q: the tool link's
+    origin (``jaxkin.fk``'s pose) is among the drawn link origins; bad arguments are named."""
+    from jaxkin import collision, fk, serial
+
+    urdf = """<robot name="arm">
+      <link name="base"/><link name="upper"/><link name="fore"/><link name="tool"/>
+      <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/>
+        <origin xyz="0 0 0.3"/><axis xyz="0 1 0"/>
+        <limit lower="-2" upper="2" effort="1" velocity="2"/></joint>
+      <joint name="elbow" type="revolute"><parent link="upper"/><child link="fore"/>
+        <origin xyz="0 0 0.4"/><axis xyz="0 1 0"/>
+        <limit lower="-2" upper="2" effort="1" velocity="2"/></joint>
+      <joint name="flange" type="fixed"><parent link="fore"/><child link="tool"/>
+        <origin xyz="0 0 0.35"/></joint>
+    </robot>"""
+    chain = serial.from_urdf(urdf, "tool").with_link_radius(0.04)
+    q = np.array([0.3, -0.6])
+    fig = plot.robot_scene(chain, q)
+    origins = np.stack(fig.axes[0].lines[0].get_data_3d(), -1)
+    tip = np.asarray(fk(chain, q).x.p)[:3, 3]
+    assert np.min(np.linalg.norm(origins - tip, axis=-1)) < 1e-12
+    assert {c.get_gid() for c in fig.axes[0].collections} >= {"body upper", "body fore"}
+    with pytest.raises(ValueError, match=r"q: expected joints of shape \(2,\)"):
+        plot.robot_scene(chain, np.zeros(3))
+    with pytest.raises(ValueError, match="motion: expected joints of shape"):
+        plot.robot_scene(chain, q, motion=np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="world: expected a collision.World"):
+        plot.robot_scene(chain, q, world=collision.Spheres.create([[0.0, 0.0, 0.0]], 1.0))
+    with pytest.raises(ValueError, match="q: give the joints"):
+        plot.robot_scene(chain)

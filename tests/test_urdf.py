@@ -666,3 +666,43 @@ def test_joints_off_the_path_held_and_mimicked_as_pinocchio_places_them():
 def test_fixed_joints_are_checked_naming_the_joint(fixed, message):
     with pytest.raises(ValueError, match=message):
         serial.from_urdf(_path("panda"), "panda_hand", fixed=fixed)
+
+
+# ---------------------------------------------------------------- example-robot-data by name
+
+
+def test_example_robots_name_existing_files_and_links():
+    """Every listed arm's URDF (and SRDF) exists under the installed data, its tool and base
+    links are links of its URDF, and ``package_dir`` holds its description folder."""
+    for name in serial.example_robots.EXAMPLE_ROBOTS:
+        found = serial.example_robot(name)
+        assert found.name == name and found.urdf.is_file(), name
+        assert found.urdf.is_relative_to(ROBOTS) and found.package_dir == ROBOTS
+        assert found.srdf is None or found.srdf.is_file()
+        text = found.urdf.read_text()
+        for link in (found.tip, found.base):
+            assert link is None or re.search(rf'<link\s+name="{re.escape(link)}"', text), link
+        assert (found.package_dir / found.urdf.relative_to(ROBOTS).parts[0]).is_dir()
+
+
+def test_example_robot_chain_is_the_urdf_chain_with_the_srdf():
+    panda = serial.example_robot("panda")
+    chain = panda.chain()
+    by_hand = serial.from_urdf(str(ROBOTS / "panda_description/urdf/panda.urdf"), "panda_hand")
+    by_hand = by_hand.with_srdf(str(ROBOTS / "panda_description/srdf/panda.srdf"))
+    assert chain.joint_names == by_hand.joint_names
+    assert chain.links.disabled == by_hand.links.disabled and len(chain.links.disabled) == 35
+    q = np.linspace(-0.5, 0.5, 7)
+    np.testing.assert_array_equal(jaxkin.fk(chain, q).x.p, jaxkin.fk(by_hand, q).x.p)
+
+
+def test_example_robot_errors_name_the_robots_and_the_extra(monkeypatch):
+    with pytest.raises(ValueError, match=r"name: expected one of panda, ur3, .* got 'pumaa'"):
+        serial.example_robot("pumaa")
+
+    def absent(name):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, "distribution", absent)
+    with pytest.raises(ImportError, match=r"example-robot-data.*jaxkin\[robots\]"):
+        serial.example_robot("panda")

@@ -456,6 +456,21 @@ def _candidate_samples(traj: files.Trajectory, valid: np.ndarray) -> tuple[list[
     return groups, dt
 
 
+def _failures(ranked: Any, labels: np.ndarray, t: np.ndarray, units: tuple[str, ...]):
+    """One line per kind of failure: how many candidates failed so, and where the first of
+    them failed (for ``OUT_OF_LIMITS``, the joint and the limit, with their units)."""
+    for name in sorted(set(ranked.failure.tolist()) - {""}):
+        which = np.flatnonzero(ranked.failure == name)
+        first = int(which[0])
+        sample = int(ranked.first_failure[first])
+        detail = ranked.violations.message(first, units)
+        yield (
+            f"jaxkin: {len(which)} candidate{'s' if len(which) > 1 else ''} {name}; the first, "
+            f"candidate {labels[first]}, at sample {sample} (t {t[first, sample]:g})"
+            + (f": {detail}" if detail else "")
+        )
+
+
 def cmd_plan(args: argparse.Namespace) -> int:
     """``jaxkin plan``: evaluate a file of candidate paths, rank them, write the best retimed."""
     _join(args)
@@ -520,6 +535,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
                 "feasible": ranked.feasible,
                 "first_failure": ranked.first_failure,
                 "failure": ranked.failure.astype(str),
+                "joint": ranked.violations.joint_name.astype(str),
+                "limit": ranked.violations.limit.astype(str),
+                "value": ranked.violations.value,
+                "bound": ranked.violations.bound,
                 "cost": np.where(np.isfinite(ranked.cost), ranked.cost, np.nan),
                 "duration": ranked.duration,
                 **({} if world is None else {"clearance": np.asarray(evaluation.min_clearance)}),
@@ -551,6 +570,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
             )
         feasible = int(np.sum(ranked.feasible))
         how = "time-optimal duration" if args.by == "duration" else "cost"
+        units = tuple(
+            "rad" if kind == "R" else ROBOTS[args.kind].unit for kind in robot.joint_types
+        )
+        for line in _failures(ranked, labels, np.asarray(traj.t)[take], units):
+            print(line, file=sys.stderr)
         print(
             f"jaxkin: {args.kind} plan, {len(take)} candidates of {take.shape[1]} samples "
             f"({'joint' if joint_space else 'task'} space), {feasible} feasible; the "

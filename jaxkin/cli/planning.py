@@ -614,6 +614,8 @@ class Ranked:
             ``(k, T, n)`` and the valid counts ``(k,)`` (0 for one not timed); None when
             none could be retimed.
         untimed: why the candidates could not be retimed at all ("" when they could).
+        violations: the joint and limit each ``OUT_OF_LIMITS`` candidate passes first
+            (``plan.limit_violations``).
     """
 
     order: np.ndarray
@@ -623,6 +625,7 @@ class Ranked:
     failure: np.ndarray
     duration: np.ndarray
     retimed: timing.RetimedTrajectory | None
+    violations: plan.LimitViolations
     untimed: str = ""
 
 
@@ -680,4 +683,7 @@ def rank(evaluation: plan.Evaluation, k: int, by: str, period: float) -> Ranked:
         chosen = jnp.asarray(order)
         path = jax.tree.map(lambda x: x[chosen], plan.joint_path(evaluation))
         retimed = timing.sample(path, jax.tree.map(lambda x: x[chosen], timed), period)
-    return Ranked(np.asarray(order), cost, feasible, first, failure, duration, retimed, untimed)
+    violations = plan.limit_violations(evaluation)
+    return Ranked(
+        np.asarray(order), cost, feasible, first, failure, duration, retimed, violations, untimed
+    )

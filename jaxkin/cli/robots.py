@@ -61,6 +61,12 @@ def _delta_paper() -> Robot:
     return Delta.paper()
 
 
+def _puma_paper() -> Robot:
+    from ..serial import Puma560
+
+    return Puma560()
+
+
 def _urdf(source: str, tip_link: str, base_link: str | None = None) -> Robot:
     from ..serial import from_urdf
 
@@ -90,6 +96,8 @@ class RobotEntry:
         summary: one line for ``--help``.
         from_file: the robot is described by a file (``--robot FILE``) and links (``--tip``,
             ``--base``) rather than by lengths: ``build(source, tip_link, base_link)``.
+        defaults: values of ``fields`` that need not be given (the Stanford arm's tool
+            offset ``d6``: 0).
     """
 
     name: str
@@ -100,6 +108,7 @@ class RobotEntry:
     unit: str = "m"
     summary: str = ""
     from_file: bool = False
+    defaults: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 ROBOTS: dict[str, RobotEntry] = {
@@ -132,6 +141,24 @@ ROBOTS: dict[str, RobotEntry] = {
         RobotEntry("cylindrical", _arm("Cylindrical"), ("h",), summary="cylindrical RPP arm"),
         RobotEntry("spherical", _arm("Spherical"), ("h",), summary="spherical RRP arm"),
         RobotEntry("planar-2r", _arm("Planar2R"), ("l1", "l2"), summary="planar 2R arm"),
+        RobotEntry(
+            "puma560",
+            _arm("Puma560"),
+            ("d1", "a2", "a3", "d3", "d4", "d6"),
+            ("link_radius",),
+            _puma_paper,
+            "m",
+            "PUMA 560 6R arm, eight IK branches [Pineiro]; --robot paper: the DH parameters of "
+            "Corke's mdl_puma560 (m)",
+        ),
+        RobotEntry(
+            "stanford",
+            _arm("Stanford"),
+            ("d1", "a2", "d6"),
+            ("link_radius",),
+            summary="Stanford 2RP3R arm, four IK branches [Pineiro]: --d1 --a2 [--d6]",
+            defaults={"d6": 0.0},
+        ),
         RobotEntry(
             "urdf",
             _urdf,
@@ -219,6 +246,8 @@ def geometry_values(entry: RobotEntry, spec: str | None, options: dict[str, Any]
         for key, value in raw.items():
             values[key] = value if key == "limits" else _number(value, f"{path}: {key}")
     values.update(options)
+    for key, value in entry.defaults.items():
+        values.setdefault(key, value)
     if spec is None and not options and paper:
         # Printed after a successful run only: a failing run prints exactly one line.
         notes.append(
@@ -228,9 +257,9 @@ def geometry_values(entry: RobotEntry, spec: str | None, options: dict[str, Any]
         values.update(paper)
     missing = [option(k) for k in entry.fields if k not in values]
     if missing:
+        instead = "--robot paper / --robot FILE.toml" if paper else "--robot FILE.toml"
         raise CliError(
-            f"missing geometry {', '.join(missing)} for {entry.name} "
-            "(or give --robot paper / --robot FILE.toml)"
+            f"missing geometry {', '.join(missing)} for {entry.name} (or give {instead})"
         )
     return values
 

@@ -24,11 +24,14 @@
 - ``motions``: ``validate_motions(robot, q_from, q_to, world, resolution)``, M joint-space
   edges in one compiled call.
 - ``protocol``: ``CollisionRobot``, what the checks ask of a robot (a ``typing.Protocol``).
+- ``surfaces``: triangle meshes of the primitives, a body's and a world's, for drawing
+  (``jaxkin.plot.robot_scene``, ``jaxkin.viewer``).
 - ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
   (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
 """
 
 from . import distance as distance
+from . import surfaces as surfaces
 from .body import Body as Body
 from .body_files import read_sphere_lists as read_sphere_lists
 from .body_files import spherized_urdf as spherized_urdf
@@ -141,6 +144,7 @@ __all__ = [
     "self_collision_link_pairs",
     "self_distances",
     "spherized_urdf",
+    "surfaces",
     "validate_motions",
     "validate_motions_kernel",
     "write_world",

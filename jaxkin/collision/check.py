@@ -43,7 +43,7 @@ from .._batching import map_chunks
 from .._execute import Handle, Kernel, Policy, batch_shape, builds, handle_dtype
 from .._numerics import all_finite
 from .._validate import finite_number, is_concrete
-from ..status import Status
+from ..status import NamedStatusRepr, Status
 from . import fused
 from .body import Body
 from .pairs import SelfPairs, self_distances
@@ -113,7 +113,7 @@ class SelfContact:
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
-class CheckResult:
+class CheckResult(NamedStatusRepr):
     """Per configuration (shapes ``(...)``, the batch of ``q``).
 
     Attributes:

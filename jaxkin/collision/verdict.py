@@ -55,7 +55,7 @@ from jax.typing import ArrayLike
 from .._batching import map_chunks
 from .._execute import Handle, Kernel, Policy, builds
 from .._numerics import all_finite
-from ..status import Status
+from ..status import NamedStatusRepr, Status
 from . import distance as sd
 from .body import Body
 from .check import check_kernel, checked_arguments, handle_setup, single, world_batched
@@ -82,7 +82,7 @@ TOLERANCE = 16.0
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
-class Verdict:
+class Verdict(NamedStatusRepr):
     """Per configuration (shapes ``(...)``, the batch of ``q``).
 
     Attributes:

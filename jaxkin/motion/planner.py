@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -38,6 +38,7 @@ from .. import timing
 from .._execute import Kernel, Policy, kernel
 from .._splines import hermite
 from ..collision import World
+from ..status import NamedStatusRepr, Status
 from . import collider
 from .bound import motion_bound, speed_rows
 from .edges import MODES
@@ -143,7 +144,7 @@ class MotionOptions:
 
 
 @dataclasses.dataclass(frozen=True)
-class MotionPlan:
+class MotionPlan(NamedStatusRepr):
     """The result of ``plan`` per problem (NumPy, leading axis ``B``).
 
     Attributes:
@@ -164,6 +165,8 @@ class MotionPlan:
             ``"timing"``), each program run to completion (compilation included on a first
             call).
     """
+
+    status_fields: ClassVar = {"status": MotionStatus, "timing_status": Status}
 
     status: np.ndarray
     path: np.ndarray

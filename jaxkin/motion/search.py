@@ -38,13 +38,14 @@ of its first state.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from ..status import NamedStatusRepr
 from . import collider
 from .edges import (
     EdgeState,
@@ -93,11 +94,13 @@ class SearchConfig:
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
-class SearchResult:
+class SearchResult(NamedStatusRepr):
     """Per problem ``(B,)``: ``status`` (``MotionStatus``: ``SOLVED`` or ``NO_PATH``; the
     statuses given in ``status_in`` kept), ``path (B, P, n)`` (waypoints, unwrapped; rows
     past ``count`` repeat the last one), ``count`` (waypoints), ``iterations`` (edges the
     search settled for it); ``loops`` ``()``, the iterations of the search's loop."""
+
+    status_fields: ClassVar = {"status": MotionStatus}
 
     status: Array
     path: Array

@@ -8,7 +8,8 @@ Every arm and chain here is a robot of the protocol (``jaxkin.ik`` / ``jaxkin.fk
 * Builders: ``from_dh`` (a ``DHTable``: standard Denavit-Hartenberg [Lopez-Villagomez, eq. 2];
   ``dh_transform``, one link's transform), ``from_screws`` (product of exponentials, space or
   body frame [Pineiro]) and ``from_urdf`` (the chain from a base link to a tip link of a URDF,
-  the ``urdf`` extra).
+  the ``urdf`` extra); ``example_robot(name)``: the URDF, SRDF and tool link of an arm of
+  example-robot-data (the ``robots`` extra), ``.chain()`` the arm as a chain.
 * ``space_jacobian``, ``body_jacobian``: the Jacobians of a chain; ``ik_newton``: the textbook
   Newton-Raphson IK [Pineiro] from given starts.
 * The analytic arms ``Planar2R``, ``Planar3R``, ``Anthropomorphic``, ``Cylindrical``,
@@ -36,6 +37,8 @@ from .chain import space_jacobian as space_jacobian
 from .dh import DHTable as DHTable
 from .dh import dh_transform as dh_transform
 from .dh import from_dh as from_dh
+from .example_robots import ExampleRobot as ExampleRobot
+from .example_robots import example_robot as example_robot
 from .newton import NewtonIKResult as NewtonIKResult
 from .newton import ik_newton as ik_newton
 from .poe import from_screws as from_screws
@@ -48,6 +51,7 @@ __all__ = [
     "Chain",
     "Cylindrical",
     "DHTable",
+    "ExampleRobot",
     "NewtonIKResult",
     "Planar2R",
     "Planar3R",
@@ -56,6 +60,7 @@ __all__ = [
     "Stanford",
     "body_jacobian",
     "dh_transform",
+    "example_robot",
     "fk",
     "from_dh",
     "from_screws",
