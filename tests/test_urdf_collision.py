@@ -135,7 +135,19 @@ def test_the_body_is_read_with_the_chain(tmp_path):
     _same_body(chain.with_srdf(srdf).collision_body(), before)
 
 
-def test_covers_are_computed_once_per_chain(tmp_path, monkeypatch):
+@pytest.fixture
+def no_cover_store():
+    """JAX's compilation cache (and with it the covers' store) off for the test, then
+    restored: an earlier test of the process may have turned it on."""
+    before = jax.config.jax_compilation_cache_dir
+    jax.config.update("jax_compilation_cache_dir", None)
+    try:
+        yield
+    finally:
+        jax.config.update("jax_compilation_cache_dir", before)
+
+
+def test_covers_are_computed_once_per_chain(tmp_path, monkeypatch, no_cover_store):
     """The chain's mesh is covered once: asking for the body again, through a chain derived
     from it (``with_srdf``), or through ``collision.check`` reuses it."""
     _box_stl(tmp_path / "link.stl")
