@@ -241,6 +241,8 @@ def _simplify_all(
         check = Checker(evaluate, space, rows, mode, tol, resolution, chunk)
         return simplify_kernel(check, p, c, slots, states)
 
+    if path.shape[0] <= group:
+        return jax.vmap(one, in_axes=(None if shared_world else 0, 0, 0))(world, path, count)
     if shared_world:
         return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
     return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
@@ -531,20 +533,21 @@ def plan(
     path, count = found.path, found.count
     solved = status == MotionStatus.SOLVED
     if options.simplify:
-        # similar paths together (_simplify_all): the problems by waypoint count
+        # more problems than a group: similar paths together (_simplify_all), the problems
+        # sorted by waypoint count
+        group = min(SIMPLIFY_GROUP, b)
         order = np.argsort(np.asarray(count), kind="stable")
-        back = np.argsort(order)
         pick = jnp.asarray(order)
-        sorted_worlds = worlds if shared else jax.tree.map(lambda x: x[pick], worlds)
-        simple_sorted: Simplified = _simplify_jit(
+        sort = b > group
+        simple = _simplify_jit(
             robot,
             body,
             pairs,
-            sorted_worlds,
+            jax.tree.map(lambda x: x[pick], worlds) if sort and not shared else worlds,
             space,
             prep.rows,
-            path[pick],
-            count[pick],
+            path[pick] if sort else path,
+            count[pick] if sort else count,
             put(tol),
             put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
@@ -552,9 +555,11 @@ def plan(
             mode=mode,
             states=options.spline_states,
             shared_world=shared,
-            group=min(SIMPLIFY_GROUP, b),
+            group=group,
         )
-        simple = jax.tree.map(lambda x: x[jnp.asarray(back)], simple_sorted)
+        if sort:
+            back = jnp.asarray(np.argsort(order))
+            simple = jax.tree.map(lambda x: x[back], simple)
     else:
         simple = _polygon_jit(path, count, space)
     jax.block_until_ready(simple)
