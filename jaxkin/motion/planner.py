@@ -67,7 +67,8 @@ class MotionOptions:
             once, each problem one, idle ones restarting open problems).
         chunk: states checked per lane per iteration (``edges``).
         capacity: nodes per tree.
-        max_iterations: edges checked per problem before ``NO_PATH``.
+        max_iterations: edges a problem's own team settles before ``NO_PATH`` (teams that
+            join it once the queue is empty are extra attempts: ``search``).
         path_points: waypoints per path buffer.
         simplify: shortcut and smooth the path.
         spline_states: states that check the spline.
@@ -508,7 +509,10 @@ def plan(
         lanes, team, options.capacity, slots, options.chunk, options.path_points, mode, shared
     )
     rounds = -(-slots // options.chunk)
-    max_loops = (int(options.max_iterations) * b * rounds) // max(1, lanes) + 4 * b + 16
+    # a safety cap: the teams share the queue's budgets, and the last problem's own team
+    # settles at least one edge per lane every `rounds` iterations
+    budget = int(options.max_iterations) * rounds
+    max_loops = budget * b // lanes + budget // team + 4 * b + 16
     common = (robot, body, pairs, worlds, space, prep.rows)
     found: SearchResult = _search_jit(
         *common,
