@@ -403,6 +403,24 @@ def test_many_problems_each_keep_their_own_simplified_path():
 
 
 @pytest.mark.slow
+def test_teams_that_join_a_problem_do_not_spend_its_budget():
+    """The arm's upper link is held in a pocket between two balls, the goal outside it: no
+    path. Four teams of one lane, one problem: the three that join it are extra attempts, so
+    the problem ends NO_PATH when its own team has settled max_iterations edges, with about
+    four times as many settled in all (they once shared the budget and ended it at 1x)."""
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.05)
+    centres = [[0.5 * np.cos(a), 0.5 * np.sin(a), 0.0] for a in (0.6, -0.6)]
+    world = collision.World.create(spheres=collision.Spheres.create(centres, 0.12))
+    start, goal = np.array([0.0, 0.3]), np.array([2.5, 0.4])
+    assert not np.any(np.asarray(collision.check(robot, np.stack([start, goal]), world).collides))
+    budget = 150
+    options = dict(SMALL, lanes=4, team=1, max_iterations=budget, period=None, simplify=False)
+    result = motion.plan(robot, start, world, goal=goal, **options)
+    assert motion.status_names(result.status).tolist() == ["NO_PATH"]
+    assert int(result.iterations[0]) >= 3 * budget
+
+
+@pytest.mark.slow
 def test_invalid_problems_get_their_status():
     robot, world = _planar_scene()
     inside = np.array([0.6, 0.0])  # the forearm in the first ball

@@ -68,7 +68,8 @@ class MotionOptions:
             once, each problem one, idle ones restarting open problems).
         chunk: states checked per lane per iteration (``edges``).
         capacity: nodes per tree.
-        max_iterations: edges checked per problem before ``NO_PATH``.
+        max_iterations: edges a problem's own team settles before ``NO_PATH`` (teams that
+            join it once the queue is empty are extra attempts: ``search``).
         path_points: waypoints per path buffer.
         simplify: shortcut and smooth the path.
         spline_states: states that check the spline.
@@ -244,6 +245,8 @@ def _simplify_all(
         check = Checker(evaluate, space, rows, mode, tol, resolution, chunk)
         return simplify_kernel(check, p, c, slots, states)
 
+    if path.shape[0] <= group:
+        return jax.vmap(one, in_axes=(None if shared_world else 0, 0, 0))(world, path, count)
     if shared_world:
         return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
     return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
@@ -509,7 +512,10 @@ def plan(
         lanes, team, options.capacity, slots, options.chunk, options.path_points, mode, shared
     )
     rounds = -(-slots // options.chunk)
-    max_loops = (int(options.max_iterations) * b * rounds) // max(1, lanes) + 4 * b + 16
+    # a safety cap: the teams share the queue's budgets, and the last problem's own team
+    # settles at least one edge per lane every `rounds` iterations
+    budget = int(options.max_iterations) * rounds
+    max_loops = budget * b // lanes + budget // team + 4 * b + 16
     common = (robot, body, pairs, worlds, space, prep.rows)
     found: SearchResult = _search_jit(
         *common,
@@ -534,20 +540,21 @@ def plan(
     path, count = found.path, found.count
     solved = status == MotionStatus.SOLVED
     if options.simplify:
-        # similar paths together (_simplify_all): the problems by waypoint count
+        # more problems than a group: similar paths together (_simplify_all), the problems
+        # sorted by waypoint count
+        group = min(SIMPLIFY_GROUP, b)
         order = np.argsort(np.asarray(count), kind="stable")
-        back = np.argsort(order)
         pick = jnp.asarray(order)
-        sorted_worlds = worlds if shared else jax.tree.map(lambda x: x[pick], worlds)
-        simple_sorted: Simplified = _simplify_jit(
+        sort = b > group
+        simple = _simplify_jit(
             robot,
             body,
             pairs,
-            sorted_worlds,
+            jax.tree.map(lambda x: x[pick], worlds) if sort and not shared else worlds,
             space,
             prep.rows,
-            path[pick],
-            count[pick],
+            path[pick] if sort else path,
+            count[pick] if sort else count,
             put(tol),
             put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
@@ -555,9 +562,11 @@ def plan(
             mode=mode,
             states=options.spline_states,
             shared_world=shared,
-            group=min(SIMPLIFY_GROUP, b),
+            group=group,
         )
-        simple = jax.tree.map(lambda x: x[jnp.asarray(back)], simple_sorted)
+        if sort:
+            back = jnp.asarray(np.argsort(order))
+            simple = jax.tree.map(lambda x: x[back], simple)
     else:
         simple = _polygon_jit(path, count, space)
     jax.block_until_ready(simple)

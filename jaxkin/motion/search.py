@@ -25,7 +25,8 @@ unsolved one with trees of its own (an independent restart: parallel RRTs whose 
 wins, which shortens the heavy tail of a single RRT's running time). A team whose tree is
 full restarts its problem.
 
-Every settled edge counts toward its problem's ``max_iterations``; a problem that spends them
+The settled edges of a problem's own team (the one that took it from the queue) count toward
+its ``max_iterations`` (the teams that join it are extra attempts); a problem that spends them
 is reported ``NO_PATH``. A solved lane's path (start tree root to the junction, then the goal
 tree back to its root) is written to its problem's row of ``(B, P, n)`` waypoints; a path of
 more than ``P`` waypoints is dropped and the team restarts.
@@ -141,7 +142,9 @@ class _Problems:
     status: Array  # (B,) int8
     path: Array  # (B, P, n)
     count: Array  # (B,) int32
-    iterations: Array  # (B,) int32
+    iterations: Array  # (B,) int32: edges settled for it (every team)
+    spent: Array  # (B,) int32: edges its own team settled (the budget)
+    owner: Array  # (B,) int32: the team that took it from the queue (-1: none yet)
     head: Array  # () int32: next queued problem
 
 
@@ -287,7 +290,7 @@ def search_kernel(
             ``status_in``).
         stream: ``uint32``, which stream of samples (``space.sample_hashed``); range_: the
             step (``space.distance``); resolution: states per unit
-            of joint distance (discrete mode); max_iterations: edges per problem;
+            of joint distance (discrete mode); max_iterations: edges per problem (its own team's);
             max_loops: loop iterations in all; tol: rounding tolerance of the certified mode.
         config: ``SearchConfig`` (static).
     """
@@ -331,6 +334,8 @@ def search_kernel(
         jnp.broadcast_to(starts[:, None], (b, p, n)),
         jnp.where(searched, 0, 1).astype(jnp.int32),
         jnp.zeros((b,), jnp.int32),
+        jnp.zeros((b,), jnp.int32),
+        jnp.full((b,), -1, jnp.int32),
         jnp.int32(0),
     )
     idle_all = jnp.all(probs.done)
@@ -402,8 +407,10 @@ def search_kernel(
         problem = jnp.where(from_queue, take, jnp.where(need & (n_open > 0), helper, teams.problem))
         moved = need & (from_queue | (n_open > 0))
         head = jnp.minimum(probs.head + jnp.sum(need), queue.shape[0])
+        owned = jnp.where(from_queue, take, b)  # out of bounds: dropped
+        owner = probs.owner.at[owned].set(jnp.arange(t_count, dtype=jnp.int32), mode="drop")
         teams, lanes = restart(teams, lanes, moved, problem.astype(jnp.int32))
-        return teams, lanes, dataclasses.replace(probs, head=head.astype(jnp.int32))
+        return teams, lanes, dataclasses.replace(probs, head=head.astype(jnp.int32), owner=owner)
 
     def step(carry):
         loop, teams, lanes, probs = carry
@@ -522,11 +529,14 @@ def search_kernel(
             return dataclasses.replace(probs, path=path, count=cnt, status=st, done=done), ok
 
         probs, ok = jax.lax.cond(jnp.any(solved), record, lambda pr: (pr, solved), probs)
-        # budgets: every settled edge counts for its problem
+        # budgets: the settled edges of a problem's own team (the teams that join it from an
+        # empty queue are extra attempts: they do not shorten its own)
         on = (lane_problem[None, :] == jnp.arange(b)[:, None]) & live[None, :]
+        own = on & (jnp.asarray(team_of, jnp.int32)[None, :] == probs.owner[:, None])
         iters = probs.iterations + jnp.sum(on, axis=1, dtype=jnp.int32)
-        spent = iters >= max_iterations
-        probs = dataclasses.replace(probs, iterations=iters, done=probs.done | spent)
+        spent = probs.spent + jnp.sum(own, axis=1, dtype=jnp.int32)
+        out = spent >= max_iterations
+        probs = dataclasses.replace(probs, iterations=iters, spent=spent, done=probs.done | out)
         # a full tree, or a solved path too long for P, restarts the team's problem
         bad = full | (solved & ~ok)
         again = jnp.zeros((t_count,), bool).at[tj].max(bad)
