@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -33,6 +32,7 @@ import jax
 jax.config.update("jax_enable_x64", True)
 
 import numpy as np  # noqa: E402
+from cover_quality import robots_folder  # noqa: E402  # this script's folder is on sys.path
 
 import jaxkin  # noqa: E402
 from jaxkin import collision, serial  # noqa: E402
@@ -43,16 +43,8 @@ SAMPLES = 32
 ROUNDS, CALLS = 5, 2000
 
 
-def _robots_folder() -> Path:
-    for base in map(Path, sys.path):
-        root = base / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
-        if root.is_dir():
-            return root
-    raise SystemExit("example-robot-data's robots folder not found (its PyPI package)")
-
-
 def _robots():
-    root = _robots_folder()
+    root = robots_folder()
     srdf = root / "panda_description/srdf/panda.srdf"
     vamp = serial.from_urdf(HERE / "mbm" / "panda_spherized.urdf", "panda_hand")
     default = serial.from_urdf(root / "panda_description/urdf/panda.urdf", "panda_hand")

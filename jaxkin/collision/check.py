@@ -520,6 +520,21 @@ class HandleSetup:
         """Zero configurations of the handle's shape and dtype (the example it compiles)."""
         return np.zeros((*self.batch, self.robot.n_joints), self.dtype)
 
+    def configuration_handle(self, kernel: Any) -> Handle:
+        """The handle of ``kernel(robot, body, pairs, q, world, margin)`` (``check_kernel``,
+        ``collides_kernel``) over configurations ``q``, the world bound as data."""
+
+        def run(q: Array, flat: Array) -> Any:
+            return kernel(self.robot, self.body, self.pairs, q, self.world(flat), self.margin)
+
+        return Handle(
+            run,
+            (self.configurations(),),
+            bound=(self.packed,),
+            rebind=self.rebind,
+            compiler_options=COMPILER_OPTIONS,
+        )
+
 
 def handle_setup(
     robot: Any, world: Any, batch: Any, margin: Any, self_collision: bool, dtype: Any
@@ -564,16 +579,4 @@ def _check_handle(
     passed as one packed array (``handle.rebound(world)`` takes another world of the same
     layout without compiling); the ``CheckResult`` of ``check`` on the same input."""
     setup = handle_setup(robot, world, batch, margin, self_collision, dtype)
-
-    def run(q: Array, flat: Array) -> CheckResult:
-        world = setup.world(flat)
-        return check_kernel(setup.robot, setup.body, setup.pairs, q, world, setup.margin)
-
-    example = setup.configurations()
-    return Handle(
-        run,
-        (example,),
-        bound=(setup.packed,),
-        rebind=setup.rebind,
-        compiler_options=COMPILER_OPTIONS,
-    )
+    return setup.configuration_handle(check_kernel)

@@ -372,16 +372,4 @@ def _collides_handle(
     n_joints)``, the ``Verdict`` of ``collides`` on the same input (the arguments as for
     ``check``'s handle; ``handle.rebound(world)`` for another world of the same layout)."""
     setup = handle_setup(robot, world, batch, margin, self_collision, dtype)
-
-    def run(q: Array, flat: Array) -> Verdict:
-        world = setup.world(flat)
-        return collides_kernel(setup.robot, setup.body, setup.pairs, q, world, setup.margin)
-
-    example = setup.configurations()
-    return Handle(
-        run,
-        (example,),
-        bound=(setup.packed,),
-        rebind=setup.rebind,
-        compiler_options=COMPILER_OPTIONS,
-    )
+    return setup.configuration_handle(collides_kernel)
