@@ -4,6 +4,7 @@ body's coarse level and its files."""
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import sys
 from pathlib import Path
@@ -135,32 +136,52 @@ def test_the_body_is_read_with_the_chain(tmp_path):
     _same_body(chain.with_srdf(srdf).collision_body(), before)
 
 
-@pytest.fixture
-def no_cover_store():
-    """JAX's compilation cache (and with it the covers' store) off for the test, then
-    restored: an earlier test of the process may have turned it on."""
+@contextlib.contextmanager
+def _compilation_cache_dir(directory):
+    """JAX's compilation cache directory (and with it the covers' store) set to ``directory``
+    (None: off) inside the block, then restored."""
     before = jax.config.jax_compilation_cache_dir
-    jax.config.update("jax_compilation_cache_dir", None)
+    jax.config.update("jax_compilation_cache_dir", directory)
     try:
         yield
     finally:
         jax.config.update("jax_compilation_cache_dir", before)
 
 
-def test_covers_are_computed_once_per_chain(tmp_path, monkeypatch, no_cover_store):
-    """The chain's mesh is covered once: asking for the body again, through a chain derived
-    from it (``with_srdf``), or through ``collision.check`` reuses it."""
-    _box_stl(tmp_path / "link.stl")
-    path = tmp_path / "robot.urdf"
-    path.write_text(_urdf({**PRIMITIVES, "l1": '<mesh filename="link.stl"/>'}))
+@pytest.fixture
+def no_cover_store():
+    """The store off: an earlier test of the process may have turned JAX's cache on."""
+    with _compilation_cache_dir(None):
+        yield
+
+
+@pytest.fixture
+def cover_calls(monkeypatch):
+    """The calls of the reader's ``mesh_sphere_cover``, counted (a list, one entry a call)."""
     calls = []
     original = urdf_module.mesh_sphere_cover
 
-    def counted(*args, **kwargs):
+    def mesh_sphere_cover(*args, **kwargs):
         calls.append(1)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(urdf_module, "mesh_sphere_cover", counted)
+    monkeypatch.setattr(urdf_module, "mesh_sphere_cover", mesh_sphere_cover)
+    return calls
+
+
+def _mesh_arm(tmp_path: Path, half=(0.05, 0.03, 0.1)) -> Path:
+    """``_urdf``'s arm with its link ``l1`` a box mesh of half-extents ``half`` (STL)."""
+    _box_stl(tmp_path / "link.stl", half)
+    path = tmp_path / "robot.urdf"
+    path.write_text(_urdf({**PRIMITIVES, "l1": '<mesh filename="link.stl"/>'}))
+    return path
+
+
+def test_covers_are_computed_once_per_chain(tmp_path, no_cover_store, cover_calls):
+    """The chain's mesh is covered once: asking for the body again, through a chain derived
+    from it (``with_srdf``), or through ``collision.check`` reuses it."""
+    calls = cover_calls
+    path = _mesh_arm(tmp_path)
     chain = serial.from_urdf(path, "tool")
     assert not calls  # reading the chain covers nothing yet
     body = chain.collision_body()
@@ -351,31 +372,18 @@ def test_a_body_saves_and_loads(tmp_path):
 
 @pytest.fixture
 def cover_store(tmp_path):
-    """JAX's compilation cache directory set to a fresh folder for the test, then restored."""
-    before = jax.config.jax_compilation_cache_dir
-    jax.config.update("jax_compilation_cache_dir", str(tmp_path / "cache"))
-    try:
+    """JAX's compilation cache in a fresh folder for the test; its covers' folder."""
+    with _compilation_cache_dir(str(tmp_path / "cache")):
         yield tmp_path / "cache" / "covers"
-    finally:
-        jax.config.update("jax_compilation_cache_dir", before)
 
 
-def test_covers_are_stored_for_later_processes(tmp_path, cover_store, monkeypatch):
+def test_covers_are_stored_for_later_processes(tmp_path, cover_store, cover_calls):
     """With the compilation cache on, a mesh's cover is written once and read back by a later
     reader (another chain of the same file: what a second process does) equal to the array,
     without covering again; another bound is another entry; a damaged entry is covered again
     and gives the same body; with the cache off nothing is written."""
-    _box_stl(tmp_path / "link.stl", half=(0.05, 0.03, 0.12))
-    path = tmp_path / "robot.urdf"
-    path.write_text(_urdf({**PRIMITIVES, "l1": '<mesh filename="link.stl"/>'}))
-    calls = []
-    original = urdf_module.mesh_sphere_cover
-
-    def mesh_sphere_cover(*args, **kwargs):
-        calls.append(1)
-        return original(*args, **kwargs)
-
-    monkeypatch.setattr(urdf_module, "mesh_sphere_cover", mesh_sphere_cover)
+    calls = cover_calls
+    path = _mesh_arm(tmp_path, half=(0.05, 0.03, 0.12))
     first = serial.from_urdf(path, "tool").collision_body()
     assert len(calls) == 1 and len(list(cover_store.glob("*.npz"))) == 1
     again = serial.from_urdf(path, "tool").collision_body()

@@ -17,8 +17,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -26,6 +24,7 @@ from typing import Any, TypeVar
 import jax
 import numpy as np
 
+from .._output import atomic_write
 from . import cover, triangles
 
 __all__ = ["cached_cover", "store_directory"]
@@ -71,15 +70,13 @@ def _read(path: Path, cls: type[Cover]) -> Cover | None:
 
 
 def _write(path: Path, found: Any) -> None:
+    arrays: dict[str, Any] = {k: np.asarray(v) for k, v in dataclasses.asdict(found).items()}
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         # written whole, then renamed: a reader never sees half a file
-        handle, name = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        arrays: dict[str, Any] = {k: np.asarray(v) for k, v in dataclasses.asdict(found).items()}
-        with os.fdopen(handle, "wb") as f:
+        with atomic_write(path, "wb") as f:
             np.savez(f, **arrays)
-        os.replace(name, path)
-    except OSError:
+    except (OSError, ValueError):  # a store that cannot be written is no store
         pass
 
 
