@@ -381,7 +381,7 @@ def test_covers_are_stored_for_later_processes(tmp_path, cover_store, cover_call
     """With the compilation cache on, a mesh's cover is written once and read back by a later
     reader (another chain of the same file: what a second process does) equal to the array,
     without covering again; another bound is another entry; a damaged entry is covered again
-    and gives the same body; with the cache off nothing is written."""
+    and gives the same body, so does a truncated one; with the cache off nothing is written."""
     calls = cover_calls
     path = _mesh_arm(tmp_path, half=(0.05, 0.03, 0.12))
     first = serial.from_urdf(path, "tool").collision_body()
@@ -395,8 +395,12 @@ def test_covers_are_stored_for_later_processes(tmp_path, cover_store, cover_call
         entry.write_bytes(b"not a cover")
     _same_body(serial.from_urdf(path, "tool").collision_body(), first)
     assert len(calls) == 3
+    for entry in cover_store.glob("*.npz"):  # cut short, as by a full disk
+        entry.write_bytes(entry.read_bytes()[: entry.stat().st_size // 2])
+    _same_body(serial.from_urdf(path, "tool").collision_body(), first)
+    assert len(calls) == 4
     jax.config.update("jax_compilation_cache_dir", None)
     for entry in cover_store.glob("*.npz"):
         entry.unlink()
     _same_body(serial.from_urdf(path, "tool").collision_body(), first)
-    assert len(calls) == 4 and not list(cover_store.glob("*.npz"))
+    assert len(calls) == 5 and not list(cover_store.glob("*.npz"))

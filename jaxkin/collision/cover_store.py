@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -65,8 +66,8 @@ def _read(path: Path, cls: type[Cover]) -> Cover | None:
             return None
         values["overshoot"] = float(values["overshoot"])
         return cls(**values)
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
+    except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):
+        return None  # damaged or foreign: computed again
 
 
 def _write(path: Path, found: Any) -> None:
