@@ -235,3 +235,26 @@ def test_new_batch_sizes_and_worlds_within_their_buckets_compile_nothing():
     assert bucketed.bucketed().layout() == bucketed.layout()
     exact = jax.jit(collision.check_kernel)(robot, *collision.prepare(robot), q[:3], other)
     _equal(result, exact)
+
+
+def test_a_world_is_bucketed_once_and_a_traced_one_every_time():
+    """``World.bucketed`` of a concrete world is padded once and kept (a check per call reuses
+    it), equal leaf for leaf to a fresh padding; under ``jax.jit`` the traced world is padded
+    too."""
+    world = _world(9, spheres=5)
+    padded = world.bucketed()
+    assert world.bucketed() is padded
+    fresh = collision.World.create(
+        spheres=world.spheres, boxes=world.boxes, halfspaces=world.halfspaces
+    ).bucketed()
+    assert fresh is not padded and jax.tree.structure(fresh) == jax.tree.structure(padded)
+    for a, b in zip(jax.tree.leaves(fresh), jax.tree.leaves(padded), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert padded.spheres.radius.shape == (collision.OBSTACLE_BUCKET,)
+
+    @jax.jit
+    def count(w):
+        return w.bucketed().spheres.radius.shape[0]
+
+    assert count(world) == collision.OBSTACLE_BUCKET
+    assert count(world) == collision.OBSTACLE_BUCKET

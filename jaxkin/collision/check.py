@@ -414,8 +414,8 @@ def _as_q(robot: CollisionRobot, q: Any, name: str = "q") -> Array:
         raise ValueError(f"{name}: expected real joint coordinates, got dtype {q.dtype}")
     if not jnp.issubdtype(q.dtype, jnp.floating):
         q = q.astype(jnp.result_type(float))
-    if isinstance(q, np.ndarray):  # a transfer, not a program per shape (jnp.asarray's)
-        q = jax.device_put(q.astype(jax.dtypes.canonicalize_dtype(q.dtype), copy=False))
+    if isinstance(q, np.ndarray):  # handed to the compiled program as it is: no program per
+        q = q.astype(jax.dtypes.canonicalize_dtype(q.dtype), copy=False)  # shape, no extra copy
     if q.ndim < 1 or q.shape[-1] != robot.n_joints:
         raise ValueError(
             f"{name}: expected shape (..., {robot.n_joints}) for {type(robot).__name__}, "

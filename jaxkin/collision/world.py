@@ -117,6 +117,9 @@ class World:
         obstacle, and a world with leading batch axes, are left as they are."""
         if self.batched():
             return self
+        cached = self.__dict__.get("_bucketed")
+        if cached is not None:
+            return cached
 
         def padded(kind: Any) -> Any:
             count = len(kind)
@@ -125,7 +128,11 @@ class World:
                 return kind
             return jax.tree.map(lambda x: _repeat_last(x, pad), kind)
 
-        return World(**{f.name: padded(getattr(self, f.name)) for f in dataclasses.fields(self)})
+        world = World(**{f.name: padded(getattr(self, f.name)) for f in dataclasses.fields(self)})
+        if not any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(self)):
+            # a concrete world is padded and sent to the device once, not at every check
+            object.__setattr__(self, "_bucketed", world)
+        return world
 
     def batched(self) -> bool:
         """True when the obstacles carry leading batch axes (a world per configuration)."""
