@@ -15,13 +15,15 @@ best round's median), microseconds per call:
 - ``public``: ``collision.collides`` / ``collision.validate_motions`` called as a user would.
 
 Every call is blocked on (``jax.block_until_ready``). Prints a Markdown table with the load
-average (``docs/performance.md``, "The execution layer")::
+average (``docs/performance.md``, "The execution layer"), with JAX's default CPU runtime or
+after ``jaxkin.enable_low_latency()``::
 
-    .venv/bin/python benchmarks/handles_latency.py
+    .venv/bin/python benchmarks/handles_latency.py [--low-latency]
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import statistics
 import time
@@ -119,7 +121,13 @@ def _calls(robot, world, dtype):
     }
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--low-latency", action="store_true", help="jaxkin.enable_low_latency() first"
+    )
+    if parser.parse_args(argv).low_latency:
+        jaxkin.enable_low_latency()  # before the first computation
     print("| body | dtype | query | handle us | bare jit us | public us | handle / jit | load |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for name, robot in _robots().items():

@@ -1,7 +1,7 @@
 """MotionBenchMaker through ``jaxkin.motion.plan``: success and times per scene, re-checked.
 
 Run: ``python benchmarks/mbm_benchmark.py --robot panda --mode discrete [--per-scene 100]
-[--batch] [--ompl 5] [--output benchmarks/mbm_results.md]``.
+[--batch] [--ompl 5] [--output benchmarks/mbm_results.md] [--default-runtime]``.
 
 Per problem, after compiling on the first (every world padded to the largest obstacle count of
 the robot's archive, ``collider.stack_worlds``, so that one program serves every problem), one
@@ -12,8 +12,9 @@ world per problem). Every returned path is re-checked by ``mbm_recheck.Reference
 the executed simplified path (the spline when ``smooth``, else the polygon). ``--ompl K``
 plans the first ``K`` problems of each scene with OMPL's RRT-Connect, jaxkin checking its
 states and edges (``examples/ompl_ur5.py``'s route; VAMP's range, resolution 32, 10 s).
-VAMP's published reference (AMD Ryzen 9 7950X, one thread; ``resources/README.md`` of its
-repository) is printed beside.
+The process runs with ``jaxkin.enable_low_latency()`` (each loop of the search compiled as one
+function, calls run inline) unless ``--default-runtime``. VAMP's published reference (AMD
+Ryzen 9 7950X, one thread; ``resources/README.md`` of its repository) is printed beside.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mbm_problems  # noqa: E402
 from mbm_recheck import Reference, dense_states  # noqa: E402
 
+import jaxkin  # noqa: E402
 from jaxkin import collision  # noqa: E402
 from jaxkin.motion import collider, plan  # noqa: E402
 from jaxkin.motion.status import MotionStatus, status_names  # noqa: E402
@@ -113,7 +115,14 @@ def main(argv=None) -> int:
     parser.add_argument("--ompl", type=int, default=0)
     parser.add_argument("--no-recheck", action="store_true")
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "mbm_results.md")
+    parser.add_argument(
+        "--default-runtime",
+        action="store_true",
+        help="leave JAX's CPU runtime as it is (no jaxkin.enable_low_latency())",
+    )
     args = parser.parse_args(argv)
+    if not args.default_runtime:
+        jaxkin.enable_low_latency()  # before the first computation (docs/execution.md)
     jax.config.update("jax_enable_x64", False)
 
     robot = mbm_problems.robot(args.robot)

@@ -9,8 +9,9 @@ and, through a ``MotionValidator`` subclass, its motion queries: ``checkMotion(s
 validates the whole edge in one compiled call (``collision.validate_motions`` with the verdict
 alone, 32 states per unit of joint distance). Both go through compiled handles
 (``jaxkin.compiled``), made before the planner's clock starts: a query is one call of a
-compiled program, with no other work. The path found is then re-checked edge by edge, every
-edge in one call.
+compiled program, with no other work; run as a script, the example first turns on
+``jaxkin.enable_low_latency()``, so that each query runs in the calling thread as one compiled
+function. The path found is then re-checked edge by edge, every edge in one call.
 
 Run: ``python examples/ompl_ur5.py [--output-dir DIR] [--seed N]``.
 """
@@ -184,4 +185,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    jaxkin.enable_low_latency()  # before JAX's first computation: each query runs inline
     raise SystemExit(main())

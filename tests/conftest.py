@@ -48,6 +48,22 @@ def _release_compiled_programs():
         gc.collect()
 
 
+@pytest.fixture(autouse=True)
+def _keep_runtime_options():
+    """The command line, run in this process by some tests, turns ``enable_low_latency`` on:
+    put ``XLA_FLAGS`` and JAX's dispatch option back after each test (in a process whose JAX
+    runs already they change no program, but later tests' subprocesses would inherit the
+    flags)."""
+    flags = os.environ.get("XLA_FLAGS")
+    dispatch = jax.config.read("jax_cpu_enable_async_dispatch")
+    yield
+    if flags is None:
+        os.environ.pop("XLA_FLAGS", None)
+    else:
+        os.environ["XLA_FLAGS"] = flags
+    jax.config.update("jax_cpu_enable_async_dispatch", dispatch)
+
+
 @pytest.fixture
 def hot_after_two(monkeypatch):
     """Programs built at the second call (the default waits longer), from an empty table."""

@@ -13,6 +13,8 @@ One place to read (this package), one concept per module:
 - ``handles``: ``compiled(entry, ...)``, a program compiled for one robot, world layout and
   batch shape, called with no Python work beyond the array hand-off (a planner's loop).
 - ``cache``: JAX's persistent compilation cache, switched on by one call.
+- ``latency``: JAX's CPU runtime set for a planner's loop of single queries (inline dispatch,
+  small loops as one function), switched on by one call.
 
 Every public entry point (``jaxkin.ik``/``fk``, ``plan.evaluate``, ``plan.retime``,
 ``timing.retime``, ``collision.check``/``collides``/``validate_motions``,
@@ -32,6 +34,7 @@ from .kernel import WHOLE as WHOLE
 from .kernel import Kernel as Kernel
 from .kernel import Policy as Policy
 from .kernel import kernel as kernel
+from .latency import enable_low_latency as enable_low_latency
 from .pipeline import as_robot as as_robot
 from .pipeline import fk as fk
 from .pipeline import ik as ik
@@ -50,6 +53,7 @@ __all__ = [
     "compiled",
     "default_cache_dir",
     "enable_compilation_cache",
+    "enable_low_latency",
     "fk",
     "handle_dtype",
     "ik",

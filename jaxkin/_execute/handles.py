@@ -17,6 +17,8 @@ up, so a handle is asked for by the public function itself::
 
 Outputs that do not depend on the inputs (the zero rates of a query at rest) are computed
 once and put back into each result on the host, so the executable returns fewer outputs.
+After ``jaxkin.enable_low_latency()`` (``latency``) the program is the body of a loop of one
+trip (``latency.in_one_loop``), which XLA compiles as one function run in the calling thread.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import jax
 import numpy as np
 
 from .. import _batching
+from .latency import in_one_loop
 
 __all__ = [
     "Handle",
@@ -79,7 +82,15 @@ class Handle:
         dependent = _input_dependent(traced.jaxpr.jaxpr, inputs)
         moving = [i for i, m in enumerate(dependent) if m]
         if len(moving) == len(dependent) or not moving:
-            self.compiled = traced.lower().compile()
+            program = in_one_loop(fn)
+            if program is fn:
+                self.compiled = traced.lower().compile()
+            else:
+                self.compiled = (
+                    jax.jit(program, compiler_options=options)
+                    .lower(*examples, *self._bound)
+                    .compile()
+                )
             self._run: Any = self.compiled
             self._tree: Any = None
             self._moving: tuple[int, ...] = ()
@@ -93,7 +104,9 @@ class Handle:
         # the inputs' constant outputs from one call of ``fn`` as it is (no compilation of them)
         constants = jax.tree.leaves(fn(*examples, *self._bound))
         self.compiled = (
-            jax.jit(outputs, compiler_options=options).lower(*examples, *self._bound).compile()
+            jax.jit(in_one_loop(outputs), compiler_options=options)
+            .lower(*examples, *self._bound)
+            .compile()
         )
         self._run = None
         self._tree = tree

@@ -93,6 +93,9 @@ def _run(argv: list[str], debug: bool) -> int:
         from .._execute.cache import enable_for_command  # after --help: JAX loads in ~1 s
 
         enable_for_command()  # the persistent compilation cache (docs/cli.md)
+        from .._execute.latency import enable_for_command as low_latency
+
+        low_latency()  # single queries run inline, small loops as one function (docs/cli.md)
         args.notes = []
         code = int(args.func(args) or 0)
         if not getattr(args, "quiet", False):
