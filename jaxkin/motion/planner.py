@@ -257,7 +257,12 @@ SIMPLIFY_GROUP = 8  # problems simplified together (_simplify_all)
 
 # the collision loops inside the search and the simplification run their bodies 2-5x faster
 # with the CPU's older fusion emitters (collider.COMPILER_OPTIONS)
-_POLICY = Policy(pad=False, compiler_options=collider.COMPILER_OPTIONS)
+# Reductions as XLA's own loops, not library calls (YNNPACK fusions), which would keep the
+# search's loop from running as one compiled function (jaxkin.enable_low_latency)
+_POLICY = Policy(
+    pad=False,
+    compiler_options=(*collider.COMPILER_OPTIONS, ("xla_cpu_experimental_ynn_fusion_type", "")),
+)
 _search_jit = Kernel(search_kernel, static=("config",), policy=_POLICY)
 _roots_jit = Kernel(_roots_kernel, static=("mode", "shared_world"), policy=_POLICY)
 _simplify_jit = Kernel(
@@ -352,7 +357,8 @@ def _joint_paths(
 @dataclasses.dataclass(frozen=True)
 class _Prepared:
     """Host side, once per robot: its body and self pairs, its joint space (NumPy and in the
-    planner's dtype), its speed bound and rows (``bound.speed_rows``), its size."""
+    planner's dtype), its speed bound and rows (``bound.speed_rows``), its size, its joint
+    limits (NumPy)."""
 
     body: Any
     pairs: Any
@@ -361,6 +367,12 @@ class _Prepared:
     bound: Any
     rows: Array
     scale: float
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def within(self, q: np.ndarray) -> np.ndarray:
+        """Per configuration ``q`` ``(..., n)``: every joint within its closed range (host)."""
+        return np.all((q >= self.lower) & (q <= self.upper), axis=-1)
 
 
 def _prepare(robot: Any, dtype: Any) -> _Prepared:
@@ -374,7 +386,9 @@ def _prepare(robot: Any, dtype: Any) -> _Prepared:
     bound = motion_bound(robot, body, pairs.link_pairs).astype(dtype)
     rows = jax.device_put(np.asarray(speed_rows(bound, body), dtype))
     scale = float(np.asarray(robot.length_scale()))
-    prepared = _Prepared(body, pairs, space, space.astype(dtype), bound, rows, scale)
+    limits = robot.joint_limits()
+    lower, upper = (np.asarray(x, float) for x in (limits.lower, limits.upper))
+    prepared = _Prepared(body, pairs, space, space.astype(dtype), bound, rows, scale, lower, upper)
     object.__setattr__(robot, "_motion_prepared", {**cached, key: prepared})
     return prepared
 
@@ -433,8 +447,9 @@ def plan(
     worlds, shared = _worlds(world, b)
     worlds = worlds.astype(dtype)
 
-    def put(x: Any, kind: Any = None) -> Array:
-        return jax.device_put(np.asarray(x, dtype if kind is None else kind))
+    def put(x: Any, kind: Any = None) -> np.ndarray:
+        # host arrays go to the compiled programs as they are (a device_put costs more)
+        return np.asarray(x, dtype if kind is None else kind)
 
     def free_fn(q: np.ndarray) -> np.ndarray:
         if shared:
@@ -443,8 +458,7 @@ def plan(
 
     finite_start = np.all(np.isfinite(starts), -1)
     starts_safe = np.where(np.isfinite(starts), starts, 0.0)
-    limits = robot.joint_limits()
-    inside = np.asarray(limits.contains(starts_safe), bool)
+    inside = prep.within(starts_safe)
     if target is not None:
         shape = tuple(robot.target.shape)
         t = _as_array(target, "target")
@@ -484,7 +498,7 @@ def plan(
     start_free, goal_free, root_clear = _roots_jit(
         robot, body, pairs, worlds, put(starts_safe), put(goals), mode=mode, shared_world=shared
     )
-    good = solution & np.asarray(limits.contains(goals), bool) & np.asarray(goal_free, bool)
+    good = solution & prep.within(goals) & np.asarray(goal_free, bool)
     # the free goals first (a stable order), their distances alike
     order = np.argsort(~good, axis=1, kind="stable")
     goals = np.take_along_axis(goals, order[..., None], 1)
