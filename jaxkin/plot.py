@@ -508,12 +508,7 @@ class _Scene:
 
 
 def scene_meshes(
-    robot: Any,
-    q: Any = None,
-    world: Any = None,
-    motion: Any = None,
-    frames: int = 4,
-    segments: int = 12,
+    robot, q=None, world=None, motion=None, frames: int = 4, segments: int = 12
 ) -> dict[str, np.ndarray]:
     """The triangles ``robot_scene`` draws with the same arguments, by the gid of their
     artist (``"body <link>"``, ``"motion <k> <link>"``, ``"world <kind> <i>"``): each
