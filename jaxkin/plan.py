@@ -567,16 +567,25 @@ def path_ik(robot, path: Jet, branch_index: Any, *, seed: Any = None) -> IKResul
     An iterative IK warm-starts the window's first sample from it, so the windows give the
     whole path's solution; an analytic IK ignores it. None (the default): unchanged.
     """
-    path = path.astype(robot.work_dtype(path.dtype))
+    path = _work_targets(robot, path)
     given = {} if seed is None else {"seed": jnp.asarray(seed, path.dtype)}
     return robot.ik_path_kernel(path, branch_index, robot.IKOptions(), **given)
+
+
+def _work_targets(robot, path: Jet) -> Jet:
+    """Task-space targets in the robot's work dtype, positions through ``robot.work_target``
+    (a chain's pose given in a less precise dtype gets the nearest rotation in it)."""
+    dtype = robot.work_dtype(path.dtype)
+    if path.dtype == dtype:
+        return path.astype(dtype)
+    return Jet(robot.work_target(path.p, dtype), path.v.astype(dtype), path.a.astype(dtype))
 
 
 def _evaluate_branch(
     robot, path: Jet, limits: Limits, dt, weights, branch_index, collide=None
 ) -> Evaluation:
     """Every task-space candidate on one branch; ``branch_index`` an int, or a traced one."""
-    path = path.astype(robot.work_dtype(path.dtype))
+    path = _work_targets(robot, path)
     res = path_ik(robot, path, branch_index)
     moving = _moving(path)
     ev = _checked(robot, res.q, res.status, res.margin, moving, limits, dt, weights, collide)
@@ -715,6 +724,14 @@ def evaluate(
         raise ValueError(
             f"path: expected shape (N, T, {', '.join(map(str, target))}) with T >= 2 for "
             f"{type(robot).__name__} ({space} space: {kind}), got {path.shape}"
+        )
+    if space == "task" and path.dtype != robot.work_dtype(path.dtype):
+        # In the work dtype before the kernel (one program for either dtype), host data kept
+        # on the host (each process's own candidates).
+        path = jax.tree.map(
+            lambda new, old: np.asarray(new) if isinstance(old, np.ndarray) else new,
+            _work_targets(robot, path),
+            path,
         )
     limits = robot_limits(robot, limits)
     weights = _weights(weights, robot.n_joints)

@@ -15,7 +15,8 @@ image is ``figsize * dpi`` pixels (no tight bounding box).
 * ``robot_scene``: any robot with a collision body (a URDF arm, the analytic arms, the SCARA,
   the Delta) in 3-D: its body's spheres and capsules at joints ``q`` (a colour per link), the
   obstacles of a ``collision.World`` and a planned motion (the body at a few of its samples,
-  fainter towards the start, and the tool's path by forward kinematics).
+  fainter towards the start, and the tool's path by forward kinematics); ``scene_meshes``:
+  the triangles it draws, by artist.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ __all__ = [
     "require_matplotlib",
     "robot_scene",
     "save",
+    "scene_meshes",
     "scara_pose",
     "workspace_cloud",
     "workspace_overview",
@@ -446,13 +448,73 @@ def cost_curves(
     return _finish(fig, path)
 
 
-def _mesh(ax: Any, surface: Any, gid: str, **style: Any) -> Any:
+def _mesh(ax: Any, triangles: np.ndarray, gid: str, style: dict[str, Any]) -> Any:
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    polygons = Poly3DCollection(surface.vertices[surface.faces], **style)
+    polygons = Poly3DCollection(triangles, **style)
     polygons.set_gid(gid)
     ax.add_collection3d(polygons)
     return polygons
+
+
+class _Scene:
+    """What ``robot_scene`` draws: the joints ``q``, the link origins ``(L, 3)``, the tool's
+    path ``(T, 3)`` or None, ``meshes`` (gid -> triangles ``(F, 3, 3)``), their ``styles``
+    (gid -> keyword arguments of the artist) and the ``points`` the view is fitted to."""
+
+    def __init__(self, robot: Any, q: Any, world: Any, motion: Any, frames: int, segments: int):
+        body = robot.collision_body()
+        self.q, moves = surfaces.scene_joints(robot.n_joints, q, motion)
+        frames = _validate.count(frames, "frames", minimum=0) if moves is not None else 0
+        if world is not None and not isinstance(world, collision.World):
+            raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
+        self.meshes: dict[str, np.ndarray] = {}
+        self.styles: dict[str, dict[str, Any]] = {}
+        colours = [f"C{k % 10}" for k in range(len(body.links))]
+        poses = surfaces.link_poses(robot, self.q)
+        self.origins = poses[:, :3, 3]
+        points = [self.origins]
+
+        def add(shape: Any, gid: str, **style: Any) -> None:
+            triangles = shape.vertices[shape.faces]  # a link's primitives: one mesh
+            if gid in self.meshes:
+                triangles = np.concatenate([self.meshes[gid], triangles])
+            self.meshes[gid] = triangles
+            self.styles[gid] = style
+
+        for shape in surfaces.body_surfaces(body, poses, segments):
+            colour = colours[body.links.index(shape.name)]
+            add(shape, f"body {shape.name}", color=colour, alpha=0.55, lw=0)
+            points.append(shape.vertices)
+        self.tool = None
+        if moves is not None:
+            self.tool = np.asarray(robot.target.position(fk(robot, moves).x.p), float)
+            points.append(self.tool)
+            picks = np.linspace(0, len(moves) - 1, frames).round().astype(int)
+            every = surfaces.link_poses(robot, moves[picks])
+            for k, placed in enumerate(every):
+                alpha = 0.08 + 0.22 * (k + 1) / len(picks)
+                for shape in surfaces.body_surfaces(body, placed, segments):
+                    colour = colours[body.links.index(shape.name)]
+                    add(shape, f"motion {k} {shape.name}", color=colour, alpha=alpha, lw=0)
+                    points.append(shape.vertices)
+        if world is not None:
+            centre, extent = surfaces.bounding_cube(np.concatenate(points))
+            for shape in surfaces.world_surfaces(world, extent, centre, segments):
+                add(shape, f"world {shape.name}", color="0.5", alpha=0.3, lw=0.2)
+                if not shape.name.startswith("halfspace"):
+                    points.append(shape.vertices)
+        self.points = np.concatenate(points)
+
+
+def scene_meshes(
+    robot, q=None, world=None, motion=None, frames: int = 4, segments: int = 12
+) -> dict[str, np.ndarray]:
+    """The triangles ``robot_scene`` draws with the same arguments, by the gid of their
+    artist (``"body <link>"``, ``"motion <k> <link>"``, ``"world <kind> <i>"``): each
+    ``(F, 3, 3)``, the corners of ``F`` triangles in the base frame (e.g. to hand the scene
+    to another renderer). Raises as ``robot_scene``."""
+    return _Scene(robot, q, world, motion, frames, segments).meshes
 
 
 def robot_scene(
@@ -483,51 +545,27 @@ def robot_scene(
         segments: meridians of each sphere and capsule's mesh (``collision.surfaces``).
 
     Returns:
-        The ``Figure``. Its artists carry ``gid``s: ``"body <link>"`` (one mesh per
-        primitive at ``q``), ``"motion <k> <link>"`` (the body at the ``k``-th drawn
-        sample), ``"world <kind> <i>"``, ``"tool path"`` and ``"link origins"``.
+        The ``Figure``. Its artists carry ``gid``s: ``"body <link>"`` (one mesh per link,
+        its spheres and capsules, at ``q``), ``"motion <k> <link>"`` (the body at the
+        ``k``-th drawn sample), ``"world <kind> <i>"``, ``"tool path"`` and ``"link
+        origins"``; the meshes' triangles are ``scene_meshes``'s.
 
     Raises:
         ValueError: a robot without a collision body (from the robot), ``q`` or ``motion``
             of the wrong shape, or neither given.
     """
-    body = robot.collision_body()
-    q, moves = surfaces.scene_joints(robot.n_joints, q, motion)
-    frames = _validate.count(frames, "frames", minimum=0) if moves is not None else 0
+    scene = _Scene(robot, q, world, motion, frames, segments)
     fig = _figure(figsize, dpi)
     ax = fig.add_subplot(projection="3d")
-    colours = [f"C{k % 10}" for k in range(len(body.links))]
-    poses = surfaces.link_poses(robot, q)
-    points = [poses[:, :3, 3]]
-    for shape in surfaces.body_surfaces(body, poses, segments):
-        colour = colours[body.links.index(shape.name)]
-        _mesh(ax, shape, f"body {shape.name}", color=colour, alpha=0.55, lw=0)
-        points.append(shape.vertices)
-    ax.plot(*poses[:, :3, 3].T, "k.", ms=4, gid="link origins")
-    if moves is not None:
-        tool = robot.target.position(fk(robot, moves).x.p)
-        ax.plot(*np.asarray(tool, float).T, "-", color="k", lw=1.2, gid="tool path")
-        points.append(tool)
-        picks = np.linspace(0, len(moves) - 1, frames).round().astype(int)
-        every = surfaces.link_poses(robot, moves[picks])
-        for k, placed in enumerate(every):
-            alpha = 0.08 + 0.22 * (k + 1) / len(picks)
-            for shape in surfaces.body_surfaces(body, placed, segments):
-                colour = colours[body.links.index(shape.name)]
-                _mesh(ax, shape, f"motion {k} {shape.name}", color=colour, alpha=alpha, lw=0)
-                points.append(shape.vertices)
-    robot_points = np.concatenate(points)
-    if world is not None:
-        if not isinstance(world, collision.World):
-            raise ValueError(f"world: expected a collision.World, got {type(world).__name__}")
-        centre, extent = surfaces.bounding_cube(robot_points)
-        for shape in surfaces.world_surfaces(world, extent, centre, segments):
-            _mesh(ax, shape, f"world {shape.name}", color="0.5", alpha=0.3, lw=0.2)
-            if not shape.name.startswith("halfspace"):
-                points.append(shape.vertices)
+    for gid, triangles in scene.meshes.items():
+        _mesh(ax, triangles, gid, scene.styles[gid])
+    ax.plot(*scene.origins.T, "k.", ms=4, gid="link origins")
+    if scene.tool is not None:
+        ax.plot(*scene.tool.T, "-", color="k", lw=1.2, gid="tool path")
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     ax.set_zlabel("z")
-    ax.set_title(f"{type(robot).__name__} at q = (" + ", ".join(f"{x:.3g}" for x in q) + ")")
-    _equal_3d(ax, np.concatenate(points))
+    q_text = ", ".join(f"{x:.3g}" for x in scene.q)
+    ax.set_title(f"{type(robot).__name__} at q = ({q_text})")
+    _equal_3d(ax, scene.points)
     return _finish(fig, path)

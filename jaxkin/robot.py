@@ -374,6 +374,12 @@ class Robot(Geometry, metaclass=abc.ABCMeta):
         ``dtype`` itself; a chain promotes it with its own arrays' dtype: ``promoted``)."""
         return dtype
 
+    def work_target(self, x: Any, dtype: Any) -> Any:
+        """Targets ``x`` ``(..., *target.shape)`` in the work dtype ``dtype`` (``x``'s own is
+        another): a cast by default; a chain's poses given in a less precise dtype also get
+        the nearest rotation in ``dtype`` (``serial._step.promoted_pose``). Traceable."""
+        return x.astype(dtype)
+
     def batch_shape(self) -> tuple[int, ...]:
         """The batch axes of the geometry's own values (broadcast against the inputs' batch);
         ``()`` for a geometry shared by the whole batch. By default read from the fields'

@@ -98,6 +98,40 @@ def test_every_batch_size_names_and_tip_share_one_compilation(chain):
     assert angle.max() <= 1e-9 and distance.max() <= 1e-9 * float(chain.length_scale())
 
 
+def test_float32_poses_of_a_float64_chain_are_poses_to_float32_precision(chain):
+    """Poses rounded to float32 (``jaxkin.ik`` and a compiled handle of float32 targets) are
+    solved by the float64 chain in float64: ``OK`` to the float64 defaults (1e-10 rad, 1e-10
+    of the size) against the pose whose rotation is the polar factor of the float32 block
+    (scipy's, an independent computation), checked by the forward kinematics at 1e-9; that
+    rotation is no farther from the float32 block than the float64 rotation rounded to it.
+    Blocks that are not rotations in float32 (skewed by 1e-3, beyond its ``sqrt(eps)`` of
+    3.5e-4; scaled by 1.01; mirrored; NaN) stay ``INVALID_INPUT``."""
+    from scipy.linalg import polar
+
+    _, poses = _targets(chain, 6, seed=7)
+    given = poses.astype(np.float32)
+    bad = np.stack([given[0]] * 4)
+    bad[0, 0, 1] += 1e-3
+    bad[1, :3, :3] *= 1.01
+    bad[2, :3, 2] *= -1.0
+    bad[3, 1, 1] = np.nan
+    result = jaxkin.ik(chain, np.concatenate([given, bad]))
+    handle = jaxkin.compiled(jaxkin.ik, chain, batch=(6,), dtype=np.float32)(given)
+    names = [Status(int(s)).name for s in result.status]
+    assert names == ["OK"] * 6 + ["INVALID_INPUT"] * 4
+    assert result.q.p.dtype == np.float64 and np.all(np.isfinite(np.asarray(result.q.p)))
+    np.testing.assert_array_equal(handle.status, result.status[:6])
+    block = given[:, :3, :3].astype(np.float64)
+    meant = given.astype(np.float64)
+    meant[:, :3, :3] = [polar(b)[0] for b in block]
+    for q in (result.q.p[:6], handle.q.p):
+        angle, distance = _pose_error(np.asarray(jaxkin.fk(chain, q).x.p), meant)
+        assert angle.max() <= 1e-9 and distance.max() <= 1e-9 * float(chain.length_scale())
+    moved = np.linalg.norm(meant[:, :3, :3] - block, axis=(-2, -1))
+    rounded = np.linalg.norm(poses[:, :3, :3] - block, axis=(-2, -1))
+    assert np.all(moved <= rounded)
+
+
 def test_a_prismatic_joint_in_millimetres_solves_as_in_metres(chain):
     """The same chain in millimetres (its lengths and its prismatic stroke times 1000): the same
     poses (translations times 1000) get the same statuses and the same joints (the prismatic

@@ -69,6 +69,23 @@ def test_witnessed_paths_are_feasible(name):
     _assert_honest(again, check)
 
 
+def test_float32_pose_paths_of_a_float64_chain():
+    """The default tier's Kinova paths rounded to float32, given to the float64 chain: poses
+    to float32's precision (``Chain.work_target``), solved in float64, every path feasible and
+    every answer honest against the float64 witnesses to float32's rounding of them (poses
+    1e-6, rates 1e-5 of the twist)."""
+    urdf, tip = wp.ARMS["kinova"]
+    chain = serial.from_urdf(str(wp.ROBOTS / urdf), tip)
+    arm = wp.Arm("kinova", list(chain.joint_names))
+    (q, q_dot, q_ddot), dt = wp.witnesses(chain, 4, 32, np.random.default_rng(11))
+    p, v, a = wp.pose_path(arm, q, q_dot, q_ddot)
+    ev = plan.evaluate(chain, paths.Path(p, v, a, dt=dt).astype(np.float32))
+    assert ev.q.p.dtype == np.float64
+    assert np.all(ev.feasible), np.asarray(ev.status)
+    answer = tuple(np.asarray(x, float) for x in (ev.q.p, ev.q.v, ev.q.a))
+    _assert_honest(ev, wp.check_answers(arm, chain, answer, p, v, dt), 1e-6, 1e-5)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", list(wp.ARMS))
 def test_witnessed_paths_sweep(name):

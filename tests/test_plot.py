@@ -190,9 +190,25 @@ def anthropomorphic_points(l1, l2, l3, q):
     return np.stack([np.zeros(3), shoulder, elbow, wrist])
 
 
-def mesh_points(collection):
-    # matplotlib 3.11 keeps a Poly3DCollection's 3-D polygons in _faces (no public getter)
-    return np.asarray(collection._faces, float).reshape(-1, 3)
+def drawn_as(ax, meshes):
+    """Every mesh artist of ``ax`` is the gid's triangles of ``meshes``: its polygons (public
+    ``get_paths`` after a draw, in the axes' projected coordinates, in matplotlib's depth
+    order) are those triangles projected by the axes' own matrix (``get_proj``,
+    ``proj3d.proj_transform``), one for one, to 1e-12 of the view; every gid drawn once."""
+    from mpl_toolkits.mplot3d import proj3d
+
+    ax.figure.draw_without_rendering()
+    projection = ax.get_proj()
+    assert sorted(c.get_gid() for c in ax.collections) == sorted(meshes)
+    for collection in ax.collections:
+        triangles = meshes[collection.get_gid()]
+        x, y, _ = proj3d.proj_transform(*triangles.reshape(-1, 3).T, projection)
+        expected = np.stack([x, y], -1).reshape(len(triangles), 6)
+        drawn = np.stack([p.vertices[:3].ravel() for p in collection.get_paths()])
+        assert drawn.shape == expected.shape
+        gap = np.linalg.norm(drawn[:, None] - expected[None], axis=-1)
+        scale = np.ptp(expected)
+        assert gap.min(axis=0).max() <= 1e-12 * scale and gap.min(axis=1).max() <= 1e-12 * scale
 
 
 def distance_to_segment(points, a, b):
@@ -201,10 +217,10 @@ def distance_to_segment(points, a, b):
 
 
 def test_robot_scene_draws_the_body_world_and_motion_where_fk_puts_them(tmp_path):
-    """The Agg figure's meshes: each link's capsule at distance r from the segment between
-    the written-out joint positions, its poles ``r`` past the ends; the box's corners; the
-    tool path through the written-out wrist at every sample; the body at the motion's
-    samples; a PNG of the requested size."""
+    """The meshes drawn (``scene_meshes``, the figure's artists by ``drawn_as``): each
+    link's capsule at distance r from the segment between the written-out joint positions,
+    its poles ``r`` past the ends; the box's corners; the tool path through the written-out
+    wrist at every sample; the body at the motion's samples; a PNG of the requested size."""
     from jaxkin import collision, serial
 
     l1, l2, l3, r = 0.3, 0.25, 0.2, 0.03
@@ -218,7 +234,9 @@ def test_robot_scene_draws_the_body_world_and_motion_where_fk_puts_them(tmp_path
     q = np.array([0.4, 0.5, 0.7])
     fig = plot.robot_scene(arm, q, world, motion, frames=3, path=tmp_path / "scene.png")
     ax = fig.axes[0]
-    meshes = {c.get_gid(): mesh_points(c) for c in ax.collections}
+    triangles = plot.scene_meshes(arm, q, world, motion, frames=3)
+    drawn_as(ax, triangles)
+    meshes = {gid: corners.reshape(-1, 3) for gid, corners in triangles.items()}
     joints = anthropomorphic_points(l1, l2, l3, q)
     for k in (1, 2, 3):
         a, b = joints[k - 1], joints[k]

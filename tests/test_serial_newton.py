@@ -348,6 +348,47 @@ def test_a_target_that_is_not_a_rigid_transform_is_never_ok():
     assert tree_allfinite(res)
 
 
+def test_float32_targets_of_float64_joints_are_poses_to_float32_precision():
+    """``ik_newton`` of float32 targets from float64 starts works in float64: rounded poses
+    (rotation blocks off by float32 rounding, far beyond float64's ``sqrt(eps)``) are ``OK``,
+    float32 blocks that are not rotations (``_not_rigid``'s, skewed by 1e-3) stay
+    ``INVALID_INPUT``. The float32 blocks, also
+    perturbed by up to 1e-4 an entry (within float32's ``sqrt(eps)``), become their polar factor
+    (``_step.promoted_pose``): scipy's to 1e-14 (its SVD's own error), a rotation to 4 eps
+    whose transpose times the block is symmetric to 1e-15; a float64 target is only cast."""
+    from scipy.linalg import polar
+    from scipy.spatial.transform import Rotation
+
+    chain = _planar_2r_body()
+    good = _planar_2r_pose([[0.3, 0.9], [1.2, -0.7]]).astype(np.float32)
+    bad = _not_rigid(good[0].astype(np.float64)).astype(np.float32)
+    bad[2, 0, 1] += 1e-3  # beyond float32's sqrt(eps), as 1e-6 is beyond float64's
+    targets = np.concatenate([good, bad])
+    res = _ik_body(chain, targets, np.array([0.2, 0.8]), max_iter=15)
+    assert res.q.dtype == np.float64
+    names = [Status(int(s)).name for s in res.status]
+    assert names == ["OK"] * 2 + ["INVALID_INPUT"] * 4
+
+    rng = np.random.default_rng(3)
+    poses = np.broadcast_to(np.eye(4), (64, 4, 4)).copy()
+    poses[:, :3, :3] = Rotation.random(64, random_state=4).as_matrix()
+    poses[:, :3, 3] = rng.normal(size=(64, 3))
+    poses[32:, :3, :3] += rng.uniform(-1e-4, 1e-4, (32, 3, 3))
+    given = poses.astype(np.float32)
+    promoted = np.asarray(_step.promoted_pose(jnp.asarray(given), jnp.float64))
+    expected = given.astype(np.float64)
+    expected[:, :3, :3] = [polar(b)[0] for b in expected[:, :3, :3]]
+    np.testing.assert_allclose(promoted, expected, rtol=0, atol=1e-14)  # scipy's SVD: 1e-14
+    # The polar factor U of B: U^T U = I and U^T B symmetric (positive definite).
+    rot, block = promoted[:, :3, :3], given[:, :3, :3].astype(np.float64)
+    eye = np.broadcast_to(np.eye(3), rot.shape)
+    np.testing.assert_allclose(np.swapaxes(rot, -1, -2) @ rot, eye, rtol=0, atol=4 * 2.3e-16)
+    stretch = np.swapaxes(rot, -1, -2) @ block
+    np.testing.assert_allclose(stretch, np.swapaxes(stretch, -1, -2), rtol=0, atol=1e-15)
+    assert np.all(np.linalg.eigvalsh(stretch) > 0.99)
+    np.testing.assert_array_equal(_step.promoted_pose(jnp.asarray(poses), jnp.float64), poses)
+
+
 def test_damped_step_looped_matches_numpy():
     """The damped step of the chain IK (``damped_step_looped``: Gauss-Jordan elimination in
     one loop) for 6 x 7 and 6 x 6 Jacobians against numpy's solve of the same damped normal

@@ -1,52 +1,73 @@
-"""The browser viewer (jaxkin.viewer, the viser extra): it serves its page over HTTP and its
-scene over the websocket a browser opens, the robot's links placed where the written-out
-kinematics puts them, the world and the motion's path."""
+"""The browser viewer (jaxkin.viewer, the viser extra): it serves its page over HTTP, and what
+it adds through viser's public scene and GUI API (recorded by a wrapper of the real server,
+each call passed on to it) places the robot's links where the written-out kinematics puts
+them, the world's obstacles and the motion's tool path."""
 
 import builtins
-import time
 import urllib.request
 
 import numpy as np
 import pytest
 
 viser = pytest.importorskip("viser")
-msgpack = pytest.importorskip("msgspec.msgpack")
-zstandard = pytest.importorskip("zstandard")
 
 from scipy.spatial.transform import Rotation  # noqa: E402
-from websockets.sync.client import connect  # noqa: E402  (viser's dependency)
 
 from jaxkin import collision, serial, viewer  # noqa: E402
 from tests.test_plot import anthropomorphic_points, distance_to_segment  # noqa: E402
 
 
-def scene_names(url: str, wanted: set[str], timeout: float = 20.0) -> set[str]:
-    """The node names a browser receives: viser's websocket frames (its 1.x wire format: the
-    msgpack payload's sizes in 16 bytes, the zstd-compressed msgpack, then binary buffers),
-    read until every ``wanted`` name came or ``timeout`` passed."""
-    names: set[str] = set()
-    protocol = "viser-v" + viser.__version__
-    with connect(url.replace("http", "ws", 1), subprotocols=[protocol]) as ws:
-        end = time.monotonic() + timeout
-        while not wanted <= names and time.monotonic() < end:
-            try:
-                frame = ws.recv(timeout=0.5)
-            except TimeoutError:
-                continue
-            size = int.from_bytes(frame[:8], "little")
-            packed = int.from_bytes(frame[8:16], "little")
-            payload = zstandard.ZstdDecompressor().decompress(frame[16 : 16 + packed], size)
-            for message in msgpack.decode(payload)["messages"]:
-                if isinstance(message, dict) and isinstance(message.get("name"), str):
-                    names.add(message["name"])
-    return names
+class _Recorded:
+    """``target`` (a viser API object) whose method calls are passed on and recorded in
+    ``calls`` as ``(prefix + method, first argument, returned handle)``."""
+
+    def __init__(self, target, prefix: str, calls: list) -> None:
+        self._target, self._prefix, self._calls = target, prefix, calls
+
+    def __getattr__(self, attr):
+        value = getattr(self._target, attr)
+        if not callable(value):
+            return value
+
+        def call(*args, **kwargs):
+            result = value(*args, **kwargs)
+            self._calls.append((self._prefix + attr, args[0] if args else None, result))
+            return result
+
+        return call
 
 
-def test_viewer_serves_its_page_and_the_scene():
-    l1, l2, l3 = 0.3, 0.25, 0.2
-    arm = serial.Anthropomorphic(l1, l2, l3, link_radius=0.03)
+class RecordingServer:
+    """A real ``viser.ViserServer`` whose ``scene`` and ``gui`` calls are recorded."""
+
+    started: list["RecordingServer"] = []
+
+    def __init__(self, *args, **kwargs) -> None:
+        self._server = _REAL_SERVER(*args, **kwargs)
+        self.calls: list = []
+        self.scene = _Recorded(self._server.scene, "scene.", self.calls)
+        self.gui = _Recorded(self._server.gui, "gui.", self.calls)
+        RecordingServer.started.append(self)
+
+    def __getattr__(self, attr):
+        return getattr(self._server, attr)
+
+    def added(self, method: str) -> dict:
+        """Name (or label) -> the handle viser returned, for every call of ``method``."""
+        return {name: handle for kind, name, handle in self.calls if kind == method}
+
+
+_REAL_SERVER = viser.ViserServer
+
+
+def test_viewer_serves_its_page_and_adds_the_scene_through_viser(monkeypatch):
+    monkeypatch.setattr(viser, "ViserServer", RecordingServer)
+    RecordingServer.started.clear()
+    l1, l2, l3, r = 0.3, 0.25, 0.2, 0.03
+    arm = serial.Anthropomorphic(l1, l2, l3, link_radius=r)
+    centre, half = np.array([0.3, 0.2, 0.2]), np.array([0.05, 0.05, 0.2])
     world = collision.World.create(
-        boxes=collision.Boxes.create(center=[[0.3, 0.2, 0.2]], half_extents=[[0.05, 0.05, 0.2]]),
+        boxes=collision.Boxes.create(center=[centre], half_extents=[half]),
         halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [0.0]),
     )
     motion = np.linspace([0.0, 0.3, 0.5], [1.2, 0.6, 0.9], 20)
@@ -54,35 +75,48 @@ def test_viewer_serves_its_page_and_the_scene():
         with urllib.request.urlopen(shown.url + "/", timeout=20) as response:
             page = response.read()
         assert response.status == 200 and page.lstrip().lower().startswith(b"<!doctype html")
-        wanted = {
-            "/robot/link1",
-            "/robot/link3",
-            "/robot/link3/capsule_0",
-            "/world/box_0",
-            "/world/halfspace_0",
-            "/motion/tool_path",
-        }
-        names = scene_names(shown.url, wanted)
-        assert wanted <= names, sorted(names)
+        (server,) = RecordingServer.started
+        frames = server.added("scene.add_frame")
+        meshes = server.added("scene.add_mesh_simple")
+        assert set(frames) == {f"/robot/{link}" for link in shown.links}
+        assert {"link1", "link2", "link3"} <= set(shown.links)
+        assert {"/robot/link3/capsule_0", "/world/box_0", "/world/halfspace_0"} <= set(meshes)
+        assert {name.rsplit("/", 1)[0] for name in meshes if name.startswith("/robot")} <= set(
+            frames
+        )
+        assert set(server.added("gui.add_slider")) == {"sample"}
+        assert set(server.added("gui.add_checkbox")) == {"play"}
+        # the tool path: the written-out wrist at every sample
+        (spline,) = server.added("scene.add_spline_catmull_rom").items()
+        assert spline[0] == "/motion/tool_path"
+        wrists = np.stack([anthropomorphic_points(l1, l2, l3, m)[3] for m in motion])
+        np.testing.assert_allclose(spline[1].points, wrists, rtol=0, atol=1e-6)
+        # the world: the box's 8 corners, the floor at z = 0
+        corners = centre + half * np.array(
+            [[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+        )
+        box = np.unique(np.asarray(meshes["/world/box_0"].vertices, float).round(6), axis=0)
+        np.testing.assert_allclose(box, np.unique(corners.round(6), axis=0), atol=1e-6)
+        np.testing.assert_allclose(meshes["/world/halfspace_0"].vertices[:, 2], 0.0, atol=1e-7)
         # the last sample shown: each link's frame at the written-out DH origin of its joint
         joints = anthropomorphic_points(l1, l2, l3, motion[-1])
-        for k, link in ((1, "link1"), (2, "link2"), (3, "link3")):
-            np.testing.assert_allclose(shown.frames[link].position, joints[k], atol=1e-6)
+        for k in (1, 2, 3):
+            np.testing.assert_allclose(frames[f"/robot/link{k}"].position, joints[k], atol=1e-6)
         shown.show_sample(0)
         first = anthropomorphic_points(l1, l2, l3, motion[0])
-        np.testing.assert_allclose(shown.frames["link3"].position, first[3], atol=1e-6)
+        np.testing.assert_allclose(frames["/robot/link3"].position, first[3], atol=1e-6)
         q = np.array([0.4, 0.5, 0.7])
         shown.show(q)
         at = anthropomorphic_points(l1, l2, l3, q)
-        np.testing.assert_allclose(shown.frames["link2"].position, at[2], atol=1e-6)
+        np.testing.assert_allclose(frames["/robot/link2"].position, at[2], atol=1e-6)
         # the forearm's mesh, in its link's frame, placed by the frame's pose (scipy's
         # quaternion, scalar last): at the capsule's radius from the elbow-wrist segment
-        frame = shown.frames["link3"]
+        frame = frames["/robot/link3"]
         w, x, y, z = frame.wxyz
         turn = Rotation.from_quat([x, y, z, w]).as_matrix()
-        local = np.asarray(shown.nodes["/robot/link3/capsule_0"].vertices, float)
+        local = np.asarray(meshes["/robot/link3/capsule_0"].vertices, float)
         placed = local @ turn.T + frame.position
-        np.testing.assert_allclose(distance_to_segment(placed, at[2], at[3]), 0.03, atol=1e-6)
+        np.testing.assert_allclose(distance_to_segment(placed, at[2], at[3]), r, atol=1e-6)
         with pytest.raises(ValueError, match=r"q: expected joints of shape \(3,\)"):
             shown.show(np.zeros(2))
 

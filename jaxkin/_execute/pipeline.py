@@ -108,9 +108,10 @@ _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 _FLOAT_DTYPES: dict[Any, Any] = {}
 
 
-def _inputs(robot: Any, x: Any, name: str, core: tuple[int, ...]):
+def _inputs(robot: Any, x: Any, name: str, core: tuple[int, ...], target: bool = False):
     """``(p, v, a, rates, batch)``: the input's arrays in the work dtype (``v``, ``a`` None at
-    rest) and its batch shape broadcast with the geometry's; ``ValueError`` naming ``name``."""
+    rest; ``p`` of a ``target`` through ``robot.work_target``) and its batch shape broadcast
+    with the geometry's; ``ValueError`` naming ``name``."""
     rates = isinstance(x, Jet)
     if rates:
         arrays = [_array(y, name) for y in (x.p, x.v, x.a)]
@@ -128,7 +129,11 @@ def _inputs(robot: Any, x: Any, name: str, core: tuple[int, ...]):
         )
     canonical = all(type(y) in _JAX_TYPES for y in arrays)
     dtype = robot.work_dtype(_float_dtype(tuple(y.dtype for y in arrays), canonical))
-    arrays = [y if y.dtype is dtype or y.dtype == dtype else _cast(y, dtype) for y in arrays]
+    first = robot.work_target if target else _cast
+    arrays = [
+        y if y.dtype is dtype or y.dtype == dtype else (_cast if i else first)(y, dtype)
+        for i, y in enumerate(arrays)
+    ]
     batch = tuple(shape[: len(shape) - k])
     extra = robot.batch_shape()
     if extra:
@@ -383,7 +388,8 @@ def ik(
 
     Returns:
         ``IKResult`` (or a subclass): ``q`` (Jet, ``(..., n_joints)``), ``status``, ``margin``.
-        Work is done in the target's floating dtype (``robot.work_dtype``).
+        Work is done in the target's floating dtype (``robot.work_dtype``), the target cast to
+        it by ``robot.work_target`` (a chain's float32 pose becomes a rotation in float64).
 
     Raises:
         ValueError: not a robot, an unknown branch or option, or a target of the wrong shape
@@ -411,7 +417,7 @@ def solve_ik(robot: Any, target: Any, branch: Any, options: Any, name: str = "ta
 def _solve_ik(robot: Any, target: Any, branch: Any, options: Any, name: str = "target") -> Any:
     """``solve_ik`` without the hot single query."""
     branch = robot.check_branch(branch)
-    p, v, a, rates, batch = _inputs(robot, target, name, robot.target.shape)
+    p, v, a, rates, batch = _inputs(robot, target, name, robot.target.shape, target=True)
     policy = robot.ik_policy
     if policy.branch_as_data:
         index = np.int32(robot.branches.index(branch))

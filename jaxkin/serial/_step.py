@@ -23,6 +23,7 @@ rotation angle of ``R_bd`` and ``|p_bd| = |p_d - p|`` the tool's distance to the
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -30,7 +31,7 @@ from jax import Array
 from jax.typing import ArrayLike
 
 from .. import lie
-from .._numerics import all_finite, computed_once, safe_sqrt, singular_rtol
+from .._numerics import all_finite, computed_once, eps, safe_sqrt, singular_rtol
 
 __all__ = [
     "body_twist",
@@ -38,6 +39,7 @@ __all__ = [
     "damped_step_soa",
     "limited",
     "norm3",
+    "promoted_pose",
     "rigid_target",
     "damped_step_looped",
     "spd_solve",
@@ -182,6 +184,31 @@ def rigid_target(target: Array) -> Array:
     # det R = r_0 . (r_1 x r_2), elementwise: no LAPACK call (whose first use imports scipy).
     det = jnp.sum(rot[..., 0, :] * jnp.cross(rot[..., 1, :], rot[..., 2, :]), axis=-1)
     return finite & orthonormal & (det > 0)
+
+
+def promoted_pose(target: Array, dtype: Any) -> Array:
+    """Pose targets ``(..., 4, 4)`` in the work dtype ``dtype``. Given in a less precise
+    floating dtype (float32 targets of a float64 chain), an element whose rotation block is a
+    rotation to the precision of that dtype (``rigid_target`` in it) gets the nearest rotation
+    in ``dtype``, the orthogonal polar factor of the block, by the iterations
+    ``R <- R (3 I - R^T R) / 2`` [Bjorck and Bowie 1971] (quadratic: from
+    ``|R^T R - I| <= sqrt(eps)`` of the given dtype to ``eps`` of ``dtype`` in the count
+    computed here). The pose it stands for, to its own precision, so the IK's tolerances in
+    ``dtype`` can be met; the translation is exact in ``dtype``. Any other element (not a
+    rotation, NaN, inf) is only cast, and the IK's check in ``dtype`` refuses it. Otherwise a
+    cast."""
+    given = jnp.result_type(target)
+    if not jnp.issubdtype(given, jnp.floating) or eps(given) <= eps(dtype):
+        return target.astype(dtype)
+    rigid = rigid_target(target)[..., None, None]
+    pose = jnp.asarray(target).astype(dtype)
+    eye = jnp.eye(3, dtype=dtype)
+    rot = jnp.where(rigid, pose[..., :3, :3], eye)  # a harmless block where not used
+    error = singular_rtol(given)
+    while error > eps(dtype):
+        rot = rot @ (1.5 * eye - 0.5 * jnp.swapaxes(rot, -1, -2) @ rot)
+        error = error * error
+    return pose.at[..., :3, :3].set(jnp.where(rigid, rot, pose[..., :3, :3]))
 
 
 def norm3(x: list[Array]) -> Array:

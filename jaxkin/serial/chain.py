@@ -59,7 +59,7 @@ from ..jet import Jet
 from ..result import FKResult, IKResult, forward_result
 from ..robot import POINT, POSE, CompilePolicy, JointLimits, Robot, Target, promoted
 from ..status import Status
-from . import _kinematics, search, track
+from . import _kinematics, _step, search, track
 from .search import ChainIKOptions
 
 __all__ = ["JOINT_KINDS", "TARGETS", "Chain", "ChainLinks", "body_jacobian", "space_jacobian"]
@@ -435,6 +435,15 @@ class Chain(Robot):
 
     def work_dtype(self, dtype: Any) -> Any:
         return promoted(dtype, self.screws.dtype)
+
+    def work_target(self, x: Any, dtype: Any) -> Any:
+        """Targets in the work dtype; a pose given in a less precise dtype (a float32 target
+        of a float64 chain) is that pose to its own precision: its rotation block, where it is
+        a rotation in that dtype, becomes the nearest rotation in ``dtype``
+        (``_step.promoted_pose``), so the default tolerances in ``dtype`` can be met."""
+        if self.target_kind == "point":
+            return x.astype(dtype)
+        return _step.promoted_pose(x, dtype)
 
     # -------------------------------------------------------------------- collision
     def link_poses(self, q: Array) -> Array:

@@ -14,8 +14,11 @@ that no revolute joint moves more than ``max_step``; with ``limits`` every itera
 into the box. Every element iterates on its own in one jitted ``lax.scan``; ``NOT_CONVERGED``
 elements keep the last iterate, ``INVALID_INPUT`` (NaN/inf in the target or the start) the
 start with non-finite entries replaced by 0; a target whose rotation block is not a rotation
-(``max |R^T R - I| > sqrt(eps)`` or ``det R <= 0``) is ``INVALID_INPUT`` too: ``OK`` only ever
-means the tolerances were met on a rigid target.
+(``max |R^T R - I| > sqrt(eps)`` or ``det R <= 0``, ``eps`` of the target's own dtype) is
+``INVALID_INPUT`` too: ``OK`` only ever means the tolerances were met on a rigid target. A
+target in a less precise dtype than the computation's (float32 targets, float64 joints) is
+that pose to its own precision: its rotation block becomes the nearest rotation in the
+computation's dtype (``serial._step.promoted_pose``).
 
 This is the iteration as the textbook has it, from the caller's starts; ``jaxkin.ik`` of a
 chain is the robot's IK search (``serial.search``: limits, restarts, rates, margins).
@@ -252,7 +255,7 @@ def ik_newton(
     chain = _validate.cast_leaves(chain, dtype)
     return _ik_jit(
         chain,
-        target.astype(dtype),
+        _step.promoted_pose(target, dtype),
         q0.astype(dtype),
         jnp.asarray(eps_omega, dtype),
         jnp.asarray(eps_v, dtype),

@@ -24,7 +24,10 @@ In units of the chain's size and in the body frame, per element:
   results, as in step);
 * ``OK`` only where ``angle(R^T R_d) <= orientation_tol`` and ``|p_d - p| <= position_tol``,
   evaluated at the returned joints; ``INVALID_INPUT`` for NaN or inf in the target or its
-  rates, or a rotation block that is not a rotation (``serial._step.rigid_target``);
+  rates, or a rotation block that is not a rotation (``serial._step.rigid_target``). A pose
+  given in a less precise dtype than the chain's (float32 targets of a float64 chain) is
+  checked in its own dtype and made the nearest rotation in the chain's at the boundary
+  (``Chain.work_target``), so it meets the same tolerances as one given in the chain's;
 * rates from the target's body twist, ``q_dot = J_b^+ V_b``, ``q_ddot = J_b^+ (V_b_dot -
   J_b_dot q_dot)`` (minimum-norm for a redundant chain, least squares for one with fewer than
   six joints), a Jacobian-based margin, and implicit derivatives (``dq = J_b^+ dV_b``);
@@ -127,7 +130,9 @@ class ChainIKOptions:
             best kept (``serial.track``).
         position_tol: length units; None for ``max(1e-10, 1000 eps) * chain.length_scale()``.
             A new value compiles nothing new.
-        orientation_tol: rad; None for ``max(1e-10, 1000 eps)``.
+        orientation_tol: rad; None for ``max(1e-10, 1000 eps)`` (``eps`` of the work dtype;
+            a float32 pose of a float64 chain is made a rotation in float64 first,
+            ``Chain.work_target``).
         use_limits: respect the chain's position limits (False: search without them).
     """
 
