@@ -488,3 +488,29 @@ def test_the_motion_command_writes_a_timed_trajectory(tmp_path):
     world = collision.read_moveit_scene(scene_file)
     assert not np.any(np.asarray(collision.check(robot, table[:, 1:3], world).collides))
     assert cli.main([*argv[:-6], "--to", "2.5", "--world", str(scene_file), "-o", str(out)]) == 2
+
+
+def test_spline_slopes_and_compaction_against_scipy_and_numpy():
+    """The simplification's natural cubic spline slopes (its own Thomas solver) equal SciPy's
+    ``CubicSpline(bc_type="natural")`` derivative at the knots to 1e-12 relative, the first
+    ``count`` knots of a padded array; the rows past ``count`` are zero. ``kept_order`` lists
+    the kept indices in order (NumPy's ``flatnonzero``) and valid indices past them, for
+    masks with none, some and all kept."""
+    from scipy.interpolate import CubicSpline
+
+    from jaxkin.motion import simplify
+
+    rng = np.random.default_rng(7)
+    for count in (3, 4, 9, 16):
+        s = np.concatenate([[0.0], np.cumsum(rng.uniform(0.1, 2.0, 15))])
+        knots = rng.normal(size=(16, 7))
+        got = np.asarray(simplify.spline_slopes(jnp.asarray(knots), jnp.asarray(s), count))
+        want = CubicSpline(s[:count], knots[:count], bc_type="natural")(s[:count], 1)
+        scale = np.max(np.abs(want))
+        np.testing.assert_allclose(got[:count], want, rtol=0, atol=1e-12 * scale)
+        assert np.all(got[count:] == 0.0)
+    for keep in (np.zeros(9, bool), rng.uniform(size=9) < 0.5, np.ones(9, bool)):
+        order = np.asarray(simplify.kept_order(jnp.asarray(keep), 12))
+        kept = np.flatnonzero(keep)
+        np.testing.assert_array_equal(order[: kept.size], kept)
+        assert np.all((order >= 0) & (order < 9))

@@ -59,12 +59,21 @@ class Simplified:
     smooth: Array
 
 
+def kept_order(keep: Array, size: int) -> Array:
+    """The indices of the ``True`` entries of ``keep`` ``(K,)`` in order, in the first slots of
+    ``size`` (the rest point past them, clipped to ``K - 1``): slot ``k`` holds the first index
+    whose running count of kept entries reaches ``k + 1``, a binary search (no sort, which XLA
+    cannot compile into one function with the loop around it)."""
+    rank = jnp.cumsum(keep.astype(jnp.int32))
+    slots = jnp.arange(1, size + 1, dtype=jnp.int32)
+    return jnp.minimum(jnp.searchsorted(rank, slots, side="left"), keep.shape[0] - 1)
+
+
 def _compact(path: Array, keep: Array) -> tuple[Array, Array]:
     """The waypoints with ``keep`` in order at the front (the rest repeat the last kept)."""
     p = path.shape[0]
-    order = jnp.argsort(~keep, stable=True)
     count = jnp.sum(keep).astype(jnp.int32)
-    out = path[order]
+    out = path[kept_order(keep, p)]
     last = out[jnp.maximum(count - 1, 0)]
     return jnp.where((jnp.arange(p) < count)[:, None], out, last), count
 
@@ -142,12 +151,35 @@ def spline_slopes(knots: Array, s: Array, count: Array) -> Array:
     past = idx >= count
     lower, upper = jnp.where(past, 0.0, lower), jnp.where(past | last, 0.0, upper)
     diag, rhs = jnp.where(past, 1.0, diag), jnp.where(past[:, None], 0.0, rhs)
-    n = knots.shape[1]
-    lo, di, up = (jnp.broadcast_to(x[None], (n, p)) for x in (lower, diag, upper))
-    out = jax.lax.linalg.tridiagonal_solve(lo, di, up, rhs.T[..., None])[..., 0]
-    slopes = out.T
+    slopes = solve_tridiagonal(lower, diag, upper, rhs)
     # two knots: the straight line (the system above gives it too, kept exact)
     return jnp.where(count <= 2, jnp.broadcast_to(d[0], slopes.shape), slopes)
+
+
+def solve_tridiagonal(lower: Array, diag: Array, upper: Array, rhs: Array) -> Array:
+    """``x (P, n)`` with ``lower_i x_{i-1} + diag_i x_i + upper_i x_{i+1} = rhs_i`` (``lower``,
+    ``diag``, ``upper`` ``(P,)``, shared by the ``n`` columns of ``rhs``; ``lower_0`` and
+    ``upper_{P-1}`` unused): the Thomas algorithm, one forward and one backward ``lax.scan``.
+    Without pivoting: the slope system is strictly diagonally dominant by rows."""
+
+    def forward(prev: tuple[Array, Array], row: tuple[Array, ...]) -> tuple[Any, Any]:
+        c_prev, d_prev = prev
+        lo, di, up, r = row
+        denom = di - lo * c_prev
+        c, d = up / denom, (r - lo * d_prev) / denom
+        return (c, d), (c, d)
+
+    zero = jnp.zeros((), diag.dtype)
+    init = (zero, jnp.zeros_like(rhs[0]))
+    _, (c, d) = jax.lax.scan(forward, init, (lower, diag, upper, rhs))
+
+    def backward(x_next: Array, row: tuple[Array, Array]) -> tuple[Array, Array]:
+        c_i, d_i = row
+        x = d_i - c_i * x_next
+        return x, x
+
+    _, x = jax.lax.scan(backward, jnp.zeros_like(rhs[0]), (c, d), reverse=True)
+    return x
 
 
 def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode):
@@ -245,8 +277,7 @@ def _insert_midpoints(path, count, bad, space):
     keep = jnp.concatenate([keep, jnp.array([False])])
     # the last waypoint (count - 1) is kept by the first column
     fits = jnp.sum(keep) <= p
-    order = jnp.argsort(~keep, stable=True)[:p]
-    new = both[order]
+    new = both[kept_order(keep, p)]
     new_count = jnp.minimum(jnp.sum(keep), p).astype(jnp.int32)
     last = new[jnp.maximum(new_count - 1, 0)]
     new = jnp.where((jnp.arange(p) < new_count)[:, None], new, last)
