@@ -1,4 +1,6 @@
-"""Benchmark configuration: float64 available (each benchmark states the dtype it uses).
+"""Benchmark configuration: float64 available (each benchmark states the dtype it uses), and
+JAX's CPU runtime as the command line sets it (``jaxkin.enable_low_latency()``, before JAX
+runs anything; ``JAXKIN_LOW_LATENCY=0`` measures JAX's defaults instead).
 
 Timing rules: compile and warm up outside the timer; time
 ``jax.block_until_ready(f(...))`` on the result; record batch size, dtype and throughput
@@ -13,6 +15,9 @@ from collections.abc import Callable
 import jax
 import pytest
 
+from jaxkin._execute.latency import enable_for_command
+
+enable_for_command()  # first: JAX reads these options when its CPU backend starts
 jax.config.update("jax_enable_x64", True)
 
 
