@@ -130,7 +130,7 @@ def main(argv=None) -> int:
     parser.add_argument("--lanes", type=int, default=4)
     parser.add_argument("--batch", action="store_true")
     parser.add_argument("--batch-only", action="store_true", help="skip the single calls")
-    parser.add_argument("--batch-lanes", type=int, default=64)
+    parser.add_argument("--batch-lanes", type=int, default=16)
     parser.add_argument("--ompl", type=int, default=0)
     parser.add_argument("--no-recheck", action="store_true")
     parser.add_argument("--output", type=Path, default=Path(__file__).parent / "mbm_results.md")

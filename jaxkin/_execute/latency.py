@@ -21,9 +21,10 @@ process, so the library never calls it on its own: an application opts in, and t
 ``jaxkin`` command and the examples do (``JAXKIN_LOW_LATENCY=0`` turns it off there).
 
 The threshold is set high enough that the loops of jaxkin's programs, batched ones included
-(the motion planner's search), run as one function each; measured, batched rates were
-unchanged (``docs/performance.md``). Results are the same either way: the same program,
-compiled by XLA's other loop emitter.
+(the motion planner's search), run as one function each; measured, batched rates were the
+same or higher (``docs/performance.md``). Results are the same either way: the same program,
+compiled by XLA's other loop emitter. A loop that holds a sort, a library call (LAPACK) or a
+library fusion (YNNPACK) stays as it was, so the programs meant to run as one avoid them.
 """
 
 from __future__ import annotations

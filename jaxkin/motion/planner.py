@@ -36,6 +36,7 @@ from jax import Array
 
 from .. import timing
 from .._execute import Kernel, Policy, kernel
+from .._execute.latency import small_loops_in_one_function
 from .._splines import hermite
 from ..collision import World
 from ..status import NamedStatusRepr, Status
@@ -555,8 +556,9 @@ def plan(
     solved = status == MotionStatus.SOLVED
     if options.simplify:
         # more problems than a group: similar paths together (_simplify_all), the problems
-        # sorted by waypoint count
-        group = min(SIMPLIFY_GROUP, b)
+        # sorted by waypoint count; one at a time when each loop runs as one function (its
+        # steps then cost no hand-off to amortise over a group)
+        group = min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, b)
         order = np.argsort(np.asarray(count), kind="stable")
         pick = jnp.asarray(order)
         sort = b > group
