@@ -1,7 +1,8 @@
 """First calls and second processes, each timed in fresh processes (a script).
 
 Cold: JAX's persistent compilation cache in a new empty directory (nothing compiled before);
-warm: a second process with that directory. Rows:
+warm: a second process with that directory (the library rows turn it on as README.md says,
+``jaxkin.enable_compilation_cache(directory)``). Rows:
 
 - ``docs``: every ``python`` block of README.md and docs/*.md run as its own script (as
   ``tests/test_docs.py`` runs them, 64-bit mode off), the slowest block's seconds;
@@ -32,10 +33,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 _PANDA = """
-import time, sys, pathlib
+import time, sys, pathlib, os
 start = time.perf_counter()
 import numpy as np, jax
 import jaxkin
+jaxkin.enable_compilation_cache(os.environ["JAXKIN_COMPILATION_CACHE"])  # README's one line
 from jaxkin import collision, paths, plan, serial
 from jaxkin.jet import Jet
 root = next(p / "cmeel.prefix/share/example-robot-data/robots" for p in map(pathlib.Path, sys.path)
@@ -66,10 +68,11 @@ print(f"BODY {built - start:.2f} CALL {time.perf_counter() - built:.2f}")
 _IK = """
 import time
 start = time.perf_counter()
-import sys, pathlib
+import sys, pathlib, os
 import numpy as np, jax
 jax.config.update("jax_enable_x64", True)
 import jaxkin
+jaxkin.enable_compilation_cache(os.environ["JAXKIN_COMPILATION_CACHE"])  # README's one line
 from jaxkin import serial
 root = next(p / "cmeel.prefix/share/example-robot-data/robots" for p in map(pathlib.Path, sys.path)
             if (p / "cmeel.prefix/share/example-robot-data/robots").is_dir())
