@@ -39,6 +39,24 @@ world = collision.World.create(
     halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [-0.6]),
 )
 q = rng.uniform(-3.0, 3.0, (64, 6))
+
+
+def ik_report():
+    from jaxkin import scara
+    arm = scara.Scara.paper()
+    x = np.array([[60.0, 70.0, 40.0], [500.0, 0.0, 40.0], [np.nan, 1.0, 2.0], [90, 0, 50]])
+    ik = jaxkin.compiled(jaxkin.ik, arm, batch=4, dtype=np.float64)(x)
+    fk = jaxkin.compiled(jaxkin.fk, arm, batch=4, dtype=np.float64)(np.nan_to_num(ik.q.p))
+    want_ik, want_fk = jaxkin.ik(arm, x), jaxkin.fk(arm, np.nan_to_num(ik.q.p))
+    gap = lambda a, b: float(np.nanmax(np.abs(np.asarray(a) - np.asarray(b))))
+    return {
+        "status": np.asarray(ik.status).tolist(),
+        "want_status": np.asarray(want_ik.status).tolist(),
+        "q_gap": gap(ik.q.p, want_ik.q.p) / float(arm.length_scale()),
+        "x_gap": gap(fk.x.p, want_fk.x.p) / float(arm.length_scale()),
+    }
+
+
 state = jaxkin.compiled(collision.collides, robot, world, batch=(), dtype=np.float64)
 edge = jaxkin.compiled(collision.validate_motions, robot, world, 8.0, 16, batch=1,
                        dtype=np.float64)
@@ -57,6 +75,7 @@ print(json.dumps({
     "one_function": [
         'xla_cpu_small_call="true"' in h.compiled.as_text() for h in (state, edge)
     ],
+    "ik": ik_report(),
 }))
 """
 
@@ -85,6 +104,10 @@ def test_handles_run_as_one_function_with_the_public_results():
     assert 0 < sum(out["verdicts"]) < 64
     assert out["valid"] == out["public_valid"]
     assert 0 < sum(out["valid"]) < 32
+    ik = out["ik"]  # SCARA IK and FK handles against jaxkin.ik / jaxkin.fk, to 4 ulp
+    assert ik["status"] == ik["want_status"] and len(set(ik["status"])) > 1
+    assert ik["q_gap"] <= 4 * np.finfo(np.float64).eps
+    assert ik["x_gap"] <= 4 * np.finfo(np.float64).eps
 
 
 def test_options_from_the_environment_are_kept(monkeypatch):
