@@ -258,3 +258,47 @@ def test_a_world_is_bucketed_once_and_a_traced_one_every_time():
 
     assert count(world) == collision.OBSTACLE_BUCKET
     assert count(world) == collision.OBSTACLE_BUCKET
+
+
+def test_a_repeated_single_state_is_answered_by_a_handle_of_its_own(monkeypatch):
+    """``collision.collides`` of one configuration asked again and again (a planner's loop)
+    is answered by a compiled handle after ``HOT_AFTER`` calls: the usual path's verdicts and
+    statuses, for a free and a colliding state, ``(n,)`` and ``(1, n)``; once hot, calls
+    compile nothing; another world object gets its own answers (never the first world's);
+    bad arguments are still refused naming them; a list and a traced ``q`` take the usual
+    path."""
+    from jaxkin import _batching
+    from jaxkin.collision import verdict
+
+    monkeypatch.setattr(_batching, "HOT_AFTER", 2)
+    verdict.HOT_STATES.clear()
+    robot = _ur5()
+    world, other = _world(2), _world(3)
+    rng = np.random.default_rng(4)
+    q = rng.uniform(-3.0, 3.0, (64, robot.n_joints))
+    hits = np.asarray(collision.check(robot, q, world).collides)
+    free, hit = q[np.argmin(hits)], q[np.argmax(hits)]
+    assert not hits[np.argmin(hits)] and hits[np.argmax(hits)]
+    for x in (free, hit[None], hit):
+        want = collision.check(robot, x, world)
+        for _ in range(4):
+            got = collision.collides(robot, x, world)
+            np.testing.assert_array_equal(got.collides, want.collides)
+            np.testing.assert_array_equal(got.status, want.status)
+    assert len(verdict.HOT_STATES.programs) == 2  # one per shape: (n,) and (1, n)
+    with compilations() as count:
+        for x in (free, hit[None], hit):
+            collision.collides(robot, x, world)
+    assert count.n == 0
+    for x in (free, hit):
+        for _ in range(3):
+            got = collision.collides(robot, x, other)
+            np.testing.assert_array_equal(got.collides, collision.check(robot, x, other).collides)
+    with pytest.raises(ValueError, match="q: expected shape"):
+        collision.collides(robot, free[:3], world)
+    with pytest.raises(ValueError, match="margin"):
+        collision.collides(robot, free, world, margin=float("nan"))
+    assert bool(collision.collides(robot, hit.tolist(), world).collides)
+    traced = jax.jit(lambda x: collision.collides(robot, x, world).collides)
+    assert bool(traced(hit)) and not bool(traced(free))
+    verdict.HOT_STATES.clear()

@@ -49,11 +49,13 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
 from .._batching import map_chunks
-from .._execute import Handle, Kernel, Policy, builds
+from .._execute import Handle, Kernel, Policy, builds, compiled
+from .._execute.handles import HotQueries
 from .._numerics import all_finite
 from ..status import NamedStatusRepr, Status
 from . import distance as sd
@@ -338,6 +340,50 @@ _collides_jit = Kernel(
 )
 
 
+# Single states asked again and again (a planner's loop): a compiled handle each
+HOT_STATES = HotQueries()
+
+
+def _hot_state(robot: Any, q: Any, world: Any, margin: Any, self_collision: Any) -> Any:
+    """The compiled handle that answers this single configuration's query once the same
+    query (the same robot and world objects, margin, ``self_collision``, shape and dtype of
+    ``q``) was asked ``_batching.HOT_AFTER`` times (``HotQueries``), else None. Only an array
+    ``q`` of one configuration in its canonical floating dtype and a plain margin take this
+    lane; the earlier calls went through the usual checks, so the handle is built from
+    arguments they accepted."""
+    if not isinstance(q, np.ndarray | jax.Array) or isinstance(q, jax.core.Tracer):
+        return None  # a list, or inside a caller's jit
+    if q.ndim not in (1, 2) or q.size != q.shape[-1]:
+        return None  # not one configuration
+    if q.shape[-1] != getattr(robot, "n_joints", None):
+        return None  # the usual path says what is wrong
+    if type(margin) not in (float, int) or type(self_collision) is not bool:
+        return None
+    dtype = q.dtype
+    if dtype.kind != "f" or dtype != jax.dtypes.canonicalize_dtype(dtype):
+        return None
+    key = (id(robot), id(world), q.shape, dtype.str, float(margin), self_collision)
+
+    def build() -> tuple[Any, Handle] | None:
+        if any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(world)):
+            return None  # a world traced by a caller's jit has no handle
+        handle = compiled(
+            collides,
+            robot,
+            world,
+            batch=q.shape[:-1],
+            margin=float(margin),
+            self_collision=self_collision,
+            dtype=dtype,
+        )
+        return world, handle
+
+    entry = HOT_STATES.get(key, robot, build)
+    if entry is None or entry[0] is not world:  # another world under a reused id: the usual path
+        return None
+    return entry[1]
+
+
 def collides(
     robot: CollisionRobot,
     q: ArrayLike,
@@ -349,7 +395,12 @@ def collides(
     (module docstring)? The verdict of ``check(robot, q, world, margin).collides`` without
     the clearance or its pair: the arguments and errors of ``check``; a ``Verdict`` with
     shapes ``(...)``. A concrete batch of at least ``2 VERDICT_MIN_PART`` configurations
-    runs as one part per host thread (``jaxkin.set_num_threads``)."""
+    runs as one part per host thread (``jaxkin.set_num_threads``). The same single
+    configuration's query asked again and again (a planner's loop) is answered by a compiled
+    handle of its own after ``_batching.HOT_AFTER`` calls (``jaxkin.compiled``)."""
+    hot = _hot_state(robot, q, world, margin, self_collision)
+    if hot is not None:
+        return hot(q)
     robot, body, pairs, q, world, margin = checked_arguments(
         robot, q, world, margin, self_collision
     )
