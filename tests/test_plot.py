@@ -216,21 +216,30 @@ def distance_to_segment(points, a, b):
     return np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=-1)
 
 
+def arm_scene(half_y: float, samples: int):
+    """The anthropomorphic arm of links ``(l1, l2, l3) = (0.3, 0.25, 0.2)`` m with capsules of
+    radius ``r = 0.03`` m, a box of half-widths ``(0.05, half_y, 0.2)`` at ``(0.3, 0.2, 0.2)``
+    on the floor ``z = 0``, and a straight motion of ``samples`` joint vectors: ``(l1, l2,
+    l3, r, arm, centre, half, world, motion)``."""
+    from jaxkin import collision, serial
+
+    l1, l2, l3, r = 0.3, 0.25, 0.2, 0.03
+    arm = serial.Anthropomorphic(l1, l2, l3, link_radius=r)
+    centre, half = np.array([0.3, 0.2, 0.2]), np.array([0.05, half_y, 0.2])
+    world = collision.World.create(
+        boxes=collision.Boxes.create(center=[centre], half_extents=[half]),
+        halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [0.0]),
+    )
+    motion = np.linspace([0.0, 0.3, 0.5], [1.2, 0.6, 0.9], samples)
+    return l1, l2, l3, r, arm, centre, half, world, motion
+
+
 def test_robot_scene_draws_the_body_world_and_motion_where_fk_puts_them(tmp_path):
     """The meshes drawn (``scene_meshes``, the figure's artists by ``drawn_as``): each
     link's capsule at distance r from the segment between the written-out joint positions,
     its poles ``r`` past the ends; the box's corners; the tool path through the written-out
     wrist at every sample; the body at the motion's samples; a PNG of the requested size."""
-    from jaxkin import collision, serial
-
-    l1, l2, l3, r = 0.3, 0.25, 0.2, 0.03
-    arm = serial.Anthropomorphic(l1, l2, l3, link_radius=r)
-    centre, half = np.array([0.3, 0.2, 0.2]), np.array([0.05, 0.06, 0.2])
-    world = collision.World.create(
-        boxes=collision.Boxes.create(center=[centre], half_extents=[half]),
-        halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [0.0]),
-    )
-    motion = np.linspace([0.0, 0.3, 0.5], [1.2, 0.6, 0.9], 30)
+    l1, l2, l3, r, arm, centre, half, world, motion = arm_scene(0.06, 30)
     q = np.array([0.4, 0.5, 0.7])
     fig = plot.robot_scene(arm, q, world, motion, frames=3, path=tmp_path / "scene.png")
     ax = fig.axes[0]

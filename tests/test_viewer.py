@@ -13,8 +13,12 @@ viser = pytest.importorskip("viser")
 
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from jaxkin import collision, serial, viewer  # noqa: E402
-from tests.test_plot import anthropomorphic_points, distance_to_segment  # noqa: E402
+from jaxkin import serial, viewer  # noqa: E402
+from tests.test_plot import (  # noqa: E402
+    anthropomorphic_points,
+    arm_scene,
+    distance_to_segment,
+)
 
 
 class _Recorded:
@@ -63,14 +67,7 @@ _REAL_SERVER = viser.ViserServer
 def test_viewer_serves_its_page_and_adds_the_scene_through_viser(monkeypatch):
     monkeypatch.setattr(viser, "ViserServer", RecordingServer)
     RecordingServer.started.clear()
-    l1, l2, l3, r = 0.3, 0.25, 0.2, 0.03
-    arm = serial.Anthropomorphic(l1, l2, l3, link_radius=r)
-    centre, half = np.array([0.3, 0.2, 0.2]), np.array([0.05, 0.05, 0.2])
-    world = collision.World.create(
-        boxes=collision.Boxes.create(center=[centre], half_extents=[half]),
-        halfspaces=collision.HalfSpaces.create([[0.0, 0.0, 1.0]], [0.0]),
-    )
-    motion = np.linspace([0.0, 0.3, 0.5], [1.2, 0.6, 0.9], 20)
+    l1, l2, l3, r, arm, centre, half, world, motion = arm_scene(0.05, 20)
     with viewer.view(arm, world=world, motion=motion, port=0, period=0.01) as shown:
         with urllib.request.urlopen(shown.url + "/", timeout=20) as response:
             page = response.read()

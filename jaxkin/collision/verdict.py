@@ -349,8 +349,8 @@ def _hot_state(robot: Any, q: Any, world: Any, margin: Any, self_collision: Any)
     query (the same robot and world objects, margin, ``self_collision``, shape and dtype of
     ``q``) was asked ``_batching.HOT_AFTER`` times (``HotQueries``), else None. Only an array
     ``q`` of one configuration in its canonical floating dtype and a plain margin take this
-    lane; the earlier calls went through the usual checks, so the handle is built from
-    arguments they accepted."""
+    lane; arguments the handle refuses leave the query on the usual path, which says what
+    is wrong (as ``jaxkin.ik``'s hot queries do)."""
     if not isinstance(q, np.ndarray | jax.Array) or isinstance(q, jax.core.Tracer):
         return None  # a list, or inside a caller's jit
     if q.ndim not in (1, 2) or q.size != q.shape[-1]:
@@ -362,20 +362,24 @@ def _hot_state(robot: Any, q: Any, world: Any, margin: Any, self_collision: Any)
     dtype = q.dtype
     if dtype.kind != "f" or dtype != jax.dtypes.canonicalize_dtype(dtype):
         return None
-    key = (id(robot), id(world), q.shape, dtype.str, float(margin), self_collision)
+    x64 = jax.config.jax_enable_x64  # type: ignore[attr-defined]  # jax's Config types no options
+    key = (id(robot), id(world), q.shape, dtype.str, float(margin), self_collision, x64)
 
     def build() -> tuple[Any, Handle] | None:
         if any(isinstance(x, jax.core.Tracer) for x in jax.tree.leaves(world)):
             return None  # a world traced by a caller's jit has no handle
-        handle = compiled(
-            collides,
-            robot,
-            world,
-            batch=q.shape[:-1],
-            margin=float(margin),
-            self_collision=self_collision,
-            dtype=dtype,
-        )
+        try:
+            handle = compiled(
+                collides,
+                robot,
+                world,
+                batch=q.shape[:-1],
+                margin=float(margin),
+                self_collision=self_collision,
+                dtype=dtype,
+            )
+        except ValueError:
+            return None  # bad arguments: the usual path says what is wrong
         return world, handle
 
     entry = HOT_STATES.get(key, robot, build)
