@@ -403,6 +403,40 @@ def test_many_problems_each_keep_their_own_simplified_path():
 
 
 @pytest.mark.slow
+def test_a_large_batch_plans_in_parts_each_as_its_problems_alone(monkeypatch):
+    """Parts of ``PART_PROBLEMS`` problems (4 here; the last part filled with copies of its
+    last problem, never searched) on two host threads: each part's rows equal a call with
+    its problems alone, one world per problem; and one thread gives the same as two."""
+    from jaxkin import _batching
+
+    monkeypatch.setattr(motion.planner, "PART_PROBLEMS", 4)
+    robot, world = _planar_scene()
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-np.pi, np.pi, (200, 2))
+    q = q[~np.asarray(collision.check(robot, q, world).collides)]
+    b = 9
+    starts, goals = q[:b].copy(), q[b : 2 * b]
+    starts[5] = [0.6, 0.0]  # the forearm in the first ball
+    worlds = [world] * b
+    options = dict(SMALL, period=None)
+    monkeypatch.setattr(_batching, "_requested", 2)
+    whole = motion.plan(robot, starts, worlds, goal=goals, **options)
+    assert whole.seconds["parts"] > 0
+    names = motion.status_names(whole.status).tolist()
+    assert names == ["SOLVED"] * 5 + ["INVALID_START"] + ["SOLVED"] * 3
+    for first in (0, 4, 8):
+        rows = slice(first, first + 4)
+        alone = motion.plan(robot, starts[rows], worlds[rows], goal=goals[rows], **options)
+        for field in ("status", "path", "path_count", "simplified", "simplified_count"):
+            assert np.array_equal(getattr(whole, field)[rows], getattr(alone, field)), field
+    simple = whole.simplified[8, : int(whole.simplified_count[8])]
+    assert _dense_free(robot, world, simple) > 0
+    monkeypatch.setattr(_batching, "_requested", 1)
+    serial_run = motion.plan(robot, starts, worlds, goal=goals, **options)
+    assert np.array_equal(serial_run.simplified, whole.simplified)
+
+
+@pytest.mark.slow
 def test_teams_that_join_a_problem_do_not_spend_its_budget():
     """The arm's upper link is held in a pocket between two balls, the goal outside it: no
     path. Four teams of one lane, one problem: the three that join it are extra attempts, so

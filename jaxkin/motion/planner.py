@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
-from .. import timing
+from .. import _batching, timing
 from .._execute import Kernel, Policy, kernel
 from .._execute.latency import small_loops_in_one_function
 from .._splines import hermite
@@ -165,7 +165,9 @@ class MotionPlan(NamedStatusRepr):
         timing_status: ``jaxkin.Status`` of the timing ``(B,)`` (``OK``, ``UNTIMEABLE``).
         seconds: wall time of the stages of this call (``"search"``, ``"simplify"``,
             ``"timing"``), each program run to completion (compilation included on a first
-            call).
+            call); a batch of more than ``PART_PROBLEMS`` runs in parts at once on the host
+            threads: then ``"search"`` and ``"simplify"`` are summed over the parts and
+            ``"parts"`` is the wall time of both stages.
     """
 
     status_fields: ClassVar = {"status": MotionStatus, "timing_status": Status}
@@ -254,6 +256,25 @@ def _simplify_all(
 
 
 SIMPLIFY_GROUP = 8  # problems simplified together (_simplify_all)
+PART_PROBLEMS = 64  # problems per part of a large batch (one search's queue), plan
+
+
+def _rows(tree: Any, rows: np.ndarray) -> Any:
+    """The rows ``rows`` of every leaf of ``tree`` (a world or results with a problem axis)."""
+    return jax.tree.map(lambda leaf: leaf[rows], tree)
+
+
+def _join(parts: list[Any], take: list[np.ndarray]) -> Any:
+    """The parts' results as one (NumPy) batch: the rows ``take[k]`` of part ``k`` in turn;
+    a scalar per part (the search's loop count) becomes one entry per part."""
+
+    def leaf(*values: Any) -> np.ndarray:
+        host = [np.asarray(v) for v in values]
+        if host[0].ndim == 0:
+            return np.stack(host)
+        return np.concatenate([v[t] for v, t in zip(host, take, strict=True)])
+
+    return jax.tree.map(leaf, *parts)
 
 
 # the collision loops inside the search and the simplification run their bodies 2-5x faster
@@ -514,15 +535,13 @@ def plan(
     status = np.where(~start_ok, int(MotionStatus.INVALID_START), status)
     status = np.where(~(finite_start & finite_goal), int(MotionStatus.INVALID_INPUT), status)
     status = status.astype(np.int8)
-    queue = np.flatnonzero(status == MotionStatus.SOLVED).astype(np.int32)
-    if queue.size == 0:
-        queue = np.zeros(1, np.int32)  # nothing to search: the loop never runs
     tol = 64.0 * float(jnp.finfo(dtype).eps) * (1.0 + prep.scale)
     slots = max(2, math.ceil(options.range * options.resolution))
     lanes = options.lanes
     team = min(options.team, lanes)
     if lanes % team:
         raise ValueError(f"lanes ({lanes}) must be a multiple of team ({team})")
+    size = min(b, PART_PROBLEMS)
     config = SearchConfig(
         lanes, team, options.capacity, slots, options.chunk, options.path_points, mode, shared
     )
@@ -530,47 +549,64 @@ def plan(
     # a safety cap: the teams share the queue's budgets, and the last problem's own team
     # settles at least one edge per lane every `rounds` iterations
     budget = int(options.max_iterations) * rounds
-    max_loops = budget * b // lanes + budget // team + 4 * b + 16
-    common = (robot, body, pairs, worlds, space, prep.rows)
-    found: SearchResult = _search_jit(
-        *common,
-        put(starts_safe),
-        put(goals),
-        put(goal_count, np.int32),
-        put(root_clear),
-        put(status, np.int8),
-        put(queue, np.int32),
+    max_loops = budget * size // lanes + budget // team + 4 * size + 16
+    scalars = (
         put(_stream(options.seed), np.uint32),
         put(options.range),
         put(options.resolution),
         put(options.max_iterations, np.int32),
         put(min(max_loops, 2**31 - 1), np.int32),
         put(tol),
-        config=config,
     )
-    status = np.asarray(found.status)
-    seconds["search"] = time.perf_counter() - clock
-    seconds["loops"] = int(found.loops)
-    clock = time.perf_counter()
-    path, count = found.path, found.count
-    solved = status == MotionStatus.SOLVED
-    if options.simplify:
+
+    def solve(rows: np.ndarray) -> tuple[SearchResult, Simplified, np.ndarray]:
+        """Search and simplify the problems ``rows`` (a part of equal size: a repeated last
+        row is a copy, never searched); the stages' seconds."""
+        clock = time.perf_counter()
+        copy = np.zeros(size, bool)
+        copy[1:] = rows[1:] == rows[:-1]
+        part_status = np.where(copy, int(MotionStatus.INVALID_INPUT), status[rows])
+        queue = np.flatnonzero(part_status == MotionStatus.SOLVED).astype(np.int32)
+        if queue.size == 0:
+            queue = np.zeros(1, np.int32)  # nothing to search: the loop never runs
+        part_worlds = worlds if shared or size == b else _rows(worlds, rows)
+        found: SearchResult = _search_jit(
+            robot,
+            body,
+            pairs,
+            part_worlds,
+            space,
+            prep.rows,
+            put(starts_safe[rows]),
+            put(goals[rows]),
+            put(goal_count[rows], np.int32),
+            put(root_clear[rows]),
+            put(part_status, np.int8),
+            put(queue, np.int32),
+            *scalars,
+            config=config,
+        )
+        jax.block_until_ready(found)
+        searched = time.perf_counter()
+        if not options.simplify:
+            simple = jax.block_until_ready(_polygon_jit(found.path, found.count, space))
+            return found, simple, np.array([searched - clock, time.perf_counter() - searched])
         # more problems than a group: similar paths together (_simplify_all), the problems
         # sorted by waypoint count; one at a time when each loop runs as one function (its
         # steps then cost no hand-off to amortise over a group)
-        group = min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, b)
-        order = np.argsort(np.asarray(count), kind="stable")
-        pick = jnp.asarray(order)
-        sort = b > group
+        group = min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, size)
+        order = np.argsort(np.asarray(found.count), kind="stable")
+        sort = size > group
+        pick = order if sort else slice(None)
         simple = _simplify_jit(
             robot,
             body,
             pairs,
-            jax.tree.map(lambda x: x[pick], worlds) if sort and not shared else worlds,
+            _rows(part_worlds, order) if sort and not shared else part_worlds,
             space,
             prep.rows,
-            path[pick] if sort else path,
-            count[pick] if sort else count,
+            found.path[pick],
+            found.count[pick],
             put(tol),
             put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
@@ -581,15 +617,26 @@ def plan(
             group=group,
         )
         if sort:
-            back = jnp.asarray(np.argsort(order))
-            simple = jax.tree.map(lambda x: x[back], simple)
-    else:
-        simple = _polygon_jit(path, count, space)
-    jax.block_until_ready(simple)
-    seconds["simplify"] = time.perf_counter() - clock
+            simple = _rows(simple, np.argsort(order))
+        jax.block_until_ready(simple)
+        return found, simple, np.array([searched - clock, time.perf_counter() - searched])
+
+    # a large batch in parts of equal size on the host threads (each part's programs run on
+    # one core); the parts depend on the batch size alone, so results do not depend on the
+    # machine
+    parts = [np.minimum(np.arange(k, k + size), b - 1) for k in range(0, b, size)]
+    solved_parts = _batching.run_parts(solve, parts)
+    take = [np.arange(min(size, b - k)) for k in range(0, b, size)]
+    found = _join([part[0] for part in solved_parts], take)
+    simple = _join([part[1] for part in solved_parts], take)
+    stages = np.sum([part[2] for part in solved_parts], axis=0)
+    seconds["search"], seconds["simplify"] = float(stages[0]), float(stages[1])
+    seconds["parts"] = time.perf_counter() - clock
+    seconds["loops"] = int(np.sum(found.loops))
+    status = found.status
+    solved = status == MotionStatus.SOLVED
     clock = time.perf_counter()
-    path_np = np.asarray(path)
-    count_np = np.asarray(count)
+    path_np, count_np = found.path, found.count
     goal_reached = path_np[np.arange(b), np.maximum(count_np - 1, 0)]
     trajectory, duration, timing_status = None, np.zeros(b), np.zeros(b, np.int8)
     if options.period is not None:
