@@ -64,6 +64,27 @@ def test_the_nearest_node_is_the_brute_force_one_for_every_tree_size():
             assert np.allclose(np.asarray(q[i]), tree[want], atol=0)
 
 
+def test_nearby_sample_streams_are_independent_and_uniform():
+    """The search's samples of seeds 0 and 7 share no draws (they were once the same draws
+    shifted by seven indices), and each stream is uniform: mean and a 16-bin histogram of
+    2^16 draws within five standard deviations."""
+    from jaxkin.motion.planner import _stream
+    from jaxkin.motion.space import hashed_uniform
+
+    index = jnp.arange(2**16, dtype=jnp.uint32)
+    draws = {
+        s: np.asarray(hashed_uniform(jnp.uint32(_stream(s)), index, jnp.float64)) for s in (0, 7)
+    }
+    shared = np.intersect1d(draws[0], draws[7]).size
+    assert shared < 600  # 2^32 pairs over 2^24 values: about 256 equal by chance
+    for u in draws.values():
+        assert np.all((u >= 0) & (u < 1))
+        assert abs(u.mean() - 0.5) < 5 * np.sqrt(1 / 12 / u.size)
+        counts = np.bincount((u * 16).astype(int), minlength=16)
+        expect = u.size / 16
+        assert np.all(np.abs(counts - expect) < 5 * np.sqrt(expect))
+
+
 def test_prismatic_joints_count_in_units_of_the_robots_size():
     limits = scara.JointLimits(np.array([-2.0, -2.0, 0.0]), np.array([2.0, 2.0, 150.0]))
     robot = scara.Scara(150.0, 80.0, 50.0, limits=limits)
@@ -332,6 +353,10 @@ def test_options_name_what_is_wrong():
         motion.MotionOptions(mode="fast")
     with pytest.raises(ValueError, match="grid"):
         motion.MotionOptions(grid=16, path_points=32)
+    for bad in (0.0, -1.0, float("nan"), "4", True):
+        with pytest.raises(ValueError, match="domain"):
+            motion.MotionOptions(domain=bad)
+    assert motion.MotionOptions(domain=float("inf")).domain == float("inf")
     with pytest.raises(ValueError, match="exactly one"):
         motion.plan(robot, [0.0, 0.0], world)
     with pytest.raises(ValueError, match="start"):

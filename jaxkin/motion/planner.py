@@ -63,6 +63,10 @@ class MotionOptions:
         mode: ``"certified"`` (default: edges covered by clearance balls, nothing slips
             through) or ``"discrete"`` (states ``1 / resolution`` apart, as VAMP and OMPL).
         range: the longest edge the search adds (joint distance, ``space`` module).
+        domain: the dynamic domain [Yershova et al. 2005], in ranges: once an EXTEND from a
+            node hits an obstacle, samples farther than ``domain * range`` from it (as their
+            nearest node) are drawn again (``math.inf``: no domain; VAMP's RRT-Connect uses
+            4 joint-space units at the Panda's range of 1).
         resolution: states per unit of joint distance in discrete mode (VAMP's 32).
         lanes: moves (edges) in flight per iteration of the search (``search``).
         team: lanes that grow one RRT-Connect (a multiple of it: ``lanes / team`` RRTs at
@@ -87,6 +91,7 @@ class MotionOptions:
 
     mode: str = "certified"
     range: float = 1.0
+    domain: float = 4.0
     resolution: float = 32.0
     lanes: int = 4
     team: int = 4
@@ -141,6 +146,12 @@ class MotionOptions:
             isinstance(self.period, int | float) and math.isfinite(self.period) and self.period > 0
         ):
             raise ValueError(f"period must be a positive number or None, got {self.period!r}")
+        if not (
+            isinstance(self.domain, int | float)
+            and not isinstance(self.domain, bool)
+            and self.domain > 0
+        ):
+            raise ValueError(f"domain must be a positive number or math.inf, got {self.domain!r}")
         if not isinstance(self.seed, int) or isinstance(self.seed, bool):
             raise ValueError(f"seed must be an int, got {self.seed!r}")
 
@@ -553,6 +564,7 @@ def plan(
     scalars = (
         put(_stream(options.seed), np.uint32),
         put(options.range),
+        put(options.domain * options.range),
         put(options.resolution),
         put(options.max_iterations, np.int32),
         put(min(max_loops, 2**31 - 1), np.int32),

@@ -9,6 +9,12 @@ goal configurations are roots of the second tree) and alternates two moves:
 - CONNECT the other tree toward that new node: the same steps, repeated while they advance;
   reaching it joins the trees (a path). When a move is trapped the trees swap roles.
 
+Dynamic domains [Yershova et al. 2005]: a node from which an EXTEND hit an obstacle keeps a
+radius (``domain``, VAMP's RRT-Connect does the same), and a sample farther than it from its
+nearest node is dropped before any state is checked (the lane draws again in the next
+iteration): the samples that would only grow edges into the obstacles around a node stop
+costing edges, which shortens the long searches of cluttered scenes.
+
 The search is one ``lax.while_loop`` over fixed-capacity trees in arrays (``capacity`` nodes
 per tree, brute-force nearest neighbours, parents as indices). Its unit of work is a *lane*:
 one of these moves after the other, each an edge that the loop checks ``chunk`` states per
@@ -118,6 +124,7 @@ class _Teams:
     parent: Array  # (T, 2, N) int32
     count: Array  # (T, 2) int32
     clear: Array  # (T, 2, N, R): each node's distances (certified; R = 0 discrete)
+    domain: Array  # (T, 2, N): each node's dynamic domain (inf until an EXTEND from it fails)
 
 
 @jax.tree_util.register_dataclass
@@ -268,6 +275,7 @@ def search_kernel(
     queue: Array,
     stream: Array,
     range_: Array,
+    domain: Array,
     resolution: Array,
     max_iterations: Array,
     max_loops: Array,
@@ -289,7 +297,8 @@ def search_kernel(
         queue: ``(Q,)`` int32, the problems to search in order (those with ``SOLVED`` in
             ``status_in``).
         stream: ``uint32``, which stream of samples (``space.sample_hashed``); range_: the
-            step (``space.distance``); resolution: states per unit
+            step (``space.distance``); domain: the dynamic domain's radius of a node an
+            EXTEND from which failed (``inf``: none); resolution: states per unit
             of joint distance (discrete mode); max_iterations: edges per problem (its own team's);
             max_loops: loop iterations in all; tol: rounding tolerance of the certified mode.
         config: ``SearchConfig`` (static).
@@ -310,6 +319,7 @@ def search_kernel(
         jnp.full((t_count, 2, cap), -1, jnp.int32),
         jnp.ones((t_count, 2), jnp.int32),
         jnp.zeros((t_count, 2, cap, r), dtype),
+        jnp.full((t_count, 2, cap), jnp.inf, dtype),
     )
     zeros_n = jnp.zeros((w, n), dtype)
     empty_edges = start_edges(
@@ -376,6 +386,10 @@ def search_kernel(
         parent = jax.lax.dynamic_update_slice(
             teams.parent, jnp.where(need[:, None, None], -1, old_roots).astype(jnp.int32), (z,) * 3
         )
+        old_domains = teams.domain[:, :, :g]
+        domains = jax.lax.dynamic_update_slice(
+            teams.domain, jnp.where(need[:, None, None], jnp.inf, old_domains), (z,) * 3
+        )
         count = jnp.stack([jnp.ones_like(problem), goal_count[problem]], -1).astype(jnp.int32)
         teams = _Teams(
             jnp.where(need, problem, teams.problem).astype(jnp.int32),
@@ -383,6 +397,7 @@ def search_kernel(
             parent,
             jnp.where(need[:, None], count, teams.count),
             cl,
+            domains,
         )
         lane_need = need[team_of]
         lane_problem = jnp.maximum(teams.problem[team_of], 0)
@@ -431,8 +446,11 @@ def search_kernel(
         near, q_near = _nearest(teams.nodes, team_of, grow, size, target, space, lanes.fresh)
         delta = space.step(q_near, target)
         length = space.norm(delta)
+        # dynamic domain: a sample beyond its nearest node's domain is dropped (the lane
+        # draws again next iteration; its edge of no length is checked and not counted)
+        dropped = lanes.fresh & extend & (length > teams.domain[team_of, grow, near])
         scale = jnp.minimum(1.0, range_ / jnp.maximum(length, 1e-30))
-        delta = delta * scale[:, None]
+        delta = jnp.where(dropped[:, None], 0.0, delta * scale[:, None])
         a_clear = teams.clear[team_of, grow, near]
         new = start_edges(q_near, delta, a_clear, rows, slots, mode, tol, resolution, space)
         fresh = lanes.fresh
@@ -446,7 +464,7 @@ def search_kernel(
             grow=sel(grow, lanes.grow),
             near=sel(near, lanes.near),
             reaches=sel(scale >= 1.0, lanes.reaches),
-            length=sel(length * scale, lanes.length),
+            length=sel(jnp.where(dropped, 0.0, length * scale), lanes.length),
         )
         # ---- one round of every lane's edge
         states, j = round_states(edge, slots, chunk)
@@ -455,7 +473,7 @@ def search_kernel(
         t_good, end = good_fraction(edge, slots, mode)
         # ---- settled lanes make their move
         lane_problem = jnp.maximum(teams.problem[team_of], 0)
-        live = done_edge & (teams.problem[team_of] >= 0) & ~probs.done[lane_problem]
+        live = done_edge & ~dropped & (teams.problem[team_of] >= 0) & ~probs.done[lane_problem]
         extend = lanes.mode == _EXTEND
         advance = t_good * lanes.length
         # EXTEND keeps a step of at least range / 8 (no crowd of tiny nodes); CONNECT any
@@ -478,13 +496,23 @@ def search_kernel(
         tj = jnp.asarray(team_of, jnp.int32)
         nodes = teams.nodes.at[tj, lanes.grow, :, write].set(q_new, mode="drop")
         parent = teams.parent.at[tj, lanes.grow, write].set(lanes.near, mode="drop")
+        # an EXTEND that hit an obstacle bounds its node's domain; a new node has none
+        tight = live & extend & (t_good < 1.0)
+        bounded = jnp.where(tight, domain, teams.domain[tj, lanes.grow, lanes.near])
+        domains = teams.domain.at[tj, lanes.grow, lanes.near].min(bounded)
+        domains = domains.at[tj, lanes.grow, write].set(jnp.inf, mode="drop")
         clear = teams.clear
         if r:
             row = jnp.take_along_axis(edge.clear, jnp.maximum(end, 0)[:, None, None], 1)[:, 0]
             clear = clear.at[tj, lanes.grow, write].set(row, mode="drop")
         grown = jnp.zeros((t_count, 2), jnp.int32).at[tj, lanes.grow].add(added.astype(jnp.int32))
         teams = dataclasses.replace(
-            teams, nodes=nodes, parent=parent, clear=clear, count=teams.count + grown
+            teams,
+            nodes=nodes,
+            parent=parent,
+            clear=clear,
+            domain=domains,
+            count=teams.count + grown,
         )
         solved = live & ~extend & reached
         # EXTEND: added -> CONNECT toward the new node; else swap. CONNECT: keep going while
@@ -505,7 +533,7 @@ def search_kernel(
             target_index=jnp.where(live & extend & added, slot, lanes.target_index).astype(
                 jnp.int32
             ),
-            fresh=done_edge,
+            fresh=done_edge | dropped,
             edge=edge,
         )
 

@@ -29,17 +29,24 @@ from jax import Array
 __all__ = ["JointSpace", "hashed_uniform", "joint_space"]
 
 
-def hashed_uniform(stream: Array, index: Array, dtype: Any) -> Array:
-    """Uniform numbers in ``[0, 1)`` ``index.shape``: the integer hash of Wellons' lowbias32
-    (two multiply-xorshift rounds, full avalanche) of ``index`` mixed with ``stream`` by the
-    golden-ratio increment, its top 24 bits as the fraction. Counter-based: one draw per
-    index, no state, no loop (``jax.random``'s threefry is a loop on the CPU)."""
-    x = index.astype(jnp.uint32) * jnp.uint32(0x9E3779B9) + stream.astype(jnp.uint32)
+def _lowbias32(x: Array) -> Array:
+    """Wellons' lowbias32 integer hash of ``uint32`` values (two multiply-xorshift rounds,
+    full avalanche; a bijection)."""
     x = x ^ (x >> 16)
     x = x * jnp.uint32(0x7FEB352D)
     x = x ^ (x >> 15)
     x = x * jnp.uint32(0x846CA68B)
-    x = x ^ (x >> 16)
+    return x ^ (x >> 16)
+
+
+def hashed_uniform(stream: Array, index: Array, dtype: Any) -> Array:
+    """Uniform numbers in ``[0, 1)`` ``index.shape``: Wellons' lowbias32 hash of ``index``
+    spaced by the golden-ratio increment and offset by the hash of ``stream``, its top 24
+    bits as the fraction. Counter-based: one draw per index, no state, no loop
+    (``jax.random``'s threefry is a loop on the CPU). The stream is hashed first, so nearby
+    streams are not the same draws shifted by a few indices."""
+    offset = _lowbias32(jnp.asarray(stream).astype(jnp.uint32))
+    x = _lowbias32(index.astype(jnp.uint32) * jnp.uint32(0x9E3779B9) + offset)
     return (x >> 8).astype(dtype) * jnp.asarray(2.0**-24, dtype)
 
 
