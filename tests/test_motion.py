@@ -6,6 +6,7 @@ tier, the default tier checks the pieces (each a small program or host code)."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import io
 import sys
@@ -547,6 +548,51 @@ def test_the_motion_command_writes_a_timed_trajectory(tmp_path):
     world = collision.read_moveit_scene(scene_file)
     assert not np.any(np.asarray(collision.check(robot, table[:, 1:3], world).collides))
     assert cli.main([*argv[:-6], "--to", "2.5", "--world", str(scene_file), "-o", str(out)]) == 2
+
+
+def test_the_motion_command_passes_its_seed_and_names_it_when_no_path(
+    tmp_path, monkeypatch, capsys
+):
+    """``--seed`` reaches ``motion.plan`` (a stand-in that records it and finds no path), and
+    the error of a search that ran out of budget says another seed searches again."""
+    from jaxkin import cli
+
+    seen = {}
+
+    def no_path(robot, start, world, goal=None, **options):
+        seen.update(options)
+        return dataclasses.replace(
+            _no_plan(), status=np.array([int(motion.MotionStatus.NO_PATH)], np.int8)
+        )
+
+    monkeypatch.setattr(motion, "plan", no_path)
+    world_file = tmp_path / "world.json"
+    world_file.write_text('{"units": "m", "spheres": [{"center": [1.2, 0.6, 0], "radius": 0.25}]}')
+    argv = ["motion", "planar-2r", "--l1", "1", "--l2", "0.8", "--from", "0,0.3", "--to"]
+    argv += ["2.5,0.4", "--world", str(world_file), "-o", str(tmp_path / "m.csv"), "--seed", "5"]
+    assert cli.main(argv) == 2
+    assert seen["seed"] == 5
+    assert "another --seed" in capsys.readouterr().err
+    assert not (tmp_path / "m.csv").exists()
+
+
+def _no_plan() -> motion.MotionPlan:
+    """A one-problem ``MotionPlan`` with nothing found (the stand-in planner's answer)."""
+    zeros = np.zeros((1, 2, 2))
+    return motion.MotionPlan(
+        status=np.zeros(1, np.int8),
+        path=zeros,
+        path_count=np.ones(1, np.int32),
+        simplified=zeros,
+        simplified_count=np.ones(1, np.int32),
+        smooth=np.zeros(1, bool),
+        goal=np.zeros((1, 2)),
+        iterations=np.zeros(1, np.int32),
+        certified=np.zeros(1, bool),
+        trajectory=None,
+        duration=np.zeros(1),
+        timing_status=np.zeros(1, np.int8),
+    )
 
 
 def test_spline_slopes_and_compaction_against_scipy_and_numpy():

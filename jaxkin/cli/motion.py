@@ -43,12 +43,14 @@ def cmd_motion(args: argparse.Namespace) -> int:
             goal=np.array(args.goal),
             mode=args.mode,
             period=args.period,
+            seed=args.seed,
         )
     except ValueError as exc:
         raise CliError(str(exc)) from None
     status = motion.status_names(result.status)[0]
     if status != "SOLVED":
-        raise CliError(f"no motion: {motion.describe(int(result.status[0]))}")
+        hint = " (another --seed searches again)" if status == "NO_PATH" else ""
+        raise CliError(f"no motion: {motion.describe(int(result.status[0]))}{hint}")
     traj = result.trajectory
     count = int(traj.count[0])
     t = np.asarray(traj.t)[:count, None]

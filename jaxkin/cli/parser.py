@@ -193,6 +193,13 @@ def _add_motion_parser(sub: Any) -> None:
         help="edge checks: certified (default: nothing slips through) or discrete",
     )
     p.add_argument("--period", type=float, default=0.01, metavar="DT", help="default 0.01")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        metavar="S",
+        help="the search's stream of samples (default 0; another seed, another search)",
+    )
     p.set_defaults(func=_command("motion", "cmd_motion"), branch=None)
 
 
