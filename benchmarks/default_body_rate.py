@@ -10,7 +10,9 @@ Printed per body: spheres, sphere pairs, the body's build time (CPU seconds, the
 the meshes read with the chain), the first ``collides`` (compile included), configurations
 per second of ``collision.collides`` (the verdict) and ``collision.check`` (the exhaustive
 clearance), best of ``--rounds``, whether the two verdicts agree on every configuration, and
-the colliding share. ``docs/performance.md`` records a run.
+the colliding share. ``docs/performance.md`` records a run. Low latency is on
+(``jaxkin.enable_low_latency``, as ``benchmarks/conftest.py``; ``JAXKIN_LOW_LATENCY=0`` for
+JAX's defaults).
 
     .venv/bin/python benchmarks/default_body_rate.py [--n 10000] [--dtype float32] [--rounds 5]
 """
@@ -24,6 +26,10 @@ import jax
 import numpy as np
 from cover_quality import robots_folder  # this script's folder is on sys.path
 
+from jaxkin._execute.latency import enable_for_command
+
+enable_for_command()  # as the benchmarks (conftest.py): before JAX runs anything
+
 
 def best_rate(fn, n: int, rounds: int) -> float:
     """Configurations per second: ``n`` over the best of ``rounds`` timed calls."""
@@ -35,14 +41,9 @@ def best_rate(fn, n: int, rounds: int) -> float:
     return n / min(times)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=10_000, help="configurations per call")
-    parser.add_argument("--dtype", default="float32", choices=["float32", "float64"])
-    parser.add_argument("--rounds", type=int, default=5)
-    args = parser.parse_args()
-    if args.dtype == "float64":
-        jax.config.update("jax_enable_x64", True)
+def scene(n: int, dtype: str) -> tuple:
+    """``(default, built_default, small, built_small, world, q)``: the two Pandas and their
+    build times (CPU seconds), the 12 spheres and 8 boxes, ``n`` random configurations."""
     from scipy.spatial.transform import Rotation
 
     from jaxkin import collision, serial
@@ -96,10 +97,24 @@ def main() -> None:
         boxes=collision.Boxes.create(
             np.array(b_c), np.array(b_h), Rotation.random(8, random_state=3).as_matrix()
         ),
-    ).astype(args.dtype)
+    ).astype(dtype)
 
     lower, upper = np.asarray(default.lower), np.asarray(default.upper)
-    q = rng.uniform(lower, upper, (args.n, len(lower))).astype(args.dtype)
+    q = rng.uniform(lower, upper, (n, len(lower))).astype(dtype)
+    return default, built_default, small, built_small, world, q
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=10_000, help="configurations per call")
+    parser.add_argument("--dtype", default="float32", choices=["float32", "float64"])
+    parser.add_argument("--rounds", type=int, default=5)
+    args = parser.parse_args()
+    if args.dtype == "float64":
+        jax.config.update("jax_enable_x64", True)
+    from jaxkin import collision
+
+    default, built_default, small, built_small, world, q = scene(args.n, args.dtype)
     print(
         f"Panda, {args.n} configurations, {args.dtype}, 12 spheres + 8 boxes, best of {args.rounds}"
     )

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -264,3 +265,189 @@ def test_collides_host_thread_parts_equal_the_whole_batch():
     np.testing.assert_array_equal(parts.collides, whole.collides)
     np.testing.assert_array_equal(parts.status, whole.status)
     assert 0.05 < np.mean(np.asarray(whole.collides)) < 0.95
+
+
+def _many_spheres_ur5():
+    """A cover-like UR5: spheres filling a cylinder along every link with geometry (60 of
+    2-4 cm on the upper arm and the forearm, 12 of 0.75-1.5 cm at each of the seven others:
+    204 spheres), enough to take the groups' path (``collision.culled``)."""
+    rng = np.random.default_rng(21)
+
+    def cloud(k: int, length: float, radius: float, size: float) -> tuple:
+        angle, height = rng.uniform(0.0, 2 * np.pi, k), rng.uniform(0.0, length, k)
+        ring = rng.uniform(0.0, radius, k)
+        centres = np.stack([ring * np.cos(angle), ring * np.sin(angle), height], -1)
+        return centres, rng.uniform(0.5 * size, size, k)
+
+    small = (12, 0.02, 0.01, 0.015)
+    spheres = {
+        name: cloud(*small)
+        for name in (
+            "base_link",
+            "shoulder_link",
+            "wrist_1_link",
+            "wrist_2_link",
+            "wrist_3_link",
+            "tool0",
+            "finger",
+        )
+    }
+    spheres["upper_arm_link"] = cloud(60, 0.4, 0.04, 0.04)
+    spheres["forearm_link"] = cloud(60, 0.35, 0.03, 0.04)
+    return serial.from_urdf(UR5, "tool0").with_link_spheres(spheres)
+
+
+def _every_kind(draw: int) -> collision.World:
+    """``_world`` and two cylinders: every kind of obstacle a robot sphere is tested against."""
+    world = _world(draw)
+    rng = np.random.default_rng(draw + 100)
+    return collision.World.create(
+        spheres=world.spheres,
+        capsules=world.capsules,
+        boxes=world.boxes,
+        halfspaces=world.halfspaces,
+        cylinders=collision.Cylinders.create(
+            rng.uniform(-0.6, 0.6, (2, 3)), [0.05, 0.1], [0.2, 0.3], axis=[[0, 0, 1], [1, 0, 0]]
+        ),
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_many_spheres_take_the_groups_and_keep_the_exact_verdict(dtype):
+    """A body of 204 spheres goes through its groups' bounds first (``culled.groups_of``
+    gives groups: its self sphere pairs are whole group pairs): over two chunks and every
+    kind of obstacle, the exact verdict's flags (``_agree``) with margins 0 and 0.02, both
+    verdicts occurring, some configurations colliding with themselves alone; a NaN row."""
+    from jaxkin.collision import culled
+
+    robot = _many_spheres_ur5()
+    body, pairs = collision.prepare(robot)
+    groups = culled.groups_of(body, pairs)
+    assert groups is not None and body.num_spheres == 204 and not body.num_capsules
+    sizes = np.bincount(np.asarray(body.sphere_bound))
+    assert sizes.max() <= culled.GROUP and len(groups.link) == len(sizes)
+    world = _every_kind(22).astype(dtype)
+    q = np.random.default_rng(23).uniform(-3.0, 3.0, (700, robot.n_joints)).astype(dtype)
+    q[5, 2] = np.nan
+    for margin in (0.0, 0.02):
+        hit = _agree(robot, q, world, margin, dtype)
+        assert 0.2 < np.mean(hit) < 0.9
+    exact = collision.check(robot, q, world)
+    own = np.asarray(exact.self_collision.clearance) <= 0.0
+    assert np.sum(own & (np.asarray(exact.world.clearance) > 0.0)) >= 10  # self alone
+    assert collision.collides(robot, q, world).status[5] == Status.INVALID_INPUT
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_many_spheres_in_contact_and_batch_shapes(dtype):
+    """The groups' path (``_many_spheres_ur5``): configurations at their own exact clearance
+    (a world or a self contact within rounding) flagged, 1 mm below it free; one
+    configuration alone and a (3, 5) batch give the exact verdict's flags."""
+    robot = _many_spheres_ur5()
+    world = _every_kind(24).astype(dtype)
+    q = np.random.default_rng(25).uniform(-3.0, 3.0, (40, robot.n_joints)).astype(dtype)
+    exact = collision.check(robot, q, world)
+    kinds = set()
+    for k in range(40):
+        margin = float(exact.clearance[k])
+        assert bool(collision.collides(robot, q[k], world, margin).collides)
+        assert not bool(collision.collides(robot, q[k], world, margin - 1e-3).collides)
+        kinds.add(bool(exact.world.clearance[k] <= exact.self_collision.clearance[k]))
+    assert kinds == {True, False}  # world and self contacts both
+    _agree(robot, q[7], world, 0.0, dtype)
+    _agree(robot, q[:15].reshape(3, 5, -1), world, 0.0, dtype)
+
+
+def test_the_groups_path_gives_the_exact_verdict_on_a_small_body(monkeypatch):
+    """Float64, ``_spheres_ur5``'s 18 spheres and one on the tool sent through the groups'
+    path (``CULL_SPHERES`` lowered to 0; a fresh program, not the public call's): the exact
+    verdict's flags over a chunk of 300 configurations, margins 0.01 and -0.01, spheres and
+    boxes; a NaN row settled as in the dense path."""
+    from jaxkin.collision import culled, verdict
+
+    monkeypatch.setattr(culled, "CULL_SPHERES", 0)
+    robot = _spheres_ur5().with_link_spheres({"tool0": (np.zeros((1, 3)), np.array([0.005]))})
+    body, pairs = collision.prepare(robot)
+    assert culled.groups_of(body, pairs) is not None
+    world = _spheres_and_boxes(26)
+    q = np.random.default_rng(27).uniform(-3.0, 3.0, (300, robot.n_joints))
+    q[3, 1] = np.nan
+    run = jax.jit(lambda q, margin: verdict.collides_kernel(robot, body, pairs, q, world, margin))
+    for margin in (0.01, -0.01):
+        fast = run(jnp.asarray(q), margin)
+        exact = collision.check(robot, q, world, margin)
+        near = np.abs(np.asarray(exact.clearance) - margin) <= 1e-11
+        assert not np.any(np.asarray(exact.collides) & ~np.asarray(fast.collides))
+        np.testing.assert_array_equal(
+            np.asarray(fast.collides)[~near], np.asarray(exact.collides)[~near]
+        )
+        np.testing.assert_array_equal(np.asarray(fast.status), np.asarray(exact.status))
+        assert 0.1 < np.mean(np.asarray(exact.collides)) < 0.9
+
+
+def _panda_scene(dtype: str):
+    """The Panda of example-robot-data with its default body (its meshes covered within 1 cm:
+    363 spheres, 22,792 self sphere pairs after the SRDF), 12 spheres and 8 boxes of 5-15 cm
+    at least 5 cm from its base link (which never moves), and 2,000 random configurations."""
+    import sys
+
+    root = next(
+        (p for p in (Path(b) / "cmeel.prefix/share/example-robot-data/robots" for b in sys.path)
+         if p.is_dir()),
+        None,
+    )  # fmt: skip
+    if root is None:
+        pytest.skip("example-robot-data's robots folder not found")
+    urdf = root / "panda_description/urdf/panda.urdf"
+    robot = serial.from_urdf(urdf, "panda_hand").with_srdf(
+        root / "panda_description/srdf/panda.srdf"
+    )
+    body = robot.collision_body()
+    spheres, _ = body.place(robot.link_poses(np.zeros(robot.n_joints)))
+    base = np.asarray(body.sphere_link) == body.links.index("panda_link0")
+    centres, radii = np.asarray(spheres.center)[base], np.asarray(spheres.radius)[base]
+    rng = np.random.default_rng(28)
+    found = []
+    while len(found) < 20:
+        centre, size = rng.uniform([-0.7, -0.7, 0.0], [0.7, 0.7, 1.1]), rng.uniform(0.05, 0.15)
+        if np.all(np.linalg.norm(centres - centre, axis=1) - radii - size >= 0.05):
+            found.append((centre, size))
+    c = np.array([f[0] for f in found])
+    s = np.array([f[1] for f in found])
+    rotations = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(8)])
+    world = collision.World.create(
+        spheres=collision.Spheres.create(c[:12], s[:12]),
+        boxes=collision.Boxes.create(
+            c[12:], s[12:, None] / np.sqrt(3) * [1.0, 0.8, 0.6], rotations
+        ),
+    ).astype(dtype)
+    lower, upper = np.asarray(robot.lower), np.asarray(robot.upper)
+    q = rng.uniform(lower, upper, (2000, robot.n_joints)).astype(dtype)
+    return robot, world, q
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_panda_default_body_verdict_equals_the_exhaustive_check(dtype):
+    """The Panda's default body (``_panda_scene``) goes through its groups' bounds
+    (``collision.culled``), and its verdict on 2,000 random configurations, about half of
+    them colliding, equals ``check``'s flag for flag (none of them within the rounding
+    tolerance of contact); margins at some configurations' own clearances are flagged."""
+    from jaxkin.collision import culled
+
+    robot, world, q = _panda_scene(dtype)
+    body, pairs = collision.prepare(robot)
+    assert body.num_spheres == 363 and len(pairs.ss[0]) == 22792
+    assert culled.groups_of(body, pairs) is not None
+    exact = collision.check(robot, q, world)
+    fast = collision.collides(robot, q, world)
+    np.testing.assert_array_equal(np.asarray(fast.collides), np.asarray(exact.collides))
+    np.testing.assert_array_equal(np.asarray(fast.status), np.asarray(exact.status))
+    assert 0.3 < np.mean(np.asarray(exact.collides)) < 0.7
+    own = np.asarray(exact.self_collision.clearance) <= 0.0
+    assert np.sum(own & (np.asarray(exact.world.clearance) > 0.0)) >= 20  # self alone
+    for k in range(0, 200, 40):
+        margin = float(exact.clearance[k])
+        assert bool(collision.collides(robot, q[k : k + 1], world, margin).collides[0])

@@ -154,7 +154,10 @@ def test_collision_handles_equal_the_public_checks_and_rebind_worlds():
 def test_programs_do_not_grow_with_obstacles_primitives_or_pairs():
     """The verdict's and the check's programs for 10 and 100 obstacles of each kind, and for
     bodies of 60 and 400 spheres (with their self pairs), hold the same operations within a
-    few percent: every count is a loop bound or an array size, not written-out code."""
+    few percent: every count is a loop bound or an array size, not written-out code; so do
+    the verdict's through the groups' bounds for bodies of spheres alone of 360 and 900."""
+    from jaxkin.collision import culled
+
     rng = np.random.default_rng(6)
 
     def world(m: int) -> collision.World:
@@ -163,8 +166,9 @@ def test_programs_do_not_grow_with_obstacles_primitives_or_pairs():
             boxes=collision.Boxes.create(rng.normal(size=(m, 3)), np.full((m, 3), 0.1)),
         )
 
-    def arm(per_link: int):
-        links = ["upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link"]
+    def arm(
+        per_link: int, links=("upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link")
+    ):
         spheres = {
             name: (rng.normal(scale=0.05, size=(per_link, 3)), np.full(per_link, 0.02))
             for name in links
@@ -185,6 +189,15 @@ def test_programs_do_not_grow_with_obstacles_primitives_or_pairs():
         by_body = [size(kernel, robot, world(10)) for robot in (small_arm, large_arm)]
         for sizes in (by_world, by_body):
             assert max(sizes) <= 1.05 * min(sizes), (kernel.__name__, sizes)
+    # spheres on every link: the verdict through the groups' bounds (collision.culled)
+    body = small_arm.collision_body()
+    every = tuple(body.links[i] for i in sorted({*body.sphere_link, *body.capsule_link}))
+    grouped = [arm(40, every), arm(100, every)]
+    assert all(culled.groups_of(*collision.prepare(robot)) is not None for robot in grouped)
+    by_world = [size(collision.collides_kernel, grouped[0], world(m)) for m in (10, 100)]
+    by_body = [size(collision.collides_kernel, robot, world(10)) for robot in grouped]
+    for sizes in (by_world, by_body):
+        assert max(sizes) <= 1.05 * min(sizes), ("culled", sizes)
 
 
 def test_a_far_padding_obstacle_loosens_no_other_test():

@@ -324,12 +324,15 @@ def _check_bounds(body: col.Body) -> None:
 
 
 def test_the_coarse_level_holds_every_primitive():
-    """Bounding spheres: every sphere and capsule inside its own; a 1 m link of spheres gets
-    several (at most 8), a compact link one; placed, they follow their links."""
+    """Bounding spheres: every sphere and capsule inside its own; a 1 m link of 40 spheres
+    gets several (5 to 8: at most ``GROUP_SIZE`` primitives each), a compact link of 7
+    primitives one; placed, they follow their links."""
     body = _bodies()
     _check_bounds(body)
     long, compact = body.links.index("long"), body.links.index("compact")
-    assert 2 <= body.bound_link.count(long) <= 8 and body.bound_link.count(compact) == 1
+    assert 5 <= body.bound_link.count(long) <= 8 and body.bound_link.count(compact) == 1
+    members = np.bincount([*body.sphere_bound, *body.capsule_bound])
+    assert members.max() <= col.body.GROUP_SIZE
     assert list(body.bound_link) == sorted(body.bound_link)
     rng = np.random.default_rng(12)
     poses = np.broadcast_to(np.eye(4), (5, 3, 4, 4)).copy()

@@ -28,6 +28,9 @@
   (``jaxkin.plot.robot_scene``, ``jaxkin.viewer``).
 - ``fused``: the fused per-configuration check, robot-world and self pairs in one pass
   (``clearance``: the smallest distance and its pair; ``min_clearance``: the distance alone).
+- ``verdict``: ``collides(robot, q, world)``, the collision flag alone; ``culled``, its path
+  for a body of many spheres (the coarse level's groups first, the spheres where a group's
+  bound comes close).
 """
 
 from . import distance as distance

@@ -7,16 +7,17 @@ be differentiated); the link of each primitive and the link names are static. ``
 the primitives to the world given every link's pose, for any leading batch of configurations;
 the robot that owns the body supplies those poses.
 
-The coarse level: a few bounding spheres per link (``bound_*``), each containing a static group
+The coarse level: bounding spheres per link (``bound_*``), each containing a static group
 of that link's primitives (``sphere_bound``, ``capsule_bound``), for a pass that rules out
-most pairs before the primitives are tested (``place_bounds``; the batched checks do not run
-it yet). A link's primitives form one
-group, split in two at the median along the principal axis of their centres while the two
-halves' bounding volumes together are at most half the whole's (a long link gets a few, a
-compact one a single sphere), at most ``MAX_BOUNDS`` per link. A bounding sphere's centre is
-the middle of its group's bounding box, its radius ``max |c - g| + r`` over the group's spheres
-and capsule end points (a capsule's farthest point from ``g`` is an end point's), so it
-contains every primitive of its group.
+most pairs before the primitives are tested (``place_bounds``; ``collision.culled``, the
+verdict of a body of many spheres). A link's primitives form one group, split in two along
+the principal axis of their centres while it holds more than ``GROUP_SIZE`` primitives (at a
+multiple of ``GROUP_SIZE``, so that the groups are full) or, up to ``MAX_BOUNDS`` groups per
+link, at the median while the two halves' bounding volumes together are at most half the
+whole's (a long link gets a few, a compact one of few primitives a single sphere). A
+bounding sphere's centre is the middle of its group's bounding box, its radius ``max |c - g| +
+r`` over the group's spheres and capsule end points (a capsule's farthest point from ``g`` is
+an end point's), so it contains every primitive of its group.
 
 ``save`` and ``load``: a body as a NumPy ``.npz`` archive (read without pickle), so covers
 computed once per robot serve every later process.
@@ -38,9 +39,10 @@ from numpy.typing import ArrayLike  # host data: lists too
 
 from .primitives import Capsules, Spheres, _sphere_arrays
 
-__all__ = ["MAX_BOUNDS", "Body"]
+__all__ = ["GROUP_SIZE", "MAX_BOUNDS", "Body"]
 
-MAX_BOUNDS = 8  # bounding spheres per link at most
+MAX_BOUNDS = 8  # bounding spheres per link at most from the volume rule
+GROUP_SIZE = 8  # primitives per bounding sphere at most
 _FORMAT = 1  # version of the saved archive
 
 
@@ -121,7 +123,7 @@ def _groups(
         return _bounding(s_c[s], s_r[s], c_a[c], c_b[c], c_r[c])[1]
 
     groups = [np.arange(len(mid))]
-    while len(groups) < MAX_BOUNDS:
+    while True:
         best = None
         for k, members in enumerate(groups):
             if len(members) < 2:
@@ -129,6 +131,13 @@ def _groups(
             centred = mid[members] - mid[members].mean(axis=0)
             axis = np.linalg.svd(centred, full_matrices=False)[2][0]
             along = centred @ axis
+            if len(members) > GROUP_SIZE:  # whole groups of GROUP_SIZE on one side
+                order = np.argsort(along, kind="stable")
+                cut = (-(-len(members) // GROUP_SIZE) + 1) // 2 * GROUP_SIZE
+                best = (-1.0, k, (members[order[:cut]], members[order[cut:]]))
+                break
+            if len(groups) >= MAX_BOUNDS:
+                continue
             lower = along <= np.median(along)
             if lower.all():
                 continue

@@ -24,6 +24,9 @@ every robot sphere (or capsule) against it, a block ``(n, B)`` reduced by halvin
 per ``rows.PAIR_CHUNK`` self pairs likewise. The loops end as soon as every configuration of
 the chunk is known to collide (a single configuration: at its first colliding obstacle or
 pair). The program's size does not grow with the numbers of primitives, obstacles or pairs.
+A body of many spheres (a mesh cover: the default body from a URDF) goes through its groups'
+bounding spheres first instead (``collision.culled``): the same tests, run only for the blocks
+of configurations whose bounds come close.
 A large concrete batch runs as one part per host thread.
 
 Rounding: the verdict is conservative by a tolerance ``tol = 16 eps (1 + X)`` (``eps`` of the
@@ -58,6 +61,7 @@ from .._execute import Handle, Kernel, Policy, builds, compiled
 from .._execute.handles import HotQueries
 from .._numerics import all_finite
 from ..status import NamedStatusRepr, Status
+from . import culled
 from . import distance as sd
 from .body import Body
 from .check import check_kernel, checked_arguments, handle_setup, single, world_batched
@@ -313,12 +317,21 @@ def collides_kernel(
         return Verdict(exact.collides, exact.status)
     margin = jnp.asarray(margin, dtype)
     self_pairs = pairs if pairs.link_pairs else None
+    groups = culled.groups_of(body, self_pairs)
 
     def one(q: Array) -> Verdict:
         valid = all_finite(q)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
         placed = robot.placeable(q_safe)
-        hit = verdict_rows(place(robot, body, q_safe), world, self_pairs, margin, ~(valid & placed))
+        if groups is None:
+            hit = verdict_rows(
+                place(robot, body, q_safe), world, self_pairs, margin, ~(valid & placed)
+            )
+        else:
+            hit = culled.verdict_rows(
+                robot, body, groups, q_safe, world, margin, ~(valid & placed),
+                _sphere_kinds(world), TOLERANCE,
+            )  # fmt: skip
         status = jnp.where(hit, Status.COLLISION, Status.OK)
         status = jnp.where(~placed, Status.UNREACHABLE, status)
         status = jnp.where(~valid, Status.INVALID_INPUT, status).astype(jnp.int8)
