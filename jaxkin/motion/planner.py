@@ -600,9 +600,16 @@ def plan(
         )
         jax.block_until_ready(found)
         searched = time.perf_counter()
-        if not options.simplify:
-            simple = jax.block_until_ready(_polygon_jit(found.path, found.count, space))
-            return found, simple, np.array([searched - clock, time.perf_counter() - searched])
+        simple = (
+            simplify(found, part_worlds)
+            if options.simplify
+            else _polygon_jit(found.path, found.count, space)
+        )
+        jax.block_until_ready(simple)
+        return found, simple, np.array([searched - clock, time.perf_counter() - searched])
+
+    def simplify(found: SearchResult, part_worlds: Any) -> Simplified:
+        """Shortcut and smooth a part's paths (``_simplify_all``)."""
         # more problems than a group: similar paths together (_simplify_all), the problems
         # sorted by waypoint count; one at a time when each loop runs as one function (its
         # steps then cost no hand-off to amortise over a group)
@@ -628,10 +635,7 @@ def plan(
             shared_world=shared,
             group=group,
         )
-        if sort:
-            simple = _rows(simple, np.argsort(order))
-        jax.block_until_ready(simple)
-        return found, simple, np.array([searched - clock, time.perf_counter() - searched])
+        return _rows(simple, np.argsort(order)) if sort else simple
 
     # a large batch in parts of equal size on the host threads (each part's programs run on
     # one core); the parts depend on the batch size alone, so results do not depend on the
