@@ -212,6 +212,29 @@ def test_a_grazing_edge_slips_between_discrete_states_and_is_caught_certified():
     assert out["certified"] < 0.53  # certified only up to before the contact
 
 
+@pytest.mark.slow
+def test_a_found_path_that_slips_through_is_searched_again_with_certified_edges():
+    """The straight motion from start to goal sweeps the tip past a small ball between two
+    states of the resolution: the search at the resolution takes it (discrete mode returns
+    it, and a dense check finds the contact); certified mode finds that its edge cannot be
+    certified, searches that problem again with certified edges and returns a path free
+    under the dense check."""
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.01)
+    tip = 1.8 * np.array([np.cos(0.53), np.sin(0.53), 0.0])
+    world = collision.World.create(spheres=collision.Spheres.create([tip * 1.012], 0.012))
+    start, goal = np.array([0.0, 0.0]), np.array([1.0, 0.0])
+    options = dict(SMALL, period=None, range=2.0, resolution=16.0, simplify=False)
+    discrete = motion.plan(robot, start, world, goal=goal, mode="discrete", **options)
+    assert motion.status_names(discrete.status).tolist() == ["SOLVED"]
+    assert int(discrete.path_count[0]) == 2  # the straight edge
+    assert _dense_free(robot, world, discrete.path[0, :2]) < 0
+    certified = motion.plan(robot, start, world, goal=goal, mode="certified", **options)
+    assert motion.status_names(certified.status).tolist() == ["SOLVED"]
+    assert certified.seconds["searched_again"] == 1 and bool(certified.certified[0])
+    path = certified.path[0, : int(certified.path_count[0])]
+    assert _dense_free(robot, world, path) > 0
+
+
 def test_certified_prefixes_are_free_under_a_dense_check():
     robot, world = _planar_scene()
     body, pairs, evaluate = _evaluators(robot, world, "certified")
@@ -235,6 +258,55 @@ def test_certified_prefixes_are_free_under_a_dense_check():
     states = a[:, None] + (s[None, :, None] * t_good[:, None, None]) * d[:, None]
     clearance = np.asarray(collision.check(robot, states, world).clearance)
     assert np.min(clearance) > 0
+
+
+@pytest.mark.slow
+def test_gap_rounds_spend_states_only_where_the_balls_leave_gaps():
+    """``edges.gap_states``' rounds: an edge far from the obstacles is certified by its first
+    round (the coarse balls overlap), and on random edges the certified prefix is at least
+    the one every state known gives (the uniform rounds), never longer than is free."""
+    robot, world = _planar_scene()
+    body, pairs, evaluate = _evaluators(robot, world, "certified")
+    bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    rows = jnp.asarray(mbound.speed_rows(bound, body))
+    space = joint_space(robot)
+    tol, resolution, slots, chunk = jnp.asarray(1e-12), jnp.asarray(32.0), 32, 8
+
+    def start(a, d):
+        a_clear = evaluate(a[:, None, :])[0][:, 0]
+        return edges.start_edges(a, d, a_clear, rows, slots, "certified", tol, resolution, space)
+
+    # the arm folded away from both balls, a short sweep of the elbow
+    edge = start(jnp.array([[-2.0, 2.4]]), jnp.array([[0.0, 0.05]]))
+    j, wanted = edges.gap_states(edge, slots, chunk)
+    assert bool(wanted[0]) and int(j[0, 0]) == slots  # the end state first
+    edge = edges.absorb(edge, j, evaluate(edges.states_at(edge, j, slots)), "certified", tol, False)
+    assert not bool(edges.gap_states(edge, slots, chunk)[1][0])  # settled after one round
+    assert int(jnp.sum(edge.known)) <= 1 + chunk
+    assert float(edges.good_fraction(edge, slots, "certified", skip_unknown=True)[0][0]) == 1.0
+
+    rng = np.random.default_rng(3)
+    a = rng.uniform(-np.pi, np.pi, (96, 2))
+    a = a[~np.asarray(collision.check(robot, a, world).collides)]
+    d = rng.normal(size=a.shape) * 0.8
+    a, d = jnp.asarray(a), jnp.asarray(d)
+    gap = np.asarray(
+        jax.jit(
+            lambda a, d: edges.edge_check(
+                evaluate, rows, a, d, slots, chunk, "certified", tol, resolution, space
+            )
+        )(a, d)
+    )
+    every = start(a, d)
+    j = jnp.broadcast_to(jnp.arange(slots + 1), (a.shape[0], slots + 1))
+    every = edges.absorb(
+        every, j, evaluate(edges.states_at(every, j, slots)), "certified", tol, False
+    )
+    uniform = np.asarray(edges.good_fraction(every, slots, "certified")[0])
+    assert np.all(gap >= uniform - 1e-12) and np.any(gap < 1.0) and np.any(gap >= 1.0)
+    s = np.linspace(0.0, 1.0, 801)
+    states = a[:, None] + (s[None, :, None] * gap[:, None, None]) * d[:, None]
+    assert np.min(np.asarray(collision.check(robot, states, world).clearance)) > 0
 
 
 # ----------------------------------------------------------------------------- worlds
@@ -402,9 +474,11 @@ def test_a_planar_arm_plans_around_obstacles(mode):
     # the timed trajectory is free too (densely along its samples)
     assert float(np.min(np.asarray(collision.check(robot, q, world).clearance))) > 0
     # the same shapes again: nothing compiles
-    before = motion.planner._search_jit.jitted._cache_size()
+    kernels = [motion.planner._search_jit, motion.planner._simplify_jit]
+    kernels += [motion.planner._certify_jit] if mode == "certified" else []
+    before = [k.jitted._cache_size() for k in kernels]
     motion.plan(robot, start + 0.01, world, goal=goal, **small)
-    assert motion.planner._search_jit.jitted._cache_size() == before
+    assert [k.jitted._cache_size() for k in kernels] == before
 
 
 @pytest.mark.slow

@@ -20,12 +20,15 @@ settle in different iterations), ``edge_check`` runs rounds until every edge is 
   its distances ``d_r`` (each link with geometry to the world, each self link pair), each with
   its speed bound along ``delta`` (``B_r = rows_r . |delta|``, ``bound``; ``tol``: rounding, a
   few ``eps`` times the robot's size) (``ball_radius``). The edge is good up to its *certified
-  prefix*, the last state before the first gap between the balls: every point of it lies in
-  some state's free ball, so nothing slipped through. The coarse balls alone settle an edge
-  they cover (far from obstacles). Near an obstacle the balls shrink until states ``1 / S``
-  apart no longer overlap: there the edge is first cut to ``1.8 S r_0`` of its length
-  (``r_0`` the ball of its first state, from the clearances known there), so that the
-  extension advances as far as ``S`` states can certify.
+  prefix*, the last known state before the first gap between the balls: every point of it
+  lies in some state's free ball, so nothing slipped through. A round's states go only to the
+  gaps the known balls still leave (``gap_states``: the unknown states between two known ones
+  whose balls do not overlap, coarsest first), so the coarse balls alone settle an edge they
+  cover (far from obstacles) and the states gather where the balls are small. Near an
+  obstacle the balls shrink until states ``1 / S`` apart no longer overlap: there the edge is
+  first cut to ``1.8 S r_0`` of its length (``r_0`` the ball of its first state, from the
+  clearances known there), so that the extension advances as far as ``S`` states can
+  certify.
 
 ``good_fraction`` gives ``t_g``, the fraction of the requested step that is good (0 or 1 in
 discrete mode), and the last good state.
@@ -50,12 +53,15 @@ __all__ = [
     "ball_radius",
     "covered_prefix",
     "edge_check",
+    "gap_states",
     "good_fraction",
     "needed_states",
+    "path_good",
     "rake_order",
     "round_states",
     "settled",
     "start_edges",
+    "states_at",
 ]
 
 MODES = ("certified", "discrete")
@@ -233,8 +239,13 @@ def round_states(edges: EdgeState, slots: int, chunk: int) -> tuple[Array, Array
     order = jnp.asarray(_round_order(slots, chunk), jnp.int32)
     rounds = order.shape[0]
     j = order[jnp.minimum(edges.round, rounds - 1)]  # (E, chunk)
+    return states_at(edges, j, slots), j
+
+
+def states_at(edges: EdgeState, j: Array, slots: int) -> Array:
+    """The states ``j (E, k)`` of each edge ``(E, k, n)``: ``a + (j / slots) delta``."""
     t = j.astype(edges.a.dtype) / slots
-    return edges.a[:, None, :] + t[..., None] * edges.delta[:, None, :], j
+    return edges.a[:, None, :] + t[..., None] * edges.delta[:, None, :]
 
 
 def absorb(
@@ -270,21 +281,79 @@ def settled(edges: EdgeState, slots: int, chunk: int, mode: str) -> Array:
     return checked | (_certified_end(edges, slots) >= slots)
 
 
-def _certified_end(edges: EdgeState, slots: int) -> Array:
+def _certified_end(edges: EdgeState, slots: int, skip_unknown: bool = False) -> Array:
+    """The certified prefix's last state; ``skip_unknown``: the prefix is made of the known
+    states alone (``gap_states``' rounds: a state not known lies in a gap already covered, or
+    in the open gap that ends the prefix), else every state of it must be known (the rake's
+    rounds)."""
     t = jnp.arange(slots + 1, dtype=edges.value.dtype) / slots
-    return _prefix_end(t, jnp.where(edges.known, edges.value, 0.0), None, None)
+    radius = jnp.where(edges.known, edges.value, 0.0)
+    if not skip_unknown:
+        return _prefix_end(t, radius, None, None)
+    # over the known states alone: each joins when its ball overlaps those before it
+    index = jnp.arange(slots + 1, dtype=jnp.int32)
+    reach = jax.lax.cummax(jnp.where(edges.known, t + radius, -jnp.inf), axis=1)
+    joins = (t[1:] - radius[..., 1:] < reach[..., :-1]) & (radius[..., 1:] > 0)
+    broken = edges.known & ~jnp.concatenate([radius[..., :1] > 0, joins], -1)
+    first = jnp.where(jnp.any(broken, -1), jnp.argmax(broken, -1), slots + 1)
+    last_known = jax.lax.cummax(jnp.where(edges.known, index, -1), axis=1)
+    return jnp.where(
+        first > 0, jnp.take_along_axis(last_known, first[..., None] - 1, -1)[..., 0], -1
+    )
 
 
-def good_fraction(edges: EdgeState, slots: int, mode: str) -> tuple[Array, Array]:
+def good_fraction(
+    edges: EdgeState, slots: int, mode: str, skip_unknown: bool = False
+) -> tuple[Array, Array]:
     """``(t_g (E,), end (E,))`` of settled edges: the fraction of the requested step that is
     good (discrete: 1 when no known state collides, else 0; certified: the certified prefix
-    times ``scale``) and the index of its last state (-1 for none)."""
+    times ``scale``, ``_certified_end``) and the index of its last state (-1 for none)."""
     if mode == "discrete":
         good = ~jnp.any(edges.known & (edges.value <= 0), -1)
         return good.astype(edges.a.dtype), jnp.where(good, slots, -1)
-    end = _certified_end(edges, slots)
+    end = _certified_end(edges, slots, skip_unknown)
     t = jnp.maximum(end, 0).astype(edges.a.dtype) / slots
     return jnp.where(end >= 0, t * edges.scale, 0.0), end
+
+
+@functools.lru_cache(maxsize=64)
+def _rake_rank(slots: int) -> np.ndarray:
+    """Each state's position in the rake order ``(slots + 1,)`` (0 for the start)."""
+    rank = np.empty(slots + 1, np.int32)
+    rank[rake_order(slots)] = np.arange(slots + 1, dtype=np.int32)
+    return rank
+
+
+def gap_states(edges: EdgeState, slots: int, chunk: int) -> tuple[Array, Array]:
+    """Certified mode: the next ``chunk`` states of each edge where they can still change its
+    certified prefix, and whether it has any ``(E,)``. A state is wanted when it is not known,
+    lies before the first known state that is not free, and lies between two known states
+    (or after the last) whose balls, with every ball before, do not yet overlap (an open gap
+    of the covered prefix), or is the end state; the coarsest first (the rake order). Covered
+    stretches cost no
+    states: the states go where the balls are small (near obstacles), not to a finer halving
+    of the whole edge. Returns the states' indices ``(E, chunk)`` (when fewer are wanted the
+    rest repeat known states: evaluated, harmless) and ``wanted (E,)``."""
+    total = slots + 1
+    index = jnp.arange(total, dtype=jnp.int32)
+    t = index.astype(edges.value.dtype) / slots
+    radius = jnp.where(edges.known, edges.value, 0.0)
+    last = jax.lax.cummax(jnp.where(edges.known, index, -1), axis=1)  # known at or before
+    after = jax.lax.cummin(jnp.where(edges.known, index, total), axis=1, reverse=True)
+    reach = jax.lax.cummax(jnp.where(edges.known, t + radius, -jnp.inf), axis=1)
+    reach_before = jnp.take_along_axis(reach, jnp.maximum(last, 0), 1)
+    after_c = jnp.minimum(after, slots)
+    start_after = jnp.take_along_axis(t - radius, after_c, 1)
+    # a gap is closed when the balls up to its left end overlap the ball at its right end
+    # (after the last known state: when they reach the end of the edge)
+    closed = jnp.where(after < total, reach_before > start_after, reach_before > 1.0)
+    blocked = jnp.min(jnp.where(edges.known & (edges.value <= 0), index, total), axis=1)
+    # the end state is always known (the certified prefix ends at a known state)
+    wanted = ~edges.known & (~closed | (index == slots)) & (index < blocked[:, None])
+    rank = jnp.asarray(_rake_rank(slots))
+    score = jnp.where(wanted, total - rank, -1)
+    _, j = jax.lax.top_k(score, chunk)
+    return j.astype(jnp.int32), jnp.any(wanted, axis=1)
 
 
 def edge_check(
@@ -309,13 +378,59 @@ def edge_check(
     if a_clear is None:
         a_clear = jnp.zeros((a.shape[0], 0), a.dtype)
     edges = start_edges(a, delta, a_clear, rows, slots, mode, tol, resolution, space)
+    if mode == "discrete":
 
-    def body(edges: EdgeState) -> EdgeState:
-        states, j = round_states(edges, slots, chunk)
-        return absorb(edges, j, evaluate(states), mode, tol, keep_clear=False)
+        def body(edges: EdgeState) -> EdgeState:
+            states, j = round_states(edges, slots, chunk)
+            return absorb(edges, j, evaluate(states), mode, tol, keep_clear=False)
 
-    def cond(edges: EdgeState) -> Array:
-        return ~jnp.all(settled(edges, slots, chunk, mode))
+        def cond(edges: EdgeState) -> Array:
+            return ~jnp.all(settled(edges, slots, chunk, mode))
 
-    edges = jax.lax.while_loop(cond, body, edges)
-    return good_fraction(edges, slots, mode)[0]
+        edges = jax.lax.while_loop(cond, body, edges)
+        return good_fraction(edges, slots, mode)[0]
+
+    # certified: the states go to the open gaps of the covered prefix (gap_states)
+    def gap_body(carry: tuple[EdgeState, Array, Array]) -> tuple[EdgeState, Array, Array]:
+        edges, j, _ = carry
+        edges = absorb(edges, j, evaluate(states_at(edges, j, slots)), mode, tol, keep_clear=False)
+        return (edges, *gap_states(edges, slots, chunk))
+
+    def gap_cond(carry: tuple[EdgeState, Array, Array]) -> Array:
+        return jnp.any(carry[2])
+
+    edges, _, _ = jax.lax.while_loop(gap_cond, gap_body, (edges, *gap_states(edges, slots, chunk)))
+    return good_fraction(edges, slots, mode, skip_unknown=True)[0]
+
+
+def path_good(
+    evaluate: Callable[[Array], Any],
+    rows: Array,
+    path: Array,
+    count: Array,
+    slots: int,
+    chunk: int,
+    mode: str,
+    tol: Array,
+    resolution: Array,
+    space: Any,
+    per_round: int = 4,
+) -> Array:
+    """Whether every edge of one path ``(P, n)`` (its first ``count`` waypoints) is good to
+    its end (``edge_check`` with ``slots`` intervals), ``per_round`` edges at once, stopping at
+    the first bad one."""
+    p = path.shape[0]
+
+    def body(carry: tuple[Array, Array]) -> tuple[Array, Array]:
+        i, ok = carry
+        k = i + jnp.arange(per_round, dtype=jnp.int32)
+        live = k < count - 1
+        a = path[jnp.minimum(k, p - 1)]
+        delta = jnp.where(live[:, None], space.step(a, path[jnp.minimum(k + 1, p - 1)]), 0.0)
+        t_good = edge_check(evaluate, rows, a, delta, slots, chunk, mode, tol, resolution, space)
+        return i + per_round, ok & jnp.all((t_good >= 1.0) | ~live)
+
+    def cond(carry: tuple[Array, Array]) -> Array:
+        return (carry[0] < count - 1) & carry[1]
+
+    return jax.lax.while_loop(cond, body, (jnp.int32(0), jnp.bool_(True)))[1]

@@ -8,7 +8,11 @@ shared by all or one world per problem:
    (else ``INVALID_START``), at least one free goal within the limits (else ``INVALID_GOAL``,
    or ``UNREACHABLE_GOAL`` for targets);
 2. the search (``search.search_kernel``, one compiled program: RRT-Connect lanes over a queue
-   of problems), returning each solved problem's path;
+   of problems), returning each solved problem's path. In certified mode the search checks
+   its edges at the resolution (as in discrete mode, a few states each), then every edge of
+   each found path is certified (``_certified_paths``: clearance balls, states where they
+   leave gaps), and only the problems whose path is not (it grazes an obstacle between two
+   states, or passes too close for the balls) are searched again with certified edges;
 3. the simplification (``simplify.simplify_kernel``, one compiled program over the problems:
    shortcuts, then a natural cubic spline re-checked, or the shortcut polygon);
 4. the time-optimal timing of the result within the joints' speed and acceleration limits
@@ -26,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 import time
 from typing import Any, ClassVar
 
@@ -42,7 +47,7 @@ from ..collision import World
 from ..status import NamedStatusRepr, Status
 from . import collider
 from .bound import motion_bound, speed_rows
-from .edges import MODES
+from .edges import MODES, path_good
 from .goals import ik_goals
 from .search import SearchConfig, SearchResult, search_kernel
 from .simplify import SHORTCUTS, Checker, Simplified, chord_parameters, simplify_kernel
@@ -61,7 +66,9 @@ class MotionOptions:
 
     Attributes:
         mode: ``"certified"`` (default: edges covered by clearance balls, nothing slips
-            through) or ``"discrete"`` (states ``1 / resolution`` apart, as VAMP and OMPL).
+            through; the paths of a search at the resolution certified, a problem whose path
+            is not searched again with certified edges) or ``"discrete"`` (states ``1 /
+            resolution`` apart, as VAMP and OMPL).
         range: the longest edge the search adds (joint distance, ``space`` module).
         domain: the dynamic domain [Yershova et al. 2005], in ranges: once an EXTEND from a
             node hits an obstacle, samples farther than ``domain * range`` from it (as their
@@ -178,7 +185,10 @@ class MotionPlan(NamedStatusRepr):
             ``"timing"``), each program run to completion (compilation included on a first
             call); a batch of more than ``PART_PROBLEMS`` runs in parts at once on the host
             threads: then ``"search"`` and ``"simplify"`` are summed over the parts and
-            ``"parts"`` is the wall time of both stages.
+            ``"parts"`` is the wall time of both stages. ``"search"`` includes the
+            certification of the found paths and the second searches (certified mode);
+            ``"searched_again"`` counts the problems searched again, ``"loops"`` the search
+            loops' iterations.
     """
 
     status_fields: ClassVar = {"status": MotionStatus, "timing_status": Status}
@@ -266,7 +276,33 @@ def _simplify_all(
     return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
 
 
+def _certified_paths(
+    robot, body, pairs, world, space, rows, path, count, tol, slots, chunk, shared_world, group
+):
+    """Per problem ``(B,)``: every edge of its path ``(B, P, n)`` is certified
+    (``edges.path_good``: clearance balls, ``slots`` intervals per edge, the states placed
+    where the balls are small), ``group`` problems at a time as ``_simplify_all``."""
+
+    def one(wd, p, c):
+        evaluate = _evaluator(robot, body, pairs, wd, "certified")
+        resolution = jnp.ones((), tol.dtype)  # unused in certified mode
+        return path_good(
+            evaluate, rows, p, c, slots, chunk, "certified", tol, resolution, space, CERTIFY_EDGES
+        )
+
+    if path.shape[0] <= group:
+        return jax.vmap(one, in_axes=(None if shared_world else 0, 0, 0))(world, path, count)
+    if shared_world:
+        return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
+    return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
+
+
 SIMPLIFY_GROUP = 8  # problems simplified together (_simplify_all)
+# a found edge (at most a range long, its search's slots) certified with this many times its
+# slots, this many states per round (_certified_paths): balls of a few millimetres fit
+CERTIFY_SLOTS = 32
+CERTIFY_CHUNK = 32
+CERTIFY_EDGES = 4  # edges of a path certified at once
 PART_PROBLEMS = 64  # problems per part of a large batch (one search's queue), plan
 
 
@@ -288,6 +324,20 @@ def _join(parts: list[Any], take: list[np.ndarray]) -> Any:
     return jax.tree.map(leaf, *parts)
 
 
+def _with_rows(base: Any, rows: np.ndarray, other: Any) -> Any:
+    """``base`` (NumPy results with a problem axis) with its rows ``rows`` replaced by the
+    rows of ``other`` (in order); scalars kept from ``base``."""
+
+    def leaf(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        if x.ndim == 0:
+            return x
+        out = np.array(x)
+        out[rows] = y
+        return out
+
+    return jax.tree.map(leaf, base, other)
+
+
 # the collision loops inside the search and the simplification run their bodies 2-5x faster
 # with the CPU's older fusion emitters (collider.COMPILER_OPTIONS)
 # Reductions as XLA's own loops, not library calls (YNNPACK fusions), which would keep the
@@ -302,6 +352,11 @@ _simplify_jit = Kernel(
     _simplify_all,
     static=("slots", "chunk", "mode", "states", "shared_world", "group"),
     policy=_POLICY,
+)
+
+
+_certify_jit = Kernel(
+    _certified_paths, static=("slots", "chunk", "shared_world", "group"), policy=_POLICY
 )
 
 
@@ -553,9 +608,23 @@ def plan(
     if lanes % team:
         raise ValueError(f"lanes ({lanes}) must be a multiple of team ({team})")
     size = min(b, PART_PROBLEMS)
-    config = SearchConfig(
-        lanes, team, options.capacity, slots, options.chunk, options.path_points, mode, shared
-    )
+    # certified mode: a search at the resolution first, its paths then certified edge by edge
+    # (_certified_paths), and only the problems whose path is not are searched again with
+    # certified edges
+    lazy = mode == "certified"
+
+    def config(search_mode: str) -> SearchConfig:
+        return SearchConfig(
+            lanes,
+            team,
+            options.capacity,
+            slots,
+            options.chunk,
+            options.path_points,
+            search_mode,
+            shared,
+        )
+
     rounds = -(-slots // options.chunk)
     # a safety cap: the teams share the queue's budgets, and the last problem's own team
     # settles at least one edge per lane every `rounds` iterations
@@ -571,9 +640,34 @@ def plan(
         put(tol),
     )
 
-    def solve(rows: np.ndarray) -> tuple[SearchResult, Simplified, np.ndarray]:
-        """Search and simplify the problems ``rows`` (a part of equal size: a repeated last
-        row is a copy, never searched); the stages' seconds."""
+    def part_worlds_of(rows: np.ndarray) -> Any:
+        return worlds if shared or size == b else _rows(worlds, rows)
+
+    def search_args(
+        rows: np.ndarray, search_mode: str, part_status: np.ndarray, queue: np.ndarray
+    ) -> tuple:
+        """The search's arguments for the problems ``rows`` (a part)."""
+        return (
+            robot,
+            body,
+            pairs,
+            part_worlds_of(rows),
+            space,
+            prep.rows,
+            put(starts_safe[rows]),
+            put(goals[rows]),
+            put(goal_count[rows], np.int32),
+            put(root_clear[rows] if search_mode == "certified" else root_clear[rows, :, :0]),
+            put(part_status, np.int8),
+            put(queue, np.int32),
+            *scalars,
+        )
+
+    def solve(rows: np.ndarray, search_mode: str) -> tuple[Any, ...]:
+        """Search (its edges checked in ``search_mode``) and simplify the problems ``rows`` (a
+        part of equal size: a repeated last row is a copy, never searched); the stages'
+        seconds; whether each path is certified (``lazy``: checked after the search, which
+        counts in its time; else True)."""
         clock = time.perf_counter()
         copy = np.zeros(size, bool)
         copy[1:] = rows[1:] == rows[:-1]
@@ -581,24 +675,29 @@ def plan(
         queue = np.flatnonzero(part_status == MotionStatus.SOLVED).astype(np.int32)
         if queue.size == 0:
             queue = np.zeros(1, np.int32)  # nothing to search: the loop never runs
-        part_worlds = worlds if shared or size == b else _rows(worlds, rows)
+        part_worlds = part_worlds_of(rows)
         found: SearchResult = _search_jit(
-            robot,
-            body,
-            pairs,
-            part_worlds,
-            space,
-            prep.rows,
-            put(starts_safe[rows]),
-            put(goals[rows]),
-            put(goal_count[rows], np.int32),
-            put(root_clear[rows]),
-            put(part_status, np.int8),
-            put(queue, np.int32),
-            *scalars,
-            config=config,
+            *search_args(rows, search_mode, part_status, queue), config=config(search_mode)
         )
-        jax.block_until_ready(found)
+        certified = np.ones(size, bool)
+        if lazy and search_mode == "discrete":
+            group = min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, size)
+            certified = _certify_jit(
+                robot,
+                body,
+                pairs,
+                part_worlds,
+                space,
+                prep.rows,
+                found.path,
+                found.count,
+                put(tol),
+                slots=CERTIFY_SLOTS * slots,
+                chunk=CERTIFY_CHUNK,
+                shared_world=shared,
+                group=group,
+            )
+        jax.block_until_ready((found, certified))
         searched = time.perf_counter()
         simple = (
             simplify(found, part_worlds)
@@ -606,7 +705,8 @@ def plan(
             else _polygon_jit(found.path, found.count, space)
         )
         jax.block_until_ready(simple)
-        return found, simple, np.array([searched - clock, time.perf_counter() - searched])
+        seconds = np.array([searched - clock, time.perf_counter() - searched])
+        return found, simple, seconds, certified
 
     def simplify(found: SearchResult, part_worlds: Any) -> Simplified:
         """Shortcut and smooth a part's paths (``_simplify_all``)."""
@@ -640,16 +740,53 @@ def plan(
     # a large batch in parts of equal size on the host threads (each part's programs run on
     # one core); the parts depend on the batch size alone, so results do not depend on the
     # machine
-    parts = [np.minimum(np.arange(k, k + size), b - 1) for k in range(0, b, size)]
+    def solve_all(groups: list[np.ndarray], search_mode: str) -> tuple[Any, ...]:
+        """``solve`` of each group of at most ``size`` problems as a part (filled with copies
+        of its last problem), joined (NumPy, the groups' rows in turn); the stages' seconds
+        summed over the parts, the search's loop iterations, which paths are certified."""
+        parts = [g[np.minimum(np.arange(size), g.size - 1)] for g in groups]
+        done = _batching.run_parts(lambda part: solve(part, search_mode), parts)
+        take = [np.arange(g.size) for g in groups]
+        found, simple, certified = (_join([part[k] for part in done], take) for k in (0, 1, 3))
+        loops = int(np.sum(found.loops))
+        found = dataclasses.replace(found, loops=np.int64(loops))
+        return found, simple, np.sum([part[2] for part in done], axis=0), loops, certified
+
     checked = time.perf_counter() - clock  # the starts' and goals' checks belong to the search
-    solved_parts = _batching.run_parts(solve, parts)
-    take = [np.arange(min(size, b - k)) for k in range(0, b, size)]
-    found = _join([part[0] for part in solved_parts], take)
-    simple = _join([part[1] for part in solved_parts], take)
-    stages = np.sum([part[2] for part in solved_parts], axis=0)
+    groups = [np.arange(k, min(k + size, b)) for k in range(0, b, size)]
+    # the second search compiles beside the first call's (not when a path first fails)
+    compiling = (
+        _compile_second_search(
+            search_args(
+                np.minimum(np.arange(size), b - 1),
+                "certified",
+                np.full(size, int(MotionStatus.INVALID_INPUT)),
+                np.zeros(1, np.int32),
+            ),
+            config("certified"),
+        )
+        if lazy
+        else None
+    )
+    found, simple, stages, loops, certified = solve_all(groups, "discrete" if lazy else mode)
+    if compiling is not None:
+        compiling.join()
+    uncertified = (found.status == MotionStatus.SOLVED) & ~certified
+    # each part's own problems searched again together: a part's results depend on it alone
+    again_groups = [g[uncertified[g]] for g in groups if np.any(uncertified[g])]
+    again = np.concatenate(again_groups) if again_groups else np.zeros(0, int)
+    if again.size:
+        found_2, simple_2, stages_2, loops_2, _ = solve_all(again_groups, "certified")
+        # the first search's edges count too
+        found_2 = dataclasses.replace(
+            found_2, iterations=found_2.iterations + found.iterations[again]
+        )
+        found, simple = _with_rows(found, again, found_2), _with_rows(simple, again, simple_2)
+        stages, loops = stages + stages_2, loops + loops_2
     seconds["search"], seconds["simplify"] = checked + float(stages[0]), float(stages[1])
     seconds["parts"] = time.perf_counter() - clock
-    seconds["loops"] = int(np.sum(found.loops))
+    seconds["loops"] = loops
+    seconds["searched_again"] = int(again.size)
     status = found.status
     solved = status == MotionStatus.SOLVED
     clock = time.perf_counter()
@@ -684,6 +821,24 @@ def plan(
         timing_status=timing_status,
         seconds=seconds,
     )
+
+
+_SECOND_SEARCHES: set = set()  # the second searches compiled (_compile_second_search)
+
+
+def _compile_second_search(args: tuple, config: SearchConfig) -> threading.Thread | None:
+    """A thread that compiles certified mode's second search for these arguments' shapes
+    (running it with nothing to search), once per process; None when done before."""
+    leaves, tree = jax.tree.flatten(args)
+    key = (tree, config, tuple((np.shape(x), str(getattr(x, "dtype", type(x)))) for x in leaves))
+    if key in _SECOND_SEARCHES:
+        return None
+    _SECOND_SEARCHES.add(key)
+    thread = threading.Thread(
+        target=lambda: jax.block_until_ready(_search_jit(*args, config=config)), daemon=True
+    )
+    thread.start()
+    return thread
 
 
 def _stream(number: int) -> int:
