@@ -21,7 +21,7 @@ import pytest
 
 from jaxkin import collision, delta, motion, scara, serial
 from jaxkin.motion import bound as mbound
-from jaxkin.motion import collider, edges
+from jaxkin.motion import collider, edges, repair
 from jaxkin.motion.space import joint_space
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -213,12 +213,12 @@ def test_a_grazing_edge_slips_between_discrete_states_and_is_caught_certified():
 
 
 @pytest.mark.slow
-def test_a_found_path_that_slips_through_is_searched_again_with_certified_edges():
+def test_a_found_edge_that_slips_through_is_planned_again_with_certified_edges(monkeypatch):
     """The straight motion from start to goal sweeps the tip past a small ball between two
     states of the resolution: the search at the resolution takes it (discrete mode returns
     it, and a dense check finds the contact); certified mode finds that its edge cannot be
-    certified, searches that problem again with certified edges and returns a path free
-    under the dense check."""
+    certified, plans that edge again with certified edges and returns a path free under the
+    dense check."""
     robot = serial.Planar2R(1.0, 0.8, link_radius=0.01)
     tip = 1.8 * np.array([np.cos(0.53), np.sin(0.53), 0.0])
     world = collision.World.create(spheres=collision.Spheres.create([tip * 1.012], 0.012))
@@ -230,9 +230,65 @@ def test_a_found_path_that_slips_through_is_searched_again_with_certified_edges(
     assert _dense_free(robot, world, discrete.path[0, :2]) < 0
     certified = motion.plan(robot, start, world, goal=goal, mode="certified", **options)
     assert motion.status_names(certified.status).tolist() == ["SOLVED"]
-    assert certified.seconds["searched_again"] == 1 and bool(certified.certified[0])
+    # the edge planned again alone, the problem not searched again whole
+    assert certified.seconds["edges_searched_again"] == 1
+    assert certified.seconds["searched_again"] == 0 and bool(certified.certified[0])
     path = certified.path[0, : int(certified.path_count[0])]
     assert _dense_free(robot, world, path) > 0
+    # an edge's own problem with too small a budget: the problem is searched again whole
+    monkeypatch.setattr(motion.planner, "REPAIR_BUDGET", 10**9)
+    whole = motion.plan(robot, start, world, goal=goal, mode="certified", **options)
+    assert motion.status_names(whole.status).tolist() == ["SOLVED"]
+    assert whole.seconds["edges_searched_again"] == 1 and whole.seconds["searched_again"] == 1
+    assert _dense_free(robot, world, whole.path[0, : int(whole.path_count[0])]) > 0
+
+
+def test_bad_edges_are_spliced_out_for_the_paths_found_between_their_ends():
+    """``repair``: the bad edges of solved problems in order; each replaced by the path found
+    between its ends (the expected paths written out by hand); a problem with an edge not
+    found, or whose path would overflow its buffer, is left as it was and reported."""
+    p = 6
+    path = np.zeros((3, p, 1))
+    path[0, :3, 0] = [0.0, 1.0, 2.0]
+    path[1, :4, 0] = [0.0, 10.0, 20.0, 30.0]
+    path[2, :3, 0] = [5.0, 6.0, 7.0]
+    count = np.array([3, 4, 3])
+    for row in range(3):
+        path[row, count[row] :] = path[row, count[row] - 1]
+    good = np.ones((3, p - 1), bool)
+    good[0, 1] = good[1, 0] = good[1, 2] = good[2, 0] = False
+    good[0, 4] = False  # past the path's last edge: not an edge
+    solved = np.array([True, True, True])
+    problem, edge = repair.bad_edges(count, good, solved)
+    assert problem.tolist() == [0, 1, 1, 2] and edge.tolist() == [1, 0, 2, 0]
+    sub_path = np.zeros((4, p, 1))
+    sub_path[0, :3, 0] = [1.0, 1.5, 2.0]
+    sub_path[1, :4, 0] = [0.0, 3.0, 6.0, 10.0]
+    sub_path[2, :3, 0] = [20.0, 25.0, 30.0]
+    sub_path[3, :5, 0] = [5.0, 5.2, 5.4, 5.6, 6.0]
+    sub_count = np.array([3, 4, 3, 5])
+    out, new_count, failed = repair.splice(
+        path, count, problem, edge, sub_path, sub_count, np.array([True, True, True, True])
+    )
+    # problem 1 would need 4 + 2 + 1 = 7 waypoints: left as it was
+    assert new_count.tolist() == [4, 4, 6] and failed.tolist() == [False, True, False]
+    assert out[0, :, 0].tolist() == [0.0, 1.0, 1.5, 2.0, 2.0, 2.0]
+    assert np.array_equal(out[1], path[1])
+    assert out[2, :, 0].tolist() == [5.0, 5.2, 5.4, 5.6, 6.0, 7.0]
+    b_count = np.array([3, 3, 3])  # problem 1 shorter: everything fits
+    b_path = path.copy()
+    b_path[1, 3:] = 20.0
+    good_b = good.copy()
+    good_b[1, 2] = True
+    problem, edge = repair.bad_edges(b_count, good_b, solved)
+    assert problem.tolist() == [0, 1, 2] and edge.tolist() == [1, 0, 0]
+    pick = [0, 1, 3]
+    out, new_count, failed = repair.splice(
+        b_path, b_count, problem, edge, sub_path[pick], sub_count[pick], np.array([1, 1, 0], bool)
+    )
+    assert new_count.tolist() == [4, 5, 3] and failed.tolist() == [False, False, True]
+    assert out[1, :, 0].tolist() == [0.0, 3.0, 6.0, 10.0, 20.0, 20.0]
+    assert np.array_equal(out[2], b_path[2])
 
 
 def test_certified_prefixes_are_free_under_a_dense_check():

@@ -56,7 +56,7 @@ __all__ = [
     "gap_states",
     "good_fraction",
     "needed_states",
-    "path_good",
+    "path_edges_good",
     "rake_order",
     "round_states",
     "settled",
@@ -403,7 +403,7 @@ def edge_check(
     return good_fraction(edges, slots, mode, skip_unknown=True)[0]
 
 
-def path_good(
+def path_edges_good(
     evaluate: Callable[[Array], Any],
     rows: Array,
     path: Array,
@@ -416,21 +416,24 @@ def path_good(
     space: Any,
     per_round: int = 4,
 ) -> Array:
-    """Whether every edge of one path ``(P, n)`` (its first ``count`` waypoints) is good to
-    its end (``edge_check`` with ``slots`` intervals), ``per_round`` edges at once, stopping at
-    the first bad one."""
+    """Per edge of one path ``(P, n)`` (its first ``count`` waypoints) ``(P - 1,)``: good to
+    its end (``edge_check`` with ``slots`` intervals; True past the last edge), ``per_round``
+    edges at once."""
     p = path.shape[0]
+    groups = -(-(p - 1) // per_round)
+    # the waypoints padded so that every group of edges reads whole rows
+    padded = jnp.concatenate(
+        [path, jnp.broadcast_to(path[-1:], (groups * per_round + 1 - p, path.shape[1]))]
+    )
 
-    def body(carry: tuple[Array, Array]) -> tuple[Array, Array]:
-        i, ok = carry
-        k = i + jnp.arange(per_round, dtype=jnp.int32)
+    def body(i: Array, good: Array) -> Array:
+        k = i * per_round + jnp.arange(per_round, dtype=jnp.int32)
         live = k < count - 1
-        a = path[jnp.minimum(k, p - 1)]
-        delta = jnp.where(live[:, None], space.step(a, path[jnp.minimum(k + 1, p - 1)]), 0.0)
+        a = padded[k]
+        delta = jnp.where(live[:, None], space.step(a, padded[k + 1]), 0.0)
         t_good = edge_check(evaluate, rows, a, delta, slots, chunk, mode, tol, resolution, space)
-        return i + per_round, ok & jnp.all((t_good >= 1.0) | ~live)
+        return jax.lax.dynamic_update_slice(good, (t_good >= 1.0) | ~live, (i * per_round,))
 
-    def cond(carry: tuple[Array, Array]) -> Array:
-        return (carry[0] < count - 1) & carry[1]
-
-    return jax.lax.while_loop(cond, body, (jnp.int32(0), jnp.bool_(True)))[1]
+    good = jnp.ones((groups * per_round,), bool)
+    used = jnp.maximum(count - 1 + per_round - 1, 0) // per_round
+    return jax.lax.fori_loop(0, used, body, good)[: p - 1]

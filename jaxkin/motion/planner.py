@@ -45,9 +45,9 @@ from .._execute.latency import small_loops_in_one_function
 from .._splines import hermite
 from ..collision import World
 from ..status import NamedStatusRepr, Status
-from . import collider
+from . import collider, repair
 from .bound import motion_bound, speed_rows
-from .edges import MODES, path_good
+from .edges import MODES, path_edges_good
 from .goals import ik_goals
 from .search import SearchConfig, SearchResult, search_kernel
 from .simplify import SHORTCUTS, Checker, Simplified, chord_parameters, simplify_kernel
@@ -279,14 +279,14 @@ def _simplify_all(
 def _certified_paths(
     robot, body, pairs, world, space, rows, path, count, tol, slots, chunk, shared_world, group
 ):
-    """Per problem ``(B,)``: every edge of its path ``(B, P, n)`` is certified
-    (``edges.path_good``: clearance balls, ``slots`` intervals per edge, the states placed
+    """Per problem and edge ``(B, P - 1)``: the edge of its path ``(B, P, n)`` is certified
+    (``edges.path_edges_good``: clearance balls, ``slots`` intervals per edge, the states placed
     where the balls are small), ``group`` problems at a time as ``_simplify_all``."""
 
     def one(wd, p, c):
         evaluate = _evaluator(robot, body, pairs, wd, "certified")
         resolution = jnp.ones((), tol.dtype)  # unused in certified mode
-        return path_good(
+        return path_edges_good(
             evaluate, rows, p, c, slots, chunk, "certified", tol, resolution, space, CERTIFY_EDGES
         )
 
@@ -336,6 +336,44 @@ def _with_rows(base: Any, rows: np.ndarray, other: Any) -> Any:
         return out
 
     return jax.tree.map(leaf, base, other)
+
+
+@dataclasses.dataclass
+class _Problems:
+    """Host side, one row per problem: ``starts (B, n)``, ``goals (B, G, n)``, ``goal_count
+    (B,)``, ``root_clear (B, 1 + G, R)`` (certified distances of the start and goals),
+    ``status (B,)`` (``SOLVED``: to search), ``world_rows (B,)`` (the world of each, a row of
+    the stacked worlds), ``budget`` (edges per problem, ``MotionOptions.max_iterations``)."""
+
+    starts: np.ndarray
+    goals: np.ndarray
+    goal_count: np.ndarray
+    root_clear: np.ndarray
+    status: np.ndarray
+    world_rows: np.ndarray
+    budget: int = 0
+
+
+def _edge_problems(
+    problems: _Problems, problem: np.ndarray, a: np.ndarray, b: np.ndarray, budget: int
+) -> _Problems:
+    """The problems from ``a (m, n)`` to ``b (m, n)`` in the worlds of ``problems``' rows
+    ``problem (m,)`` (``repair``), the goal repeated in every goal slot, a budget of
+    ``budget / REPAIR_BUDGET`` edges; their distances (``root_clear``) to be filled."""
+    g = problems.goals.shape[1]
+    m = problem.size
+    return _Problems(
+        np.array(a),
+        np.repeat(np.asarray(b)[:, None], g, axis=1),
+        np.ones(m, np.int32),
+        np.zeros((m, *problems.root_clear.shape[1:]), problems.root_clear.dtype),
+        np.full(m, int(MotionStatus.SOLVED), np.int8),
+        problems.world_rows[problem],
+        max(1, budget // REPAIR_BUDGET),
+    )
+
+
+REPAIR_BUDGET = 8  # a bad edge's own problem gets this fraction of a problem's budget
 
 
 # the collision loops inside the search and the simplification run their bodies 2-5x faster
@@ -626,67 +664,77 @@ def plan(
         )
 
     rounds = -(-slots // options.chunk)
-    # a safety cap: the teams share the queue's budgets, and the last problem's own team
-    # settles at least one edge per lane every `rounds` iterations
-    budget = int(options.max_iterations) * rounds
-    max_loops = budget * size // lanes + budget // team + 4 * size + 16
-    scalars = (
-        put(_stream(options.seed), np.uint32),
-        put(options.range),
-        put(options.domain * options.range),
-        put(options.resolution),
-        put(options.max_iterations, np.int32),
-        put(min(max_loops, 2**31 - 1), np.int32),
-        put(tol),
+
+    def scalars(max_iterations: int) -> tuple:
+        """The search's scalar arguments for a budget of ``max_iterations`` edges."""
+        # a safety cap: the teams share the queue's budgets, and the last problem's own team
+        # settles at least one edge per lane every `rounds` iterations
+        budget = int(max_iterations) * rounds
+        max_loops = budget * size // lanes + budget // team + 4 * size + 16
+        return (
+            put(_stream(options.seed), np.uint32),
+            put(options.range),
+            put(options.domain * options.range),
+            put(options.resolution),
+            put(max_iterations, np.int32),
+            put(min(max_loops, 2**31 - 1), np.int32),
+            put(tol),
+        )
+
+    problems = _Problems(
+        starts_safe, goals, goal_count, root_clear, status, np.arange(b), options.max_iterations
     )
 
-    def part_worlds_of(rows: np.ndarray) -> Any:
-        return worlds if shared or size == b else _rows(worlds, rows)
+    def part_worlds_of(p: _Problems, rows: np.ndarray) -> Any:
+        if shared:
+            return worlds
+        if p.world_rows.size == size and np.array_equal(p.world_rows[rows], np.arange(size)):
+            return worlds  # the whole batch in one part (no copy)
+        return _rows(worlds, p.world_rows[rows])
 
     def search_args(
-        rows: np.ndarray, search_mode: str, part_status: np.ndarray, queue: np.ndarray
+        p: _Problems, rows: np.ndarray, search_mode: str, part_status: np.ndarray, queue: Any
     ) -> tuple:
-        """The search's arguments for the problems ``rows`` (a part)."""
+        """The search's arguments for the problems ``rows`` of ``p`` (a part)."""
+        clear = p.root_clear[rows]
         return (
             robot,
             body,
             pairs,
-            part_worlds_of(rows),
+            part_worlds_of(p, rows),
             space,
             prep.rows,
-            put(starts_safe[rows]),
-            put(goals[rows]),
-            put(goal_count[rows], np.int32),
-            put(root_clear[rows] if search_mode == "certified" else root_clear[rows, :, :0]),
+            put(p.starts[rows]),
+            put(p.goals[rows]),
+            put(p.goal_count[rows], np.int32),
+            put(clear if search_mode == "certified" else clear[..., :0]),
             put(part_status, np.int8),
             put(queue, np.int32),
-            *scalars,
+            *scalars(p.budget),
         )
 
-    def solve(rows: np.ndarray, search_mode: str) -> tuple[Any, ...]:
-        """Search (its edges checked in ``search_mode``) and simplify the problems ``rows`` (a
-        part of equal size: a repeated last row is a copy, never searched); the stages'
-        seconds; whether each path is certified (``lazy``: checked after the search, which
-        counts in its time; else True)."""
+    def search(p: _Problems, rows: np.ndarray, search_mode: str) -> tuple[Any, ...]:
+        """Search the problems ``rows`` of ``p`` (a part of equal size: a repeated last row is
+        a copy, never searched) with edges checked in ``search_mode``; whether each edge of
+        each path is certified (``lazy``, discrete search: checked after it, in its time;
+        else True); the seconds."""
         clock = time.perf_counter()
         copy = np.zeros(size, bool)
         copy[1:] = rows[1:] == rows[:-1]
-        part_status = np.where(copy, int(MotionStatus.INVALID_INPUT), status[rows])
+        part_status = np.where(copy, int(MotionStatus.INVALID_INPUT), p.status[rows])
         queue = np.flatnonzero(part_status == MotionStatus.SOLVED).astype(np.int32)
         if queue.size == 0:
             queue = np.zeros(1, np.int32)  # nothing to search: the loop never runs
-        part_worlds = part_worlds_of(rows)
         found: SearchResult = _search_jit(
-            *search_args(rows, search_mode, part_status, queue), config=config(search_mode)
+            *search_args(p, rows, search_mode, part_status, queue), config=config(search_mode)
         )
-        certified = np.ones(size, bool)
+        good = np.ones((size, options.path_points - 1), bool)
         if lazy and search_mode == "discrete":
-            group = min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, size)
-            certified = _certify_jit(
+            good = _certify_jit(
                 robot,
                 body,
                 pairs,
-                part_worlds,
+                part_worlds_of(p, rows),
                 space,
                 prep.rows,
                 found.path,
@@ -695,26 +743,25 @@ def plan(
                 slots=CERTIFY_SLOTS * slots,
                 chunk=CERTIFY_CHUNK,
                 shared_world=shared,
-                group=group,
+                group=min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, size),
             )
-        jax.block_until_ready((found, certified))
-        searched = time.perf_counter()
-        simple = (
-            simplify(found, part_worlds)
-            if options.simplify
-            else _polygon_jit(found.path, found.count, space)
-        )
-        jax.block_until_ready(simple)
-        seconds = np.array([searched - clock, time.perf_counter() - searched])
-        return found, simple, seconds, certified
+        jax.block_until_ready((found, good))
+        return found, good, time.perf_counter() - clock
 
-    def simplify(found: SearchResult, part_worlds: Any) -> Simplified:
-        """Shortcut and smooth a part's paths (``_simplify_all``)."""
+    def simplify(found: SearchResult, rows: np.ndarray) -> tuple[Simplified, float]:
+        """Shortcut and smooth the paths of the problems ``rows`` (a part, ``_simplify_all``)
+        or take their polygons; the seconds."""
+        clock = time.perf_counter()
+        path, count = found.path[rows], found.count[rows]
+        if not options.simplify:
+            simple = _polygon_jit(path, count, space)
+            return jax.block_until_ready(simple), time.perf_counter() - clock
+        part_worlds = part_worlds_of(problems, rows)
         # more problems than a group: similar paths together (_simplify_all), the problems
         # sorted by waypoint count; one at a time when each loop runs as one function (its
         # steps then cost no hand-off to amortise over a group)
         group = min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, size)
-        order = np.argsort(np.asarray(found.count), kind="stable")
+        order = np.argsort(count, kind="stable")
         sort = size > group
         pick = order if sort else slice(None)
         simple = _simplify_jit(
@@ -724,8 +771,8 @@ def plan(
             _rows(part_worlds, order) if sort and not shared else part_worlds,
             space,
             prep.rows,
-            found.path[pick],
-            found.count[pick],
+            put(path[pick]),
+            put(count[pick], np.int32),
             put(tol),
             put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
@@ -735,22 +782,26 @@ def plan(
             shared_world=shared,
             group=group,
         )
-        return _rows(simple, np.argsort(order)) if sort else simple
+        simple = _rows(simple, np.argsort(order)) if sort else simple
+        return jax.block_until_ready(simple), time.perf_counter() - clock
 
     # a large batch in parts of equal size on the host threads (each part's programs run on
     # one core); the parts depend on the batch size alone, so results do not depend on the
     # machine
-    def solve_all(groups: list[np.ndarray], search_mode: str) -> tuple[Any, ...]:
-        """``solve`` of each group of at most ``size`` problems as a part (filled with copies
-        of its last problem), joined (NumPy, the groups' rows in turn); the stages' seconds
-        summed over the parts, the search's loop iterations, which paths are certified."""
+    def in_parts(run: Any, groups: list[np.ndarray]) -> tuple[list[Any], list[np.ndarray]]:
+        """``run(part)`` for each group of problems as a part of ``size`` (filled with copies
+        of its last problem), on the host threads; the rows of each part to keep."""
         parts = [g[np.minimum(np.arange(size), g.size - 1)] for g in groups]
-        done = _batching.run_parts(lambda part: solve(part, search_mode), parts)
-        take = [np.arange(g.size) for g in groups]
-        found, simple, certified = (_join([part[k] for part in done], take) for k in (0, 1, 3))
+        return _batching.run_parts(run, parts), [np.arange(g.size) for g in groups]
+
+    def search_all(p: _Problems, groups: list[np.ndarray], search_mode: str) -> tuple:
+        """``search`` of each group (``in_parts``), joined (NumPy, the groups' rows in turn);
+        the edges certified, the seconds summed over the parts, the loops' iterations."""
+        done, take = in_parts(lambda part: search(p, part, search_mode), groups)
+        found, good = (_join([part[k] for part in done], take) for k in (0, 1))
         loops = int(np.sum(found.loops))
         found = dataclasses.replace(found, loops=np.int64(loops))
-        return found, simple, np.sum([part[2] for part in done], axis=0), loops, certified
+        return found, good, float(sum(part[2] for part in done)), loops
 
     checked = time.perf_counter() - clock  # the starts' and goals' checks belong to the search
     groups = [np.arange(k, min(k + size, b)) for k in range(0, b, size)]
@@ -758,6 +809,7 @@ def plan(
     compiling = (
         _compile_second_search(
             search_args(
+                problems,
                 np.minimum(np.arange(size), b - 1),
                 "certified",
                 np.full(size, int(MotionStatus.INVALID_INPUT)),
@@ -768,24 +820,74 @@ def plan(
         if lazy
         else None
     )
-    found, simple, stages, loops, certified = solve_all(groups, "discrete" if lazy else mode)
+    found, good, searching, loops = search_all(problems, groups, "discrete" if lazy else mode)
     if compiling is not None:
         compiling.join()
-    uncertified = (found.status == MotionStatus.SOLVED) & ~certified
-    # each part's own problems searched again together: a part's results depend on it alone
-    again_groups = [g[uncertified[g]] for g in groups if np.any(uncertified[g])]
+    problem, edge = repair.bad_edges(found.count, good, found.status == MotionStatus.SOLVED)
+    failed = np.zeros(b, bool)
+    if problem.size:
+        # each bad edge a problem of its own (certified edges, a smaller budget), each part's
+        # edges together: a part's results depend on it alone
+        ends = found.path[problem, edge], found.path[problem, edge + 1]
+        edges_p = _edge_problems(problems, problem, *ends, options.max_iterations)
+        sub_groups = [
+            chunk
+            for g in groups
+            for rows in [np.flatnonzero(np.isin(problem, g))]
+            for chunk in np.array_split(rows, -(-rows.size // size) or 1)
+            if chunk.size
+        ]
+
+        def root_and_search(part: np.ndarray) -> tuple[Any, ...]:
+            free_start, free_goal, clear = _roots_jit(
+                robot,
+                body,
+                pairs,
+                part_worlds_of(edges_p, part),
+                put(edges_p.starts[part]),
+                put(edges_p.goals[part]),
+                mode="certified",
+                shared_world=shared,
+            )
+            edges_p.root_clear[part] = np.asarray(clear)
+            return search(edges_p, part, "certified")
+
+        done, take = in_parts(root_and_search, sub_groups)
+        sub = _join([part[0] for part in done], take)
+        searching += float(sum(part[2] for part in done))
+        loops += int(np.sum(sub.loops))
+        back = np.argsort(np.concatenate(sub_groups))  # the bad edges' order
+        path, count, failed = repair.splice(
+            found.path,
+            found.count,
+            problem,
+            edge,
+            sub.path[back],
+            sub.count[back],
+            sub.status[back] == MotionStatus.SOLVED,
+        )
+        iterations = np.array(found.iterations)
+        np.add.at(iterations, problem, sub.iterations[back])
+        found = dataclasses.replace(found, path=path, count=count, iterations=iterations)
+    # a problem whose edges could not all be planned again: searched again whole, with
+    # certified edges, each part's own together
+    again_groups = [g[failed[g]] for g in groups if np.any(failed[g])]
     again = np.concatenate(again_groups) if again_groups else np.zeros(0, int)
     if again.size:
-        found_2, simple_2, stages_2, loops_2, _ = solve_all(again_groups, "certified")
+        found_2, _, searching_2, loops_2 = search_all(problems, again_groups, "certified")
         # the first search's edges count too
         found_2 = dataclasses.replace(
             found_2, iterations=found_2.iterations + found.iterations[again]
         )
-        found, simple = _with_rows(found, again, found_2), _with_rows(simple, again, simple_2)
-        stages, loops = stages + stages_2, loops + loops_2
-    seconds["search"], seconds["simplify"] = checked + float(stages[0]), float(stages[1])
+        found = _with_rows(found, again, found_2)
+        searching, loops = searching + searching_2, loops + loops_2
+    done, take = in_parts(lambda part: simplify(found, part), groups)
+    simple = _join([part[0] for part in done], take)
+    seconds["search"] = checked + searching
+    seconds["simplify"] = float(sum(part[1] for part in done))
     seconds["parts"] = time.perf_counter() - clock
     seconds["loops"] = loops
+    seconds["edges_searched_again"] = int(problem.size)
     seconds["searched_again"] = int(again.size)
     status = found.status
     solved = status == MotionStatus.SOLVED
