@@ -11,8 +11,10 @@ shared by all or one world per problem:
    of problems), returning each solved problem's path. In certified mode the search checks
    its edges at the resolution (as in discrete mode, a few states each), then every edge of
    each found path is certified (``_certified_paths``: clearance balls, states where they
-   leave gaps), and only the problems whose path is not (it grazes an obstacle between two
-   states, or passes too close for the balls) are searched again with certified edges;
+   leave gaps); an edge that is not (it grazes an obstacle between two states, or passes too
+   close for the balls) is planned again alone with certified edges, from its first
+   waypoint to its second, and its path replaces it (``repair``); a problem where that fails
+   is searched again whole with certified edges;
 3. the simplification (``simplify.simplify_kernel``, one compiled program over the problems:
    shortcuts, then a natural cubic spline re-checked, or the shortcut polygon);
 4. the time-optimal timing of the result within the joints' speed and acceleration limits
@@ -66,9 +68,9 @@ class MotionOptions:
 
     Attributes:
         mode: ``"certified"`` (default: edges covered by clearance balls, nothing slips
-            through; the paths of a search at the resolution certified, a problem whose path
-            is not searched again with certified edges) or ``"discrete"`` (states ``1 /
-            resolution`` apart, as VAMP and OMPL).
+            through; the paths of a search at the resolution certified edge by edge, an
+            edge that is not planned again with certified edges: module docstring) or
+            ``"discrete"`` (states ``1 / resolution`` apart, as VAMP and OMPL).
         range: the longest edge the search adds (joint distance, ``space`` module).
         domain: the dynamic domain [Yershova et al. 2005], in ranges: once an EXTEND from a
             node hits an obstacle, samples farther than ``domain * range`` from it (as their
@@ -186,8 +188,9 @@ class MotionPlan(NamedStatusRepr):
             call); a batch of more than ``PART_PROBLEMS`` runs in parts at once on the host
             threads: then ``"search"`` and ``"simplify"`` are summed over the parts and
             ``"parts"`` is the wall time of both stages. ``"search"`` includes the
-            certification of the found paths and the second searches (certified mode);
-            ``"searched_again"`` counts the problems searched again, ``"loops"`` the search
+            certification of the found paths and the second searches (certified mode):
+            ``"edges_searched_again"`` counts the edges planned again alone,
+            ``"searched_again"`` the problems searched again whole; ``"loops"`` the search
             loops' iterations.
     """
 
@@ -776,7 +779,8 @@ def plan(
             put(tol),
             put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
-            chunk=options.chunk,
+            # certified shortcuts place their states in the balls' gaps: wider rounds, fewer
+            chunk=options.chunk if mode == "discrete" else max(options.chunk, CERTIFY_CHUNK),
             mode=mode,
             states=options.spline_states,
             shared_world=shared,
