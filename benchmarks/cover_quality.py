@@ -8,9 +8,13 @@ checked by the per-primitive queries (``collision.nearest_obstacles``,
 ``collision.self_distances``). Printed per robot and cover: primitives, the largest overshoot
 bound, the cover's build time (CPU seconds), collisions missed (must be 0) and the false
 positives, the share of the configurations free on the meshes that the cover flags (overall,
-robot-world, self). ``docs/performance.md`` records a run.
+robot-world, self). With ``--breakdown``, also where the false positives come from: per link,
+the share of the configurations free on the meshes whose link's primitives touch an obstacle,
+and per checked link pair, the share of those free of self-collision on the meshes whose
+covers touch. ``docs/performance.md`` records a run.
 
     .venv/bin/python benchmarks/cover_quality.py [--n 1000] [--scenes 3] [--robots panda ur5]
+        [--spheres 6] [--boxes 4] [--bounds 0.005 ...] [--breakdown]
 """
 
 from __future__ import annotations
@@ -138,6 +142,9 @@ def main() -> None:
     parser.add_argument(
         "--bounds", type=float, nargs="*", default=[], help="max_overshoot besides the default"
     )
+    parser.add_argument(
+        "--breakdown", action="store_true", help="false positives per link and link pair"
+    )
     args = parser.parse_args()
     jax.config.update("jax_enable_x64", True)
     import pinocchio as pin
@@ -178,6 +185,9 @@ def main() -> None:
                     + ", ".join(f"{100 * np.mean(free < x):.1f} %" for x in (0.005, 0.01, 0.02))
                 )
             hits, self_hits, world_hits, coal_hits, coal_self = [], [], [], [], []
+            by_link, by_pair = [], []
+            owner = np.concatenate([np.asarray(body.sphere_link), np.asarray(body.capsule_link)])
+            owner = owner.astype(np.int64)
             for (obstacles, _), (hit, self_hit, poses, _) in zip(scenes, reference, strict=True):
                 world = col.World.create(
                     spheres=col.Spheres.create(obstacles["s_center"], obstacles["s_radius"]),
@@ -186,19 +196,25 @@ def main() -> None:
                     ),
                 )
 
-                def verdicts(x, body, world, pairs=pairs):
+                def distances(x, body, world, pairs=pairs):
                     spheres, capsules = body.place(x)
                     near = col.nearest_obstacles(spheres, capsules, world)
                     d_world = jax.numpy.concatenate([n.distance for n in near], axis=-1)
-                    d_self = col.self_distances(spheres, capsules, pairs)
-                    return d_world.min(axis=-1) <= 0, d_self.min(axis=-1) <= 0
+                    return d_world, col.self_distances(spheres, capsules, pairs)
 
                 # a few configurations at a time: the per-primitive queries hold every pair
-                run = jax.jit(verdicts)
+                run = jax.jit(distances)
                 chunks = [run(poses[k : k + 20], body, world) for k in range(0, len(poses), 20)]
-                in_world, in_self = (
+                d_world, d_self = (
                     np.concatenate([np.asarray(c[i]) for c in chunks]) for i in (0, 1)
                 )
+                touching = d_world <= 0  # (configurations, primitives)
+                links = np.stack(
+                    [touching[:, owner == k].any(axis=1) for k in range(len(body.links))], 1
+                )
+                by_link.append(links[~hit])
+                by_pair.append((d_self <= 0)[~self_hit])
+                in_world, in_self = touching.any(axis=1), (d_self <= 0).any(axis=1)
                 hits.append(in_world | in_self)
                 self_hits.append(in_self)
                 world_hits.append(in_world)
@@ -218,6 +234,16 @@ def main() -> None:
                 f"{100 * fp:.1f} % ({100 * fp_world:.1f} % world, {100 * fp_self:.1f} % self)",
                 flush=True,
             )
+            if args.breakdown:
+                shares = 100 * np.concatenate(by_link).mean(axis=0)
+                print("  world, per link: " + ", ".join(
+                    f"{body.links[k]} {shares[k]:.2f} %" for k in np.argsort(-shares) if shares[k]
+                ))  # fmt: skip
+                shares = 100 * np.concatenate(by_pair).mean(axis=0)
+                names = [f"{body.links[i]}-{body.links[j]}" for i, j in pairs.link_pairs]
+                print("  self, per link pair: " + ", ".join(
+                    f"{names[k]} {shares[k]:.2f} %" for k in np.argsort(-shares)[:8] if shares[k]
+                ))  # fmt: skip
 
 
 if __name__ == "__main__":

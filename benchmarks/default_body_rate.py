@@ -10,11 +10,13 @@ Printed per body: spheres, sphere pairs, the body's build time (CPU seconds, the
 the meshes read with the chain), the first ``collides`` (compile included), configurations
 per second of ``collision.collides`` (the verdict) and ``collision.check`` (the exhaustive
 clearance), best of ``--rounds``, whether the two verdicts agree on every configuration, and
-the colliding share. ``docs/performance.md`` records a run. Low latency is on
+the colliding share. ``--bounds`` adds a body per cover bound (``max_overshoot``, metres),
+timed in the same process. ``docs/performance.md`` records a run. Low latency is on
 (``jaxkin.enable_low_latency``, as ``benchmarks/conftest.py``; ``JAXKIN_LOW_LATENCY=0`` for
 JAX's defaults).
 
     .venv/bin/python benchmarks/default_body_rate.py [--n 10000] [--dtype float32] [--rounds 5]
+        [--bounds 0.005 ...]
 """
 
 from __future__ import annotations
@@ -109,6 +111,9 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=10_000, help="configurations per call")
     parser.add_argument("--dtype", default="float32", choices=["float32", "float64"])
     parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument(
+        "--bounds", type=float, nargs="*", default=[], help="max_overshoot besides the default"
+    )
     args = parser.parse_args()
     if args.dtype == "float64":
         jax.config.update("jax_enable_x64", True)
@@ -118,10 +123,13 @@ def main() -> None:
     print(
         f"Panda, {args.n} configurations, {args.dtype}, 12 spheres + 8 boxes, best of {args.rounds}"
     )
-    for label, robot, built in (
-        ("default", default, built_default),
-        ("small", small, built_small),
-    ):
+    rows = [("default", default, built_default), ("small", small, built_small)]
+    urdf = robots_folder() / "panda_description/urdf/panda.urdf"
+    for bound in args.bounds:
+        start = time.process_time()
+        tight = collision.body_from_urdf(urdf, max_overshoot=bound).body
+        rows.append((f"{100 * bound:g} cm", default.with_body(tight), time.process_time() - start))
+    for label, robot, built in rows:
         body, pairs = collision.prepare(robot)
         start = time.perf_counter()
         verdict = np.asarray(collision.collides(robot, q, world).collides)

@@ -360,6 +360,39 @@ def test_many_spheres_in_contact_and_batch_shapes(dtype):
     _agree(robot, q[:15].reshape(3, 5, -1), world, 0.0, dtype)
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("size", [8, 20])
+def test_bodies_grouped_otherwise_keep_the_exact_verdict(monkeypatch, size):
+    """A body whose coarse level was cut into groups of another size than ``culled.GROUP``
+    (a body of groups of 8, saved before the groups grew to 12, or a larger size): through
+    ``collides_kernel`` with that body its short groups are padded and its long ones cut into
+    runs, and the verdict is still the exact one (``_many_spheres_ur5``, 300 configurations,
+    float64, margins 0 and 0.02)."""
+    from jaxkin.collision import body as body_module
+    from jaxkin.collision import culled, verdict
+
+    robot = _many_spheres_ur5()
+    spheres, capsules = robot.collision_body().per_link()
+    monkeypatch.setattr(body_module, "GROUP_SIZE", size)
+    body = collision.Body.create(robot.collision_body().links, spheres, capsules)
+    monkeypatch.undo()
+    assert np.bincount(np.asarray(body.sphere_bound)).max() == size != culled.GROUP
+    pairs = collision.SelfPairs.create(body, robot.self_collision_pairs())
+    groups = culled.groups_of(body, pairs)
+    assert groups is not None and groups.members.shape[1] == culled.GROUP
+    world = _every_kind(28)
+    q = np.random.default_rng(29).uniform(-3.0, 3.0, (300, robot.n_joints))
+    run = jax.jit(lambda q, margin: verdict.collides_kernel(robot, body, pairs, q, world, margin))
+    for margin in (0.0, 0.02):
+        fast, exact = run(jnp.asarray(q), margin), collision.check(robot, q, world, margin)
+        near = np.abs(np.asarray(exact.clearance) - margin) <= 1e-11
+        assert not np.any(np.asarray(exact.collides) & ~np.asarray(fast.collides))
+        np.testing.assert_array_equal(
+            np.asarray(fast.collides)[~near], np.asarray(exact.collides)[~near]
+        )
+        assert 0.2 < np.mean(np.asarray(exact.collides)) < 0.9
+
+
 def test_the_groups_path_gives_the_exact_verdict_on_a_small_body(monkeypatch):
     """Float64, ``_spheres_ur5``'s 18 spheres and one on the tool sent through the groups'
     path (``CULL_SPHERES`` lowered to 0; a fresh program, not the public call's): the exact

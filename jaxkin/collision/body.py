@@ -42,7 +42,8 @@ from .primitives import Capsules, Spheres, _sphere_arrays
 __all__ = ["GROUP_SIZE", "MAX_BOUNDS", "Body"]
 
 MAX_BOUNDS = 8  # bounding spheres per link at most from the volume rule
-GROUP_SIZE = 8  # primitives per bounding sphere at most
+# Primitives per bounding sphere at most: 12 ran the culled verdict fastest (8, 10, 16 slower)
+GROUP_SIZE = 12
 _FORMAT = 1  # version of the saved archive
 
 
