@@ -339,7 +339,7 @@ def test_gap_rounds_spend_states_only_where_the_balls_leave_gaps():
     edge = edges.absorb(edge, j, evaluate(edges.states_at(edge, j, slots)), "certified", tol, False)
     assert not bool(edges.gap_states(edge, slots, chunk)[1][0])  # settled after one round
     assert int(jnp.sum(edge.known)) <= 1 + chunk
-    assert float(edges.good_fraction(edge, slots, "certified", skip_unknown=True)[0][0]) == 1.0
+    assert float(edges.good_fraction(edge, slots, "certified")[0][0]) == 1.0
 
     rng = np.random.default_rng(3)
     a = rng.uniform(-np.pi, np.pi, (96, 2))

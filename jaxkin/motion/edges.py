@@ -233,9 +233,13 @@ def start_edges(
     )
 
 
-def round_states(edges: EdgeState, slots: int, chunk: int) -> tuple[Array, Array]:
+def round_states(edges: EdgeState, slots: int, chunk: int, mode: str) -> tuple[Array, Array]:
     """The states of each edge's next round ``(E, chunk, n)`` and their indices ``(E,
-    chunk)`` (a settled edge repeats its last round: computed, not used)."""
+    chunk)``: discrete, the next ``chunk`` of the rake order (a settled edge repeats its last
+    round: computed, not used); certified, the gaps' states (``gap_states``)."""
+    if mode != "discrete":
+        j = gap_states(edges, slots, chunk)[0]
+        return states_at(edges, j, slots), j
     order = jnp.asarray(_round_order(slots, chunk), jnp.int32)
     rounds = order.shape[0]
     j = order[jnp.minimum(edges.round, rounds - 1)]  # (E, chunk)
@@ -274,23 +278,19 @@ def absorb(
 
 def settled(edges: EdgeState, slots: int, chunk: int, mode: str) -> Array:
     """``(E,)``: the edge's answer is known (discrete: a state collides, or every needed
-    state is free; certified: the balls cover it, or every state is known)."""
+    state is free; certified: no state is wanted, ``gap_states``)."""
+    if mode != "discrete":
+        return ~gap_states(edges, slots, chunk)[1]
     checked = edges.round * chunk >= edges.needed
-    if mode == "discrete":
-        return checked | jnp.any(edges.known & (edges.value <= 0), -1)
-    return checked | (_certified_end(edges, slots) >= slots)
+    return checked | jnp.any(edges.known & (edges.value <= 0), -1)
 
 
-def _certified_end(edges: EdgeState, slots: int, skip_unknown: bool = False) -> Array:
-    """The certified prefix's last state; ``skip_unknown``: the prefix is made of the known
-    states alone (``gap_states``' rounds: a state not known lies in a gap already covered, or
-    in the open gap that ends the prefix), else every state of it must be known (the rake's
-    rounds)."""
+def _certified_end(edges: EdgeState, slots: int) -> Array:
+    """The certified prefix's last state, over the known states alone (a state not known lies
+    in a gap the balls already cover, or in the open gap that ends the prefix); -1 for none."""
     t = jnp.arange(slots + 1, dtype=edges.value.dtype) / slots
     radius = jnp.where(edges.known, edges.value, 0.0)
-    if not skip_unknown:
-        return _prefix_end(t, radius, None, None)
-    # over the known states alone: each joins when its ball overlaps those before it
+    # each known state joins when its ball overlaps those before it
     index = jnp.arange(slots + 1, dtype=jnp.int32)
     reach = jax.lax.cummax(jnp.where(edges.known, t + radius, -jnp.inf), axis=1)
     joins = (t[1:] - radius[..., 1:] < reach[..., :-1]) & (radius[..., 1:] > 0)
@@ -302,16 +302,14 @@ def _certified_end(edges: EdgeState, slots: int, skip_unknown: bool = False) -> 
     )
 
 
-def good_fraction(
-    edges: EdgeState, slots: int, mode: str, skip_unknown: bool = False
-) -> tuple[Array, Array]:
+def good_fraction(edges: EdgeState, slots: int, mode: str) -> tuple[Array, Array]:
     """``(t_g (E,), end (E,))`` of settled edges: the fraction of the requested step that is
     good (discrete: 1 when no known state collides, else 0; certified: the certified prefix
     times ``scale``, ``_certified_end``) and the index of its last state (-1 for none)."""
     if mode == "discrete":
         good = ~jnp.any(edges.known & (edges.value <= 0), -1)
         return good.astype(edges.a.dtype), jnp.where(good, slots, -1)
-    end = _certified_end(edges, slots, skip_unknown)
+    end = _certified_end(edges, slots)
     t = jnp.maximum(end, 0).astype(edges.a.dtype) / slots
     return jnp.where(end >= 0, t * edges.scale, 0.0), end
 
@@ -378,29 +376,16 @@ def edge_check(
     if a_clear is None:
         a_clear = jnp.zeros((a.shape[0], 0), a.dtype)
     edges = start_edges(a, delta, a_clear, rows, slots, mode, tol, resolution, space)
-    if mode == "discrete":
 
-        def body(edges: EdgeState) -> EdgeState:
-            states, j = round_states(edges, slots, chunk)
-            return absorb(edges, j, evaluate(states), mode, tol, keep_clear=False)
+    def body(edges: EdgeState) -> EdgeState:
+        states, j = round_states(edges, slots, chunk, mode)
+        return absorb(edges, j, evaluate(states), mode, tol, keep_clear=False)
 
-        def cond(edges: EdgeState) -> Array:
-            return ~jnp.all(settled(edges, slots, chunk, mode))
+    def cond(edges: EdgeState) -> Array:
+        return ~jnp.all(settled(edges, slots, chunk, mode))
 
-        edges = jax.lax.while_loop(cond, body, edges)
-        return good_fraction(edges, slots, mode)[0]
-
-    # certified: the states go to the open gaps of the covered prefix (gap_states)
-    def gap_body(carry: tuple[EdgeState, Array, Array]) -> tuple[EdgeState, Array, Array]:
-        edges, j, _ = carry
-        edges = absorb(edges, j, evaluate(states_at(edges, j, slots)), mode, tol, keep_clear=False)
-        return (edges, *gap_states(edges, slots, chunk))
-
-    def gap_cond(carry: tuple[EdgeState, Array, Array]) -> Array:
-        return jnp.any(carry[2])
-
-    edges, _, _ = jax.lax.while_loop(gap_cond, gap_body, (edges, *gap_states(edges, slots, chunk)))
-    return good_fraction(edges, slots, mode, skip_unknown=True)[0]
+    edges = jax.lax.while_loop(cond, body, edges)
+    return good_fraction(edges, slots, mode)[0]
 
 
 def path_edges_good(

@@ -57,12 +57,10 @@ from . import collider
 from .edges import (
     EdgeState,
     absorb,
-    gap_states,
     good_fraction,
     round_states,
     settled,
     start_edges,
-    states_at,
 )
 from .space import JointSpace
 from .status import MotionStatus
@@ -469,17 +467,10 @@ def search_kernel(
             length=sel(jnp.where(dropped, 0.0, length * scale), lanes.length),
         )
         # ---- one round of every lane's edge
-        if mode == "discrete":
-            states, j = round_states(edge, slots, chunk)
-        else:  # the states go to the open gaps of the covered prefix (edges.gap_states)
-            j = gap_states(edge, slots, chunk)[0]
-            states = states_at(edge, j, slots)
+        states, j = round_states(edge, slots, chunk, mode)
         edge = absorb(edge, j, evaluate(teams.problem, states), mode, tol, keep_clear=r > 0)
-        if mode == "discrete":
-            done_edge = settled(edge, slots, chunk, mode)
-        else:
-            done_edge = ~gap_states(edge, slots, chunk)[1]
-        t_good, end = good_fraction(edge, slots, mode, skip_unknown=mode != "discrete")
+        done_edge = settled(edge, slots, chunk, mode)
+        t_good, end = good_fraction(edge, slots, mode)
         # ---- settled lanes make their move
         lane_problem = jnp.maximum(teams.problem[team_of], 0)
         live = done_edge & ~dropped & (teams.problem[team_of] >= 0) & ~probs.done[lane_problem]
