@@ -4,7 +4,9 @@ A path found with the discrete check (``planner``: the search at the resolution)
 edge certified afterwards. An edge that fails (it grazes an obstacle between two of its
 states, or passes closer than the clearance balls can resolve) becomes a problem of its own,
 from its first waypoint to its second, searched with certified edges on a smaller budget; its
-path then replaces the edge (``splice``). Host side, NumPy, vectorised over the problems.
+path then replaces the edge (``splice``): the expensive check spent only on the edges of a path
+found with a cheaper one, as Lazy PRM does [Bohlin & Kavraki 2000]. Host side, NumPy,
+vectorised over the problems.
 """
 
 from __future__ import annotations
