@@ -389,21 +389,15 @@ def edge_check(
 
 
 def path_edges_good(
-    evaluate: Callable[[Array], Any],
-    rows: Array,
+    edge_good: Callable[[Array, Array], Array],
+    space: Any,
     path: Array,
     count: Array,
-    slots: int,
-    chunk: int,
-    mode: str,
-    tol: Array,
-    resolution: Array,
-    space: Any,
     per_round: int = 4,
 ) -> Array:
     """Per edge of one path ``(P, n)`` (its first ``count`` waypoints) ``(P - 1,)``: good to
-    its end (``edge_check`` with ``slots`` intervals; True past the last edge), ``per_round``
-    edges at once."""
+    its end (``edge_good(a, delta)``: ``edge_check``'s ``t_g (E,)`` of ``E = per_round``
+    edges; True past the last edge), ``per_round`` edges at once."""
     p = path.shape[0]
     groups = -(-(p - 1) // per_round)
     # the waypoints padded so that every group of edges reads whole rows
@@ -416,7 +410,7 @@ def path_edges_good(
         live = k < count - 1
         a = padded[k]
         delta = jnp.where(live[:, None], space.step(a, padded[k + 1]), 0.0)
-        t_good = edge_check(evaluate, rows, a, delta, slots, chunk, mode, tol, resolution, space)
+        t_good = edge_good(a, delta)
         return jax.lax.dynamic_update_slice(good, (t_good >= 1.0) | ~live, (i * per_round,))
 
     good = jnp.ones((groups * per_round,), bool)

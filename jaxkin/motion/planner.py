@@ -49,7 +49,7 @@ from ..collision import World
 from ..status import NamedStatusRepr, Status
 from . import collider, repair
 from .bound import motion_bound, speed_rows
-from .edges import MODES, path_edges_good
+from .edges import MODES, edge_check, path_edges_good
 from .goals import ik_goals
 from .search import SearchConfig, SearchResult, search_kernel
 from .simplify import SHORTCUTS, Checker, Simplified, chord_parameters, simplify_kernel
@@ -244,6 +244,19 @@ def _roots_kernel(robot, body, pairs, world, starts, goals, mode, shared_world):
     return free[:, 0], free[:, 1:], clear
 
 
+def _per_path(one, world, path, count, shared_world, group):
+    """``one(world, path (P, n), count)`` for every problem ``(B, P, n)``, ``group`` problems
+    at a time (a ``vmap`` within a group, a loop over the groups): the loops of a ``vmap`` run
+    as long as its longest element, so a group of similar paths (``plan`` sorts them by
+    waypoint count) wastes little, where one ``vmap`` of every problem runs each as long as
+    the hardest."""
+    if path.shape[0] <= group:
+        return jax.vmap(one, in_axes=(None if shared_world else 0, 0, 0))(world, path, count)
+    if shared_world:
+        return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
+    return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
+
+
 def _simplify_all(
     robot,
     body,
@@ -262,21 +275,15 @@ def _simplify_all(
     shared_world,
     group,
 ):
-    """``simplify_kernel`` for every problem ``(B, P, n)``, ``group`` problems at a time (a
-    ``vmap`` within a group, a loop over the groups): the loops of a ``vmap`` run as long as
-    its longest element, so a group of similar paths (``plan`` sorts them by waypoint count)
-    wastes little, where one ``vmap`` of every problem runs each as long as the hardest."""
+    """``simplify_kernel`` for every problem ``(B, P, n)``, ``group`` problems at a time
+    (``_per_path``)."""
 
     def one(wd, p, c):
         evaluate = _evaluator(robot, body, pairs, wd, mode)
         check = Checker(evaluate, space, rows, mode, tol, resolution, chunk)
         return simplify_kernel(check, p, c, slots, states)
 
-    if path.shape[0] <= group:
-        return jax.vmap(one, in_axes=(None if shared_world else 0, 0, 0))(world, path, count)
-    if shared_world:
-        return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
-    return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
+    return _per_path(one, world, path, count, shared_world, group)
 
 
 def _certified_paths(
@@ -284,20 +291,20 @@ def _certified_paths(
 ):
     """Per problem and edge ``(B, P - 1)``: the edge of its path ``(B, P, n)`` is certified
     (``edges.path_edges_good``: clearance balls, ``slots`` intervals per edge, the states placed
-    where the balls are small), ``group`` problems at a time as ``_simplify_all``."""
+    where the balls are small), ``group`` problems at a time (``_per_path``)."""
 
     def one(wd, p, c):
         evaluate = _evaluator(robot, body, pairs, wd, "certified")
         resolution = jnp.ones((), tol.dtype)  # unused in certified mode
-        return path_edges_good(
-            evaluate, rows, p, c, slots, chunk, "certified", tol, resolution, space, CERTIFY_EDGES
-        )
 
-    if path.shape[0] <= group:
-        return jax.vmap(one, in_axes=(None if shared_world else 0, 0, 0))(world, path, count)
-    if shared_world:
-        return jax.lax.map(lambda x: one(world, *x), (path, count), batch_size=group)
-    return jax.lax.map(lambda x: one(*x), (world, path, count), batch_size=group)
+        def edge_good(a, delta):
+            return edge_check(
+                evaluate, rows, a, delta, slots, chunk, "certified", tol, resolution, space
+            )
+
+        return path_edges_good(edge_good, space, p, c, CERTIFY_EDGES)
+
+    return _per_path(one, world, path, count, shared_world, group)
 
 
 SIMPLIFY_GROUP = 8  # problems simplified together (_simplify_all)
@@ -716,6 +723,10 @@ def plan(
             *scalars(p.budget),
         )
 
+    def checked_paths(part_worlds: Any, path: Any, count: Any) -> tuple:
+        """The leading arguments of the programs that check paths (certify, simplify)."""
+        return (robot, body, pairs, part_worlds, space, prep.rows, path, count, put(tol))
+
     def search(p: _Problems, rows: np.ndarray, search_mode: str) -> tuple[Any, ...]:
         """Search the problems ``rows`` of ``p`` (a part of equal size: a repeated last row is
         a copy, never searched) with edges checked in ``search_mode``; whether each edge of
@@ -734,15 +745,7 @@ def plan(
         good = np.ones((size, options.path_points - 1), bool)
         if lazy and search_mode == "discrete":
             good = _certify_jit(
-                robot,
-                body,
-                pairs,
-                part_worlds_of(p, rows),
-                space,
-                prep.rows,
-                found.path,
-                found.count,
-                put(tol),
+                *checked_paths(part_worlds_of(p, rows), found.path, found.count),
                 slots=CERTIFY_SLOTS * slots,
                 chunk=CERTIFY_CHUNK,
                 shared_world=shared,
@@ -768,15 +771,11 @@ def plan(
         sort = size > group
         pick = order if sort else slice(None)
         simple = _simplify_jit(
-            robot,
-            body,
-            pairs,
-            _rows(part_worlds, order) if sort and not shared else part_worlds,
-            space,
-            prep.rows,
-            put(path[pick]),
-            put(count[pick], np.int32),
-            put(tol),
+            *checked_paths(
+                _rows(part_worlds, order) if sort and not shared else part_worlds,
+                put(path[pick]),
+                put(count[pick], np.int32),
+            ),
             put(options.resolution),
             slots=(SHORTCUTS + 1) * slots,
             # certified shortcuts place their states in the balls' gaps: wider rounds, fewer
