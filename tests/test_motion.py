@@ -243,6 +243,33 @@ def test_a_found_edge_that_slips_through_is_planned_again_with_certified_edges(m
     assert _dense_free(robot, world, whole.path[0, : int(whole.path_count[0])]) > 0
 
 
+@pytest.mark.slow
+def test_edges_planned_again_in_a_batch_of_parts_keep_each_part_as_its_problems_alone(
+    monkeypatch,
+):
+    """Five problems in parts of two, one world per problem, two of them the grazing straight
+    edge: each part's rows equal a call with its problems alone (its bad edges planned again
+    among its own), and every returned path is free under the dense check."""
+    monkeypatch.setattr(motion.planner, "PART_PROBLEMS", 2)
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.01)
+    tip = 1.8 * np.array([np.cos(0.53), np.sin(0.53), 0.0])
+    world = collision.World.create(spheres=collision.Spheres.create([tip * 1.012], 0.012))
+    starts = np.array([[0.0, 0.0], [-2.0, 1.0], [0.0, 0.0], [2.5, -1.0], [-1.0, -2.0]])
+    goals = np.array([[1.0, 0.0], [-1.0, 2.0], [1.0, 0.0], [1.5, -2.0], [-2.5, -1.0]])
+    options = dict(SMALL, period=None, range=2.0, resolution=16.0, simplify=False)
+    worlds = [world] * 5
+    whole = motion.plan(robot, starts, worlds, goal=goals, **options)
+    assert motion.status_names(whole.status).tolist() == ["SOLVED"] * 5
+    assert whole.seconds["edges_searched_again"] >= 2
+    for first in (0, 2, 4):
+        rows = slice(first, first + 2)
+        alone = motion.plan(robot, starts[rows], worlds[rows], goal=goals[rows], **options)
+        for field in ("status", "path", "path_count", "iterations"):
+            assert np.array_equal(getattr(whole, field)[rows], getattr(alone, field)), field
+    for i in range(5):
+        assert _dense_free(robot, world, whole.path[i, : int(whole.path_count[i])]) > 0
+
+
 def test_bad_edges_are_spliced_out_for_the_paths_found_between_their_ends():
     """``repair``: the bad edges of solved problems in order; each replaced by the path found
     between its ends (the expected paths written out by hand); a problem with an edge not

@@ -698,8 +698,8 @@ def plan(
     def part_worlds_of(p: _Problems, rows: np.ndarray) -> Any:
         if shared:
             return worlds
-        if p.world_rows.size == size and np.array_equal(p.world_rows[rows], np.arange(size)):
-            return worlds  # the whole batch in one part (no copy)
+        if size == b and np.array_equal(p.world_rows[rows], np.arange(b)):
+            return worlds  # the whole batch in one part, in order (no copy)
         return _rows(worlds, p.world_rows[rows])
 
     def search_args(
@@ -853,6 +853,9 @@ def plan(
                 shared_world=shared,
             )
             edges_p.root_clear[part] = np.asarray(clear)
+            # an end the certified check does not find free: that edge's problem is not searched
+            free = np.asarray(free_start) & np.asarray(free_goal)[:, 0]
+            edges_p.status[part] = np.where(free, edges_p.status[part], int(MotionStatus.NO_PATH))
             return search(edges_p, part, "certified")
 
         done, take = in_parts(root_and_search, sub_groups)
