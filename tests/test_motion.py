@@ -270,6 +270,84 @@ def test_edges_planned_again_in_a_batch_of_parts_keep_each_part_as_its_problems_
         assert _dense_free(robot, world, whole.path[i, : int(whole.path_count[i])]) > 0
 
 
+def _spline_check_by_hand(knots, s, slopes, count, q, param, piece, dist, placed, rows, tol):
+    """Certified mode's spline check written out state by state in NumPy from its docstring:
+    each state's ball from its own clearances and the speed bound of the three pieces around
+    it (the Bezier control points of ``dq/ds``), cut at their outer ends; the prefix walked in
+    order; a piece is bad when one of its states lies past the prefix."""
+    pieces = knots.shape[0] - 1
+    h = np.diff(s)
+    vmax = np.zeros((pieces, knots.shape[1]))
+    for k in range(count - 1):
+        y0, y1, m0, m1 = knots[k], knots[k + 1], slopes[k], slopes[k + 1]
+        control = [m0, 3.0 * (y1 - y0) / h[k] - m0 - m1, m1]
+        vmax[k] = np.max(np.abs(control), axis=0)
+    span = s[count - 1]
+    t = param / span
+    good_to, reach = 0.0, -np.inf
+    for i in range(t.size):
+        k = piece[i]
+        speeds = np.abs(np.max(vmax[max(k - 1, 0) : k + 2], axis=0) * span) @ rows.T
+        safe = np.where(speeds > 0, speeds, 1.0)
+        ratios = np.where(speeds > 0, np.maximum(dist[i] - tol, 0.0) / safe, 2.0)
+        free = bool(placed[i]) and bool(np.all(dist[i] > 0))
+        radius = min(float(np.min(ratios)), 2.0) if free else 0.0
+        lo, hi = s[max(k - 1, 0)] / span, s[min(k + 2, count - 1)] / span
+        left, right = min(radius, t[i] - lo), min(radius, hi - t[i])
+        if not free or (i > 0 and not t[i] - left < reach):
+            break
+        good_to, reach = t[i], max(reach, t[i] + right)
+    bad = np.zeros(pieces, bool)
+    bad[piece[t > good_to]] = True
+    return bad
+
+
+def test_certified_spline_check_gives_each_state_its_own_speed_bound():
+    """``simplify.spline_check`` in certified mode against ``_spline_check_by_hand`` on random
+    splines in the planar scene, several of which pass close to the balls (a ball computed
+    with another state's speed bound would cover what it does not)."""
+    from jaxkin.motion import simplify
+
+    robot, world = _planar_scene()
+    body, pairs, evaluate = _evaluators(robot, world, "certified")
+    bound = mbound.motion_bound(robot, body, pairs.link_pairs)
+    rows = np.asarray(mbound.speed_rows(bound, body))
+    space = joint_space(robot)
+    tol, count, states = 1e-12, 5, 96
+    check = simplify.Checker(
+        evaluate, space, jnp.asarray(rows), "certified", jnp.asarray(tol), jnp.asarray(32.0), 8
+    )
+
+    @jax.jit
+    def run(knots):
+        s = simplify.chord_parameters(knots, count, space)
+        slopes = simplify.spline_slopes(knots, s, count)
+        q, param, piece, enough = simplify._spline_states(
+            knots, s, slopes, count, states, space, 32.0, "certified"
+        )
+        bad = simplify.spline_check(check, knots, s, slopes, count, states)
+        return bad, s, slopes, q, param, piece, enough, *evaluate(q)
+
+    rng = np.random.default_rng(11)
+    some_bad = 0
+    for _ in range(24):
+        knots = np.zeros((8, 2))
+        # steps alternately short and long: sharp turns, pieces of very different speeds
+        steps = rng.normal(size=(count, 2)) * np.array([0.03, 0.9, 0.03, 0.9, 0.03])[:, None]
+        knots[:count] = rng.uniform(-np.pi, np.pi, 2) + np.cumsum(steps, axis=0)
+        knots[count:] = knots[count - 1]
+        bad, s, slopes, q, param, piece, enough, dist, placed = (
+            np.asarray(x) for x in run(jnp.asarray(knots))
+        )
+        assert bool(enough)
+        expected = _spline_check_by_hand(
+            knots, s, slopes, count, q, param, piece, dist, placed, rows, tol
+        )
+        assert np.array_equal(bad, expected)
+        some_bad += bool(np.any(expected[: count - 1]))
+    assert 3 <= some_bad <= 21  # splines that hit or graze the balls, and free ones
+
+
 def test_bad_edges_are_spliced_out_for_the_paths_found_between_their_ends():
     """``repair``: the bad edges of solved problems in order; each replaced by the path found
     between its ends (the expected paths written out by hand); a problem with an edge not

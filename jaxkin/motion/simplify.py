@@ -253,8 +253,9 @@ def spline_check(check: Checker, knots, s, slopes, count, states):
             jnp.maximum(vmax, jnp.roll(vmax, 1, 0).at[0].set(0.0)),
             jnp.roll(vmax, -1, 0).at[-1].set(0.0),
         )
-        speeds = jnp.abs(near[piece] * span) @ rows.T.astype(q.dtype)
-        radius = ball_radius(result[0], result[1], speeds, tol)
+        speeds = jnp.abs(near[piece] * span) @ rows.T.astype(q.dtype)  # (T, R): per state
+        # each state's ball with its own speeds (ball_radius broadcasts speeds over states)
+        radius = ball_radius(result[0][:, None], result[1][:, None], speeds, tol)[:, 0]
         lo = s[jnp.maximum(piece - 1, 0)] / span
         hi = s[jnp.minimum(piece + 2, count - 1)] / span
         good_to = covered_prefix(
