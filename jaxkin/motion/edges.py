@@ -328,10 +328,9 @@ def gap_states(edges: EdgeState, slots: int, chunk: int) -> tuple[Array, Array]:
     lies before the first known state that is not free, and lies between two known states
     (or after the last) whose balls, with every ball before, do not yet overlap (an open gap
     of the covered prefix), or is the end state; the coarsest first (the rake order). Covered
-    stretches cost no
-    states: the states go where the balls are small (near obstacles), not to a finer halving
-    of the whole edge. Returns the states' indices ``(E, chunk)`` (when fewer are wanted the
-    rest repeat known states: evaluated, harmless) and ``wanted (E,)``."""
+    stretches cost no states: the states go where the balls are small (near obstacles), not to
+    a finer halving of the whole edge. Returns the states' indices ``(E, chunk)`` (when fewer
+    are wanted the rest repeat known states: evaluated, harmless) and ``wanted (E,)``."""
     total = slots + 1
     index = jnp.arange(total, dtype=jnp.int32)
     t = index.astype(edges.value.dtype) / slots
