@@ -16,6 +16,23 @@ turns them rigidly), so a self pair ``(k, l)`` gets the row ``r_k (m_k & ~m_l) +
 ~m_k)`` (``m_k`` the joints that move link ``k``), and ``B`` is the largest row times
 ``|dq|``.
 
+The second derivative bounds how far a point strays from the chord of a short piece of an
+edge (``swept``). For joints ``j`` and ``k`` both moving ``c``, ``j`` before ``k`` on its
+chain (``k``'s links a subset of ``j``'s) and ``w_j`` the rotation rate of ``j``'s twist (0 for
+a prismatic joint)::
+
+    |d2c / dq_j dq_k| = |w_j u_j x dc/dq_k| <= w_j r_kc
+
+(``j`` turns ``k``'s axis and ``c`` about it rigidly; a prismatic ``j`` changes neither, and
+a later joint's derivative along ``q_k``'s is the same term). So along ``q(t) = a + t dq``::
+
+    |c''(t)| <= |dq|^T M_k |dq|,   M_k[j, l] = w_first r_second,  M_k[l, j] = M_k[j, l]
+
+and over a piece ``[t0, t1]`` the point stays within ``|c''| (t1 - t0)^2 / 8`` of the chord
+from ``c(t0)`` to ``c(t1)`` (the interpolation error of a function whose second derivative is
+bounded). ``MotionBound.curvature`` holds ``M_k`` per primitive for a proved tree; a sampled
+bound has none.
+
 The bounds are read through the robot protocol alone (``link_poses`` and its Jacobian, the
 body's primitives, ``joint_types``, ``joint_limits``): at a few configurations each joint's
 twist ``dT_l/dq_j T_l^-1`` is measured on every link. When every joint moves a set of links
@@ -45,7 +62,14 @@ from .._execute import Kernel
 from . import collider
 from .space import joint_space
 
-__all__ = ["MotionBound", "motion_bound", "part_speeds", "speed_bound", "speed_rows"]
+__all__ = [
+    "MotionBound",
+    "curvature_bound",
+    "motion_bound",
+    "part_speeds",
+    "speed_bound",
+    "speed_rows",
+]
 
 SAMPLES = 4096  # configurations of the sampled bound (closed chains)
 SAFETY = 1.5  # factor on the sampled bound
@@ -65,11 +89,14 @@ class MotionBound:
         pairs: ``(len(link_pairs), n)``, one row per checked self link pair.
         proved: static, True when the rows are proved bounds (a kinematic tree), False when
             sampled (module docstring).
+        curvature: ``(ns + nc, n, n)``, per primitive its link's ``M_k``: ``|c''| <= |dq|^T
+            M_k |dq|`` along a straight edge (module docstring); None for a sampled bound.
     """
 
     prims: Array
     pairs: Array
     proved: bool = dataclasses.field(metadata=dict(static=True), default=True)
+    curvature: Array | None = None
 
     @property
     def rows(self) -> Array:
@@ -77,8 +104,9 @@ class MotionBound:
         return jnp.concatenate([self.prims, self.pairs])
 
     def astype(self, dtype: Any) -> MotionBound:
+        curvature = None if self.curvature is None else jnp.asarray(self.curvature, dtype)
         return MotionBound(
-            jnp.asarray(self.prims, dtype), jnp.asarray(self.pairs, dtype), self.proved
+            jnp.asarray(self.prims, dtype), jnp.asarray(self.pairs, dtype), self.proved, curvature
         )
 
 
@@ -94,6 +122,14 @@ def part_speeds(bound: MotionBound, dq: Array) -> tuple[Array, Array]:
     prims = jnp.einsum("...j,rj->...r", a, bound.prims.astype(dq.dtype))
     pairs = jnp.einsum("...j,rj->...r", a, bound.pairs.astype(dq.dtype))
     return prims, pairs
+
+
+def curvature_bound(curvature: Array, dq: Array) -> Array:
+    """Per primitive ``(..., ns + nc)``: ``|dq|^T M |dq|`` (``MotionBound.curvature``), a
+    bound of the second derivative of its points along ``a + t dq``, for steps ``dq (...,
+    n)``."""
+    a = jnp.abs(dq)
+    return jnp.einsum("...j,pjk,...k->...p", a, curvature.astype(dq.dtype), a)
 
 
 def speed_rows(bound: MotionBound, body: Any) -> Array:
@@ -133,10 +169,10 @@ def _centres(body: Any) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(points), np.concatenate(links)
 
 
-def _tree_rows(robot, body, poses, twists, space, scale) -> tuple[np.ndarray, np.ndarray] | None:
-    """Per-link proved rows ``(L, n)`` and which joints move which link ``(L, n)``, or None
-    when the joints are not a tree of rigid revolute/prismatic motions at this
-    configuration."""
+def _tree_rows(robot, body, poses, twists, space, scale) -> tuple[np.ndarray, ...] | None:
+    """Per-link proved rows ``(L, n)``, which joints move which link ``(L, n)`` and the
+    curvature matrices ``M_k`` ``(L, n, n)`` (module docstring), or None when the joints are
+    not a tree of rigid revolute/prismatic motions at this configuration."""
     n_links, n = twists.shape[:2]
     size = np.linalg.norm(twists, axis=-1)
     moves = size > 1e-7 * (1.0 + scale)  # (L, n)
@@ -184,7 +220,14 @@ def _tree_rows(robot, body, poses, twists, space, scale) -> tuple[np.ndarray, np
             else:
                 rows[link, j] = max(rows[link, j], speed)
                 acc += speed * extra  # the stroke moves every point after it
-    return rows, moves
+    rate = np.array([speed if kind == "R" else 0.0 for kind, speed, _, _ in axes])
+    curvature = np.zeros((n_links, n, n))
+    for j in range(n):
+        for k in range(n):
+            if sets[k] and sets[k] <= sets[j]:  # j before k (or j = k) on k's chain
+                term = (moves[:, j] & moves[:, k]) * rate[j] * rows[:, k]
+                curvature[:, j, k] = np.maximum(curvature[:, j, k], term)
+    return rows, moves, np.maximum(curvature, np.swapaxes(curvature, 1, 2))
 
 
 def _pair_rows(link_rows: np.ndarray, moves: np.ndarray, pairs: Any, proved: bool) -> np.ndarray:
@@ -201,17 +244,21 @@ def _pair_rows(link_rows: np.ndarray, moves: np.ndarray, pairs: Any, proved: boo
 
 def _proved_rows(
     robot: Any, body: Any, space: Any, scale: float, probes: np.ndarray
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """``_tree_rows``' largest rows and moved links over the probe configurations, or None
-    when one of them is not a tree of rigid motions."""
-    rows, moves = None, None
+) -> tuple[np.ndarray, ...] | None:
+    """``_tree_rows``' largest rows, moved links and curvature over the probe
+    configurations, or None when one of them is not a tree of rigid motions."""
+    found: tuple[np.ndarray, ...] | None = None
     for poses, twists in zip(*_twists(robot, probes), strict=True):
-        found = _tree_rows(robot, body, poses, twists, space, scale)
-        if found is None:
+        one = _tree_rows(robot, body, poses, twists, space, scale)
+        if one is None:
             return None
-        rows = found[0] if rows is None else np.maximum(rows, found[0])
-        moves = found[1] if moves is None else moves | found[1]
-    return None if rows is None or moves is None else (rows, moves)
+        rows, moves, curvature = one
+        if found is not None:
+            rows = np.maximum(rows, found[0])
+            moves = moves | found[1]
+            curvature = np.maximum(curvature, found[2])
+        found = (rows, moves, curvature)
+    return found
 
 
 def motion_bound(robot: Any, body: Any, link_pairs: Any) -> MotionBound:
@@ -223,11 +270,19 @@ def motion_bound(robot: Any, body: Any, link_pairs: Any) -> MotionBound:
     probes = lower + rng.uniform(size=(_PROBES, len(lower))) * (upper - lower)
     found = _proved_rows(robot, body, space, scale, probes)
     proved = found is not None and bool(np.all(np.isfinite(found[0])))
-    rows, moves = found if found is not None and proved else _sampled_rows(robot, body, space)
+    curvature = None
+    if found is not None and proved:
+        rows, moves, curvature = found
+    else:
+        rows, moves = _sampled_rows(robot, body, space)
     pair_rows = _pair_rows(rows, moves, link_pairs, proved)
     prim_link = np.asarray(tuple(body.sphere_link) + tuple(body.capsule_link), int)
+    n = rows.shape[1]
     return MotionBound(
-        jnp.asarray(rows[prim_link].reshape(-1, rows.shape[1])), jnp.asarray(pair_rows), proved
+        jnp.asarray(rows[prim_link].reshape(-1, n)),
+        jnp.asarray(pair_rows),
+        proved,
+        None if curvature is None else jnp.asarray(curvature[prim_link].reshape(-1, n, n)),
     )
 
 

@@ -13,6 +13,8 @@ of the collision kernels is one edit here:
   link to the world and of each checked self link pair (``collision.clearances_kernel``,
   grouped by ``link_groups``), for conservative advancement with one speed bound per link
   and per pair (``bound.speed_rows``).
+- ``piece_touches(robot, body, pairs, qa, qb, grow, world)``: per piece of motion from
+  ``qa`` to ``qb``, does the body's enclosure over it (``swept``) touch the world or itself?
 - ``stack_worlds(worlds)``: one world per problem as one ``World`` with a leading problem axis
   (every kind padded to a common count, a multiple of ``collision.OBSTACLE_BUCKET``, without
   changing any distance).
@@ -32,9 +34,20 @@ import numpy as np
 from jax import Array
 
 from .. import collision
+from .._numerics import all_finite
 from ..collision import World
+from ..collision.rows import Placed, place
+from ..collision.verdict import verdict_rows
 
-__all__ = ["COMPILER_OPTIONS", "clearances", "free", "link_groups", "prepare", "stack_worlds"]
+__all__ = [
+    "COMPILER_OPTIONS",
+    "clearances",
+    "free",
+    "link_groups",
+    "piece_touches",
+    "prepare",
+    "stack_worlds",
+]
 
 # XLA options of every program that runs the checks (the CPU's older fusion emitters)
 COMPILER_OPTIONS = collision.rows.COMPILER_OPTIONS
@@ -48,6 +61,45 @@ def prepare(robot: Any, self_collision: bool = True) -> tuple[Any, Any]:
 def free(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> Array:
     """``(...)`` True where ``q (..., n)`` touches neither the world nor the robot itself."""
     return ~collision.collides_kernel(robot, body, pairs, q, world, 0.0).collides
+
+
+def piece_touches(
+    robot: Any, body: Any, pairs: Any, qa: Array, qb: Array, grow: Array, world: World
+) -> Array:
+    """``(C,)`` True where the enclosure of the motion from ``qa (C, n)`` to ``qb (C, n)``
+    touches the world or a checked self pair (clearance ``<= 0``, ``collision.verdict``'s
+    rounding), or where either end is not finite or does not assemble. Each primitive's
+    enclosure: a sphere ``(c, r)`` placed at both ends becomes the sphere about the middle of
+    its chord, radius ``r + |c_b - c_a| / 2 + grow``; a capsule the capsule between its ends'
+    middles, radius ``r`` plus its ends' larger half chord plus ``grow``; ``grow (C, ns +
+    nc)`` (``swept``: how far the primitive strays from its chords, and the rounding)."""
+    dtype = qa.dtype
+    body, world = body.astype(dtype), world.astype(dtype)
+    ok = all_finite(qa) & all_finite(qb)
+    safe_a = jnp.where(ok[:, None], qa, jnp.zeros((), dtype))
+    safe_b = jnp.where(ok[:, None], qb, jnp.zeros((), dtype))
+    ok = ok & robot.placeable(safe_a) & robot.placeable(safe_b)
+    at_a, at_b = place(robot, body, safe_a), place(robot, body, safe_b)
+    ns = body.num_spheres
+
+    def half_chord(x: Array, y: Array) -> Array:
+        return 0.5 * jnp.sqrt(jnp.sum((y - x) ** 2, axis=0))  # (k, C)
+
+    grow = grow.T  # (ns + nc, C)
+    sphere_r = at_a.sphere_radius + half_chord(at_a.spheres, at_b.spheres) + grow[:ns]
+    ends = jnp.maximum(
+        half_chord(at_a.capsule_a, at_b.capsule_a), half_chord(at_a.capsule_b, at_b.capsule_b)
+    )
+    enclosure = Placed(
+        0.5 * (at_a.spheres + at_b.spheres),
+        sphere_r,
+        0.5 * (at_a.capsule_a + at_b.capsule_a),
+        0.5 * (at_a.capsule_b + at_b.capsule_b),
+        at_a.capsule_radius + ends + grow[ns:],
+    )
+    self_pairs = pairs if pairs.link_pairs else None
+    zero = jnp.zeros((), dtype)
+    return verdict_rows(enclosure, world, self_pairs, zero, ~ok)
 
 
 def link_groups(body: Any) -> np.ndarray:

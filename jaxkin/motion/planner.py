@@ -10,13 +10,15 @@ shared by all or one world per problem:
 2. the search (``search.search_kernel``, one compiled program: RRT-Connect lanes over a queue
    of problems), returning each solved problem's path. In certified mode the search checks
    its edges at the resolution (as in discrete mode, a few states each), then every edge of
-   each found path is certified (``_certified_paths``: clearance balls, states where they
-   leave gaps); an edge that is not (it grazes an obstacle between two states, or passes too
-   close for the balls) is planned again alone with certified edges, from its first
-   waypoint to its second, and its path replaces it (``repair``); a problem where that fails
-   is searched again whole with certified edges;
+   each found path is certified (``_certified_paths``: for a kinematic tree by enclosures of
+   its pieces at the resolution, cut in two where they touch, ``swept``; otherwise by
+   clearance balls, states where they leave gaps); an edge that is not (it grazes an
+   obstacle between two states, or passes too close to be certified) is planned again
+   alone with certified edges, from its first waypoint to its second, and its path replaces
+   it (``repair``); a problem where that fails is searched again whole with certified edges;
 3. the simplification (``simplify.simplify_kernel``, one compiled program over the problems:
-   shortcuts, then a natural cubic spline re-checked, or the shortcut polygon);
+   shortcuts, then a natural cubic spline re-checked, or the shortcut polygon; in certified
+   mode a straight shortcut is certified as a found path's edges are);
 4. the time-optimal timing of the result within the joints' speed and acceleration limits
    (TOPP-RA, ``jaxkin.timing.retime``) sampled every ``period``: a spline is followed as it is,
    the polygon with a stop at each corner (its pieces ``q = y0 + (3 tau^2 - 2 tau^3)(y1 -
@@ -47,7 +49,7 @@ from .._execute.latency import small_loops_in_one_function
 from .._splines import hermite
 from ..collision import World
 from ..status import NamedStatusRepr, Status
-from . import collider, repair
+from . import collider, repair, swept
 from .bound import motion_bound, speed_rows
 from .edges import MODES, edge_check, path_edges_good
 from .goals import ik_goals
@@ -67,9 +69,9 @@ class MotionOptions:
     """Options of ``plan`` (each also a keyword of ``plan``).
 
     Attributes:
-        mode: ``"certified"`` (default: edges covered by clearance balls, nothing slips
-            through; the paths of a search at the resolution certified edge by edge, an
-            edge that is not planned again with certified edges: module docstring) or
+        mode: ``"certified"`` (default: nothing slips through; the paths of a search at
+            the resolution certified edge by edge, an edge that is not planned again with
+            certified edges: module docstring) or
             ``"discrete"`` (states ``1 / resolution`` apart, as VAMP and OMPL).
         range: the longest edge the search adds (joint distance, ``space`` module).
         domain: the dynamic domain [Yershova et al. 2005], in ranges: once an EXTEND from a
@@ -227,6 +229,15 @@ def _evaluator(robot, body, pairs, world, mode):
     return run
 
 
+def _piece_touches(robot, body, pairs, world):
+    """``(qa, qb, grow) ->`` whether each piece's enclosure touches (``collider``)."""
+
+    def touches(qa, qb, grow):
+        return collider.piece_touches(robot, body, pairs, qa, qb, grow, world)
+
+    return touches
+
+
 def _roots_kernel(robot, body, pairs, world, starts, goals, mode, shared_world):
     """Per problem: whether the start ``(B,)`` and the goals ``(B, G)`` are free, and their
     distances ``(B, 1 + G, R)`` (certified mode; ``R = 0`` discrete)."""
@@ -268,6 +279,7 @@ def _simplify_all(
     count,
     tol,
     resolution,
+    bound,
     slots,
     chunk,
     mode,
@@ -276,30 +288,103 @@ def _simplify_all(
     group,
 ):
     """``simplify_kernel`` for every problem ``(B, P, n)``, ``group`` problems at a time
-    (``_per_path``)."""
+    (``_per_path``); in certified mode with a curvature bound (``bound``, a ``MotionBound``)
+    the shortcuts and the spline certified by ``swept``."""
+
+    curvature = bound.curvature
 
     def one(wd, p, c):
         evaluate = _evaluator(robot, body, pairs, wd, mode)
-        check = Checker(evaluate, space, rows, mode, tol, resolution, chunk)
+        touches = _piece_touches(robot, body, pairs, wd)
+
+        def certify_straight(a, delta):
+            # first pieces at the resolution: the longest shortcut spans SHORTCUTS + 1 edges
+            return swept.edges_certified(
+                touches,
+                curvature,
+                space,
+                a,
+                delta,
+                resolution,
+                tol,
+                slots,
+                SWEPT_CHUNK,
+                SHORTCUT_LEVELS,
+            )
+
+        def certify_spline(knots, s, slopes, k):
+            return swept.spline_certified(
+                touches,
+                bound.prims,
+                curvature,
+                space,
+                knots,
+                s,
+                slopes,
+                k,
+                resolution,
+                tol,
+                SPLINE_SLOTS,
+                SWEPT_CHUNK,
+            )
+
+        swept_ok = mode != "discrete" and curvature is not None
+        straight = certify_straight if swept_ok else None
+        curved = certify_spline if swept_ok else None
+        check = Checker(evaluate, space, rows, mode, tol, resolution, chunk, straight, curved)
         return simplify_kernel(check, p, c, slots, states)
 
     return _per_path(one, world, path, count, shared_world, group)
 
 
 def _certified_paths(
-    robot, body, pairs, world, space, rows, path, count, tol, slots, chunk, shared_world, group
+    robot,
+    body,
+    pairs,
+    world,
+    space,
+    rows,
+    path,
+    count,
+    tol,
+    curvature,
+    resolution,
+    slots,
+    chunk,
+    shared_world,
+    group,
 ):
-    """Per problem and edge ``(B, P - 1)``: the edge of its path ``(B, P, n)`` is certified
-    (``edges.path_edges_good``: clearance balls, ``slots`` intervals per edge, the states placed
-    where the balls are small), ``group`` problems at a time (``_per_path``)."""
+    """Per problem and edge ``(B, P - 1)``: the edge of its path ``(B, P, n)`` is certified,
+    ``group`` problems at a time (``_per_path``). With a ``curvature`` bound (a kinematic
+    tree): by enclosures of its pieces (``swept``: ``slots`` first pieces at most, cut in two
+    where they touch); else by clearance balls (``edges.path_edges_good``, ``CERTIFY_SLOTS``
+    times ``slots`` intervals, the states placed where the balls are small)."""
 
     def one(wd, p, c):
+        if curvature is not None:
+            touches = _piece_touches(robot, body, pairs, wd)
+
+            def swept_good(a, delta):
+                good = swept.edges_certified(
+                    touches, curvature, space, a, delta, resolution, tol, slots, SWEPT_CHUNK
+                )
+                return good.astype(a.dtype)
+
+            return path_edges_good(swept_good, space, p, c, SWEPT_EDGES)
         evaluate = _evaluator(robot, body, pairs, wd, "certified")
-        resolution = jnp.ones((), tol.dtype)  # unused in certified mode
 
         def edge_good(a, delta):
             return edge_check(
-                evaluate, rows, a, delta, slots, chunk, "certified", tol, resolution, space
+                evaluate,
+                rows,
+                a,
+                delta,
+                CERTIFY_SLOTS * slots,
+                chunk,
+                "certified",
+                tol,
+                resolution,
+                space,
             )
 
         return path_edges_good(edge_good, space, p, c, CERTIFY_EDGES)
@@ -313,6 +398,12 @@ SIMPLIFY_GROUP = 8  # problems simplified together (_simplify_all)
 CERTIFY_SLOTS = 32
 CERTIFY_CHUNK = 32
 CERTIFY_EDGES = 4  # edges of a path certified at once
+SWEPT_EDGES = 8  # edges of a path whose pieces share a stack (_certified_paths, swept)
+SWEPT_CHUNK = 64  # pieces checked per step (swept)
+# cuts of a shortcut's pieces (swept): a shortcut that passes within about a millimetre of an
+# obstacle is not taken rather than cut finer (a found path's edges get swept.LEVELS)
+SHORTCUT_LEVELS = 4
+SPLINE_SLOTS = 32  # first pieces of a spline's piece at most (swept)
 PART_PROBLEMS = 64  # problems per part of a large batch (one search's queue), plan
 
 
@@ -746,7 +837,9 @@ def plan(
         if lazy and search_mode == "discrete":
             good = _certify_jit(
                 *checked_paths(part_worlds_of(p, rows), found.path, found.count),
-                slots=CERTIFY_SLOTS * slots,
+                prep.bound.curvature,
+                put(options.resolution),
+                slots=slots,
                 chunk=CERTIFY_CHUNK,
                 shared_world=shared,
                 group=min(1 if small_loops_in_one_function() else SIMPLIFY_GROUP, size),
@@ -777,6 +870,7 @@ def plan(
                 put(count[pick], np.int32),
             ),
             put(options.resolution),
+            prep.bound,
             slots=(SHORTCUTS + 1) * slots,
             # certified shortcuts place their states in the balls' gaps: wider rounds, fewer
             chunk=options.chunk if mode == "discrete" else max(options.chunk, CERTIFY_CHUNK),

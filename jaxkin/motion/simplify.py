@@ -9,9 +9,11 @@
    joint distance between them (chord length; ``space.distance``), is checked at
    ``spline_states`` states: in discrete mode at most ``1 / resolution`` apart in joint distance
    (each piece gets states in proportion to the length of its Bezier control polygon, which
-   bounds its arc length), in certified mode covered by clearance balls with the speed bound
-   of ``bound`` applied to the largest ``|dq/ds|`` of any piece (the Bezier control points of
-   ``dq/ds`` bound it). A piece with a bad state gets the midpoint of its chord as a new
+   bounds its arc length), in certified mode piece by piece by ``swept.spline_certified``
+   (enclosures of short stretches with the curvature bound of ``bound``; for a robot with a
+   sampled bound, by clearance balls with the speed bound applied to the largest ``|dq/ds|``
+   of any piece, the Bezier control points of ``dq/ds`` bounding it). A piece with a bad
+   state (or not certified) gets the midpoint of its chord as a new
    waypoint (the spline is pulled towards the checked polygon) and the spline is checked
    again, ``SPLINE_ROUNDS`` times; a spline still not good is dropped (``smooth`` False) and
    the polygon is returned.
@@ -82,7 +84,10 @@ class Checker(NamedTuple):
     """What checks a path: ``evaluate(states (E, T, n))`` (``free`` in discrete mode,
     ``(dist, placed)`` in certified mode: ``collider.clearances``), the joint space, the speed
     rows (``bound.speed_rows``), the mode, the rounding tolerance, the resolution (discrete
-    mode) and the states per edge per round (``edges``)."""
+    mode), the states per edge per round (``edges``), and in certified mode where the robot
+    has a curvature bound ``straight(a, delta) -> (E,)`` and ``curved(knots, s, slopes,
+    count) -> (P - 1,)``, which certify straight edges and a spline's pieces (``swept``;
+    None: clearance balls)."""
 
     evaluate: Any
     space: JointSpace
@@ -91,12 +96,14 @@ class Checker(NamedTuple):
     tol: Array
     resolution: Array
     chunk: int
+    straight: Any = None
+    curved: Any = None
 
 
 def shortcut(check: Checker, path: Array, count: Array, slots: int) -> tuple[Array, Array]:
     """Vertex reduction (module docstring) of one path ``(P, n)`` with ``count`` waypoints.
     ``slots``: intervals for the longest candidate edge (``SHORTCUTS + 1`` path edges)."""
-    evaluate, space, rows, mode, tol, resolution, chunk = check
+    evaluate, space, rows, mode, tol, resolution, chunk, straight, _ = check
     p, n = path.shape
     m = SHORTCUTS
 
@@ -107,8 +114,13 @@ def shortcut(check: Checker, path: Array, count: Array, slots: int) -> tuple[Arr
         a = jnp.broadcast_to(path[i], (m, n))
         b = path[jnp.minimum(j, p - 1)]
         delta = space.step(a, b)
-        t_good = edge_check(evaluate, rows, a, delta, slots, chunk, mode, tol, resolution, space)
-        good = t_good >= 1.0
+        if straight is not None and mode != "discrete":
+            good = straight(a, delta)
+        else:
+            t_good = edge_check(
+                evaluate, rows, a, delta, slots, chunk, mode, tol, resolution, space
+            )
+            good = t_good >= 1.0
         good = good & valid_j
         best = jnp.where(jnp.any(good), jnp.max(jnp.where(good, j, 0)), i + 1)
         skipped = (jnp.arange(p) > i) & (jnp.arange(p) < best)
@@ -227,8 +239,10 @@ def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode
 
 def spline_check(check: Checker, knots, s, slopes, count, states):
     """Per spline piece ``(P - 1,)``: bad (a state of it collides or is not covered)."""
-    evaluate, space, rows, mode, tol, resolution, _ = check
+    evaluate, space, rows, mode, tol, resolution, _, _, curved = check
     p, n = knots.shape
+    if curved is not None and mode != "discrete":
+        return ~curved(knots, s, slopes, count)
     q, param, piece, enough = _spline_states(
         knots, s, slopes, count, states, space, resolution, mode
     )
