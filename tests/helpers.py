@@ -1,10 +1,12 @@
-"""Shared test utilities: finite differences along trajectories, batch shapes, compile counts."""
+"""Shared test utilities: finite differences along trajectories, batch shapes, compile counts,
+the example UR5 with a mixed body."""
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
 from collections.abc import Callable, Collection, Iterable, Iterator
+from pathlib import Path
 from typing import Any
 
 import jax
@@ -12,7 +14,21 @@ import numpy as np
 import pytest
 from jax import monitoring
 
+from jaxkin import serial
+
 BATCH_SHAPES = [(), (1,), (7,), (3, 5)]
+UR5 = Path(__file__).resolve().parents[1] / "examples" / "ur5.urdf"
+
+
+def ur5_mixed_body() -> Any:
+    """The example UR5 (``examples/ur5.urdf``, tip ``tool0``): spheres on three links, the
+    skeleton's capsules (radius 4 cm) on the others."""
+    spheres = {
+        "upper_arm_link": (np.array([[0.0, 0.0, 0.1], [0.0, 0.0, 0.3]]), np.array([0.07, 0.06])),
+        "forearm_link": (np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.25]]), np.array([0.06, 0.05])),
+        "wrist_3_link": (np.zeros((1, 3)), np.array([0.05])),
+    }
+    return serial.from_urdf(UR5, "tool0").with_link_radius(0.04).with_link_spheres(spheres)
 
 
 def marked_slow(values: Iterable[Any], slow: Collection[Any]) -> list[Any]:

@@ -9,8 +9,6 @@ arguments are refused where the handle is made, naming the argument.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -20,19 +18,9 @@ import jaxkin
 from jaxkin import collision, scara, serial
 from jaxkin.jet import Jet
 
-from .helpers import compilations
+from .helpers import UR5, compilations, ur5_mixed_body
 
-UR5 = Path(__file__).resolve().parents[1] / "examples" / "ur5.urdf"
-
-
-def _ur5():
-    """Spheres on three links, the skeleton's capsules on the others."""
-    spheres = {
-        "upper_arm_link": (np.array([[0.0, 0.0, 0.1], [0.0, 0.0, 0.3]]), np.array([0.07, 0.06])),
-        "forearm_link": (np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.25]]), np.array([0.06, 0.05])),
-        "wrist_3_link": (np.zeros((1, 3)), np.array([0.05])),
-    }
-    return serial.from_urdf(UR5, "tool0").with_link_radius(0.04).with_link_spheres(spheres)
+_ur5 = ur5_mixed_body
 
 
 def _world(seed: int, spheres: int = 5) -> collision.World:

@@ -4,8 +4,6 @@ dense clearance check (``collision.check``, an independent code path), grazing e
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -16,20 +14,11 @@ from jaxkin._splines import hermite
 from jaxkin.motion import bound as mbound
 from jaxkin.motion import collider, simplify, swept
 from jaxkin.motion.space import joint_space
+from tests.helpers import marked_slow, ur5_mixed_body
 
-UR5 = Path(__file__).resolve().parents[1] / "examples" / "ur5.urdf"
 TOL = 1e-12  # the rounding term of float64 (the planner's 64 eps (1 + scale))
 SLOW_MARK = [pytest.mark.slow]
-
-
-def _ur5():
-    """Spheres on three links, the skeleton's capsules on the others."""
-    spheres = {
-        "upper_arm_link": (np.array([[0.0, 0.0, 0.1], [0.0, 0.0, 0.3]]), np.array([0.07, 0.06])),
-        "forearm_link": (np.array([[0.0, 0.0, 0.05], [0.0, 0.0, 0.25]]), np.array([0.06, 0.05])),
-        "wrist_3_link": (np.zeros((1, 3)), np.array([0.05])),
-    }
-    return serial.from_urdf(UR5, "tool0").with_link_radius(0.04).with_link_spheres(spheres)
+_ur5 = ur5_mixed_body
 
 
 ROBOTS = {
@@ -46,12 +35,8 @@ ROBOTS = {
 }
 
 
-SLOW = {"planar3r", "scara", "ur5"}  # their bounds and second derivatives compile for 5-10 s
-
-
-@pytest.mark.parametrize(
-    "name", [pytest.param(k, marks=[pytest.mark.slow] if k in SLOW else []) for k in ROBOTS]
-)
+# their bounds and second derivatives compile for 5-10 s each
+@pytest.mark.parametrize("name", marked_slow(ROBOTS, {"planar3r", "scara", "ur5"}))
 def test_the_curvature_bound_holds_on_random_steps(name):
     """``|c''(t)|`` of every primitive point along ``q0 + t dq`` (autodiff, twice forward) is
     within ``|dq|^T M |dq|``, and the bound is attained within a factor of 3 somewhere."""

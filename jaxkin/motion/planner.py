@@ -18,7 +18,7 @@ shared by all or one world per problem:
    it (``repair``); a problem where that fails is searched again whole with certified edges;
 3. the simplification (``simplify.simplify_kernel``, one compiled program over the problems:
    shortcuts, then a natural cubic spline re-checked, or the shortcut polygon; in certified
-   mode a straight shortcut is certified as a found path's edges are);
+   mode the shortcuts and the spline's pieces are certified by ``swept`` as well);
 4. the time-optimal timing of the result within the joints' speed and acceleration limits
    (TOPP-RA, ``jaxkin.timing.retime``) sampled every ``period``: a spline is followed as it is,
    the polygon with a stop at each corner (its pieces ``q = y0 + (3 tau^2 - 2 tau^3)(y1 -
@@ -88,7 +88,8 @@ class MotionOptions:
             join it once the queue is empty are extra attempts: ``search``).
         path_points: waypoints per path buffer.
         simplify: shortcut and smooth the path.
-        spline_states: states that check the spline.
+        spline_states: states that check the spline (discrete mode, and certified mode
+            for a robot without a curvature bound: ``swept``).
         period: control period of the sampled trajectory (the limits' time unit); None: no
             timing.
         grid: grid points of the timing per path.

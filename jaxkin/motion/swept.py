@@ -1,5 +1,6 @@
-"""Straight edges certified piece by piece: enclosures of the body's motion, cut in two where
-they touch.
+"""Motions certified piece by piece: enclosures of the body's motion, cut in two where they
+touch (straight edges, ``edges_certified``; a cubic spline's pieces, ``spline_certified``;
+any motion ``q(t)`` with a bound on its points' second derivative, ``pieces_certified``).
 
 An edge ``q(t) = a + t delta``, ``t in [0, 1]``, is cut into ``k = min(ceil(d(a, b)
 resolution), slots)`` pieces of equal length (``d`` the joint space's metric). Over a piece
