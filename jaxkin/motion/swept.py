@@ -154,7 +154,7 @@ def edges_certified(
 
 def spline_bend(
     speed: Array, curvature: Array, knots: Array, s: Array, slopes: Array, count: Array
-) -> tuple[Array, Array]:
+) -> tuple[Array, tuple[Array, Array, Array]]:
     """Per piece of a cubic spline (``knots (P, n)`` at parameters ``s (P,)`` with ``slopes``
     ``dq/ds``, the first ``count`` knots): ``bend (P - 1, R)``, a bound of each primitive's
     ``|d2c/dtau2|`` along the piece ``q(tau) = hermite(...)``, ``tau in [0, 1]``::
