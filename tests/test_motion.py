@@ -6,6 +6,7 @@ tier, the default tier checks the pieces (each a small program or host code)."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import io
 import sys
@@ -835,3 +836,38 @@ def test_spline_slopes_and_compaction_against_scipy_and_numpy():
         kept = np.flatnonzero(keep)
         np.testing.assert_array_equal(order[: kept.size], kept)
         assert np.all((order >= 0) & (order < 9))
+
+
+def test_spline_pieces_that_may_leave_the_joint_limits_are_bad():
+    """``within_limits`` against SciPy's natural spline sampled densely: a piece it passes
+    stays within the box at 201 samples (Bezier hull), every piece that leaves the box at a
+    sample is refused, and a continuous joint has no box."""
+    from scipy.interpolate import CubicSpline
+
+    from jaxkin.motion import simplify
+
+    space = joint_space(serial.Planar2R(1.0, 0.8)).astype(jnp.float64)
+    box = dict(lower=jnp.array([-1.0, -1.0]), upper=jnp.array([1.0, 1.0]))
+    space = dataclasses.replace(space, continuous=jnp.zeros(2), **box)
+    rng = np.random.default_rng(5)
+    passed = left = 0
+    leaving = None
+    for _ in range(40):
+        knots = rng.uniform(-1.0, 1.0, (6, 2))
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(knots, axis=0), axis=1))])
+        slopes = simplify.spline_slopes(jnp.asarray(knots), jnp.asarray(s), 6)
+        inside = np.asarray(
+            simplify.within_limits(space, jnp.asarray(knots), jnp.asarray(s), slopes, 6)
+        )
+        spline = CubicSpline(s, knots, bc_type="natural")
+        for k in range(5):
+            q = spline(np.linspace(s[k], s[k + 1], 201))
+            out = np.any(np.abs(q) > 1.0 + 1e-12)
+            assert not (inside[k] and out)
+            passed += bool(inside[k])
+            left += bool(out)
+            if out:
+                leaving = (jnp.asarray(knots), jnp.asarray(s), slopes)
+    assert passed and left  # both kinds among the pieces
+    free = dataclasses.replace(space, continuous=jnp.array([1.0, 1.0]))
+    assert np.all(np.asarray(simplify.within_limits(free, *leaving, 6)))

@@ -16,7 +16,8 @@
    state (or not certified) gets the midpoint of its chord as a new
    waypoint (the spline is pulled towards the checked polygon) and the spline is checked
    again, ``SPLINE_ROUNDS`` times; a spline still not good is dropped (``smooth`` False) and
-   the polygon is returned.
+   the polygon is returned. A piece that may leave the joint limits (a Bezier control point
+   outside them) is bad as well: the waypoints are within them, the spline can overshoot.
 
 Both stages work on fixed buffers ``(P, n)`` with a count, one problem per ``vmap`` element.
 """
@@ -237,12 +238,27 @@ def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode
     return q, param, piece, enough
 
 
+def within_limits(space: JointSpace, knots, s, slopes, count) -> Array:
+    """Per spline piece ``(P - 1,)``: its Bezier control points, and so the piece (their
+    convex hull holds it), lie within the joint box ``[lower, upper]`` (continuous joints
+    have none); pieces past the last knot are."""
+    p = knots.shape[0]
+    live = jnp.arange(p - 1) < count - 1
+    h = jnp.where(live, jnp.diff(s), 1.0)[:, None]
+    y0, y1 = knots[:-1], knots[1:]
+    points = jnp.stack([y0, y0 + h * slopes[:-1] / 3.0, y1 - h * slopes[1:] / 3.0, y1])
+    inside = (points >= space.lower) & (points <= space.upper) | (space.continuous > 0)
+    return jnp.all(inside, axis=(0, 2)) | ~live
+
+
 def spline_check(check: Checker, knots, s, slopes, count, states):
-    """Per spline piece ``(P - 1,)``: bad (a state of it collides or is not covered)."""
+    """Per spline piece ``(P - 1,)``: bad (a state of it collides or is not covered, or it
+    may leave the joint limits: ``within_limits``)."""
     evaluate, space, rows, mode, tol, resolution, _, _, curved = check
     p, n = knots.shape
+    outside = ~within_limits(space, knots, s, slopes, count)
     if curved is not None and mode != "discrete":
-        return ~curved(knots, s, slopes, count)
+        return ~curved(knots, s, slopes, count) | outside
     q, param, piece, enough = _spline_states(
         knots, s, slopes, count, states, space, resolution, mode
     )
@@ -277,7 +293,7 @@ def spline_check(check: Checker, knots, s, slopes, count, states):
         )
         bad_state = t > good_to
     bad = jnp.any((piece[None, :] == jnp.arange(p - 1)[:, None]) & bad_state[None, :], axis=1)
-    return bad | ~enough
+    return bad | ~enough | outside
 
 
 def _insert_midpoints(path, count, bad, space):
