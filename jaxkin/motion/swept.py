@@ -78,6 +78,7 @@ def pieces_certified(
     ``chunk``: pieces checked per step."""
     e_count = first.shape[0]
     dtype = bend.dtype
+    first = jnp.minimum(first, slots)  # the first pieces must tile [0, 1]
     bend = bend * (1 + _WIDEN)
     capacity = e_count * slots + (levels + 1) * chunk
     # the first pieces, every motion's in order, compacted to the stack's bottom
