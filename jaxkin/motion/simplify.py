@@ -41,6 +41,7 @@ __all__ = [
     "Checker",
     "Simplified",
     "simplify_kernel",
+    "spline_pieces",
     "spline_slopes",
 ]
 
@@ -195,16 +196,25 @@ def solve_tridiagonal(lower: Array, diag: Array, upper: Array, rhs: Array) -> Ar
     return x
 
 
-def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode):
-    """States along the spline ``(T, n)``, their parameters ``(T,)`` and whether their
-    spacing meets the resolution (discrete mode) (module docstring)."""
-    p, n = knots.shape
-    seg = jnp.arange(p - 1)
-    live = seg < count - 1
+def spline_pieces(knots, s, slopes, count) -> tuple[Array, Array, tuple[Array, ...]]:
+    """Per piece of the spline through the first ``count`` knots ``(P, n)`` at parameters
+    ``s (P,)`` with slopes ``dq/ds``: whether it is one ``(P - 1,)``, its length ``h`` in
+    ``s`` (1 past the last knot) and its Bezier control points ``(y0, c1, c2, y1)``, each
+    ``(P - 1, n)``: ``c1 = y0 + h m0 / 3``, ``c2 = y1 - h m1 / 3``."""
+    p = knots.shape[0]
+    live = jnp.arange(p - 1) < count - 1
     h = jnp.where(live, jnp.diff(s), 1.0)
     y0, y1 = knots[:-1], knots[1:]
     c1 = y0 + slopes[:-1] * h[:, None] / 3.0
     c2 = y1 - slopes[1:] * h[:, None] / 3.0
+    return live, h, (y0, c1, c2, y1)
+
+
+def _spline_states(knots, s, slopes, count, states: int, space, resolution, mode):
+    """States along the spline ``(T, n)``, their parameters ``(T,)`` and whether their
+    spacing meets the resolution (discrete mode) (module docstring)."""
+    p, n = knots.shape
+    live, h, (y0, c1, c2, y1) = spline_pieces(knots, s, slopes, count)
     poly = space.norm(c1 - y0) + space.norm(c2 - c1) + space.norm(y1 - c2)
     poly = jnp.where(live, poly, 0.0)
     want = jnp.where(live, jnp.maximum(jnp.ceil(poly * resolution), 1.0), 0.0)
@@ -242,11 +252,8 @@ def within_limits(space: JointSpace, knots, s, slopes, count) -> Array:
     """Per spline piece ``(P - 1,)``: its Bezier control points, and so the piece (their
     convex hull holds it), lie within the joint box ``[lower, upper]`` (continuous joints
     have none); pieces past the last knot are."""
-    p = knots.shape[0]
-    live = jnp.arange(p - 1) < count - 1
-    h = jnp.where(live, jnp.diff(s), 1.0)[:, None]
-    y0, y1 = knots[:-1], knots[1:]
-    points = jnp.stack([y0, y0 + h * slopes[:-1] / 3.0, y1 - h * slopes[1:] / 3.0, y1])
+    live, _, control = spline_pieces(knots, s, slopes, count)
+    points = jnp.stack(control)
     inside = (points >= space.lower) & (points <= space.upper) | (space.continuous > 0)
     return jnp.all(inside, axis=(0, 2)) | ~live
 
@@ -266,11 +273,8 @@ def spline_check(check: Checker, knots, s, slopes, count, states):
     if mode == "discrete":
         bad_state = ~result
     else:
-        seg = jnp.arange(p - 1)
-        live = seg < count - 1
-        h = jnp.where(live, jnp.diff(s), 1.0)
+        live, h, (y0, _, _, y1) = spline_pieces(knots, s, slopes, count)
         # the Bezier control points of dq/ds bound it on each piece (convex hull)
-        y0, y1 = knots[:-1], knots[1:]
         c = jnp.stack(
             [slopes[:-1], 3.0 * (y1 - y0) / h[:, None] - slopes[:-1] - slopes[1:], slopes[1:]]
         )

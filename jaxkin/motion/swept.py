@@ -44,6 +44,7 @@ from jax import Array
 
 from .._splines import hermite
 from .bound import curvature_bound
+from .simplify import spline_pieces
 
 __all__ = [
     "LEVELS",
@@ -166,12 +167,9 @@ def spline_bend(
     ``curvature``; ``q''`` is linear in ``tau``, largest at an end, and ``q'`` quadratic,
     within its Bezier control points; zero past the last knot), and the three legs of each
     piece's control polygon ``(P - 1, n)`` each (together longer than the piece)."""
-    p = knots.shape[0]
-    live = jnp.arange(p - 1) < count - 1
-    h = jnp.where(live, jnp.diff(s), 1.0)
-    y0, y1, m0, m1 = knots[:-1], knots[1:], slopes[:-1], slopes[1:]
-    # d/dtau = h d/ds; the Bezier control points of q(tau), then of dq/dtau
-    c1, c2 = y0 + h[:, None] * m0 / 3.0, y1 - h[:, None] * m1 / 3.0
+    live, h, (y0, c1, c2, y1) = spline_pieces(knots, s, slopes, count)
+    m0, m1 = slopes[:-1], slopes[1:]
+    # d/dtau = h d/ds: the Bezier control points of dq/dtau are 3 times the legs
     legs = (c1 - y0, c2 - c1, y1 - c2)
     velocity = 3.0 * jnp.maximum(jnp.maximum(jnp.abs(legs[0]), jnp.abs(legs[1])), jnp.abs(legs[2]))
     ends = [hermite(y0, m0, y1, m1, h[:, None], tau)[2] for tau in (0.0, 1.0)]
@@ -199,13 +197,11 @@ def spline_certified(
     is certified free (``pieces_certified`` with ``spline_bend``'s bound; pieces past the last
     knot are): first pieces at the ``resolution`` along its control polygon (at most
     ``slots``)."""
-    p = knots.shape[0]
-    live = jnp.arange(p - 1) < count - 1
-    h = jnp.where(live, jnp.diff(s), 1.0)
+    live, h, (y0, _, _, y1) = spline_pieces(knots, s, slopes, count)
+    m0, m1 = slopes[:-1], slopes[1:]
     bend, legs = spline_bend(speed, curvature, knots, s, slopes, count)
     polygon = sum(space.norm(leg) for leg in legs)
     first = jnp.where(live, jnp.clip(jnp.ceil(polygon * resolution), 1, slots), 0)
-    y0, y1, m0, m1 = knots[:-1], knots[1:], slopes[:-1], slopes[1:]
 
     def at(e: Array, t: Array) -> Array:
         return hermite(y0[e], m0[e], y1[e], m1[e], h[e][:, None], t[:, None])[0]
