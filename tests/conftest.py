@@ -50,18 +50,23 @@ def _release_compiled_programs():
 
 @pytest.fixture(autouse=True)
 def _keep_runtime_options():
-    """The command line, run in this process by some tests, turns ``enable_low_latency`` on:
-    put ``XLA_FLAGS`` and JAX's dispatch option back after each test (in a process whose JAX
+    """The command line, run in this process by some tests, turns ``enable_low_latency`` and
+    the program store on: put ``XLA_FLAGS``, JAX's dispatch option and the store back after
+    each test (in a process whose JAX
     runs already they change no program, but later tests' subprocesses would inherit the
     flags)."""
+    from jaxkin._execute import store  # imported after the configuration above
+
     flags = os.environ.get("XLA_FLAGS")
     dispatch = jax.config.read("jax_cpu_enable_async_dispatch")
+    programs = store.keeps_programs()
     yield
     if flags is None:
         os.environ.pop("XLA_FLAGS", None)
     else:
         os.environ["XLA_FLAGS"] = flags
     jax.config.update("jax_cpu_enable_async_dispatch", dispatch)
+    store.keep_programs(programs)
 
 
 @pytest.fixture

@@ -122,14 +122,20 @@ _COUNTING_RUN = """
 import sys
 import jax.monitoring
 import jaxkin.cli
-counts = {"hits": 0, "misses": 0}
+counts = {"hits": 0, "misses": 0, "exports": 0}
 def listen(event, **kwargs):
     for name in ("hits", "misses"):
         if event == "/jax/compilation_cache/cache_" + name:
             counts[name] += 1
 jax.monitoring.register_event_listener(listen)
+import jaxkin._execute.store as store
+export = store._export
+def counted(*args):  # the store traces a kernel only to export it
+    counts["exports"] += 1
+    return export(*args)
+store._export = counted
 code = jaxkin.cli.main(sys.argv[1:])
-print("COUNTS", counts["hits"], counts["misses"])
+print("COUNTS", counts["hits"], counts["misses"], counts["exports"])
 sys.exit(code)
 """
 
@@ -137,7 +143,8 @@ sys.exit(code)
 @pytest.mark.slow
 def test_second_command_run_compiles_nothing(tmp_path):
     """The command's cache keeps every program it compiles: a second run of the same command
-    on another file of the same length loads each program (cache hits) and compiles none."""
+    on another file of the same length loads each program (cache hits) and compiles none,
+    and finds its kernels in the program store (it traces none of them to export it)."""
     t = np.linspace(0.0, 2.0, 20)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("JAX", "XDG_CACHE"))}
     env["XDG_CACHE_HOME"] = str(tmp_path / "home")
@@ -157,6 +164,7 @@ def test_second_command_run_compiles_nothing(tmp_path):
         assert proc.returncode == 0, proc.stderr
         line = next(x for x in proc.stdout.splitlines() if x.startswith("COUNTS"))
         counts.append(tuple(int(x) for x in line.split()[1:]))
-    (_, first_misses), (second_hits, second_misses) = counts
-    assert first_misses > 0 and second_hits > 0
-    assert second_misses == 0, counts
+    (_, first_misses, first_exports), (second_hits, second_misses, second_exports) = counts
+    assert first_misses > 0 and second_hits > 0 and first_exports > 0
+    assert second_misses == 0 and second_exports == 0, counts
+    assert list((tmp_path / "home" / "jaxkin" / "programs").glob("*.program"))

@@ -4,7 +4,7 @@ One place to read (this package), one concept per module:
 
 - ``kernel``: ``Kernel``, a pure function compiled by ``jax.jit`` once per shapes and static
   arguments and run under a ``Policy`` (small batches padded to a power of two, large ones
-  split across host threads, XLA options of its own); no other module calls ``jax.jit``.
+  split across host threads, XLA options of its own), its concrete calls through ``store``.
 - ``candidates``: the planner's N candidates in chunks, on the host threads or over the
   devices and processes (``jax.distributed``).
 - ``pipeline``: ``jaxkin.ik`` / ``jaxkin.fk``, the robots' boundary written once (robot and
@@ -13,6 +13,8 @@ One place to read (this package), one concept per module:
 - ``handles``: ``compiled(entry, ...)``, a program compiled for one robot, world layout and
   batch shape, called with no Python work beyond the array hand-off (a planner's loop).
 - ``cache``: JAX's persistent compilation cache, switched on by one call.
+- ``store``: kernels kept as ``jax.export`` serialisations beside that cache, which later
+  processes call without tracing them.
 - ``latency``: JAX's CPU runtime set for a planner's loop of single queries (inline dispatch,
   small loops as one function), switched on by one call.
 

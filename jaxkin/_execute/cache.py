@@ -6,7 +6,9 @@ jaxkin's kernels in 0.2-30 s each on a 2-core CPU; loading one takes millisecond
 ``enable_compilation_cache()`` points JAX's cache at ``$XDG_CACHE_HOME/jaxkin`` (or
 ``~/.cache/jaxkin``) or at a given directory. It changes JAX's global configuration, so the
 library never calls it on its own: an application opts in, and the ``jaxkin`` command does
-(``JAXKIN_COMPILATION_CACHE`` turns it off or moves it, see ``docs/cli.md``).
+(``JAXKIN_COMPILATION_CACHE`` turns it off or moves it, see ``docs/cli.md``). Both also keep
+jaxkin's kernels there as serialised programs (``store``), which later processes call
+without tracing.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from pathlib import Path
 
 import jax
 from jax.experimental.compilation_cache import compilation_cache as _jax_cache
+
+from .store import keep_programs
 
 __all__ = ["default_cache_dir", "enable_compilation_cache"]
 
@@ -34,16 +38,21 @@ def enable_compilation_cache(
     path: str | os.PathLike | None = None,
     *,
     min_compile_time_secs: float = DEFAULT_MIN_COMPILE_TIME_SECS,
+    programs: bool = True,
 ) -> Path:
     """Keep compiled kernels on disk in ``path`` and reuse them in later processes.
 
     Sets JAX's ``jax_compilation_cache_dir`` and ``jax_persistent_cache_min_compile_time_secs``
     for the whole process (every JAX program, not only jaxkin's) and takes effect even when
-    something was compiled before the call.
+    something was compiled before the call. With ``programs`` (and ``flatbuffers``
+    installed: the ``cache`` extra), jaxkin's kernels are also kept as ``jax.export``
+    serialisations in ``path/programs`` (``store``), so a later process calls them without
+    tracing them again.
 
     Args:
         path: the cache directory, created if missing; ``None``: ``default_cache_dir()``.
         min_compile_time_secs: programs that compile faster than this are not written.
+        programs: keep jaxkin's kernels as serialised programs too.
 
     Returns:
         The cache directory.
@@ -64,6 +73,7 @@ def enable_compilation_cache(
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_time_secs))
     # JAX decides once per process whether the cache is used; forget a decision taken before.
     _jax_cache.reset_cache()
+    keep_programs(programs)
     return directory
 
 
@@ -79,14 +89,15 @@ def enable_for_command() -> Path | None:
     for JAX (``JAX_COMPILATION_CACHE_DIR``) is left as it is. Returns the directory in use, or
     None when off. A directory that cannot be used leaves the cache off (the command runs
     anyway, compiling as usual). The command keeps every program it compiles (no minimum
-    compile time): its second run on the same kind of input then compiles nothing (it traces
-    and lowers its programs to find them, which takes a fraction of a second).
+    compile time) and keeps jaxkin's kernels as serialised programs: its second run on the same
+    kind of input then neither traces jaxkin's kernels nor compiles them.
     """
     setting = os.environ.get(ENV_VAR, "").strip()
     if setting.lower() in _OFF:
         return None
     configured = jax.config.jax_compilation_cache_dir  # type: ignore[attr-defined]  # jax's Config types no options
     if configured:
+        keep_programs()
         return Path(configured)
     try:
         # Every program, however quick to compile: a second run then compiles nothing.

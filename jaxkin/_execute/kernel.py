@@ -38,6 +38,7 @@ import numpy as np
 
 from .. import _batching
 from .._validate import is_concrete
+from .store import keeps_programs, stored_jit
 
 __all__ = ["WHOLE", "Kernel", "Policy", "kernel"]
 
@@ -113,16 +114,18 @@ class Kernel:
         self.policy = policy
         self.axes = dict(axes or {})
         options = dict(policy.compiler_options) or None
-        statics = self.static or None
-        self.jitted = jax.jit(fn, static_argnames=statics, compiler_options=options)
-        # inside a caller's jit the enclosing program's compilation settings apply
-        self._nested = jax.jit(fn, static_argnames=statics) if options else self.jitted
+        # concrete calls: programs a later process finds without tracing (``store``)
+        self.jitted = stored_jit(fn, static_argnames=self.static, compiler_options=options)
+        # inside a caller's jit, vmap or grad: traced as it is, under the enclosing program's
+        # compilation settings
+        self._nested = jax.jit(fn, static_argnames=self.static or None)
         self._part: Any = None
         if policy.threads:
-            self._part = jax.jit(
+            self._part = stored_jit(
                 self._part_impl,
                 static_argnames=("static_values", "batch", "part"),
                 compiler_options=options,
+                identity=("part", self),
             )
         self._signature = inspect.signature(fn)
         functools.update_wrapper(self, fn)
@@ -168,11 +171,17 @@ class Kernel:
 
     def direct(self, *args: Any, **kwargs: Any) -> Any:
         """One call of the jitted function (the nested one for tracers)."""
-        if self._nested is not self.jitted and any(
+        # (with neither XLA options nor the store, ``jitted`` traces into a caller's program as
+        # ``_nested`` would: the leaves need not be looked at)
+        if (self.policy.compiler_options or keeps_programs()) and any(
             isinstance(x, jax.core.Tracer) for x in jax.tree.leaves((args, kwargs))
         ):
             return self._nested(*args, **kwargs)
         return self.jitted(*args, **kwargs)
+
+    def __fingerprint__(self) -> tuple:
+        """What determines this kernel's programs (``store.fingerprint``)."""
+        return (self.fn, self.static, self.batched, self.policy, self.axes)
 
     def whole(self, args: tuple, kwargs: dict, batch: tuple[int, ...]) -> Any:
         """The kernel on the whole (concrete) batch: in parts on the host threads when the
