@@ -127,7 +127,8 @@ def main(argv=None) -> int:
     parser.add_argument("--robot", choices=("panda", "ur5"), default="panda")
     parser.add_argument("--mode", choices=("discrete", "certified"), default="discrete")
     parser.add_argument("--per-scene", type=int, default=100)
-    parser.add_argument("--lanes", type=int, default=4)
+    parser.add_argument("--lanes", type=int, default=8)
+    parser.add_argument("--team", type=int, default=None, help="MotionOptions.team")
     parser.add_argument(
         "--domain", type=float, default=None, help="MotionOptions.domain (inf: none)"
     )
@@ -158,6 +159,7 @@ def main(argv=None) -> int:
         mode=args.mode,
         range=mbm_problems.RANGES[args.robot],
         lanes=args.lanes,
+        team=args.team,
         period=None,
         seed=args.seed,
     )

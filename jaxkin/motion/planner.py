@@ -80,8 +80,10 @@ class MotionOptions:
             4 joint-space units at the Panda's range of 1).
         resolution: states per unit of joint distance in discrete mode (VAMP's 32).
         lanes: moves (edges) in flight per iteration of the search (``search``).
-        team: lanes that grow one RRT-Connect (a multiple of it: ``lanes / team`` RRTs at
-            once, each problem one, idle ones restarting open problems).
+        team: lanes that grow one RRT-Connect (``lanes`` a multiple of it: ``lanes / team``
+            RRTs at once, each problem one, idle ones restarting open problems); None: all
+            the lanes for one problem, teams of ``gcd(lanes, 4)`` for several (measured best
+            for each: ``docs/performance.md``).
         chunk: states checked per lane per iteration (``edges``).
         capacity: nodes per tree.
         max_iterations: edges a problem's own team settles before ``NO_PATH`` (teams that
@@ -105,8 +107,8 @@ class MotionOptions:
     range: float = 1.0
     domain: float = 4.0
     resolution: float = 32.0
-    lanes: int = 4
-    team: int = 4
+    lanes: int = 8
+    team: int | None = None
     chunk: int = 8
     capacity: int = 1024
     max_iterations: int = 40000
@@ -139,6 +141,8 @@ class MotionOptions:
             "goals_per_target",
         ):
             value = getattr(self, name)
+            if name == "team" and value is None:
+                continue
             if (
                 isinstance(value, bool)
                 or not isinstance(value, int)
@@ -406,6 +410,7 @@ SWEPT_CHUNK = 64  # pieces checked per step (swept)
 SHORTCUT_LEVELS = 4
 SPLINE_SLOTS = 32  # first pieces of a spline's piece at most (swept)
 PART_PROBLEMS = 64  # problems per part of a large batch (one search's queue), plan
+TEAM = 4  # lanes per team for several problems (MotionOptions.team None)
 
 
 def _rows(tree: Any, rows: np.ndarray) -> Any:
@@ -744,7 +749,8 @@ def plan(
     tol = 64.0 * float(jnp.finfo(dtype).eps) * (1.0 + prep.scale)
     slots = max(2, math.ceil(options.range * options.resolution))
     lanes = options.lanes
-    team = min(options.team, lanes)
+    team = options.team or (lanes if b == 1 else math.gcd(lanes, TEAM))
+    team = min(team, lanes)
     if lanes % team:
         raise ValueError(f"lanes ({lanes}) must be a multiple of team ({team})")
     size = min(b, PART_PROBLEMS)
