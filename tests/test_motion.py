@@ -592,6 +592,12 @@ def test_options_name_what_is_wrong():
         with pytest.raises(ValueError, match="domain"):
             motion.MotionOptions(domain=bad)
     assert motion.MotionOptions(domain=float("inf")).domain == float("inf")
+    assert motion.MotionOptions().team is None and motion.MotionOptions(lanes=4, team=8).team == 8
+    for bad in (0, 2.0, True, "4"):
+        with pytest.raises(ValueError, match="team"):
+            motion.MotionOptions(team=bad)
+    with pytest.raises(ValueError, match="multiple of team"):
+        motion.MotionOptions(lanes=6, team=4)
     with pytest.raises(ValueError, match="exactly one"):
         motion.plan(robot, [0.0, 0.0], world)
     with pytest.raises(ValueError, match="start"):

@@ -151,6 +151,8 @@ class MotionOptions:
                 raise ValueError(
                     f"{name} must be a positive integer (>= 2 for sizes), got {value!r}"
                 )
+        if self.team is not None and self.lanes % min(self.team, self.lanes):
+            raise ValueError(f"lanes ({self.lanes}) must be a multiple of team ({self.team})")
         if self.grid < self.path_points:
             # every knot is a grid point of the timing
             raise ValueError(
@@ -749,10 +751,8 @@ def plan(
     tol = 64.0 * float(jnp.finfo(dtype).eps) * (1.0 + prep.scale)
     slots = max(2, math.ceil(options.range * options.resolution))
     lanes = options.lanes
-    team = options.team or (lanes if b == 1 else math.gcd(lanes, TEAM))
-    team = min(team, lanes)
-    if lanes % team:
-        raise ValueError(f"lanes ({lanes}) must be a multiple of team ({team})")
+    # one problem: all lanes in one team; several: teams of TEAM (MotionOptions.team)
+    team = min(options.team or (lanes if b == 1 else math.gcd(lanes, TEAM)), lanes)
     size = min(b, PART_PROBLEMS)
     # certified mode: a search at the resolution first, its paths then certified edge by edge
     # (_certified_paths), and only the problems whose path is not are searched again with
