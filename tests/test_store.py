@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from jax.experimental.compilation_cache import compilation_cache as jax_cache
 
 import jaxkin
 from jaxkin import collision, fixedpoint, jet, serial
@@ -236,3 +237,24 @@ def test_store_off_without_its_switch(tmp_path):
         assert not (tmp_path / "programs").exists()
     finally:
         jax.config.update("jax_compilation_cache_dir", saved)
+
+
+def test_without_flatbuffers_the_switch_warns_and_keeps_compiled_code_only(tmp_path, monkeypatch):
+    from jaxkin._execute import cache
+
+    saved = (
+        jax.config.jax_compilation_cache_dir,
+        jax.config.jax_persistent_cache_min_compile_time_secs,
+    )
+    monkeypatch.setattr(store, "serialisable", lambda: False)
+    try:
+        with pytest.warns(UserWarning, match=r"jaxkin\[cache\]"):
+            cache.enable_compilation_cache(tmp_path)
+        jax.clear_caches()
+        jaxkin.fk(serial.Puma560(), np.full((3, 6), 0.25))
+        assert not (tmp_path / "programs").exists()
+    finally:
+        store.keep_programs(False)
+        jax.config.update("jax_compilation_cache_dir", saved[0])
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", saved[1])
+        jax_cache.reset_cache()

@@ -14,12 +14,13 @@ without tracing.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import jax
 from jax.experimental.compilation_cache import compilation_cache as _jax_cache
 
-from .store import keep_programs
+from . import store
 
 __all__ = ["default_cache_dir", "enable_compilation_cache"]
 
@@ -73,7 +74,13 @@ def enable_compilation_cache(
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_time_secs))
     # JAX decides once per process whether the cache is used; forget a decision taken before.
     _jax_cache.reset_cache()
-    keep_programs(programs)
+    store.keep_programs(programs)
+    if programs and not store.serialisable():
+        warnings.warn(
+            "jaxkin keeps compiled code only: keeping its programs needs flatbuffers "
+            "(pip install 'jaxkin[cache]'), so later processes trace every kernel again",
+            stacklevel=2,
+        )
     return directory
 
 
@@ -97,7 +104,7 @@ def enable_for_command() -> Path | None:
         return None
     configured = jax.config.jax_compilation_cache_dir  # type: ignore[attr-defined]  # jax's Config types no options
     if configured:
-        keep_programs()
+        store.keep_programs()
         return Path(configured)
     try:
         # Every program, however quick to compile: a second run then compiles nothing.

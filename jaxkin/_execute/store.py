@@ -64,6 +64,7 @@ __all__ = [
     "keep_programs",
     "keeps_programs",
     "program_key",
+    "serialisable",
     "store_directory",
     "stored_jit",
 ]
@@ -157,7 +158,7 @@ def _entry(
     stored now; None when the store is off or the key cannot be stated (called once per
     trace: the jitted function's own cache holds the program after that)."""
     directory = store_directory()
-    if directory is None or jax.device_count() != 1 or not _serialisable():
+    if directory is None or jax.device_count() != 1 or not serialisable():
         return None
     specs = [_spec(leaf) for leaf in leaves]
     try:
@@ -179,7 +180,7 @@ def _entry(
 
 
 @functools.cache
-def _serialisable() -> bool:
+def serialisable() -> bool:
     """Whether JAX can serialise exported programs here (it needs ``flatbuffers``)."""
     return importlib.util.find_spec("flatbuffers") is not None
 
