@@ -121,6 +121,7 @@ def test_tree_static_data_is_part_of_the_key():
 # ------------------------------------------------------------------------------ programs
 
 
+@pytest.mark.slow
 def test_stored_programs_give_the_traced_results(program_store):
     robot = serial.Puma560()
     q = np.random.default_rng(0).uniform(-2.0, 2.0, (5, 6))
