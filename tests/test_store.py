@@ -26,9 +26,9 @@ from .helpers import compilations
 
 
 @pytest.fixture
-def program_store(tmp_path, monkeypatch):
-    """The store on, in a directory of this test's own (JAX's compiled-code cache stays where
-    the test configuration put it), and every program traced again from here on."""
+def program_store(tmp_path):
+    """The store on, in a directory of this test's own, and every program traced again from
+    here on; afterwards JAX's cache is where the test configuration put it."""
     saved = jax.config.jax_compilation_cache_dir
     jax.config.update("jax_compilation_cache_dir", str(tmp_path))
     store.keep_programs(True)
@@ -36,6 +36,7 @@ def program_store(tmp_path, monkeypatch):
     yield tmp_path / "programs"
     store.keep_programs(False)
     jax.config.update("jax_compilation_cache_dir", saved)
+    jax_cache.reset_cache()  # JAX opens its cache again where the configuration says
 
 
 def _programs(directory) -> list[str]:
@@ -238,6 +239,7 @@ def test_store_off_without_its_switch(tmp_path):
         assert not (tmp_path / "programs").exists()
     finally:
         jax.config.update("jax_compilation_cache_dir", saved)
+        jax_cache.reset_cache()
 
 
 def test_without_flatbuffers_the_switch_warns_and_keeps_compiled_code_only(tmp_path, monkeypatch):
