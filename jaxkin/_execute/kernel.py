@@ -1,8 +1,9 @@
 """``Kernel``: a pure function of arrays, compiled by ``jax.jit`` and run under a ``Policy``.
 
-Every compiled program of jaxkin is a ``Kernel`` (no module calls ``jax.jit`` itself). A
-kernel is called like its function; given the batch shape (``batch=``), its policy decides
-how a concrete call runs:
+Every compiled program of jaxkin is a ``Kernel`` (no module calls ``jax.jit`` itself); its
+concrete calls are jitted through ``store.stored_jit``, which with the program store on finds
+the program a previous process kept instead of tracing it again. A kernel is called like its
+function; given the batch shape (``batch=``), its policy decides how a concrete call runs:
 
 * **tracers** (inside a caller's ``jit``, ``vmap`` or ``grad``): the function is traced into
   the caller's program as it is (XLA options are a top-level compilation's: dropped);
