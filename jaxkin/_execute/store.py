@@ -336,7 +336,7 @@ def _walk(value: Any, out: list[bytes], path: set[int]) -> None:
         out.append(f"type:{_named(value)};".encode())
         return
     if hasattr(type(value), "__fingerprint__"):  # a jaxkin object that says what matters
-        _named(type(value))
+        _named(type(value))  # (Unstorable unless the key versions its class)
         value = value.__fingerprint__()
     if id(value) in path:
         raise Unstorable("cycle")
