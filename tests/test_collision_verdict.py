@@ -235,6 +235,69 @@ def test_pair_chunks_cover_every_self_pair_once_and_halving_is_the_minimum():
     np.testing.assert_array_equal(code, [0, 1])
 
 
+def test_loops_skip_the_trailing_copies_of_a_kind_s_last_obstacle():
+    """``rows.distinct_rows``: the rows up to the first of the trailing copies of the last
+    (a NaN field never equal, so never dropped); ``rows.loop_world`` with a ``stop`` (or
+    ``skip_copies``) tests the steps that hold them and no more (the largest index it
+    tests), without it every step."""
+    from jaxkin.collision import rows
+
+    a, b, c = np.eye(3)
+    cases = [
+        ([a, b, c, c, c, c, c], 3),
+        ([a, b, c], 3),
+        ([c, c, c, c], 1),
+        ([a, c, b, c, c], 4),  # a copy before a different row is kept
+        ([a, np.full(3, np.nan), c, c], 3),
+        ([a, b, np.full(3, np.nan), np.full(3, np.nan)], 4),
+    ]
+    for row_list, expected in cases:
+        centre = jnp.asarray(np.stack(row_list))
+        radius = jnp.ones(len(row_list))
+        assert int(rows.distinct_rows((centre, radius))) == expected
+        # a different radius on a copy makes it a row of its own
+        assert int(rows.distinct_rows((centre, radius.at[-1].set(2.0)))) == len(row_list)
+
+        def largest(arrays=(centre, radius), **how):
+            return int(
+                rows.loop_world(
+                    lambda obstacle, j: j, arrays, jnp.int32(-1), jnp.maximum, jnp.maximum,
+                    chunk=2, **how,
+                )
+            )  # fmt: skip
+
+        steps_used = -(-expected // 2)
+        padded = -(-len(row_list) // 2) * 2
+        assert largest(stop=lambda carry: jnp.bool_(False)) == 2 * steps_used - 1
+        assert largest(skip_copies=True) == 2 * steps_used - 1
+        assert largest() == padded - 1
+
+
+def test_padded_worlds_give_the_same_verdicts_and_clearances():
+    """A world padded to its buckets (``World.bucketed``: copies of each kind's last
+    obstacle, which the loops skip) gives the verdicts of the world itself, bit for bit, and
+    ``clearances_kernel`` skipping the copies the distances of testing them all (float32,
+    the planner's dtype)."""
+    robot = _spheres_ur5()
+    world = _spheres_and_boxes(17).astype("float32")
+    padded = world.bucketed()
+    assert len(padded.spheres) == 8 and len(padded.boxes) == 8
+    rng = np.random.default_rng(7)
+    q = jnp.asarray(rng.uniform(-3.0, 3.0, (300, robot.n_joints)), "float32")
+    body, pairs = collision.prepare(robot, self_collision=False)  # the world's loops
+    verdict = jax.jit(lambda w, m: collision.collides_kernel(robot, body, pairs, q, w, m).collides)
+    for margin in (0.0, 0.02):
+        plain = np.asarray(verdict(world, margin))
+        np.testing.assert_array_equal(np.asarray(verdict(padded, margin)), plain)
+        assert 0.05 < np.mean(plain) < 0.95
+    clearances = jax.jit(
+        lambda skip: collision.clearances_kernel(robot, body, pairs, q, padded, skip),
+        static_argnums=0,
+    )
+    for x, y in zip(clearances(False), clearances(True), strict=True):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+
+
 def _spheres_and_boxes(seed: int) -> collision.World:
     """``_world``'s spheres and boxes alone (a cheaper compilation)."""
     world = _world(seed)

@@ -276,14 +276,14 @@ def check_kernel(
 
 
 def clearances_kernel(
-    robot: Any, body: Body, pairs: SelfPairs, q: Array, world: World
+    robot: Any, body: Body, pairs: SelfPairs, q: Array, world: World, skip_copies: bool = False
 ) -> tuple[Array, Array, Array]:
     """Per configuration ``q (..., n)``: each robot primitive's signed distance to the world
     ``(..., S + C)`` (spheres, then capsules; the dtype's largest finite value with no
     obstacle), each checked link pair's smallest self distance ``(..., len(link_pairs))``,
     and whether ``q`` is finite and the robot assembles there ``(...)`` (where it is not, the
     distances are a placeholder's): the pure kernel conservative advancement reads
-    (``fused.primitive_clearances``, chunk by chunk)."""
+    (``fused.primitive_clearances``, chunk by chunk; ``skip_copies`` as there)."""
     dtype = q.dtype
     batch = q.shape[:-1]
     body, world = body.astype(dtype), world.astype(dtype)
@@ -292,7 +292,8 @@ def clearances_kernel(
     def one(q: Array) -> tuple[Array, Array, Array]:
         valid = all_finite(q)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
-        prims, own = fused.primitive_clearances(place(robot, body, q_safe), world, self_pairs)
+        placed = place(robot, body, q_safe)
+        prims, own = fused.primitive_clearances(placed, world, self_pairs, skip_copies)
         return prims.T, own.T, valid & robot.placeable(q_safe)
 
     flat = q.reshape((-1, q.shape[-1]))

@@ -238,12 +238,14 @@ def _world_test(distance: Any, kind: int, prims: tuple, obstacle: tuple, j: Any)
 
 
 def primitive_clearances(
-    placed: Placed, world: World, pairs: SelfPairs | None
+    placed: Placed, world: World, pairs: SelfPairs | None, skip_copies: bool = False
 ) -> tuple[jax.Array, jax.Array]:
     """Per robot primitive its smallest signed distance to the world, ``(S + C, B)``
     (spheres, then capsules; the dtype's largest finite value with no obstacle), and per
     checked link pair (``pairs.link_pairs``) its smallest self distance, ``(len(link_pairs),
-    B)``: what conservative advancement bounds, one speed per link (``jaxkin.motion``)."""
+    B)``: what conservative advancement bounds, one speed per link (``jaxkin.motion``).
+    ``skip_copies``: the trailing copies of each kind's last obstacle are not tested again
+    (``rows.loop_world``: the same values, not differentiable in reverse mode)."""
     size = placed.size
     dtype = placed.spheres.dtype
     big = jnp.finfo(dtype).max
@@ -262,6 +264,7 @@ def primitive_clearances(
                 carry,
                 jnp.minimum,
                 chunk=chunk,
+                skip_copies=skip_copies,
             )
         parts.append(carry)
     link_pairs = len(pairs.link_pairs) if pairs is not None else 0

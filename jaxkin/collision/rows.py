@@ -43,6 +43,7 @@ __all__ = [
     "OBSTACLE_CHUNK",
     "PAIR_CHUNK",
     "Placed",
+    "distinct_rows",
     "fold",
     "frames_of",
     "loop_pairs",
@@ -185,18 +186,36 @@ def tree_argmin(x: Array, code: Array) -> tuple[Array, Array]:
 # ------------------------------------------------------------------ loops
 
 
+def distinct_rows(arrays: tuple[Array, ...]) -> Array:
+    """``()`` int32: the obstacles of one kind (``arrays``: their fields, ``(m, ...)``) up to
+    and including the first of the trailing run of copies of the last one (``World.bucketed``
+    and ``motion.collider.stack_worlds`` pad a kind so): the rows a minimum or a verdict over
+    them needs. A field that is NaN differs from itself, so such a row is never dropped."""
+    m = arrays[0].shape[0]
+    differs = functools.reduce(
+        jnp.logical_or, [jnp.any((a != a[-1:]).reshape(m, -1), axis=1) for a in arrays]
+    )
+    return jnp.max(jnp.where(differs, jnp.arange(m, dtype=jnp.int32) + 2, 1)).clip(max=m)
+
+
 def fold(
-    count: int, step: Callable[[Array, Any], Any], init: Any, stop: Callable[[Any], Array] | None
+    count: int,
+    step: Callable[[Array, Any], Any],
+    init: Any,
+    stop: Callable[[Any], Array] | None,
+    used: Array | None = None,
 ) -> Any:
     """``step(k, carry)`` for ``k = 0 ... count - 1``: a ``fori_loop`` (differentiable in
-    reverse mode), or with ``stop(carry)`` a ``while_loop`` that ends early once it is true
-    (a verdict settled for the whole chunk)."""
-    if stop is None:
+    reverse mode), or a ``while_loop`` that ends early, once ``stop(carry)`` is true (a
+    verdict settled for the whole chunk) or after the first ``used`` steps (``()``, a traced
+    count; ``count`` at most)."""
+    if stop is None and used is None:
         return jax.lax.fori_loop(0, count, step, init)
+    last = count if used is None else jnp.minimum(used, count)
 
     def cond(state: tuple[Array, Any]) -> Array:
         k, carry = state
-        return (k < count) & ~stop(carry)
+        return (k < last) if stop is None else (k < last) & ~stop(carry)
 
     def body(state: tuple[Array, Any]) -> tuple[Array, Any]:
         k, carry = state
@@ -213,6 +232,7 @@ def loop_world(
     combine: Callable[[Any, Any], Any] = jnp.minimum,
     stop: Callable[[Any], Array] | None = None,
     chunk: int = OBSTACLE_CHUNK,
+    skip_copies: bool | None = None,
 ) -> Any:
     """Fold over the ``m`` obstacles of one kind (``arrays``: their fields, ``(m, ...)``),
     ``chunk`` obstacles per step (``fold``): each step evaluates ``test(obstacle,
@@ -224,13 +244,18 @@ def loop_world(
     ``chunk`` copies of the test whatever ``m`` (``OBSTACLE_CHUNK`` for the cheap tests of
     spheres, fewer for a capsule's). The last step's group is padded by
     repeating the last obstacle: a repeated obstacle repeats a test, never changes a
-    minimum (and a tie keeps the earlier)."""
+    minimum (and a tie keeps the earlier). With ``skip_copies`` (by default when there is a
+    ``stop``) the loop ends after the steps that hold the ``distinct_rows``, so a world
+    padded to a larger bucket pays for the obstacles it has; such a loop is a
+    ``while_loop``, which reverse mode cannot differentiate."""
     m = arrays[0].shape[0]
     if not m:
         return init
     group = min(m, chunk)
     steps = math.ceil(m / group)
     pad = steps * group - m
+    skip = stop is not None if skip_copies is None else skip_copies
+    used = -(-distinct_rows(arrays) // group) if skip else None
 
     def grouped(a: Array) -> Array:
         if pad:
@@ -247,7 +272,7 @@ def loop_world(
             joined = value if joined is None else combine(joined, value)
         return update(carry, joined)
 
-    return fold(steps, step, init, stop)
+    return fold(steps, step, init, stop, used)
 
 
 def pair_chunks(*indices: Any) -> tuple[np.ndarray, ...]:

@@ -120,8 +120,9 @@ def clearances(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> tup
     signed distance to the world (the smallest of its primitives', ``link_groups`` order;
     the dtype's largest value without obstacles), then each checked self link pair's
     (``pairs.link_pairs``), and whether ``q`` is finite and the robot assembles there (where
-    it is not, the distances are placeholders): ``collision.clearances_kernel``."""
-    prims, own, placed = collision.clearances_kernel(robot, body, pairs, q, world)
+    it is not, the distances are placeholders): ``collision.clearances_kernel``, without
+    testing a padded world's copies of an obstacle again (never differentiated here)."""
+    prims, own, placed = collision.clearances_kernel(robot, body, pairs, q, world, skip_copies=True)
     groups = link_groups(body)
     per_link = jnp.min(prims[..., groups], axis=-1) if groups.size else prims[..., :0]
     return jnp.concatenate([per_link, own], axis=-1), placed
