@@ -238,8 +238,8 @@ def test_pair_chunks_cover_every_self_pair_once_and_halving_is_the_minimum():
 def test_loops_skip_the_trailing_copies_of_a_kind_s_last_obstacle():
     """``rows.distinct_rows``: the rows up to the first of the trailing copies of the last
     (a NaN field never equal, so never dropped); ``rows.loop_world`` with a ``stop`` (or
-    ``skip_copies``) tests the steps that hold them and no more (the largest index it
-    tests), without it every step."""
+    ``skip_copies``) tests them and no more (the largest index it tests), without it every
+    step of ``chunk`` obstacles."""
     from jaxkin.collision import rows
 
     a, b, c = np.eye(3)
@@ -266,18 +266,17 @@ def test_loops_skip_the_trailing_copies_of_a_kind_s_last_obstacle():
                 )
             )  # fmt: skip
 
-        steps_used = -(-expected // 2)
-        padded = -(-len(row_list) // 2) * 2
-        assert largest(stop=lambda carry: jnp.bool_(False)) == 2 * steps_used - 1
-        assert largest(skip_copies=True) == 2 * steps_used - 1
+        padded = -(-len(row_list) // 2) * 2  # two obstacles per step
+        assert largest(stop=lambda carry: jnp.bool_(False)) == expected - 1
+        assert largest(skip_copies=True) == expected - 1
         assert largest() == padded - 1
 
 
 def test_padded_worlds_give_the_same_verdicts_and_clearances():
     """A world padded to its buckets (``World.bucketed``: copies of each kind's last
     obstacle, which the loops skip) gives the verdicts of the world itself, bit for bit, and
-    ``clearances_kernel`` skipping the copies the distances of testing them all (float32,
-    the planner's dtype)."""
+    ``clearances_kernel`` skipping the copies the distances of testing them all, to a few
+    ulp (float32, the planner's dtype; distances within 1 m of 0)."""
     robot = _spheres_ur5()
     world = _spheres_and_boxes(17).astype("float32")
     padded = world.bucketed()
@@ -294,8 +293,11 @@ def test_padded_worlds_give_the_same_verdicts_and_clearances():
         lambda skip: collision.clearances_kernel(robot, body, pairs, q, padded, skip),
         static_argnums=0,
     )
-    for x, y in zip(clearances(False), clearances(True), strict=True):
-        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    every, skipped = clearances(False), clearances(True)
+    np.testing.assert_array_equal(np.asarray(skipped[2]), np.asarray(every[2]))
+    for x, y in zip(every[:2], skipped[:2], strict=True):
+        # one obstacle per step against eight: XLA may fuse the arithmetic differently
+        np.testing.assert_allclose(np.asarray(y), np.asarray(x), rtol=0, atol=1e-6)
 
 
 def _spheres_and_boxes(seed: int) -> collision.World:

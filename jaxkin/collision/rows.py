@@ -239,23 +239,27 @@ def loop_world(
     j)`` (the obstacle's fields, its index ``j``) for each of its obstacles, joins the results
     with ``combine`` and folds them into the carry with ``update(carry, joined)``. The
     step's obstacles are written out one after the other (XLA fuses their tests and their
-    minimum into one loop that writes only the result: a block of a whole group broadcast
-    along an axis, or one obstacle per step, ran 2-7x slower on the CPU), so the program holds
-    ``chunk`` copies of the test whatever ``m`` (``OBSTACLE_CHUNK`` for the cheap tests of
-    spheres, fewer for a capsule's). The last step's group is padded by
-    repeating the last obstacle: a repeated obstacle repeats a test, never changes a
-    minimum (and a tie keeps the earlier). With ``skip_copies`` (by default when there is a
-    ``stop``) the loop ends after the steps that hold the ``distinct_rows``, so a world
-    padded to a larger bucket pays for the obstacles it has; such a loop is a
-    ``while_loop``, which reverse mode cannot differentiate."""
+    minimum into one loop that writes only the result; a block of a whole group broadcast
+    along an axis ran 2-7x slower on the CPU), so the program holds ``chunk`` copies of the
+    test whatever ``m`` (``OBSTACLE_CHUNK`` for the cheap tests of spheres, fewer for a
+    capsule's). The last step's group is padded by repeating the last obstacle: a repeated
+    obstacle repeats a test, never changes a minimum (and a tie keeps the earlier).
+
+    With ``skip_copies`` (by default when there is a ``stop``) the loop takes one obstacle
+    per step and ends after the ``distinct_rows``, so a world padded to a larger bucket pays
+    for the obstacles it has (measured no slower per obstacle than ``chunk`` per step, in
+    either CPU runtime: ``docs/performance.md``); such a loop is a ``while_loop``, which
+    reverse mode cannot differentiate."""
     m = arrays[0].shape[0]
     if not m:
         return init
-    group = min(m, chunk)
+    skip = stop is not None if skip_copies is None else skip_copies
+    # a loop that skips copies takes one obstacle per step: it stops right after the last
+    # distinct one
+    group = 1 if skip else min(m, chunk)
     steps = math.ceil(m / group)
     pad = steps * group - m
-    skip = stop is not None if skip_copies is None else skip_copies
-    used = -(-distinct_rows(arrays) // group) if skip else None
+    used = distinct_rows(arrays) if skip else None
 
     def grouped(a: Array) -> Array:
         if pad:
