@@ -272,6 +272,7 @@ def test_loops_skip_the_trailing_copies_of_a_kind_s_last_obstacle():
         assert largest() == padded - 1
 
 
+@pytest.mark.slow
 def test_padded_worlds_give_the_same_verdicts_and_clearances():
     """A world padded to its buckets (``World.bucketed``: copies of each kind's last
     obstacle, which the loops skip) gives the verdicts of the world itself, bit for bit, and
