@@ -52,9 +52,8 @@ def _release_compiled_programs():
 def _keep_runtime_options():
     """The command line, run in this process by some tests, turns ``enable_low_latency`` and
     the program store on: put ``XLA_FLAGS``, JAX's dispatch option and the store back after
-    each test (in a process whose JAX
-    runs already they change no program, but later tests' subprocesses would inherit the
-    flags)."""
+    each test (in a process whose JAX runs already they change no program, but later tests'
+    subprocesses would inherit the flags)."""
     from jaxkin._execute import store  # imported after the configuration above
 
     flags = os.environ.get("XLA_FLAGS")

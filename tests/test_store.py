@@ -80,6 +80,14 @@ def test_fingerprints_state_values_not_identities():
     partial = functools.partial(jaxkin.fk, robot)
     assert store.fingerprint(partial) == store.fingerprint(functools.partial(jaxkin.fk, robot))
     assert store.fingerprint(partial) != store.fingerprint(functools.partial(jaxkin.ik, robot))
+    # functions by their code: two lambdas of one function share a qualified name
+    add_one, add_two = (lambda x: x + 1), (lambda x: x + 2)
+    for f in (add_one, add_two):
+        f.__module__, f.__qualname__ = "jaxkin.kernels", "made.<locals>.<lambda>"
+    same = type(add_one)(add_one.__code__, add_one.__globals__)
+    same.__module__, same.__qualname__ = add_one.__module__, add_one.__qualname__
+    assert store.fingerprint(add_one) == store.fingerprint(same)
+    assert store.fingerprint(add_one) != store.fingerprint(add_two)
     # a kernel by what determines its programs
     first = Kernel(jet.lift(jnp.sin))
     assert store.fingerprint(first) == store.fingerprint(Kernel(jet.lift(jnp.sin)))

@@ -404,10 +404,26 @@ def _walk_container(value: Any, out: list[bytes], path: set[int]) -> None:
 
 def _walk_function(fn: types.FunctionType, out: list[bytes], path: set[int]) -> None:
     out.append(f"function:{_named(fn)}(".encode())
+    # its code too: two lambdas of one function share a qualified name
+    out.append(_code_fingerprint(fn.__code__))
     cells = tuple(c.cell_contents for c in fn.__closure__ or ())
     for part in (cells, fn.__defaults__, fn.__kwdefaults__):
         _walk(part, out, path)
     out.append(b")")
+
+
+def _code_fingerprint(code: types.CodeType) -> bytes:
+    """A function's code by value: its first line, bytecode, names and constants (nested
+    code likewise; a set of constants sorted, so the bytes do not depend on hashing)."""
+    parts = [f"code:{code.co_firstlineno}:{code.co_names!r}:".encode(), code.co_code]
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            parts.append(_code_fingerprint(const))
+        elif isinstance(const, frozenset):
+            parts.append(repr(sorted(const, key=repr)).encode())
+        else:
+            parts.append(repr(const).encode())
+    return b";".join(parts)
 
 
 def _slots(cls: type) -> list[str]:
