@@ -272,6 +272,119 @@ def test_loops_skip_the_trailing_copies_of_a_kind_s_last_obstacle():
         assert largest() == padded - 1
 
 
+def test_fold_passes_over_the_steps_not_needed():
+    """``rows.fold`` with ``needed``: the steps it runs are those ``needed`` marks (in order,
+    the carry as it stands), up to ``used``; with a ``stop`` it ends there."""
+    from jaxkin.collision import rows
+
+    marks = jnp.asarray([True, False, False, True, True, False, True])
+
+    def run(**how):
+        visits = rows.fold(
+            7, lambda k, seen: seen.at[k].set(True), jnp.zeros(7, bool), **how
+        )  # fmt: skip
+        return np.flatnonzero(np.asarray(visits)).tolist()
+
+    assert run(stop=None, needed=lambda k, seen: marks[k]) == [0, 3, 4, 6]
+    assert run(stop=None, used=jnp.int32(5), needed=lambda k, seen: marks[k]) == [0, 3, 4]
+    assert run(stop=lambda seen: jnp.sum(seen) >= 2, needed=lambda k, seen: marks[k]) == [0, 3]
+    # the carry decides: a step is needed while fewer than 2 were run before it
+    assert run(stop=None, needed=lambda k, seen: (jnp.sum(seen) < 2) & marks[k]) == [0, 3]
+    assert run(stop=None, needed=lambda k, seen: jnp.bool_(False)) == []
+
+
+def test_frame_bounds_hold_their_spheres():
+    """``rows.place_bounded``: per frame carrying spheres, the placed bound ``(g, R)`` holds
+    every sphere ``(c, r)`` of that frame, ``|c - g| + r <= R``, at every configuration
+    (float64, the UR5 with spheres on every link: link home poses between frames and links),
+    and the spheres are those of ``rows.place``."""
+    from jaxkin.collision import rows
+
+    robot = _spheres_ur5()
+    body, _ = collision.prepare(robot)
+    q = jnp.asarray(np.random.default_rng(3).uniform(-3.0, 3.0, (40, robot.n_joints)))
+    placed, bounds = rows.place_bounded(robot, body, q)
+    np.testing.assert_array_equal(placed.spheres, rows.place(robot, body, q).spheres)
+    _, of_link, _ = rows.frames_of(robot, q)
+    frame = np.asarray(of_link)[np.asarray(body.sphere_link)]
+    which = np.searchsorted(np.unique(frame), frame)  # each sphere's bound
+    c, g = np.asarray(placed.spheres), np.asarray(bounds.center)[:, which]  # (3, S, B)
+    gap = np.linalg.norm(c - g, axis=0) + np.asarray(body.sphere_radius)[:, None]
+    assert np.all(gap <= np.asarray(bounds.reach)[which])
+    scale = np.max(np.abs(np.asarray(bounds.center)) + np.asarray(bounds.reach)[None], (0, 1))
+    np.testing.assert_allclose(bounds.scale, scale, rtol=1e-12)
+
+
+@pytest.mark.parametrize("dtype", ["float64", pytest.param("float32", marks=pytest.mark.slow)])
+def test_frame_bounds_give_the_same_verdicts(dtype):
+    """``collides_kernel(..., frame_bounds=True)`` (the motion planner's states) passes over
+    the obstacles no frame's bound comes near and gives the dense tests' verdicts bit for
+    bit: every kind of obstacle, margins of both signs, configurations in contact within
+    rounding (margins set to their own exact clearances), one configuration and a chunk; and
+    obstacles (a small sphere, a half-space) touching, or 1 mm from, the sphere that reaches
+    farthest from its frame's bound, where a bound 2 mm too small misses the contact."""
+    robot = _spheres_ur5()
+    body, pairs = collision.prepare(robot)
+    rng = np.random.default_rng(11)
+    q = rng.uniform(-3.0, 3.0, (64, robot.n_joints)).astype(dtype)
+
+    @jax.jit
+    def both(q, world, margin):
+        return tuple(
+            collision.collides_kernel(robot, body, pairs, q, world, margin, frame_bounds=b).collides
+            for b in (False, True)
+        )  # fmt: skip
+
+    flagged = []
+    for draw in (1, 2):
+        world = _every_kind(draw).astype(dtype)
+        contact = float(collision.check(robot, q[5], world).clearance)
+        for margin in (0.0, 0.03, -0.01, contact):
+            for chunk in (q, q[5:6]):
+                dense, bounded = both(chunk, world, jnp.asarray(margin, dtype))
+                np.testing.assert_array_equal(bounded, dense)
+                flagged.append(np.asarray(dense))
+        assert bool(both(q[5:6], world, jnp.asarray(contact, dtype))[1][0])  # in contact
+    assert 0.1 < np.mean(np.concatenate(flagged)) < 0.9  # both verdicts occur
+
+    # at the edge of a bound: an obstacle touching (or 1 mm from) the sphere that reaches
+    # farthest from its frame's bound, on the far side, where the coarse test has no slack
+    from jaxkin.collision import rows
+
+    _, alone = collision.prepare(robot, self_collision=False)
+
+    @jax.jit
+    def world_only(q, world):
+        return tuple(
+            collision.collides_kernel(robot, body, alone, q, world, 0.0, frame_bounds=b).collides
+            for b in (False, True)
+        )  # fmt: skip
+
+    q64 = jnp.asarray(q[:4], jnp.float64)
+    placed, bounds = rows.place_bounded(robot, body.astype(jnp.float64), q64)
+    frame = np.asarray(rows.frames_of(robot, q64)[1])[np.asarray(body.sphere_link)]
+    which = np.searchsorted(np.unique(frame), frame)
+    c, r = np.asarray(placed.spheres), np.asarray(body.sphere_radius, np.float64)
+    for b in range(4):
+        for f in np.unique(which):
+            members = np.flatnonzero(which == f)
+            g = np.asarray(bounds.center)[:, f, b]
+            i = members[np.argmax(np.linalg.norm(c[:, members, b].T - g, axis=1) + r[members])]
+            u = c[:, i, b] - g
+            u = u / np.linalg.norm(u) if np.linalg.norm(u) > 0 else np.array([0.0, 0.0, 1.0])
+            for gap in (0.0, 1e-3):
+                far = c[:, i, b] + (r[i] + gap) * u  # the sphere's far point, and beyond
+                ball = collision.Spheres.create([far + 0.005 * u], [0.005])
+                plane = collision.HalfSpaces.create([-u], [-u @ far])
+                for world in (
+                    collision.World.create(spheres=ball),
+                    collision.World.create(halfspaces=plane),
+                ):
+                    dense, bounded = world_only(q[b : b + 1], world.astype(dtype))
+                    assert bool(bounded[0]) == bool(dense[0])
+                    assert bool(dense[0]) or gap > 0  # touching: flagged
+
+
 @pytest.mark.slow
 def test_padded_worlds_give_the_same_verdicts_and_clearances():
     """A world padded to its buckets (``World.bucketed``: copies of each kind's last

@@ -53,7 +53,7 @@ from jax import Array
 from .._numerics import computed_once
 from .body import GROUP_SIZE, Body
 from .pairs import SelfPairs
-from .rows import frames_of, tree_min
+from .rows import BOUND_GROWTH, frames_of, tree_min
 
 __all__ = ["CULL_PAIRS", "CULL_SPHERES", "GROUP", "LANES", "Groups", "groups_of", "verdict_rows"]
 
@@ -68,8 +68,6 @@ LANES = 8
 # pairs) ran 1.14x faster through them at 1e4 configurations but 0.78x at 32 (an edge)
 CULL_SPHERES = 128
 CULL_PAIRS = 4096
-# Relative growth of a group's bounding radius: covers its rounding in any dtype
-_GROW = 1e-5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -200,7 +198,7 @@ def verdict_rows(
     hi = jnp.max(center + radius[..., None], axis=1)
     middle = 0.5 * (lo + hi)
     reach = jnp.max(jnp.linalg.norm(center - middle[:, None], axis=-1) + radius, axis=1)
-    reach = reach * (1.0 + _GROW)
+    reach = reach * (1.0 + BOUND_GROWTH)
     frame = np.asarray(of_link, np.int64)[link]  # (n,)
     r, p = rot[frame], pos[frame]  # (n, 3, 3, W), (n, 3, W)
     placed = [

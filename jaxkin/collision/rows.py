@@ -10,7 +10,10 @@ every elementwise operation is one vectorised loop across configurations:
   (``of_link``) at its pose in that frame (``homes``, folded into the body's points);
 - placed points ``(3, k, B)``: ``x_i = sum_m R[f, i, m] c'_m + p[f, i]`` for a point ``c'``
   in frame ``f`` (one gather of the frames and one fused loop for every point);
-- radii ``(k, 1)``: the body's, shared by the chunk.
+- radii ``(k, 1)``: the body's, shared by the chunk;
+- frame bounds (``place_bounded``): per frame that carries spheres, one sphere holding them
+  all, placed with them, for loops that pass over the obstacles no bound comes near
+  (``loop_world``'s ``visit``, ``fold``'s ``needed``).
 
 Every reduction over the robot's primitives, the obstacles and the self pairs is a loop
 inside the program (``lax.fori_loop`` or ``lax.while_loop``), one obstacle or one chunk of
@@ -33,13 +36,16 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from .._numerics import computed_once
 from .body import Body
 from .protocol import CollisionRobot
 from .world import OBSTACLE_BUCKET
 
 __all__ = [
+    "BOUND_GROWTH",
     "CAPSULE_CHUNK",
     "COMPILER_OPTIONS",
+    "FrameBounds",
     "OBSTACLE_CHUNK",
     "PAIR_CHUNK",
     "Placed",
@@ -49,6 +55,7 @@ __all__ = [
     "loop_pairs",
     "loop_world",
     "place",
+    "place_bounded",
     "place_points",
     "tree_argmin",
     "tree_min",
@@ -65,6 +72,9 @@ COMPILER_OPTIONS: tuple = (("xla_cpu_use_fusion_emitters", False),)
 # capsule's exact distances (a few hundred operations each) take one
 OBSTACLE_CHUNK = OBSTACLE_BUCKET
 CAPSULE_CHUNK = 1
+# Relative growth of a bounding sphere's radius (FrameBounds, collision.culled's groups):
+# covers its rounding in any dtype
+BOUND_GROWTH = 1e-5
 
 
 @jax.tree_util.register_dataclass
@@ -136,18 +146,89 @@ def place_points(
 
 def place(robot: CollisionRobot, body: Body, q: Array) -> Placed:
     """``body`` placed at configurations ``q`` ``(B, n)`` (rows layout)."""
+    return _place(robot, body, q, False)[0]
+
+
+@jax.tree_util.register_dataclass
+@dataclasses.dataclass(frozen=True)
+class FrameBounds:
+    """Per frame that carries spheres (``robot.link_frame_rows``: the spheres of the links it
+    moves rigidly), one sphere holding all of them, placed at a chunk of configurations
+    (``place_bounded``).
+
+    Attributes:
+        center: ``(3, G, B)`` rows: ``g``, the middle of the bounding box of the frame's
+            spheres in its own coordinates, placed.
+        reach: ``(G, 1)``: ``R = (1 + 1e-5) max_i (|c_i - g| + r_i)`` over the frame's
+            spheres ``(c_i, r_i)`` (a rigid motion keeps it), so every sphere lies in the ball
+            ``(g, R)``: ``|c_i - g| <= R - r_i``.
+        scale: ``(B,)``: the largest coordinate magnitude of the bounds, ``max_k |g_k| + R``.
+    """
+
+    center: Array
+    reach: Array
+    scale: Array
+
+
+def place_bounded(robot: CollisionRobot, body: Body, q: Array) -> tuple[Placed, FrameBounds]:
+    """``place(robot, body, q)`` and the bounds of the spheres each frame carries
+    (``FrameBounds``), from one forward kinematics; ``body`` has spheres."""
+    placed, bounds = _place(robot, body, q, True)
+    assert bounds is not None
+    return placed, bounds
+
+
+def _frame_bounds(
+    centers: Array, radius: Array, frame: np.ndarray
+) -> tuple[Array, Array, np.ndarray]:
+    """``(g (G, 3), R (G,), frames (G,))`` of the spheres ``(centers (S, 3), radius (S,))``
+    in the coordinates of their carrying frames ``frame (S,)`` (static): one bound per frame
+    that carries some (``FrameBounds``)."""
+    frames = np.unique(frame)
+    index = [np.flatnonzero(frame == k) for k in frames]
+    width = max(len(i) for i in index)
+    # a short group padded by repeating its last sphere (no change to a min or max)
+    members = np.stack([np.concatenate([i, np.repeat(i[-1:], width - len(i))]) for i in index])
+    c, r = centers[members], radius[members]  # (G, K, 3), (G, K)
+    middle = 0.5 * (jnp.min(c - r[..., None], axis=1) + jnp.max(c + r[..., None], axis=1))
+    reach = jnp.max(jnp.linalg.norm(c - middle[:, None], axis=-1) + r, axis=1)
+    return middle, reach * (1.0 + BOUND_GROWTH), frames
+
+
+def _place(
+    robot: CollisionRobot, body: Body, q: Array, bounded: bool
+) -> tuple[Placed, FrameBounds | None]:
+    """``place``, and when ``bounded`` the bounds of each frame's spheres placed with them."""
     frames, of_link, homes = frames_of(robot, q)
     dtype = q.dtype
-    spheres = place_points(frames, of_link, homes, body.sphere_center, body.sphere_link)
+    centers, links = body.sphere_center.astype(dtype), np.asarray(body.sphere_link, np.int64)
+    spheres = place_points(frames, of_link, homes, centers, links)
+    frame_bounds = None
+    if bounded:
+        local = centers  # the spheres in their carrying frames' coordinates
+        if homes is not None:
+            home = homes[links]
+            local = jnp.einsum("kij,kj->ki", home[:, :3, :3], centers) + home[:, :3, 3]
+        frame = np.asarray(of_link, np.int64)[links]
+        radius = body.sphere_radius.astype(dtype)
+        middle, reach, which = _frame_bounds(local, radius, frame)
+        identity = tuple(range(frames[0].shape[0]))
+        # stored once: fused into each coarse test, the bounds would be placed again per test
+        g = computed_once(place_points(frames, identity, None, middle, which))
+        magnitude = jnp.maximum(jnp.maximum(jnp.abs(g[0]), jnp.abs(g[1])), jnp.abs(g[2]))
+        frame_bounds = FrameBounds(g, reach[:, None], -tree_min(-(magnitude + reach[:, None])))
     ends = jnp.concatenate([body.capsule_a, body.capsule_b])
     placed = place_points(frames, of_link, homes, ends, body.capsule_link * 2)
     nc = body.num_capsules
-    return Placed(
-        spheres,
-        body.sphere_radius.astype(dtype)[:, None],
-        placed[:, :nc],
-        placed[:, nc:],
-        body.capsule_radius.astype(dtype)[:, None],
+    return (
+        Placed(
+            spheres,
+            body.sphere_radius.astype(dtype)[:, None],
+            placed[:, :nc],
+            placed[:, nc:],
+            body.capsule_radius.astype(dtype)[:, None],
+        ),
+        frame_bounds,
     )
 
 
@@ -204,14 +285,22 @@ def fold(
     init: Any,
     stop: Callable[[Any], Array] | None,
     used: Array | None = None,
+    needed: Callable[[Array, Any], Array] | None = None,
 ) -> Any:
     """``step(k, carry)`` for ``k = 0 ... count - 1``: a ``fori_loop`` (differentiable in
     reverse mode), or a ``while_loop`` that ends early, once ``stop(carry)`` is true (a
     verdict settled for the whole chunk) or after the first ``used`` steps (``()``, a traced
-    count; ``count`` at most)."""
-    if stop is None and used is None:
+    count; ``count`` at most), and that passes over the ``k`` for which ``needed(k, carry)``
+    is False (an inner loop of that test alone: a conditional step would cost the runtime's
+    own dispatch each time)."""
+    if stop is None and used is None and needed is None:
         return jax.lax.fori_loop(0, count, step, init)
     last = count if used is None else jnp.minimum(used, count)
+
+    def skip(k: Array, carry: Any) -> Array:
+        if needed is None:
+            return k
+        return jax.lax.while_loop(lambda j: (j < last) & ~needed(j, carry), lambda j: j + 1, k)
 
     def cond(state: tuple[Array, Any]) -> Array:
         k, carry = state
@@ -219,9 +308,10 @@ def fold(
 
     def body(state: tuple[Array, Any]) -> tuple[Array, Any]:
         k, carry = state
-        return k + 1, step(k, carry)
+        carry = step(k, carry)
+        return skip(k + 1, carry), carry
 
-    return jax.lax.while_loop(cond, body, (jnp.int32(0), init))[1]
+    return jax.lax.while_loop(cond, body, (skip(jnp.int32(0), init), init))[1]
 
 
 def loop_world(
@@ -233,6 +323,7 @@ def loop_world(
     stop: Callable[[Any], Array] | None = None,
     chunk: int = OBSTACLE_CHUNK,
     skip_copies: bool | None = None,
+    visit: Callable[[tuple[Array, ...], Any], Array] | None = None,
 ) -> Any:
     """Fold over the ``m`` obstacles of one kind (``arrays``: their fields, ``(m, ...)``),
     ``chunk`` obstacles per step (``fold``): each step evaluates ``test(obstacle,
@@ -249,7 +340,9 @@ def loop_world(
     per step and ends after the ``distinct_rows``, so a world padded to a larger bucket pays
     for the obstacles it has (measured no slower per obstacle than ``chunk`` per step, in
     either CPU runtime: ``docs/performance.md``); such a loop is a ``while_loop``, which
-    reverse mode cannot differentiate."""
+    reverse mode cannot differentiate. ``visit(obstacle, carry)``, when given, says whether
+    an obstacle needs its tests (a coarse test: ``fold``'s ``needed``, a step's obstacles
+    joined by ``or``); the others are passed over."""
     m = arrays[0].shape[0]
     if not m:
         return init
@@ -268,15 +361,27 @@ def loop_world(
 
     groups = [grouped(a) for a in arrays]
 
+    def fields_at(k: Array) -> list[Array]:
+        return [jax.lax.dynamic_index_in_dim(a, k, keepdims=False) for a in groups]
+
     def step(k: Array, carry: Any) -> Any:
-        fields = [jax.lax.dynamic_index_in_dim(a, k, keepdims=False) for a in groups]
+        fields = fields_at(k)
         joined = None
         for g in range(group):
             value = test(tuple(f[g] for f in fields), k * group + g)
             joined = value if joined is None else combine(joined, value)
         return update(carry, joined)
 
-    return fold(steps, step, init, stop, used)
+    needed = None
+    if visit is not None:
+
+        def needed(k: Array, carry: Any) -> Array:
+            fields = fields_at(k)
+            return functools.reduce(
+                jnp.logical_or, [visit(tuple(f[g] for f in fields), carry) for g in range(group)]
+            )
+
+    return fold(steps, step, init, stop, used, needed)
 
 
 def pair_chunks(*indices: Any) -> tuple[np.ndarray, ...]:

@@ -26,7 +26,14 @@ the chunk is known to collide (a single configuration: at its first colliding ob
 pair). The program's size does not grow with the numbers of primitives, obstacles or pairs.
 A body of many spheres (a mesh cover: the default body from a URDF) goes through its groups'
 bounding spheres first instead (``collision.culled``): the same tests, run only for the blocks
-of configurations whose bounds come close.
+of configurations whose bounds come close. With ``frame_bounds`` (the motion planner's states)
+each obstacle is first tested against one bounding sphere per frame of the robot's spheres
+(``rows.FrameBounds``, ``(g, R)`` with ``|c - g| <= R - r`` for each of its spheres), every
+configuration of the chunk at once, and the loop passes over the obstacles no bound comes
+near. Each test is a signed distance (or its square) of the sphere's centre less its radius,
+1-Lipschitz in the centre, so a sphere the fine test flags lies in a bound the coarse test
+flags when its radius is widened by the fine test's slack (``sqrt`` of it for a squared test)
+and ``4 tol`` for its own rounding: the verdicts are the same.
 A large concrete batch runs as one part per host thread.
 
 Rounding: the verdict is conservative by a tolerance ``tol = 16 eps (1 + X)`` (``eps`` of the
@@ -70,10 +77,12 @@ from .protocol import CollisionRobot
 from .rows import (
     CAPSULE_CHUNK,
     COMPILER_OPTIONS,
+    FrameBounds,
     Placed,
     loop_pairs,
     loop_world,
     place,
+    place_bounded,
     tree_min,
 )
 from .world import World
@@ -212,7 +221,12 @@ def _capsule_kinds(world: World) -> list[tuple[Any, tuple[Array, ...], Any]]:
 
 
 def verdict_rows(
-    placed: Placed, world: World, pairs: SelfPairs | None, margin: Array, hit: Array
+    placed: Placed,
+    world: World,
+    pairs: SelfPairs | None,
+    margin: Array,
+    hit: Array,
+    bounds: FrameBounds | None = None,
 ) -> Array:
     """The verdict ``(B,)`` of a placed chunk: ``hit`` (configurations already settled: not
     finite, or not assembled) or any test that flags a collision (module docstring). Each
@@ -239,13 +253,30 @@ def verdict_rows(
         r_max = jnp.max(r)
         for test, squared, arrays, scale_of in _sphere_kinds(world):
 
-            def excess(obstacle, j, test=test, scale_of=scale_of, squared=squared):
+            def slack(obstacle, scale_of=scale_of, squared=squared):
+                """The obstacle's scale, and how far past its bound a flagged test may be."""
                 scale, radius = scale_of(obstacle)
                 tol = tolerance(scale)
-                bound = tol * (2.0 * (r_max + radius + margin_plus) + tol) if squared else tol
-                return test(x, r, margin, *obstacle) - bound
+                if not squared:
+                    return scale, tol
+                return scale, tol * (2.0 * (r_max + radius + margin_plus) + tol)
 
-            hit = loop_world(excess, arrays, hit, flagged, stop=settled)
+            def excess(obstacle, j, test=test, slack=slack):
+                return test(x, r, margin, *obstacle) - slack(obstacle)[1]
+
+            visit = None
+            if bounds is not None:
+
+                def visit(obstacle, hit, test=test, slack=slack, squared=squared):
+                    """Whether a bound comes near: the radius widened by the fine test's
+                    slack and by the coarse test's own rounding (module docstring)."""
+                    scale, bound = slack(obstacle)
+                    coarse = TOLERANCE * eps * (1.0 + jnp.maximum(bounds.scale, scale))
+                    widen = (jnp.sqrt(bound) if squared else bound) + 4.0 * coarse
+                    near = test(_rows(bounds.center), bounds.reach + widen, margin, *obstacle)
+                    return jnp.any((near <= 0.0) & ~hit)
+
+            hit = loop_world(excess, arrays, hit, flagged, stop=settled, visit=visit)
     if placed.capsule_a.shape[1]:
         a, b, r = _points(placed.capsule_a), _points(placed.capsule_b), placed.capsule_radius
         for distance, arrays, scale_of in _capsule_kinds(world):
@@ -305,10 +336,12 @@ def collides_kernel(
     q: Array,
     world: World,
     margin: ArrayLike = 0.0,
+    frame_bounds: bool = False,
 ) -> Verdict:
     """The pure kernel of ``collides`` (traceable, any leading batch axes of ``q``), chunk by
     chunk (``VERDICT_CHUNK`` configurations). A world with leading batch axes goes through
-    ``check_kernel``."""
+    ``check_kernel``. ``frame_bounds`` (static) passes over the obstacles that no frame's
+    bound of its spheres comes near (module docstring): the same verdicts."""
     dtype = q.dtype
     batch = q.shape[:-1]
     body, world = body.astype(dtype), world.astype(dtype)
@@ -318,12 +351,16 @@ def collides_kernel(
     margin = jnp.asarray(margin, dtype)
     self_pairs = pairs if pairs.link_pairs else None
     groups = culled.groups_of(body, self_pairs)
+    bounded = frame_bounds and body.num_spheres > 0
 
     def one(q: Array) -> Verdict:
         valid = all_finite(q)
         q_safe = jnp.where(valid[..., None], q, jnp.zeros((), dtype))
         placed = robot.placeable(q_safe)
-        if groups is None:
+        if groups is None and bounded:
+            at, bounds = place_bounded(robot, body, q_safe)
+            hit = verdict_rows(at, world, self_pairs, margin, ~(valid & placed), bounds)
+        elif groups is None:
             hit = verdict_rows(
                 place(robot, body, q_safe), world, self_pairs, margin, ~(valid & placed)
             )
@@ -346,6 +383,7 @@ def collides_kernel(
 VERDICT_MIN_PART = 2048
 _collides_jit = Kernel(
     collides_kernel,
+    static=("frame_bounds",),
     batched={"q": 1},
     policy=Policy(
         pad=True, threads=True, min_part=VERDICT_MIN_PART, compiler_options=COMPILER_OPTIONS
