@@ -8,7 +8,8 @@ of the collision kernels is one edit here:
 - ``prepare(robot)``: host side, once per robot: the body and the self-collision pairs
   (``collision.prepare``).
 - ``free(robot, body, pairs, q, world)``: per configuration ``q (..., n)``, is the robot clear
-  of the world and itself (``collision.collides_kernel``, the verdict alone)?
+  of the world and itself (``collision.collides_kernel``, the verdict alone, each obstacle
+  tested against the bounds of each frame's spheres first)?
 - ``clearances(robot, body, pairs, q, world)``: per configuration the signed distance of each
   link to the world and of each checked self link pair (``collision.clearances_kernel``,
   grouped by ``link_groups``), for conservative advancement with one speed bound per link
@@ -59,8 +60,11 @@ def prepare(robot: Any, self_collision: bool = True) -> tuple[Any, Any]:
 
 
 def free(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> Array:
-    """``(...)`` True where ``q (..., n)`` touches neither the world nor the robot itself."""
-    return ~collision.collides_kernel(robot, body, pairs, q, world, 0.0).collides
+    """``(...)`` True where ``q (..., n)`` touches neither the world nor the robot itself
+    (each obstacle tested against the bounds of each frame's spheres first: a planner's
+    states pass most obstacles of a scene far away; the same verdicts)."""
+    verdict = collision.collides_kernel(robot, body, pairs, q, world, 0.0, frame_bounds=True)
+    return ~verdict.collides
 
 
 def piece_touches(
