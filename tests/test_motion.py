@@ -241,7 +241,41 @@ def test_a_found_edge_that_slips_through_is_planned_again_with_certified_edges(m
     whole = motion.plan(robot, start, world, goal=goal, mode="certified", **options)
     assert motion.status_names(whole.status).tolist() == ["SOLVED"]
     assert whole.seconds["edges_searched_again"] == 1 and whole.seconds["searched_again"] == 1
+    assert whole.seconds["retried"] == motion.planner.RETRIES  # each found the same edge
     assert _dense_free(robot, world, whole.path[0, : int(whole.path_count[0])]) > 0
+
+
+@pytest.mark.slow
+def test_a_problem_whose_edge_is_not_planned_again_is_searched_again_at_the_resolution(
+    monkeypatch,
+):
+    """A found path whose bad edge cannot be planned again alone (here: every edge of the
+    first search's paths reported bad, and their paths found again reported not to fit) is
+    searched again at the resolution with the seed's next stream of samples, and that path,
+    certified as found, is returned: no search whole with certified edges."""
+    robot = serial.Planar2R(1.0, 0.8, link_radius=0.01)
+    world = collision.World.create(spheres=collision.Spheres.create([[0.0, 0.0, 1.0]], 0.05))
+    start, goal = np.array([-2.0, 1.0]), np.array([-1.0, 2.0])
+    options = dict(SMALL, period=None, range=2.0, resolution=16.0, simplify=False)
+    real, calls = repair.bad_edges, []
+
+    def first_search_all_bad(count, good, solved):
+        calls.append(len(calls))
+        return real(count, good & (len(calls) > 1), solved)
+
+    def nothing_fits(*args):
+        path, count, failed = splice(*args)
+        return path, count, np.ones_like(failed)
+
+    splice = repair.splice
+    monkeypatch.setattr(motion.planner.repair, "bad_edges", first_search_all_bad)
+    monkeypatch.setattr(motion.planner.repair, "splice", nothing_fits)
+    out = motion.plan(robot, start, world, goal=goal, mode="certified", **options)
+    assert motion.status_names(out.status).tolist() == ["SOLVED"]
+    assert out.seconds["edges_searched_again"] >= 1
+    assert out.seconds["retried"] == 1 and out.seconds["searched_again"] == 0
+    assert bool(out.certified[0]) and len(calls) == 2
+    assert _dense_free(robot, world, out.path[0, : int(out.path_count[0])]) > 0
 
 
 @pytest.mark.slow

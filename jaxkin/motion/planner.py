@@ -15,7 +15,9 @@ shared by all or one world per problem:
    clearance balls, states where they leave gaps); an edge that is not (it grazes an
    obstacle between two states, or passes too close to be certified) is planned again
    alone with certified edges, from its first waypoint to its second, and its path replaces
-   it (``repair``); a problem where that fails is searched again whole with certified edges;
+   it (``repair``); a problem where that fails is searched again at the resolution with the
+   seed's next streams of samples (``RETRIES``, another path, certified as found), and
+   where those fail too, whole with certified edges;
 3. the simplification (``simplify.simplify_kernel``, one compiled program over the problems:
    shortcuts, then a natural cubic spline re-checked, or the shortcut polygon; in certified
    mode the shortcuts and the spline's pieces are certified by ``swept`` as well);
@@ -199,8 +201,9 @@ class MotionPlan(NamedStatusRepr):
             ``"parts"`` is the wall time of both stages. ``"search"`` includes the
             certification of the found paths and the second searches (certified mode):
             ``"edges_searched_again"`` counts the edges planned again alone,
-            ``"searched_again"`` the problems searched again whole; ``"loops"`` the search
-            loops' iterations.
+            ``"retried"`` the searches again at the resolution with another stream of
+            samples, ``"searched_again"`` the problems searched again whole with certified
+            edges; ``"loops"`` the search loops' iterations.
     """
 
     status_fields: ClassVar = {"status": MotionStatus, "timing_status": Status}
@@ -411,6 +414,10 @@ SWEPT_CHUNK = 64  # pieces checked per step (swept)
 # obstacle is not taken rather than cut finer (a found path's edges get swept.LEVELS)
 SHORTCUT_LEVELS = 4
 SPLINE_SLOTS = 32  # first pieces of a spline's piece at most (swept)
+# searches again at the resolution, each with the seed's next stream of samples, of a problem
+# whose found path has an edge that neither certifies nor is planned again alone, before its
+# search whole with certified edges (plan)
+RETRIES = 2
 PART_PROBLEMS = 64  # problems per part of a large batch (one search's queue), plan
 TEAM = 4  # lanes per team for several problems (MotionOptions.team None)
 
@@ -431,6 +438,12 @@ def _join(parts: list[Any], take: list[np.ndarray]) -> Any:
         return np.concatenate([v[t] for v, t in zip(host, take, strict=True)])
 
     return jax.tree.map(leaf, *parts)
+
+
+def _rows_of(results: Any, rows: np.ndarray) -> Any:
+    """The rows ``rows`` of every leaf of NumPy results with a problem axis (``_join``),
+    scalars as they are."""
+    return jax.tree.map(lambda leaf: leaf if np.ndim(leaf) == 0 else leaf[rows], results)
 
 
 def _with_rows(base: Any, rows: np.ndarray, other: Any) -> Any:
@@ -773,14 +786,15 @@ def plan(
 
     rounds = -(-slots // options.chunk)
 
-    def scalars(max_iterations: int) -> tuple:
-        """The search's scalar arguments for a budget of ``max_iterations`` edges."""
+    def scalars(max_iterations: int, attempt: int = 0) -> tuple:
+        """The search's scalar arguments for a budget of ``max_iterations`` edges, the
+        stream of samples of the seed's ``attempt``-th search (0: the first)."""
         # a safety cap: the teams share the queue's budgets, and the last problem's own team
         # settles at least one edge per lane every `rounds` iterations
         budget = int(max_iterations) * rounds
         max_loops = budget * size // lanes + budget // team + 4 * size + 16
         return (
-            put(_stream(options.seed), np.uint32),
+            put(_stream(options.seed + attempt), np.uint32),
             put(options.range),
             put(options.domain * options.range),
             put(options.resolution),
@@ -801,7 +815,12 @@ def plan(
         return _rows(worlds, p.world_rows[rows])
 
     def search_args(
-        p: _Problems, rows: np.ndarray, search_mode: str, part_status: np.ndarray, queue: Any
+        p: _Problems,
+        rows: np.ndarray,
+        search_mode: str,
+        part_status: np.ndarray,
+        queue: Any,
+        attempt: int = 0,
     ) -> tuple:
         """The search's arguments for the problems ``rows`` of ``p`` (a part)."""
         clear = p.root_clear[rows]
@@ -818,18 +837,21 @@ def plan(
             put(clear if search_mode == "certified" else clear[..., :0]),
             put(part_status, np.int8),
             put(queue, np.int32),
-            *scalars(p.budget),
+            *scalars(p.budget, attempt),
         )
 
     def checked_paths(part_worlds: Any, path: Any, count: Any) -> tuple:
         """The leading arguments of the programs that check paths (certify, simplify)."""
         return (robot, body, pairs, part_worlds, space, prep.rows, path, count, put(tol))
 
-    def search(p: _Problems, rows: np.ndarray, search_mode: str) -> tuple[Any, ...]:
+    def search(
+        p: _Problems, rows: np.ndarray, search_mode: str, attempt: int = 0
+    ) -> tuple[Any, ...]:
         """Search the problems ``rows`` of ``p`` (a part of equal size: a repeated last row is
-        a copy, never searched) with edges checked in ``search_mode``; whether each edge of
-        each path is certified (``lazy``, discrete search: checked after it, in its time;
-        else True); the seconds."""
+        a copy, never searched) with edges checked in ``search_mode`` (``attempt``: which
+        stream of samples, ``scalars``); whether each edge of each path is certified
+        (``lazy``, discrete search: checked after it, in its time; else True); the
+        seconds."""
         clock = time.perf_counter()
         copy = np.zeros(size, bool)
         copy[1:] = rows[1:] == rows[:-1]
@@ -838,7 +860,8 @@ def plan(
         if queue.size == 0:
             queue = np.zeros(1, np.int32)  # nothing to search: the loop never runs
         found: SearchResult = _search_jit(
-            *search_args(p, rows, search_mode, part_status, queue), config=config(search_mode)
+            *search_args(p, rows, search_mode, part_status, queue, attempt),
+            config=config(search_mode),
         )
         good = np.ones((size, options.path_points - 1), bool)
         if lazy and search_mode == "discrete":
@@ -898,10 +921,12 @@ def plan(
         parts = [g[np.minimum(np.arange(size), g.size - 1)] for g in groups]
         return _batching.run_parts(run, parts), [np.arange(g.size) for g in groups]
 
-    def search_all(p: _Problems, groups: list[np.ndarray], search_mode: str) -> tuple:
+    def search_all(
+        p: _Problems, groups: list[np.ndarray], search_mode: str, attempt: int = 0
+    ) -> tuple:
         """``search`` of each group (``in_parts``), joined (NumPy, the groups' rows in turn);
         the edges certified, the seconds summed over the parts, the loops' iterations."""
-        done, take = in_parts(lambda part: search(p, part, search_mode), groups)
+        done, take = in_parts(lambda part: search(p, part, search_mode, attempt), groups)
         found, good = (_join([part[k] for part in done], take) for k in (0, 1))
         loops = int(np.sum(found.loops))
         found = dataclasses.replace(found, loops=np.int64(loops))
@@ -976,8 +1001,32 @@ def plan(
         iterations = np.array(found.iterations)
         np.add.at(iterations, problem, sub.iterations[back])
         found = dataclasses.replace(found, path=path, count=count, iterations=iterations)
-    # a problem whose edges could not all be planned again: searched again whole, with
-    # certified edges, each part's own together
+    # a problem whose edges could not all be planned again: searched again at the resolution
+    # with the seed's next streams of samples (another path, certified as found: RETRIES),
+    # then whole with certified edges, each part's own together
+    retried = 0
+    for attempt in range(1, RETRIES + 1) if lazy else ():
+        retry_groups = [g[failed[g]] for g in groups if np.any(failed[g])]
+        if not retry_groups:
+            break
+        retry_rows = np.concatenate(retry_groups)
+        found_r, good_r, searching_r, loops_r = search_all(
+            problems, retry_groups, "discrete", attempt
+        )
+        searching, loops, retried = (
+            searching + searching_r,
+            loops + loops_r,
+            retried + retry_rows.size,
+        )
+        solved_r = found_r.status == MotionStatus.SOLVED
+        ok = solved_r & ~np.isin(np.arange(retry_rows.size), repair.bad_edges(
+            found_r.count, good_r, solved_r)[0])  # fmt: skip
+        # the earlier searches' edges count too
+        found_r = dataclasses.replace(
+            found_r, iterations=found_r.iterations + found.iterations[retry_rows]
+        )
+        found = _with_rows(found, retry_rows[ok], _rows_of(found_r, np.flatnonzero(ok)))
+        failed[retry_rows[ok]] = False
     again_groups = [g[failed[g]] for g in groups if np.any(failed[g])]
     again = np.concatenate(again_groups) if again_groups else np.zeros(0, int)
     if again.size:
@@ -996,6 +1045,7 @@ def plan(
     seconds["loops"] = loops
     seconds["edges_searched_again"] = int(problem.size)
     seconds["searched_again"] = int(again.size)
+    seconds["retried"] = retried
     status = found.status
     solved = status == MotionStatus.SOLVED
     clock = time.perf_counter()
