@@ -315,7 +315,8 @@ def test_frame_bounds_hold_their_spheres():
     np.testing.assert_allclose(bounds.scale, scale, rtol=1e-12)
 
 
-@pytest.mark.parametrize("dtype", ["float64", pytest.param("float32", marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
 def test_frame_bounds_give_the_same_verdicts(dtype):
     """``collides_kernel(..., frame_bounds=True)`` (the motion planner's states) passes over
     the obstacles no frame's bound comes near and gives the dense tests' verdicts bit for
