@@ -53,7 +53,7 @@ from jax import Array
 from .._numerics import computed_once
 from .body import GROUP_SIZE, Body
 from .pairs import SelfPairs
-from .rows import BOUND_GROWTH, frames_of, tree_min
+from .rows import bounding_spheres, frames_of, in_frames, tree_min
 
 __all__ = ["CULL_PAIRS", "CULL_SPHERES", "GROUP", "LANES", "Groups", "groups_of", "verdict_rows"]
 
@@ -189,16 +189,10 @@ def verdict_rows(
     members, link = groups.members, groups.link
     n_groups = len(link)
     # the groups' spheres in their carrying frames, and their bounds
-    center = body.sphere_center.astype(dtype)[members]  # (n, GROUP, 3)
+    local = in_frames(homes, body.sphere_center.astype(dtype), body.sphere_link)
+    center = local[members]  # (n, GROUP, 3)
     radius = body.sphere_radius.astype(dtype)[members]  # (n, GROUP)
-    if homes is not None:
-        home = homes[link]
-        center = jnp.einsum("nij,ngj->ngi", home[:, :3, :3], center) + home[:, None, :3, 3]
-    lo = jnp.min(center - radius[..., None], axis=1)
-    hi = jnp.max(center + radius[..., None], axis=1)
-    middle = 0.5 * (lo + hi)
-    reach = jnp.max(jnp.linalg.norm(center - middle[:, None], axis=-1) + radius, axis=1)
-    reach = reach * (1.0 + BOUND_GROWTH)
+    middle, reach = bounding_spheres(center, radius)
     frame = np.asarray(of_link, np.int64)[link]  # (n,)
     r, p = rot[frame], pos[frame]  # (n, 3, 3, W), (n, 3, W)
     placed = [

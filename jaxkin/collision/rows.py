@@ -43,6 +43,7 @@ from .world import OBSTACLE_BUCKET
 
 __all__ = [
     "BOUND_GROWTH",
+    "bounding_spheres",
     "CAPSULE_CHUNK",
     "COMPILER_OPTIONS",
     "FrameBounds",
@@ -52,6 +53,7 @@ __all__ = [
     "distinct_rows",
     "fold",
     "frames_of",
+    "in_frames",
     "loop_pairs",
     "loop_world",
     "place",
@@ -130,10 +132,7 @@ def place_points(
     links = np.asarray(links, dtype=np.int64)
     if not len(links):
         return jnp.zeros((3, 0, rot.shape[-1]), rot.dtype)
-    points = points.astype(rot.dtype)
-    if homes is not None:  # the point in its carrying frame
-        home = homes[links]
-        points = jnp.einsum("kij,kj->ki", home[:, :3, :3], points) + home[:, :3, 3]
+    points = in_frames(homes, points.astype(rot.dtype), links)
     which = np.asarray(of_link, dtype=np.int64)[links]
     r, p = rot[which], pos[which]  # (k, 3, 3, B), (k, 3, B)
     c = points[:, :, None]  # (k, 3, 1)
@@ -142,6 +141,26 @@ def place_points(
         for i in range(3)
     ]
     return jnp.stack(rows)
+
+
+def in_frames(homes: Array | None, points: Array, links: Any) -> Array:
+    """``points (k, 3)`` on ``links`` (static, ``(k,)``) in their carrying frames'
+    coordinates (``homes``: each link's pose in its frame; None: the links are the frames)."""
+    if homes is None:
+        return points
+    home = homes[np.asarray(links, dtype=np.int64)]
+    return jnp.einsum("kij,kj->ki", home[:, :3, :3], points) + home[:, :3, 3]
+
+
+def bounding_spheres(centers: Array, radius: Array) -> tuple[Array, Array]:
+    """Per group of spheres ``(centers (G, K, 3), radius (G, K))``, in one rigid frame (a short
+    group padded by repeating a member), one sphere holding them all: ``g (G, 3)`` the middle
+    of their bounding box, ``R (G,) = (1 + BOUND_GROWTH) max_i (|c_i - g| + r_i)``."""
+    lo = jnp.min(centers - radius[..., None], axis=1)
+    hi = jnp.max(centers + radius[..., None], axis=1)
+    middle = 0.5 * (lo + hi)
+    reach = jnp.max(jnp.linalg.norm(centers - middle[:, None], axis=-1) + radius, axis=1)
+    return middle, reach * (1.0 + BOUND_GROWTH)
 
 
 def place(robot: CollisionRobot, body: Body, q: Array) -> Placed:
@@ -189,10 +208,7 @@ def _frame_bounds(
     width = max(len(i) for i in index)
     # a short group padded by repeating its last sphere (no change to a min or max)
     members = np.stack([np.concatenate([i, np.repeat(i[-1:], width - len(i))]) for i in index])
-    c, r = centers[members], radius[members]  # (G, K, 3), (G, K)
-    middle = 0.5 * (jnp.min(c - r[..., None], axis=1) + jnp.max(c + r[..., None], axis=1))
-    reach = jnp.max(jnp.linalg.norm(c - middle[:, None], axis=-1) + r, axis=1)
-    return middle, reach * (1.0 + BOUND_GROWTH), frames
+    return (*bounding_spheres(centers[members], radius[members]), frames)
 
 
 def _place(
@@ -205,13 +221,9 @@ def _place(
     spheres = place_points(frames, of_link, homes, centers, links)
     frame_bounds = None
     if bounded:
-        local = centers  # the spheres in their carrying frames' coordinates
-        if homes is not None:
-            home = homes[links]
-            local = jnp.einsum("kij,kj->ki", home[:, :3, :3], centers) + home[:, :3, 3]
         frame = np.asarray(of_link, np.int64)[links]
         radius = body.sphere_radius.astype(dtype)
-        middle, reach, which = _frame_bounds(local, radius, frame)
+        middle, reach, which = _frame_bounds(in_frames(homes, centers, links), radius, frame)
         identity = tuple(range(frames[0].shape[0]))
         # stored once: fused into each coarse test, the bounds would be placed again per test
         g = computed_once(place_points(frames, identity, None, middle, which))
