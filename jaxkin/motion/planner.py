@@ -495,7 +495,9 @@ def _edge_problems(
     )
 
 
-REPAIR_BUDGET = 8  # a bad edge's own problem gets this fraction of a problem's budget
+# a bad edge's own problem gets this fraction of a problem's budget: a repair that fails
+# spends all it gets, and its problem is then searched again (RETRIES)
+REPAIR_BUDGET = 32
 
 
 # the collision loops inside the search and the simplification run their bodies 2-5x faster
