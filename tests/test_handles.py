@@ -109,6 +109,7 @@ def test_handles_refuse_bad_arguments_when_made():
         handle(np.zeros((2, 3)))
 
 
+@pytest.mark.slow  # the fast tier keeps the low-latency handles' equality
 def test_collision_handles_equal_the_public_checks_and_rebind_worlds():
     """Collides, check and validate_motions through their handles (float64, batch 1 and 8):
     the public calls' results to the bit; another world of the same layout rebound without
@@ -139,6 +140,7 @@ def test_collision_handles_equal_the_public_checks_and_rebind_worlds():
         verdict.rebound(_world(5, spheres=collision.OBSTACLE_BUCKET + 1))
 
 
+@pytest.mark.slow  # the fast tier is near its 5 minutes
 def test_programs_do_not_grow_with_obstacles_primitives_or_pairs():
     """The verdict's and the check's programs for 10 and 100 obstacles of each kind, and for
     bodies of 60 and 400 spheres (with their self pairs), hold the same operations within a
