@@ -313,12 +313,12 @@ def host_chunks(n: int, chunk: int) -> Iterator[tuple[int, int, np.ndarray]]:
 # ------------------------------------------------------------------ padded small batches
 
 
-def padded_size(size: int) -> int:
+def padded_size(size: int, smallest: int | None = None) -> int:
     """The size a batch of ``size`` elements is computed at: the next power of two, at least
-    ``PAD_MIN``, for ``0 < size <= PAD_MAX``; ``size`` itself otherwise."""
+    ``smallest`` (None: ``PAD_MIN``), for ``0 < size <= PAD_MAX``; ``size`` itself otherwise."""
     if not 0 < size <= PAD_MAX:
         return size
-    return max(PAD_MIN, 1 << (size - 1).bit_length())
+    return max(PAD_MIN if smallest is None else smallest, 1 << (size - 1).bit_length())
 
 
 def shared_geometry(robot: Any) -> bool:

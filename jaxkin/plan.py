@@ -273,10 +273,17 @@ def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
             f"limits must be a Limits for {n} joints (Limits.create({n}, ...)), got {limits!r}"
         )
     own = robot.joint_limits()
-    return dataclasses.replace(
-        limits.tightened(own.lower, own.upper),
-        v_max=jnp.minimum(limits.v_max, own.velocity),
-        a_max=jnp.minimum(limits.a_max, own.acceleration),
+    # on the host (as Limits.create): no program to compile in a fresh process
+    return Limits(
+        *(
+            jax.device_put(bound(*map(np.asarray, pair)))
+            for bound, pair in (
+                (np.maximum, (limits.q_min, own.lower)),
+                (np.minimum, (limits.q_max, own.upper)),
+                (np.minimum, (limits.v_max, own.velocity)),
+                (np.minimum, (limits.a_max, own.acceleration)),
+            )
+        )
     )
 
 
@@ -649,13 +656,16 @@ def _evaluate_impl(
     return jax.tree.map(pick, every)
 
 
-# Candidates are padded (the core of a path: its samples and the target's axes, per call).
-_evaluate_jit = Kernel(_evaluate_impl, static=("branch", "space"), policy=Policy(pad=True))
+# Candidates are padded (the core of a path: its samples and the target's axes, per call) to
+# a power of two from 1: a candidate is a whole path, padding to 64 would multiply its time.
+_evaluate_jit = Kernel(
+    _evaluate_impl, static=("branch", "space"), policy=Policy(pad=True, pad_min=1)
+)
 # With a world: the collision checks' XLA options (their loops over obstacles and pairs)
 _evaluate_world_jit = Kernel(
     _evaluate_impl,
     static=("branch", "space"),
-    policy=Policy(pad=True, compiler_options=collision.rows.COMPILER_OPTIONS),
+    policy=Policy(pad=True, pad_min=1, compiler_options=collision.rows.COMPILER_OPTIONS),
 )
 
 
@@ -750,7 +760,7 @@ def evaluate(
 
     def call(chunk: Jet) -> Evaluation:
         candidates = chunk.shape[0]
-        samples = _batching.padded_size(candidates) * t * held
+        samples = _batching.padded_size(candidates, _evaluate_jit.policy.pad_min) * t * held
         pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
         kernel = _evaluate_jit if collide is None else _evaluate_world_jit
         return kernel(
@@ -914,7 +924,7 @@ def _as_path(path: Any, dt: Any) -> tuple[Jet, float, str]:
 def _weights(weights: Any, n: int) -> Array:
     """Per-joint cost weights ``(n,)``: positive and finite (1 when None)."""
     if weights is None:
-        return jnp.ones(n)
+        return jax.device_put(np.ones(n))  # no program to compile
     arr = np.asarray(weights, dtype=float)
     try:
         arr = np.broadcast_to(arr, (n,)).astype(float)
@@ -922,7 +932,7 @@ def _weights(weights: Any, n: int) -> Array:
         raise ValueError(f"weights must broadcast to shape ({n},), got {arr.shape}") from None
     if not np.all(np.isfinite(arr) & (arr > 0)):
         raise ValueError(f"weights must be positive and finite, got {arr}")
-    return jnp.asarray(arr)
+    return jax.device_put(arr)
 
 
 RANKINGS = ("cost", "duration")

@@ -284,6 +284,9 @@ def test_host_chunks_cover_every_element_with_one_shape():
 )
 def test_padded_size(size, padded):
     assert _batching.padded_size(size) == padded
+    # from 1 (the planner's candidates): powers of two up to the same bound
+    power = 1 << (size - 1).bit_length() if size else 0
+    assert _batching.padded_size(size, 1) == (power if size <= 4096 else size)
 
 
 def _dyad_inputs(batch, seed):
@@ -359,10 +362,24 @@ def test_padding_broadcasts_batched_arguments_and_leaves_the_rest_alone(monkeypa
     assert large.c.shape == (size, 2)
 
 
-def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_axis():
-    """The planner pads its candidates (5 and 7 share one program; a path's samples are not
-    a batch axis); the Newton IK's history keeps its step axis first."""
+def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_axis(
+    monkeypatch,
+):
+    """The planner pads its candidates (5 and 7 share one program, of 8 candidates: each is
+    a whole path, not padded to 64; a path's samples are not a batch axis); the Newton IK's
+    history keeps its step axis first."""
     from jaxkin import paths, plan, scara
+    from jaxkin._execute import Kernel
+
+    run_at = []  # the batch shapes the planner's kernel runs at
+    run_whole = Kernel.whole
+
+    def recording_whole(self, args, kwargs, batch):
+        if self is plan._evaluate_jit:
+            run_at.append(batch)
+        return run_whole(self, args, kwargs, batch)
+
+    monkeypatch.setattr(Kernel, "whole", recording_whole)
 
     robot = scara.Scara.paper()
     rng = np.random.default_rng(6)
@@ -375,6 +392,7 @@ def test_planner_candidates_and_newton_histories_are_padded_along_their_batch_ax
         results.append(plan.evaluate(robot, parts[1]))
     # 7 candidates reuse the program compiled for 5
     assert count.compiled(plan._evaluate_jit.jitted.__name__) == 0
+    assert run_at == [(8,), (8,)]
     for part, got in zip(parts, results, strict=True):
         limits, weights = plan.robot_limits(robot, None), np.ones(3)
         want = plan._evaluate_jit.jitted(robot, part.jet, limits, part.dt, weights, 1, "task")

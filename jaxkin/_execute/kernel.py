@@ -51,6 +51,9 @@ class Policy:
     Attributes:
         pad: concrete batches of at most ``_batching.PAD_MAX`` elements run padded to a power
             of two: batch sizes share one compilation per size class.
+        pad_min: the smallest padded size (None: ``_batching.PAD_MIN``); 1 for a kernel
+            whose every element is costly (a planner's candidate: a whole path), where
+            padding one element to ``PAD_MIN`` would multiply its time.
         threads: large concrete batches are split across the host threads, for loop-bound
             (iterative) kernels.
         min_part: fewest elements per host-thread part (None: ``_batching.MIN_PART``).
@@ -70,6 +73,7 @@ class Policy:
     """
 
     pad: bool = True
+    pad_min: int | None = None
     threads: bool = False
     min_part: int | None = None
     constant_geometry: bool = False
@@ -148,7 +152,7 @@ class Kernel:
             return self.direct(*args, **kwargs)
         batch = tuple(int(d) for d in batch)
         size = math.prod(batch)
-        padded = _batching.padded_size(size)
+        padded = _batching.padded_size(size, self.policy.pad_min)
         if (
             not self.policy.pad
             or not pad
