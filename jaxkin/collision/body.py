@@ -260,7 +260,8 @@ class Body:
         dtype = dtype or jnp.result_type(float)
 
         def arr(x: Any, tail: tuple[int, ...] = ()) -> jax.Array:
-            return jnp.asarray(np.asarray(x, dtype=float).reshape(-1, *tail), dtype=dtype)
+            # converted on the host: an eager conversion would compile a program per process
+            return jax.device_put(np.asarray(x, dtype=float).reshape(-1, *tail).astype(dtype))
 
         return cls(
             arr(s_c, (3,)),

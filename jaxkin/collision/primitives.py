@@ -100,7 +100,7 @@ class Spheres:
 
     @classmethod
     def create(cls, center: ArrayLike, radius: ArrayLike, dtype=None) -> Spheres:
-        return cls(*map(jnp.asarray, _sphere_arrays(center, radius, dtype)))
+        return cls(*map(jax.device_put, _sphere_arrays(center, radius, dtype)))
 
     @classmethod
     def empty(cls, dtype=None) -> Spheres:
@@ -125,7 +125,7 @@ class Capsules:
         pa, pb = _floats(a, "a", (3,), dtype), _floats(b, "b", (3,), dtype)
         _count("Capsules", pa, pb, axes=(2, 2))
         r = _floats(_per_primitive(radius, "radius", pa.shape[:-1]), "radius", (), dtype)
-        return cls(jnp.asarray(pa), jnp.asarray(pb), jnp.asarray(_nonnegative(r, "radius")))
+        return cls(*map(jax.device_put, (pa, pb, _nonnegative(r, "radius"))))
 
     @classmethod
     def empty(cls, dtype=None) -> Capsules:
@@ -175,7 +175,7 @@ class Boxes:
             rotation = np.broadcast_to(np.eye(3), (*c.shape[:-1], 3, 3))
         rot = _rotations(rotation, dtype)
         _count("Boxes", c, rot, axes=(2, 3))
-        return cls(jnp.asarray(c), jnp.asarray(rot), jnp.asarray(h))
+        return cls(*map(jax.device_put, (c, rot, h)))
 
     @classmethod
     def empty(cls, dtype=None) -> Boxes:
@@ -234,10 +234,10 @@ class Cylinders:
         )
         unit = (direction / length).astype(c.dtype)
         return cls(
-            jnp.asarray(c),
-            jnp.asarray(unit),
-            jnp.asarray(_nonnegative(r, "radius")),
-            jnp.asarray(_nonnegative(h, "half_length")),
+            jax.device_put(c),
+            jax.device_put(unit),
+            jax.device_put(_nonnegative(r, "radius")),
+            jax.device_put(_nonnegative(h, "half_length")),
         )
 
     @classmethod
@@ -265,7 +265,7 @@ class HalfSpaces:
         if np.any(length == 0):
             raise ValueError("normal must be non-zero vectors")
         o = _floats(_per_primitive(offset, "offset", n.shape[:-1]), "offset", (), dtype)
-        return cls(jnp.asarray(n / length), jnp.asarray(o / length[..., 0]))
+        return cls(jax.device_put(n / length), jax.device_put(o / length[..., 0]))
 
     @classmethod
     def empty(cls, dtype=None) -> HalfSpaces:
