@@ -23,6 +23,32 @@ def is_concrete(x: Any) -> bool:
     return not isinstance(x, jax.core.Tracer)
 
 
+def as_array(x: Any, dtype: Any = None) -> Any:
+    """``x`` as an array of ``dtype`` (None: its own): a NumPy array when ``x`` is concrete
+    (converted on the host: JAX's eager conversion compiles a program in every fresh process),
+    else ``jnp.asarray``. A concrete ``jax.Array`` already in ``dtype`` is kept as it is."""
+    if not is_concrete(x):
+        return jnp.asarray(x, dtype)
+    if isinstance(x, jax.Array) and (dtype is None or x.dtype == jnp.dtype(dtype)):
+        return x
+    return np.asarray(x, dtype)
+
+
+def on_device(x: Any, dtype: Any = None) -> Any:
+    """``x`` as a device array of ``dtype``, converted on the host when concrete
+    (``as_array``); a traced ``x`` through ``jnp.asarray``."""
+    if not is_concrete(x):
+        return jnp.asarray(x, dtype)
+    return jax.device_put(as_array(x, dtype))
+
+
+def broadcast(x: Any, shape: tuple[int, ...]) -> Any:
+    """``x`` broadcast to ``shape``, on the host for a NumPy array (``as_array``)."""
+    if isinstance(x, np.ndarray | np.generic):
+        return np.broadcast_to(x, shape)
+    return jnp.broadcast_to(x, shape)
+
+
 def as_jet(x: Jet | ArrayLike, name: str, coords: int | None) -> Jet:
     """Accept a Jet, or a plain array of positions (taken at rest); check the last axis."""
     jet = x if isinstance(x, Jet) else Jet.constant(x)

@@ -482,7 +482,7 @@ def _limit(x: ArrayLike, name: str, n: int, dtype: Any) -> Array:
             raise ValueError(f"{name}: expected shape (..., {n}) (one per joint), got {raw.shape}")
         if not np.all(raw >= 0):
             raise ValueError(f"{name} must be non-negative (inf for no limit), got {raw}")
-    arr = jnp.asarray(x, dtype)
+    arr = _validate.as_array(x, dtype)
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise ValueError(f"{name}: expected shape (..., {n}) (one per joint), got {arr.shape}")
     return arr
@@ -491,7 +491,7 @@ def _limit(x: ArrayLike, name: str, n: int, dtype: Any) -> Array:
 def _speed(x: ArrayLike, name: str, dtype: Any) -> Array:
     if _validate.is_concrete(x) and not np.all(np.asarray(x, dtype=float) >= 0):
         raise ValueError(f"{name} must be a non-negative path speed, got {x!r}")
-    return jnp.asarray(x, dtype)
+    return _validate.as_array(x, dtype)
 
 
 def retime(
@@ -552,7 +552,7 @@ def retime(
                 f"path.{name}: expected the shape of path.q {q.shape}, "
                 f"got {jnp.shape(getattr(path, name))}"
             )
-    s = jnp.asarray(path.s, dtype)
+    s = _validate.as_array(path.s, dtype)
     if s.ndim < 1 or s.shape[-1] != m:
         raise ValueError(f"path.s: expected shape (..., {m}), got {s.shape}")
     if _validate.is_concrete(path.s):
@@ -573,15 +573,16 @@ def retime(
             "end_speed": tuple(x_end.shape),
         }
     )
+    # (on the host where concrete: no eager program compiled per process)
     full = JointPath(
-        jnp.broadcast_to(s, (*batch, m)),
-        jnp.broadcast_to(q.astype(dtype), (*batch, m, n)),
-        jnp.broadcast_to(jnp.asarray(path.dq, dtype), (*batch, m, n)),
-        jnp.broadcast_to(jnp.asarray(path.ddq, dtype), (*batch, m, n)),
+        _validate.broadcast(s, (*batch, m)),
+        _validate.broadcast(_validate.as_array(path.q, dtype), (*batch, m, n)),
+        _validate.broadcast(_validate.as_array(path.dq, dtype), (*batch, m, n)),
+        _validate.broadcast(_validate.as_array(path.ddq, dtype), (*batch, m, n)),
     )
     # Broadcast here, so that shared and per-candidate limits use one compiled program.
-    v, a = (jnp.broadcast_to(x, (*batch, n)) for x in (v, a))
-    x_start, x_end = (jnp.broadcast_to(x, batch) for x in (x_start, x_end))
+    v, a = (_validate.broadcast(x, (*batch, n)) for x in (v, a))
+    x_start, x_end = (_validate.broadcast(x, batch) for x in (x_start, x_end))
     return _retime(full, v, a, x_start, x_end, scheme, speed_bound)
 
 
@@ -692,7 +693,7 @@ def sample(
             f"{timing.t.shape[-1]}"
         )
     dtype = timing.t.dtype
-    times = jnp.arange(num, dtype=dtype) * jnp.asarray(period, dtype)
+    times = np.arange(num, dtype=dtype) * np.asarray(period, dtype)  # on the host
     return _sample(path, timing, times)
 
 

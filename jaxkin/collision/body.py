@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 from numpy.typing import ArrayLike  # host data: lists too
 
+from .._validate import on_device
 from .primitives import Capsules, Spheres, _sphere_arrays
 
 __all__ = ["GROUP_SIZE", "MAX_BOUNDS", "Body"]
@@ -260,8 +261,7 @@ class Body:
         dtype = dtype or jnp.result_type(float)
 
         def arr(x: Any, tail: tuple[int, ...] = ()) -> jax.Array:
-            # converted on the host: an eager conversion would compile a program per process
-            return jax.device_put(np.asarray(x, dtype=float).reshape(-1, *tail).astype(dtype))
+            return on_device(np.asarray(x, dtype=float).reshape(-1, *tail), dtype)
 
         return cls(
             arr(s_c, (3,)),

@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._validate import owned_float
+from .._validate import on_device, owned_float
 from . import distance as sd
 from .primitives import Boxes, Capsules, Cylinders, HalfSpaces, Spheres
 
@@ -110,7 +110,7 @@ class World:
         """This world in ``dtype``: itself when every field is in it already (no copy)."""
         if all(jnp.result_type(x) == dtype for x in jax.tree.leaves(self)):
             return self
-        return jax.tree.map(lambda x: x.astype(dtype), self)
+        return jax.tree.map(lambda x: on_device(x, dtype), self)
 
     def bucketed(self) -> World:
         """This world with each kind's obstacles padded to a multiple of ``OBSTACLE_BUCKET``

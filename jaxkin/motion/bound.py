@@ -59,6 +59,7 @@ import numpy as np
 from jax import Array
 
 from .._execute import Kernel
+from .._validate import on_device
 from . import collider
 from .space import joint_space
 
@@ -104,9 +105,9 @@ class MotionBound:
         return jnp.concatenate([self.prims, self.pairs])
 
     def astype(self, dtype: Any) -> MotionBound:
-        curvature = None if self.curvature is None else jnp.asarray(self.curvature, dtype)
+        curvature = None if self.curvature is None else on_device(self.curvature, dtype)
         return MotionBound(
-            jnp.asarray(self.prims, dtype), jnp.asarray(self.pairs, dtype), self.proved, curvature
+            on_device(self.prims, dtype), on_device(self.pairs, dtype), self.proved, curvature
         )
 
 
@@ -132,11 +133,12 @@ def curvature_bound(curvature: Array, dq: Array) -> Array:
     return jnp.einsum("...j,pjk,...k->...p", a, curvature.astype(dq.dtype), a)
 
 
-def speed_rows(bound: MotionBound, body: Any) -> Array:
+def speed_rows(bound: MotionBound, body: Any) -> np.ndarray:
     """The rows ``(L + Q, n)`` of ``collider.clearances``' distances: each link with geometry
-    (``collider.link_groups``: its primitives share its row), then each self pair."""
-    first = collider.link_groups(body)[:, 0]
-    return jnp.concatenate([jnp.asarray(bound.prims)[first], jnp.asarray(bound.pairs)])
+    (``collider.link_groups``: its primitives share its row), then each self pair (host
+    side, a NumPy array)."""
+    first = np.asarray(collider.link_groups(body))[:, 0]
+    return np.concatenate([np.asarray(bound.prims)[first], np.asarray(bound.pairs)])
 
 
 def _twists(robot: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -146,8 +148,8 @@ def _twists(robot: Any, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     def poses_and_jacobian(x: Array) -> tuple[Array, Array]:
         return robot.link_poses(x), jax.jacfwd(robot.link_poses)(x)
 
-    q_jax = jnp.asarray(q, jnp.result_type(float))  # float64 when x64 is on
-    poses, jac = Kernel(jax.vmap(poses_and_jacobian))(q_jax)  # (K, L, 4, 4), (K, L, 4, 4, n)
+    q_host = np.asarray(q, jnp.result_type(float))  # float64 when x64 is on
+    poses, jac = Kernel(jax.vmap(poses_and_jacobian))(q_host)  # (K, L, 4, 4), (K, L, 4, 4, n)
     poses, jac = np.asarray(poses, float), np.asarray(jac, float)
     inv = np.linalg.inv(poses)
     xi = np.einsum("klijn,kljm->klnim", jac, inv)
@@ -279,10 +281,10 @@ def motion_bound(robot: Any, body: Any, link_pairs: Any) -> MotionBound:
     prim_link = np.asarray(tuple(body.sphere_link) + tuple(body.capsule_link), int)
     n = rows.shape[1]
     return MotionBound(
-        jnp.asarray(rows[prim_link].reshape(-1, n)),
-        jnp.asarray(pair_rows),
+        on_device(rows[prim_link].reshape(-1, n)),
+        on_device(pair_rows),
         proved,
-        None if curvature is None else jnp.asarray(curvature[prim_link].reshape(-1, n, n)),
+        None if curvature is None else on_device(curvature[prim_link].reshape(-1, n, n)),
     )
 
 

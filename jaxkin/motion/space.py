@@ -26,6 +26,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax import Array
 
+from .._validate import on_device
+
 __all__ = ["JointSpace", "hashed_uniform", "joint_space"]
 
 
@@ -72,7 +74,7 @@ class JointSpace:
     wraps: bool = dataclasses.field(metadata=dict(static=True), default=True)
 
     def astype(self, dtype: Any) -> JointSpace:
-        return jax.tree.map(lambda x: jnp.asarray(x, dtype), self)
+        return jax.tree.map(lambda x: on_device(x, dtype), self)
 
     def wrap(self, delta: Array, axis: int = -1) -> Array:
         """``delta`` with its continuous entries wrapped to ``[-pi, pi)``; ``axis``: the one

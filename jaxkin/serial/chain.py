@@ -343,10 +343,16 @@ class Chain(Robot):
     def length_scale(self) -> Any:
         """``|p_home|`` plus the distances of the revolute axes from the base origin (``|v_i|``
         of their screws); 1 when all are zero."""
-        rotating = jnp.any(self.screws[:, :3] != 0, axis=-1)
-        offsets = jnp.where(rotating, safe_norm(self.screws[:, 3:], axis=-1), 0.0)
-        total = safe_norm(self.home[:3, 3]) + jnp.sum(offsets)
-        return jnp.where(total > 0, total, 1.0)
+        screws, home = self.screws, self.home
+        xp, norm = jnp, safe_norm
+        if _validate.is_concrete(screws) and _validate.is_concrete(home):
+            # on the host: eager JAX operations would compile a program each per process
+            screws, home = np.asarray(screws), np.asarray(home)
+            xp, norm = np, np.linalg.norm
+        rotating = xp.any(screws[:, :3] != 0, axis=-1)
+        offsets = xp.where(rotating, norm(screws[:, 3:], axis=-1), 0.0)
+        total = norm(home[:3, 3]) + xp.sum(offsets)
+        return xp.where(total > 0, total, 1.0)
 
     def reach(self) -> tuple[Array, Array]:
         """``(centre (3,), radius)``: ``|p_tip(q) - centre| <= radius`` for every ``q`` within
