@@ -43,9 +43,12 @@ def on_device(x: Any, dtype: Any = None) -> Any:
 
 
 def broadcast(x: Any, shape: tuple[int, ...]) -> Any:
-    """``x`` broadcast to ``shape``, on the host for a NumPy array (``as_array``)."""
-    if isinstance(x, np.ndarray | np.generic):
-        return np.broadcast_to(x, shape)
+    """``x`` broadcast to ``shape``: itself when it has that shape, else on the host when
+    concrete (``as_array``)."""
+    if np.shape(x) == tuple(shape):
+        return x
+    if is_concrete(x):
+        return np.broadcast_to(np.asarray(x), shape)
     return jnp.broadcast_to(x, shape)
 
 

@@ -23,6 +23,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
@@ -65,11 +66,20 @@ class Jet:
     @classmethod
     def of(cls, p: ArrayLike, v: ArrayLike | None = None, a: ArrayLike | None = None) -> Jet:
         """Build a Jet from arrays, filling missing rates with zeros and sharing one dtype."""
-        arrays = [jnp.asarray(x) for x in (p, v, a) if x is not None]
-        dtype = jnp.result_type(*arrays, float)
-        p = jnp.asarray(p, dtype)
-        v = jnp.zeros_like(p) if v is None else jnp.asarray(v, dtype)
-        a = jnp.zeros_like(p) if a is None else jnp.asarray(a, dtype)
+        # host data converted on the host and put once: no eager program compiled per process
+        given = [x for x in (p, v, a) if x is not None]
+        dtype = jnp.result_type(
+            *(x if isinstance(x, jax.Array) else np.asarray(x) for x in given), float
+        )
+
+        def put(x: Any) -> Array:
+            if isinstance(x, jax.Array):
+                return jnp.asarray(x, dtype)
+            return jax.device_put(np.asarray(x, dtype))
+
+        p = put(p)
+        v = put(np.zeros(p.shape, dtype)) if v is None else put(v)
+        a = put(np.zeros(p.shape, dtype)) if a is None else put(a)
         return cls(p, v, a)
 
     @property

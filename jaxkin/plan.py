@@ -258,7 +258,7 @@ class Evaluation(SolverResult):
             raise ValueError(
                 "evaluation carries no limits: use the Evaluation returned by plan.evaluate"
             )
-        return Limits(*(jnp.asarray(np.asarray(x, dtype=float)) for x in self.limits))
+        return Limits(*(jax.device_put(np.asarray(x, dtype=float)) for x in self.limits))
 
 
 def robot_limits(robot: Robot, limits: Limits | None) -> Limits:
@@ -958,8 +958,8 @@ def joint_path(evaluation: Evaluation) -> _timing.JointPath:
     if evaluation.dt is None:
         raise ValueError("evaluation has no dt: use the Evaluation returned by plan.evaluate")
     q = evaluation.q
-    times = jnp.arange(q.shape[-2], dtype=q.dtype) * jnp.asarray(evaluation.dt, q.dtype)
-    return _timing.JointPath(jnp.broadcast_to(times, q.shape[:-1]), q.p, q.v, q.a)
+    times = np.arange(q.shape[-2], dtype=q.dtype) * np.asarray(evaluation.dt, q.dtype)  # host
+    return _timing.JointPath(np.broadcast_to(times, q.shape[:-1]), q.p, q.v, q.a)
 
 
 def retime(

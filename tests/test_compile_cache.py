@@ -168,3 +168,59 @@ def test_second_command_run_compiles_nothing(tmp_path):
     assert first_misses > 0 and second_hits > 0 and first_exports > 0
     assert second_misses == 0 and second_exports == 0, counts
     assert list((tmp_path / "home" / "jaxkin" / "programs").glob("*.program"))
+
+
+_BOUNDARY_RUN = """
+import jax
+from jax import monitoring
+
+jax.config.update("jax_enable_x64", True)
+
+compiled = []
+monitoring.register_event_duration_secs_listener(
+    lambda event, duration, **kw: compiled.append(str(kw.get("fun_name", "")))
+    if event == "/jax/core/compile/backend_compile_duration"
+    else None
+)
+import numpy as np
+
+from jaxkin import collision, motion, paths, plan, serial
+
+robot = serial.Planar2R(1.0, 0.8, link_radius=0.05)
+world = collision.World.create(
+    spheres=collision.Spheres.create([[1.2, 0.6, 0.0]], 0.25),
+    capsules=collision.Capsules.create([[-0.2, 1.3, -0.2]], [[-0.2, 1.3, 0.2]], 0.15),
+)
+small = dict(lanes=2, capacity=256, path_points=32, spline_states=256, grid=64)
+result = motion.plan(robot, np.array([0.0, 0.3]), world, goal=np.array([2.5, 0.4]), **small)
+assert result.solved[0]
+collision.check(robot, np.zeros((3, 2)), world.astype(np.float32))
+way = np.array([[[0.0, 0.3], [0.5, 0.2], [1.0, 0.1]]])
+limits = plan.Limits.create(2, v_max=[2.0, 2.0], a_max=[8.0, 8.0])
+path = paths.path_from_joint_waypoints(way, 0.05, 10)
+plan.retime(plan.evaluate(robot, path, limits, world=world))
+print("COMPILED", " ".join(compiled))
+"""
+
+
+def test_a_fresh_process_compiles_only_the_library_s_kernels(tmp_path):
+    """The boundary work (worlds and bodies made and converted, a robot's size, the motion
+    bound, the planner's limits, paths, the timing's inputs) is done on the host: a fresh
+    process that plans a motion, checks a world and evaluates and retimes a path compiles its
+    kernels and no eager JAX operation (each of which a fresh process would compile again)."""
+    env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=jax.config.jax_compilation_cache_dir)
+    proc = subprocess.run(
+        [sys.executable, "-c", _BOUNDARY_RUN],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=tmp_path,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stderr
+    names = next(x for x in proc.stdout.splitlines() if x.startswith("COMPILED")).split()[1:]
+    functions = [name.removeprefix("jit(").removesuffix(")") for name in names]
+    operations = set(dir(jax.lax)) | set(dir(jnp)) | {"stage"}
+    eager = [f for f in functions if f.strip("_").replace("-", "_") in operations]
+    assert {"search_kernel", "check_kernel", "_evaluate_impl", "_retime"} <= set(functions)
+    assert not eager, eager

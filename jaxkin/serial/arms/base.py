@@ -14,12 +14,14 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, ClassVar
 
+import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import Array
 from jax.typing import ArrayLike
 
 from ... import _batching, _validate
-from ..._execute import solve_fk, solve_ik
+from ..._execute import Kernel, solve_fk, solve_ik
 from ...collision.body import Body
 from ...collision.check import chain_self_pairs
 from ...jet import Jet
@@ -53,16 +55,22 @@ class Arm(Robot, abstract=True):
     def joint_names(self) -> tuple[str, ...]:
         return tuple(f"q{i + 1}" for i in range(len(self.joint_types)))
 
+    def _length_fields(self) -> tuple[Any, ...]:
+        """The length fields as given, in field order (``link_radius`` is not one)."""
+        fields = dataclasses.fields(self)  # type: ignore[arg-type]
+        return tuple(getattr(self, f.name) for f in fields if f.name != "link_radius")
+
     def lengths(self, dtype) -> tuple[Array, ...]:
         """Every length field cast to ``dtype`` (in field order; ``link_radius`` is not one)."""
-        return tuple(
-            jnp.asarray(getattr(self, f.name)).astype(dtype)
-            for f in dataclasses.fields(self)  # type: ignore[arg-type]
-            if f.name != "link_radius"
-        )
+        return tuple(jnp.asarray(x).astype(dtype) for x in self._length_fields())
 
     def length_scale(self) -> Any:
         """The sum of the absolute values of the arm's lengths."""
+        given = self._length_fields()
+        if all(_validate.is_concrete(x) for x in given):
+            # on the host: eager JAX operations would compile a program each per process
+            dtype = jnp.result_type(float)
+            return np.asarray(sum(np.abs(np.asarray(x, dtype)) for x in given), dtype)
         return sum(jnp.abs(x) for x in self.lengths(jnp.result_type(float)))
 
     def workspace_box(self) -> tuple[tuple[tuple[float, float], ...], float]:
@@ -107,6 +115,12 @@ class Arm(Robot, abstract=True):
         (traceable)."""
         if self.batch_shape():
             raise ValueError(f"{type(self).__name__}.collision_body: needs an unbatched geometry")
+        if all(_validate.is_concrete(x) for x in jax.tree.leaves(self)):
+            return _capsule_body_jit(self)  # one program, not an eager operation per line
+        return self._capsule_body()
+
+    def _capsule_body(self) -> Body:
+        """``collision_body``'s capsules, traced."""
         table = self.dh_table()
         sa, ca = jnp.sin(table.alpha), jnp.cos(table.alpha)
         reach = self.length_scale()
@@ -220,3 +234,10 @@ def fk(robot: Arm, q: Jet | ArrayLike) -> FKResult:
     """
     robot = _check_arm(robot)
     return solve_fk(robot, q, robot.FKOptions())
+
+
+def _capsule_body_kernel(arm: Arm) -> Body:
+    return arm._capsule_body()
+
+
+_capsule_body_jit = Kernel(_capsule_body_kernel)
