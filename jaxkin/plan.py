@@ -959,7 +959,7 @@ def joint_path(evaluation: Evaluation) -> _timing.JointPath:
         raise ValueError("evaluation has no dt: use the Evaluation returned by plan.evaluate")
     q = evaluation.q
     times = np.arange(q.shape[-2], dtype=q.dtype) * np.asarray(evaluation.dt, q.dtype)  # host
-    return _timing.JointPath(np.broadcast_to(times, q.shape[:-1]), q.p, q.v, q.a)
+    return _timing.JointPath(jax.device_put(np.broadcast_to(times, q.shape[:-1])), q.p, q.v, q.a)
 
 
 def retime(

@@ -541,10 +541,11 @@ def retime(
         )
     _validate.choice(scheme, "scheme", SCHEMES)
     _validate.choice(speed_bound, "speed_bound", SPEED_BOUNDS)
-    q = jnp.asarray(path.q)
+    q = _validate.as_array(path.q)
     if q.ndim < 2 or q.shape[-2] < 2:
         raise ValueError(f"path.q: expected shape (..., M, n) with M >= 2, got {q.shape}")
-    dtype = q.dtype if jnp.issubdtype(q.dtype, jnp.inexact) else jnp.result_type(float)
+    inexact = jnp.issubdtype(q.dtype, jnp.inexact)
+    dtype = jax.dtypes.canonicalize_dtype(q.dtype) if inexact else jnp.result_type(float)
     m, n = q.shape[-2:]
     for name in ("dq", "ddq"):
         if jnp.shape(getattr(path, name)) != q.shape:
@@ -686,7 +687,7 @@ def sample(
         longest = float(np.max(durations, initial=0.0))
         num = int(math.floor(longest / period * (1.0 + 1e-12))) + 1
     num = _validate.count(num, "num")
-    q = jnp.asarray(path.q)
+    q = _validate.as_array(path.q)
     if q.shape[-2] != timing.t.shape[-1]:
         raise ValueError(
             f"path and timing disagree: path has {q.shape[-2]} grid points, timing "

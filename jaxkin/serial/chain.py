@@ -344,7 +344,8 @@ class Chain(Robot):
         """``|p_home|`` plus the distances of the revolute axes from the base origin (``|v_i|``
         of their screws); 1 when all are zero."""
         screws, home = self.screws, self.home
-        xp, norm = jnp, safe_norm
+        xp: Any = jnp
+        norm: Any = safe_norm
         if _validate.is_concrete(screws) and _validate.is_concrete(home):
             # on the host: eager JAX operations would compile a program each per process
             screws, home = np.asarray(screws), np.asarray(home)
