@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import subprocess
+import sys
 from collections.abc import Callable, Collection, Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -137,3 +139,18 @@ def gradient_against_differences(
             minus[i][idx] -= h
             num[idx] = (float(fn(*plus)) - float(fn(*minus))) / (2 * h)
         np.testing.assert_allclose(np.asarray(g), num, atol=tol, err_msg=f"argument {i}")
+
+
+def script_line(script: str, prefix: str, cwd: Path, env: dict, *argv: str) -> list[str]:
+    """Run the Python source ``script`` (with ``argv``) in a fresh process and return the
+    words after ``prefix`` on the line of its output that starts with it."""
+    proc = subprocess.run(
+        [sys.executable, "-c", script, *argv],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        cwd=cwd,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return next(x for x in proc.stdout.splitlines() if x.startswith(prefix)).split()[1:]

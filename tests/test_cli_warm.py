@@ -5,8 +5,6 @@ written are byte for byte those of the first run (and of a run with the cache of
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +14,8 @@ import jaxkin
 from jaxkin import paths, serial
 from jaxkin._execute import cache
 from jaxkin.jet import Jet
+
+from .helpers import script_line
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -36,17 +36,7 @@ sys.exit(code)
 
 
 def _counted_run(tmp_path, env, argv):
-    proc = subprocess.run(
-        [sys.executable, "-c", _COUNTING_RUN, *argv],
-        capture_output=True,
-        text=True,
-        timeout=900,
-        cwd=tmp_path,
-        env=env,
-    )
-    assert proc.returncode == 0, proc.stderr
-    line = next(x for x in proc.stdout.splitlines() if x.startswith("COUNTS"))
-    return tuple(int(x) for x in line.split()[1:])
+    return tuple(int(x) for x in script_line(_COUNTING_RUN, "COUNTS", tmp_path, env, *argv))
 
 
 @pytest.mark.slow

@@ -21,6 +21,8 @@ from jax.experimental.compilation_cache import compilation_cache as jax_cache
 import jaxkin
 from jaxkin._execute import cache as _compile_cache
 
+from .helpers import script_line
+
 
 @pytest.fixture
 def restore_jax_cache():
@@ -153,17 +155,8 @@ def test_second_command_run_compiles_nothing(tmp_path):
         xyz = np.c_[t, 100 + 20 * np.sin(t + phase), -20 * np.cos(t), 50 + 10 * t]
         np.savetxt(tmp_path / "in.csv", xyz, delimiter=",", header="t,x,y,z", comments="")
         argv = ["ik", "scara", "--robot", "paper", "-q", "-i", "in.csv", "-o", f"out{run}.csv"]
-        proc = subprocess.run(
-            [sys.executable, "-c", _COUNTING_RUN, *argv],
-            capture_output=True,
-            text=True,
-            timeout=600,
-            cwd=tmp_path,
-            env=env,
-        )
-        assert proc.returncode == 0, proc.stderr
-        line = next(x for x in proc.stdout.splitlines() if x.startswith("COUNTS"))
-        counts.append(tuple(int(x) for x in line.split()[1:]))
+        counted = script_line(_COUNTING_RUN, "COUNTS", tmp_path, env, *argv)
+        counts.append(tuple(int(x) for x in counted))
     (_, first_misses, first_exports), (second_hits, second_misses, second_exports) = counts
     assert first_misses > 0 and second_hits > 0 and first_exports > 0
     assert second_misses == 0 and second_exports == 0, counts
@@ -209,16 +202,7 @@ def test_a_fresh_process_compiles_only_the_library_s_kernels(tmp_path):
     process that plans a motion, checks a world and evaluates and retimes a path compiles its
     kernels and no eager JAX operation (each of which a fresh process would compile again)."""
     env = dict(os.environ, JAX_COMPILATION_CACHE_DIR=jax.config.jax_compilation_cache_dir)
-    proc = subprocess.run(
-        [sys.executable, "-c", _BOUNDARY_RUN],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        cwd=tmp_path,
-        env=env,
-    )
-    assert proc.returncode == 0, proc.stderr
-    names = next(x for x in proc.stdout.splitlines() if x.startswith("COMPILED")).split()[1:]
+    names = script_line(_BOUNDARY_RUN, "COMPILED", tmp_path, env)
     functions = [name.removeprefix("jit(").removesuffix(")") for name in names]
     operations = set(dir(jax.lax)) | set(dir(jnp)) | {"stage"}
     eager = [f for f in functions if f.strip("_").replace("-", "_") in operations]
