@@ -187,12 +187,6 @@ class Limits:
                 raise ValueError(f"{name} must be >= 0, got {arr}")
         return cls(*(jax.device_put(x) for x in (q_lo, q_hi, v, a)))  # no program to compile
 
-    def tightened(self, q_min: ArrayLike, q_max: ArrayLike) -> Limits:
-        """These limits intersected with a position range (e.g. the robot's own)."""
-        return dataclasses.replace(
-            self, q_min=jnp.maximum(self.q_min, q_min), q_max=jnp.minimum(self.q_max, q_max)
-        )
-
 
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
@@ -760,9 +754,9 @@ def evaluate(
 
     def call(chunk: Jet) -> Evaluation:
         candidates = chunk.shape[0]
-        samples = _batching.padded_size(candidates, _evaluate_jit.policy.pad_min) * t * held
-        pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
         kernel = _evaluate_jit if collide is None else _evaluate_world_jit
+        samples = _batching.padded_size(candidates, kernel.policy.pad_min) * t * held
+        pad = samples <= _batching.PLAN_PAD_SAMPLES and {"path": 1 + len(target)}
         return kernel(
             robot,
             chunk,

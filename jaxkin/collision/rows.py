@@ -54,6 +54,7 @@ __all__ = [
     "fold",
     "frames_of",
     "in_frames",
+    "index_groups",
     "loop_pairs",
     "loop_world",
     "place",
@@ -178,7 +179,7 @@ class FrameBounds:
     Attributes:
         center: ``(3, G, B)`` rows: ``g``, the middle of the bounding box of the frame's
             spheres in its own coordinates, placed.
-        reach: ``(G, 1)``: ``R = (1 + 1e-5) max_i (|c_i - g| + r_i)`` over the frame's
+        reach: ``(G, 1)``: ``R = (1 + BOUND_GROWTH) max_i (|c_i - g| + r_i)`` over the frame's
             spheres ``(c_i, r_i)`` (a rigid motion keeps it), so every sphere lies in the ball
             ``(g, R)``: ``|c_i - g| <= R - r_i``.
         scale: ``(B,)``: the largest coordinate magnitude of the bounds, ``max_k |g_k| + R``.
@@ -197,17 +198,25 @@ def place_bounded(robot: CollisionRobot, body: Body, q: Array) -> tuple[Placed, 
     return placed, bounds
 
 
+def index_groups(keys: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Host side: the distinct ``keys (k,)`` in order of first appearance ``(G,)``, and the
+    indices holding each ``(G, m)`` int32 (shorter rows repeat their last index: no change to
+    a min or max over a row)."""
+    keys = np.asarray(keys, np.int64)
+    order = np.asarray(list(dict.fromkeys(keys.tolist())), np.int64)
+    groups = [np.flatnonzero(keys == k) for k in order]
+    width = max((len(g) for g in groups), default=1)
+    rows = [np.concatenate([g, np.repeat(g[-1:], width - len(g))]) for g in groups]
+    return order, np.asarray(rows, np.int32).reshape(len(groups), width)
+
+
 def _frame_bounds(
     centers: Array, radius: Array, frame: np.ndarray
 ) -> tuple[Array, Array, np.ndarray]:
     """``(g (G, 3), R (G,), frames (G,))`` of the spheres ``(centers (S, 3), radius (S,))``
     in the coordinates of their carrying frames ``frame (S,)`` (static): one bound per frame
     that carries some (``FrameBounds``)."""
-    frames = np.unique(frame)
-    index = [np.flatnonzero(frame == k) for k in frames]
-    width = max(len(i) for i in index)
-    # a short group padded by repeating its last sphere (no change to a min or max)
-    members = np.stack([np.concatenate([i, np.repeat(i[-1:], width - len(i))]) for i in index])
+    frames, members = index_groups(frame)
     return (*bounding_spheres(centers[members], radius[members]), frames)
 
 

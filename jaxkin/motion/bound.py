@@ -137,7 +137,7 @@ def speed_rows(bound: MotionBound, body: Any) -> np.ndarray:
     """The rows ``(L + Q, n)`` of ``collider.clearances``' distances: each link with geometry
     (``collider.link_groups``: its primitives share its row), then each self pair (host
     side, a NumPy array)."""
-    first = np.asarray(collider.link_groups(body))[:, 0]
+    first = collider.link_groups(body)[:, 0]
     return np.concatenate([np.asarray(bound.prims)[first], np.asarray(bound.pairs)])
 
 

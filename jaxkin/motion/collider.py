@@ -37,7 +37,7 @@ from jax import Array
 from .. import collision
 from .._numerics import all_finite
 from ..collision import World
-from ..collision.rows import Placed, place
+from ..collision.rows import Placed, index_groups, place
 from ..collision.verdict import verdict_rows
 
 __all__ = [
@@ -111,12 +111,7 @@ def link_groups(body: Any) -> np.ndarray:
     indices, one row per link with geometry in order of first appearance (shorter rows
     repeat their last index): every primitive of a link moves with it, so a link's distance
     to the world is the smallest of its primitives' (one speed bound per link, ``bound``)."""
-    links = np.asarray(tuple(body.sphere_link) + tuple(body.capsule_link), int)
-    order = list(dict.fromkeys(links.tolist()))
-    groups = [np.flatnonzero(links == k) for k in order]
-    width = max((len(g) for g in groups), default=1)
-    rows = [np.concatenate([g, np.repeat(g[-1:], width - len(g))]) for g in groups]
-    return np.asarray(rows, np.int32).reshape(len(groups), width)
+    return index_groups(tuple(body.sphere_link) + tuple(body.capsule_link))[1]
 
 
 def clearances(robot: Any, body: Any, pairs: Any, q: Array, world: World) -> tuple[Array, Array]:
