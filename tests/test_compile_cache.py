@@ -196,6 +196,7 @@ print("COMPILED", " ".join(compiled))
 """
 
 
+@pytest.mark.slow  # a fresh process planning a motion: the fast tier is near its 5 minutes
 def test_a_fresh_process_compiles_only_the_library_s_kernels(tmp_path):
     """The boundary work (worlds and bodies made and converted, a robot's size, the motion
     bound, the planner's limits, paths, the timing's inputs) is done on the host: a fresh

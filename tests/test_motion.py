@@ -878,6 +878,7 @@ def test_spline_slopes_and_compaction_against_scipy_and_numpy():
         assert np.all((order >= 0) & (order < 9))
 
 
+@pytest.mark.slow  # the fast tier is near its 5 minutes
 def test_spline_pieces_that_may_leave_the_joint_limits_are_bad():
     """``within_limits`` against SciPy's natural spline sampled densely: a piece it passes
     stays within the box at 201 samples (Bezier hull), every piece that leaves the box at a
